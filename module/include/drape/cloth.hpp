@@ -1,0 +1,145 @@
+// drape/cloth.hpp: one simulated cloth: shared topology, per-instance settings and state,
+// and the step pipeline.
+//
+// A step runs named phases in a fixed order, built from what the cloth uses:
+//   [forces]         only when the cached f(t) is stale (first step, after edits)
+//   integrate        the integrator's advance()
+//   kinematic        pinned particles held, kinematic particles moved along their paths
+//   strain_limit     only with a limiter
+//   <stages>         stages added by the caller, in order (collisions, self-collision...)
+//   forces           f(t+dt) at the corrected state: one timed phase per active force term
+//   integrate_finish only for Velocity-Verlet
+// PhaseTimers reports each phase's calls and seconds.
+#pragma once
+
+#include "drape/forces.hpp"
+#include "drape/integrators.hpp"
+#include "drape/settings.hpp"
+#include "drape/strain_limit.hpp"
+#include "drape/timers.hpp"
+#include "drape/topology.hpp"
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace drape {
+
+class Cloth;
+
+/// A stage the caller plugs into the step after strain limiting (a collision stage, for
+/// example). It may move particles (through Cloth::positions()) and change velocities.
+class ClothStage {
+public:
+    virtual ~ClothStage() = default;
+    /// Name used for the stage's timer.
+    virtual std::string name() const = 0;
+    /// Runs once per step; dt is the step's time step [s].
+    virtual void run(Cloth& cloth, double dt) = 0;
+};
+
+/// A prescribed path for a kinematic particle: position [m] at simulated time t [s].
+using KinematicPath = std::function<Vec3(double t)>;
+
+class Cloth {
+public:
+    /// Builds masses and stiffnesses from the settings and validates everything; throws
+    /// drape::Error naming the bad parameter.
+    Cloth(TopologyPtr topology, const ClothSettings& settings);
+    ~Cloth();
+    Cloth(const Cloth&) = delete;
+    Cloth& operator=(const Cloth&) = delete;
+
+    /// Advances the cloth by dt [s]. Throws drape::Error on a non-positive or non-finite dt,
+    /// on a dt beyond the stability limit (if settings.rejectUnstableTimeStep), and when the
+    /// state stops being finite (the state is then left as it was before the step).
+    void step(double dt);
+
+    // --- pins -----------------------------------------------------------------------------
+    /// Fixes particle i where it is now (or at `position`); it never moves until unpinned.
+    void pin(Index i);
+    void pin(Index i, const Vec3& position);
+    /// Drives particle i along a path: x(t) = path(t); its velocity follows the path.
+    void setKinematic(Index i, KinematicPath path);
+    /// Returns particle i to free motion with its mass.
+    void unpin(Index i);
+    bool isPinned(Index i) const; ///< pinned or kinematic
+
+    // --- forces ---------------------------------------------------------------------------
+    void setUserForce(Index i, const Vec3& force); ///< persistent until cleared [N]
+    void clearUserForces();
+    void setWind(const Vec3& wind);    ///< [m/s]; needs aero.airDensity > 0 to have effect
+    void setGravity(const Vec3& g);    ///< [m/s^2]
+    /// Adds a force term from outside the core (for example contact penalties).
+    void addExternalForce(std::string name, ForceModel::ExternalForce force);
+
+    // --- stages ---------------------------------------------------------------------------
+    void addStage(std::shared_ptr<ClothStage> stage);
+    void removeStage(const ClothStage* stage);
+
+    // --- state ----------------------------------------------------------------------------
+    const ClothTopology& topology() const { return *topology_; }
+    const TopologyPtr& topologyPtr() const { return topology_; }
+    const ClothSettings& settings() const { return settings_; }
+    std::size_t particleCount() const { return x_.size(); }
+    const Vec3List& positions() const { return x_; }      ///< [m]
+    const Vec3List& velocities() const { return v_; }     ///< [m/s]
+    const Vec3List& forces() const { return f_; }         ///< last evaluated forces [N]
+    /// Mutable access for stages and users; marks the cached forces stale.
+    Vec3List& positions();
+    Vec3List& velocities();
+    void setPosition(Index i, const Vec3& x);
+    void setVelocity(Index i, const Vec3& v);
+    const std::vector<double>& masses() const { return mass_; }       ///< [kg]
+    const std::vector<double>& inverseMasses() const { return invMass_; } ///< 0 if pinned
+    const std::vector<double>& stiffness() const { return forceModel_->stiffness(); } ///< [N/m]
+    double time() const { return time_; } ///< simulated time [s]
+    std::uint64_t stepCount() const { return steps_; }
+
+    // --- diagnostics ----------------------------------------------------------------------
+    double maxStrain() const;       ///< largest (l - L0) / L0 [-]
+    double meanStrain() const;      ///< mean (l - L0) / L0 [-]
+    double kineticEnergy() const;   ///< sum m v^2 / 2 [J]
+    double springEnergy() const;    ///< sum k (l - L0)^2 / 2 [J]
+    double gravityEnergy() const;   ///< -sum m g . x [J]
+    /// Upper bound on the largest angular frequency of the spring network [rad/s].
+    double maxAngularFrequency() const;
+    /// Largest stable time step of the cloth's integrator [s].
+    double stableTimeStep() const;
+    const StrainLimitStats& lastLimiterStats() const { return limiterStats_; }
+    const PhaseTimers& timers() const { return timers_; }
+    PhaseTimers& timers() { return timers_; }
+    /// Names of the phases a step runs, in order (what the pipeline holds for this cloth).
+    std::vector<std::string> pipeline() const;
+    const Integrator& integrator() const { return *integrator_; }
+
+private:
+    void applyKinematics(double tEnd, const Vec3List& xStart, double dt);
+    void evaluateForces();
+    void checkFinite(const char* where);
+    void invalidateOmega() { omegaMax_ = -1.0; }
+
+    TopologyPtr topology_;
+    ClothSettings settings_;
+    std::vector<double> mass_;
+    std::vector<double> invMass_;
+    Vec3List x_, v_, f_;
+    Vec3List xScratch_, vScratch_, xBeforeLimit_;
+    std::vector<unsigned char> pinned_;
+    std::vector<std::pair<Index, KinematicPath>> kinematic_;
+    std::unique_ptr<ForceModel> forceModel_;
+    std::unique_ptr<Integrator> integrator_;
+    std::vector<std::shared_ptr<ClothStage>> stages_;
+    std::vector<std::size_t> stageSlots_;
+    StressOrderScratch limiterScratch_;
+    StrainLimitStats limiterStats_;
+    PhaseTimers timers_;
+    std::size_t slotIntegrate_, slotKinematic_, slotLimit_, slotFinish_, slotForcesStale_;
+    bool forcesValid_ = false;
+    mutable double omegaMax_ = -1.0;
+    double time_ = 0.0;
+    std::uint64_t steps_ = 0;
+};
+
+} // namespace drape

@@ -1,0 +1,107 @@
+// drape/forces.hpp: the force terms of eq. (5) as small free functions over plain arrays,
+// their Jacobians for the implicit integrator, energies, and ForceModel, which sums the
+// terms a cloth actually uses.
+#pragma once
+
+#include "drape/settings.hpp"
+#include "drape/timers.hpp"
+#include "drape/topology.hpp"
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include <functional>
+#include <vector>
+
+namespace drape {
+
+using Vec3List = std::vector<Vec3>;
+
+/// Eq. (4), Hooke's linked springs: particle a gets k (l - L0) n with n the unit vector from a
+/// to b and l the current length; b gets the opposite. The energy is k (l - L0)^2 / 2.
+void addSpringForces(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
+                     const Vec3List& x, Vec3List& f);
+
+/// Damping along springs: a gets c ((v_b - v_a) . n) n, b the opposite. Dissipates relative
+/// motion along the spring only, so rigid motion is not damped.
+void addSpringDamping(const std::vector<Spring>& springs, double c, const Vec3List& x,
+                      const Vec3List& v, Vec3List& f);
+
+/// Eq. (6): m_i g.
+void addGravity(const std::vector<double>& mass, const Vec3& g, Vec3List& f);
+
+/// Eq. (8): -C_d v_i.
+void addLinearDamping(double cd, const Vec3List& v, Vec3List& f);
+
+/// Aerodynamic force per triangle, shared equally by its corners. With u the triangle's
+/// velocity relative to the wind, n its unit normal and A its current area:
+///   drag = -rho/2 C_d A |u| (u . n) n         (pressure on the face; zero for edge-on flow)
+///   lift = -rho/2 C_l A |u . n| (n x u) x u / |u| (across the flow, in the plane of u and n)
+void addAeroForces(const std::vector<Triangle>& triangles, const AeroSettings& aero,
+                   const Vec3List& x, const Vec3List& v, Vec3List& f);
+
+/// d f_a / d x_b for one spring (= -d f_a / d x_a): k [n n^T + (1 - L0/l)(I - n n^T)].
+/// With clampCompression the transverse term is dropped for compressed springs (l < L0),
+/// which keeps the assembled stiffness matrix negative semi-definite (needed by CG).
+Eigen::Matrix3d springJacobianBlock(const Vec3& xa, const Vec3& xb, double k, double restLength,
+                                    bool clampCompression);
+
+/// Spring potential energy sum k (l - L0)^2 / 2 [J].
+double springEnergy(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
+                    const Vec3List& x);
+
+/// Sum of the force terms a cloth uses, each one timed as its own phase. Terms a cloth does
+/// not use (zero damping, no aerodynamics, no user forces) are not in the list and cost nothing.
+class ForceModel {
+public:
+    /// Extra per-particle forces from outside the core (contact penalties from a collision
+    /// stage, for example): called with (x, v, f) and adds to f.
+    using ExternalForce = std::function<void(const Vec3List& x, const Vec3List& v, Vec3List& f)>;
+
+    ForceModel(TopologyPtr topology, std::vector<double> stiffness, std::vector<double> mass,
+               const ClothSettings& settings, PhaseTimers& timers);
+
+    /// f = sum of all active terms at state (x, v).
+    void evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f);
+
+    /// Assembles d f / d x and d f / d v (3n x 3n) of the springs, spring damping and linear
+    /// damping at state x. Gravity, user forces and aerodynamics are treated explicitly.
+    void assembleJacobians(const Vec3List& x, bool clampCompression,
+                           Eigen::SparseMatrix<double>& dfdx,
+                           Eigen::SparseMatrix<double>& dfdv) const;
+
+    /// Sets a persistent user force on particle i [N] (a mouse pull, a push).
+    void setUserForce(Index i, const Vec3& force);
+    void clearUserForces();
+    void setWind(const Vec3& wind);
+    void setGravity(const Vec3& g);
+    void addExternalForce(std::string name, ExternalForce force);
+
+    const std::vector<double>& stiffness() const { return stiffness_; }
+    const std::vector<double>& mass() const { return mass_; }
+    const ClothSettings& settings() const { return settings_; }
+    /// Names of the force terms in the pipeline, in evaluation order.
+    std::vector<std::string> activeTerms() const;
+
+private:
+    enum class Term { Springs, SpringDamping, Gravity, Damping, Aero, User, External };
+    struct Entry {
+        Term term;
+        std::size_t timerSlot;
+        std::size_t external = 0; ///< index into externals_ for Term::External
+        std::string name;
+    };
+    void rebuildPipeline();
+
+    TopologyPtr topology_;
+    std::vector<double> stiffness_;
+    std::vector<double> mass_;
+    ClothSettings settings_;
+    PhaseTimers& timers_;
+    std::vector<Index> userIndices_;
+    Vec3List userForces_;
+    std::vector<std::pair<std::string, ExternalForce>> externals_;
+    std::vector<Entry> pipeline_;
+};
+
+} // namespace drape

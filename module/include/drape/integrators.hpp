@@ -1,0 +1,44 @@
+// drape/integrators.hpp: the time integrators behind one interface.
+//
+// A step is split in two so that strain limiting and collisions act between the position
+// update and the evaluation of the new forces (the paper's section 5 loop):
+//   advance()  x(t) -> x(t+dt), v(t) -> v(t+dt) (Velocity-Verlet: the half-step velocity),
+//              using f(t), which the caller keeps valid at the start of every step;
+//   ... strain limiting and collision stages move x and fix v ...
+//   the caller evaluates f(t+dt) at the corrected state;
+//   finish()   Velocity-Verlet's closing half kick v += f(t+dt) dt / (2m); no-op for others.
+// Particles with zero inverse mass (pinned, kinematic) get no acceleration.
+#pragma once
+
+#include "drape/forces.hpp"
+#include "drape/settings.hpp"
+
+#include <memory>
+
+namespace drape {
+
+/// What an integrator reads and writes during one step.
+struct IntegratorContext {
+    Vec3List& x;                        ///< positions [m], updated in place
+    Vec3List& v;                        ///< velocities [m/s], updated in place
+    const Vec3List& f;                  ///< forces at the start of the step [N]
+    const std::vector<double>& invMass; ///< 1/m, 0 for pinned and kinematic particles [1/kg]
+    double dt;                          ///< time step [s]
+    ForceModel& forces;                 ///< for integrators that evaluate forces more than once
+};
+
+/// One time integrator; holds its own scratch buffers, so one instance per cloth.
+class Integrator {
+public:
+    virtual ~Integrator() = default;
+    virtual IntegratorKind kind() const = 0;
+    virtual void advance(IntegratorContext& ctx) = 0;
+    /// Runs after forces are re-evaluated at the end of the step; ctx.f holds f(t+dt).
+    virtual void finish(IntegratorContext& ctx) { (void)ctx; }
+    /// Solver statistics of the last step (CG iterations for implicit Euler, else 0).
+    virtual int lastIterations() const { return 0; }
+};
+
+std::unique_ptr<Integrator> makeIntegrator(IntegratorKind kind, const ImplicitSettings& implicit);
+
+} // namespace drape

@@ -1,0 +1,95 @@
+// drape/settings.hpp: per-cloth creation settings (integrator, limiter, mass, stiffness,
+// forces). Defaults are inline; Cloth validates everything when it is constructed.
+#pragma once
+
+#include "drape/material.hpp"
+#include "drape/mesh.hpp"
+
+#include <string>
+
+namespace drape {
+
+/// Time integrators (all share one interface, see integrators.hpp).
+enum class IntegratorKind {
+    VelocityVerlet,  ///< the paper's eq. (14) with the missing dt restored; the default
+    ExplicitEuler,   ///< x += v dt, v += a dt (first order, for comparison)
+    SymplecticEuler, ///< v += a dt, x += v dt (first order, symplectic)
+    RungeKutta4,     ///< classic fourth-order Runge-Kutta
+    ImplicitEuler,   ///< linearised backward Euler (Baraff & Witkin 1998) with Eigen solvers
+};
+
+/// Strain limiters against the paper's "hyper elasticity".
+enum class LimiterKind {
+    None,          ///< springs alone
+    StressOrdered, ///< the paper's section 3.2: walk particles by decreasing force magnitude
+    Provot,        ///< Provot 1995: iterate over springs, shorten overstretched ones
+};
+
+/// Linear solver of the implicit integrator.
+enum class LinearSolverKind {
+    ConjugateGradient, ///< Eigen::ConjugateGradient (Jacobi preconditioner), matrix-free size
+    LDLT,              ///< Eigen::SimplicialLDLT, direct
+};
+
+/// How particle masses are set when particleMass is not given.
+enum class MassLumping {
+    Uniform,    ///< M / n on every particle (eq. (6)); for regular sheets
+    AreaLumped, ///< a third of each adjacent triangle's mass; for irregular meshes
+};
+
+const char* toString(IntegratorKind kind) noexcept;
+const char* toString(LimiterKind kind) noexcept;
+/// Parses "velocity_verlet", "explicit_euler", "symplectic_euler", "rk4", "implicit_euler".
+IntegratorKind integratorFromString(const std::string& name);
+/// Parses "none", "stress_ordered", "provot".
+LimiterKind limiterFromString(const std::string& name);
+
+/// Aerodynamic drag and lift per triangle, against the wind. Off unless airDensity > 0.
+struct AeroSettings {
+    double airDensity = 0.0;       ///< rho_air [kg/m^3]; 1.2 for air at sea level; 0 = off
+    double dragCoefficient = 1.0;  ///< C_d, drag along the triangle normal [-]
+    double liftCoefficient = 0.0;  ///< C_l, lift across the relative flow [-]
+    Vec3 wind = Vec3::Zero();      ///< wind velocity [m/s]
+};
+
+/// Strain limiter settings.
+struct LimiterSettings {
+    LimiterKind kind = LimiterKind::StressOrdered;
+    double maxStrain = 0.10;  ///< largest allowed (l - L0) / L0 [-]; the paper's 10 %
+    int maxRounds = 64;       ///< rounds (stress-ordered) or sweeps (Provot) per step
+    /// Rounds stop once every spring is within maxStrain + tolerance [-].
+    double tolerance = 1e-4;
+};
+
+/// Implicit Euler settings.
+struct ImplicitSettings {
+    LinearSolverKind solver = LinearSolverKind::ConjugateGradient;
+    double cgTolerance = 1e-10; ///< relative residual at which CG stops [-]
+    int cgMaxIterations = 500;  ///< CG iteration cap per step
+};
+
+/// Everything a Cloth needs besides its topology.
+struct ClothSettings {
+    IntegratorKind integrator = IntegratorKind::VelocityVerlet;
+
+    // Mass: particleMass if > 0, else totalMass if > 0, else material density and thickness.
+    double particleMass = 0.0;                 ///< mass of every particle [kg]
+    double totalMass = 0.0;                    ///< mass of the whole cloth [kg]
+    MassLumping lumping = MassLumping::Uniform; ///< how totalMass or material mass is spread
+    // Stiffness: springStiffness if > 0, else (M1) from the material.
+    double springStiffness = 0.0; ///< k of every spring [N/m] (the paper's C_e)
+    FabricMaterial material;      ///< used for whatever is not given directly
+
+    Vec3 gravity = Vec3(0.0, -9.81, 0.0); ///< g [m/s^2]; eq. (6)
+    double damping = 0.0;       ///< C_d of eq. (8): force -C_d v on every particle [N s/m]
+    double springDamping = 0.0; ///< damping along springs: -c (dv . n) n [N s/m]
+    AeroSettings aero;          ///< air drag and lift; off by default
+    LimiterSettings limiter;    ///< strain limiting; stress-ordered 10 % by default
+    ImplicitSettings implicit;  ///< used by ImplicitEuler only
+
+    /// Refuse (drape::Error UnstableTimeStep) a step whose dt exceeds the explicit
+    /// integrator's stability limit 2/omega_max (see stability.hpp).
+    bool rejectUnstableTimeStep = true;
+};
+
+} // namespace drape

@@ -1,0 +1,33 @@
+// drape/stability.hpp: explicit-integrator time step limits.
+//
+// For a linear spring network, the largest angular frequency omega_max is the square root of
+// the largest eigenvalue of M^-1 K. Each spring's 3x3 stiffness block
+// k [n n^T + (1 - L0/l)(I - n n^T)] is bounded by k I while l >= L0 (and by k n n^T at rest),
+// so the weighted graph Laplacian L (L_ii = sum_j k_ij, L_ij = -k_ij) with pinned rows removed
+// gives an upper bound on omega_max^2 valid for any stretched state: lambda_max(M^-1 L).
+// It is found by power iteration on the symmetric M^-1/2 L M^-1/2.
+//   Velocity-Verlet, symplectic Euler (undamped):  dt < 2 / omega_max
+//   classic RK4:                                   dt < 2.785 / omega_max
+//   explicit Euler: unstable for any dt on an undamped spring (|1 + i omega dt| > 1), and
+//                   needs dt < 2 / omega_max even with damping; we report 2 / omega_max
+//   implicit Euler: unconditionally stable (no limit)
+#pragma once
+
+#include "drape/settings.hpp"
+#include "drape/topology.hpp"
+
+#include <vector>
+
+namespace drape {
+
+/// Upper bound on the largest angular frequency of the spring network [rad/s].
+/// Particles with zero inverse mass are held fixed. Returns 0 when nothing can move.
+double estimateMaxAngularFrequency(const ClothTopology& topology,
+                                   const std::vector<double>& stiffness,
+                                   const std::vector<double>& invMass, int iterations = 60);
+
+/// Largest stable time step of `kind` for omega_max [s]; +infinity for implicit Euler or
+/// omega_max = 0.
+double stableTimeStep(IntegratorKind kind, double omegaMax);
+
+} // namespace drape

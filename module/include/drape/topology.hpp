@@ -1,0 +1,76 @@
+// drape/topology.hpp: the immutable part of a cloth (particles at rest, linked springs,
+// triangles, adjacency). Built once from a mesh, shared by any number of Cloth instances.
+#pragma once
+
+#include "drape/mesh.hpp"
+
+#include <memory>
+#include <vector>
+
+namespace drape {
+
+/// A linked spring (the paper's merged structural/shear spring): one unique triangle edge.
+struct Spring {
+    Index a;           ///< first particle
+    Index b;           ///< second particle (a < b)
+    double restLength; ///< length in the initial shape [m]
+};
+
+/// Options for ClothTopology::build.
+struct TopologyOptions {
+    /// Vertices closer than this are welded into one particle [m]. Negative means
+    /// "1e-9 times the mesh's bounding-box diagonal", which welds exact and near-exact
+    /// duplicates (the seams an exporter leaves) without touching real geometry.
+    double weldTolerance = -1.0;
+    /// A triangle whose area is below this times its longest edge squared is degenerate.
+    double minAreaRatio = 1e-10;
+};
+
+/// Immutable cloth topology: particles (mesh vertices), springs (unique triangle edges with
+/// rest lengths), triangles and particle adjacency in compressed rows.
+class ClothTopology {
+public:
+    /// Welds duplicate vertices, validates the mesh and extracts the linked springs.
+    /// Throws drape::Error on any invalid input.
+    static std::shared_ptr<const ClothTopology> build(const TriangleMesh& mesh,
+                                                      const TopologyOptions& options = {});
+
+    std::size_t particleCount() const { return restPositions_.size(); }
+    std::size_t springCount() const { return springs_.size(); }
+    std::size_t triangleCount() const { return triangles_.size(); }
+
+    const std::vector<Vec3>& restPositions() const { return restPositions_; } ///< [m]
+    const std::vector<Spring>& springs() const { return springs_; }
+    const std::vector<Triangle>& triangles() const { return triangles_; }
+    /// For each input vertex of the mesh given to build(), its particle index.
+    const std::vector<Index>& vertexToParticle() const { return vertexToParticle_; }
+    /// Rest area of each triangle [m^2].
+    const std::vector<double>& triangleRestAreas() const { return triangleAreas_; }
+    double totalRestArea() const { return totalArea_; } ///< [m^2]
+
+    /// Neighbours of particle i are adjacentParticles()[k] for k in
+    /// [adjacencyOffsets()[i], adjacencyOffsets()[i + 1]), joined by spring adjacentSprings()[k].
+    const std::vector<Index>& adjacencyOffsets() const { return adjOffsets_; }
+    const std::vector<Index>& adjacentParticles() const { return adjParticles_; }
+    const std::vector<Index>& adjacentSprings() const { return adjSprings_; }
+
+    /// Edges used by exactly one triangle (the cloth's border).
+    std::size_t boundaryEdgeCount() const { return boundaryEdges_; }
+
+private:
+    ClothTopology() = default;
+    std::vector<Vec3> restPositions_;
+    std::vector<Spring> springs_;
+    std::vector<Triangle> triangles_;
+    std::vector<Index> vertexToParticle_;
+    std::vector<double> triangleAreas_;
+    double totalArea_ = 0.0;
+    std::vector<Index> adjOffsets_;
+    std::vector<Index> adjParticles_;
+    std::vector<Index> adjSprings_;
+    std::size_t boundaryEdges_ = 0;
+};
+
+using TopologyPtr = std::shared_ptr<const ClothTopology>;
+
+} // namespace drape
