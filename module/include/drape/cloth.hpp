@@ -29,7 +29,7 @@ namespace drape {
 class Cloth;
 
 /// A stage the caller plugs into the step after strain limiting (a collision stage, for
-/// example). It may move particles (through Cloth::positions()) and change velocities.
+/// example). It may move particles (Cloth::mutablePositions()) and change velocities.
 class ClothStage {
 public:
     virtual ~ClothStage() = default;
@@ -86,9 +86,10 @@ public:
     const Vec3List& positions() const { return x_; }      ///< [m]
     const Vec3List& velocities() const { return v_; }     ///< [m/s]
     const Vec3List& forces() const { return f_; }         ///< last evaluated forces [N]
-    /// Mutable access for stages and users; marks the cached forces stale.
-    Vec3List& positions();
-    Vec3List& velocities();
+    /// Mutable access for stages and users; marks the cached forces stale. Moving a pinned
+    /// particle re-pins it where it is put.
+    Vec3List& mutablePositions();
+    Vec3List& mutableVelocities();
     void setPosition(Index i, const Vec3& x);
     void setVelocity(Index i, const Vec3& v);
     const std::vector<double>& masses() const { return mass_; }       ///< [kg]

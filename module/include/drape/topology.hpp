@@ -9,6 +9,9 @@
 
 namespace drape {
 
+/// Marks an input vertex that became no particle (no triangle uses it).
+inline constexpr Index kNoParticle = static_cast<Index>(-1);
+
 /// A linked spring (the paper's merged structural/shear spring): one unique triangle edge.
 struct Spring {
     Index a;           ///< first particle
@@ -42,7 +45,8 @@ public:
     const std::vector<Vec3>& restPositions() const { return restPositions_; } ///< [m]
     const std::vector<Spring>& springs() const { return springs_; }
     const std::vector<Triangle>& triangles() const { return triangles_; }
-    /// For each input vertex of the mesh given to build(), its particle index.
+    /// For each input vertex of the mesh given to build(), its particle index (kNoParticle
+    /// for a vertex no triangle uses; such vertices are dropped).
     const std::vector<Index>& vertexToParticle() const { return vertexToParticle_; }
     /// Rest area of each triangle [m^2].
     const std::vector<double>& triangleRestAreas() const { return triangleAreas_; }

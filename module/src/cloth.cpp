@@ -1,0 +1,388 @@
+// Cloth: settings validation, the step pipeline, pins and diagnostics.
+#include "drape/cloth.hpp"
+
+#include "drape/error.hpp"
+#include "drape/stability.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <string>
+
+namespace drape {
+namespace {
+
+std::string num(double v) {
+    std::ostringstream s;
+    s.precision(6);
+    s << v;
+    return s.str();
+}
+
+void requireFinite(double v, const std::string& name) {
+    if (!std::isfinite(v)) throw Error(ErrorCode::NonFinite, name + " is not finite (" + num(v) + ")");
+}
+void requireFinite(const Vec3& v, const std::string& name) {
+    if (!v.allFinite()) throw Error(ErrorCode::NonFinite, name + " is not finite");
+}
+void requirePositive(double v, const std::string& name) {
+    requireFinite(v, name);
+    if (!(v > 0.0)) throw Error(ErrorCode::InvalidArgument, name + " must be positive, got " + num(v));
+}
+void requireNonNegative(double v, const std::string& name) {
+    requireFinite(v, name);
+    if (v < 0.0) throw Error(ErrorCode::InvalidArgument, name + " must be >= 0, got " + num(v));
+}
+/// A directly given value: 0 means "not given", anything else must be positive and finite.
+bool given(double v, const std::string& name) {
+    if (v == 0.0) return false;
+    requirePositive(v, name);
+    return true;
+}
+
+std::vector<double> buildMasses(const ClothTopology& topo, const ClothSettings& s) {
+    if (given(s.particleMass, "particleMass")) {
+        return std::vector<double>(topo.particleCount(), s.particleMass);
+    }
+    double total = 0.0;
+    if (given(s.totalMass, "totalMass")) {
+        total = s.totalMass;
+    } else if (s.material.density != 0.0 || s.material.thickness != 0.0) {
+        requirePositive(s.material.density, "material.density");
+        requirePositive(s.material.thickness, "material.thickness");
+        if (s.lumping == MassLumping::AreaLumped) {
+            return areaLumpedMasses(topo, s.material.density, s.material.thickness);
+        }
+        total = s.material.density * s.material.thickness * topo.totalRestArea();
+    } else {
+        throw Error(ErrorCode::InvalidArgument,
+                    "no mass given: set particleMass, totalMass, or material.density and "
+                    "material.thickness");
+    }
+    if (s.lumping == MassLumping::Uniform) return uniformMasses(topo, total);
+    // Area-lumped shares of the given total.
+    std::vector<double> m(topo.particleCount(), 0.0);
+    for (std::size_t t = 0; t < topo.triangleCount(); ++t) {
+        const double share = total * topo.triangleRestAreas()[t] / (3.0 * topo.totalRestArea());
+        for (Index v : topo.triangles()[t]) m[v] += share;
+    }
+    return m;
+}
+
+std::vector<double> buildStiffness(const ClothTopology& topo, const ClothSettings& s) {
+    if (given(s.springStiffness, "springStiffness")) {
+        return std::vector<double>(topo.springCount(), s.springStiffness);
+    }
+    if (s.material.youngsModulus == 0.0 && s.material.thickness == 0.0) {
+        throw Error(ErrorCode::InvalidArgument,
+                    "no stiffness given: set springStiffness, or material.youngsModulus and "
+                    "material.thickness");
+    }
+    return springStiffnessFromMaterial(topo, s.material.youngsModulus, s.material.thickness);
+}
+
+void validateSettings(const ClothSettings& s) {
+    requireFinite(s.gravity, "gravity");
+    requireNonNegative(s.damping, "damping");
+    requireNonNegative(s.springDamping, "springDamping");
+    requireNonNegative(s.aero.airDensity, "aero.airDensity");
+    requireFinite(s.aero.dragCoefficient, "aero.dragCoefficient");
+    requireFinite(s.aero.liftCoefficient, "aero.liftCoefficient");
+    requireFinite(s.aero.wind, "aero.wind");
+    requirePositive(s.limiter.maxStrain, "limiter.maxStrain");
+    requireNonNegative(s.limiter.tolerance, "limiter.tolerance");
+    if (s.limiter.maxRounds < 1) {
+        throw Error(ErrorCode::InvalidArgument,
+                    "limiter.maxRounds must be >= 1, got " + std::to_string(s.limiter.maxRounds));
+    }
+    requirePositive(s.implicit.cgTolerance, "implicit.cgTolerance");
+    if (s.implicit.cgMaxIterations < 1) {
+        throw Error(ErrorCode::InvalidArgument, "implicit.cgMaxIterations must be >= 1, got " +
+                                                    std::to_string(s.implicit.cgMaxIterations));
+    }
+}
+
+} // namespace
+
+Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
+    : topology_(std::move(topology)), settings_(settings) {
+    if (!topology_) throw Error(ErrorCode::InvalidArgument, "cloth topology is null");
+    validateSettings(settings_);
+    mass_ = buildMasses(*topology_, settings_);
+    invMass_.resize(mass_.size());
+    for (std::size_t i = 0; i < mass_.size(); ++i) invMass_[i] = 1.0 / mass_[i];
+    x_ = topology_->restPositions();
+    v_.assign(x_.size(), Vec3::Zero());
+    f_.assign(x_.size(), Vec3::Zero());
+    pinned_.assign(x_.size(), 0);
+    forceModel_ = std::make_unique<ForceModel>(topology_, buildStiffness(*topology_, settings_),
+                                               mass_, settings_, timers_);
+    integrator_ = makeIntegrator(settings_.integrator, settings_.implicit);
+    slotForcesStale_ = timers_.slot("forces_refresh");
+    slotIntegrate_ = timers_.slot("integrate");
+    slotKinematic_ = timers_.slot("kinematic");
+    slotLimit_ = timers_.slot("strain_limit");
+    slotFinish_ = timers_.slot("integrate_finish");
+}
+
+Cloth::~Cloth() = default;
+
+void Cloth::evaluateForces() {
+    forceModel_->evaluate(x_, v_, f_);
+    forcesValid_ = true;
+}
+
+void Cloth::checkFinite(const char* where) {
+    for (std::size_t i = 0; i < x_.size(); ++i) {
+        if (!x_[i].allFinite() || !v_[i].allFinite() || !f_[i].allFinite()) {
+            throw Error(ErrorCode::SimulationFailure,
+                        std::string("state became non-finite at particle ") + std::to_string(i) +
+                            " after " + where + " in step " + std::to_string(steps_ + 1) +
+                            " (t = " + num(time_) + " s); the cloth keeps its state from before "
+                            "the step. Reduce the time step or the stiffness.");
+        }
+    }
+}
+
+void Cloth::step(double dt) {
+    if (!std::isfinite(dt)) throw Error(ErrorCode::NonFinite, "time step is not finite");
+    if (!(dt > 0.0)) throw Error(ErrorCode::InvalidArgument, "time step must be positive, got " + num(dt));
+    if (settings_.rejectUnstableTimeStep) {
+        const double limit = stableTimeStep();
+        if (dt > limit) {
+            throw Error(ErrorCode::UnstableTimeStep,
+                        std::string("time step ") + num(dt) + " s exceeds the stability limit " +
+                            num(limit) + " s of " + toString(settings_.integrator) +
+                            " for this cloth (omega_max = " + num(maxAngularFrequency()) +
+                            " rad/s); use dt <= " + num(limit) + " s, " +
+                            std::to_string(static_cast<long long>(std::ceil(dt / limit))) +
+                            " sub-steps, or implicit_euler");
+        }
+    }
+    // Keep the state from before the step so a failure leaves the cloth as it was.
+    xScratch_ = x_;
+    vScratch_ = v_;
+    try {
+        if (!forcesValid_) {
+            ScopedPhase t(timers_, slotForcesStale_);
+            evaluateForces();
+        }
+        std::vector<Vec3> kinematicStart;
+        if (!kinematic_.empty()) {
+            kinematicStart.reserve(kinematic_.size());
+            for (const auto& k : kinematic_) kinematicStart.push_back(x_[k.first]);
+        }
+        IntegratorContext ctx{x_, v_, f_, invMass_, dt, *forceModel_};
+        {
+            ScopedPhase t(timers_, slotIntegrate_);
+            integrator_->advance(ctx);
+        }
+        if (!kinematic_.empty()) {
+            ScopedPhase t(timers_, slotKinematic_);
+            for (std::size_t k = 0; k < kinematic_.size(); ++k) {
+                const Index i = kinematic_[k].first;
+                const Vec3 target = kinematic_[k].second(time_ + dt);
+                if (!target.allFinite()) {
+                    throw Error(ErrorCode::NonFinite, "kinematic path of particle " +
+                                                          std::to_string(i) + " returned a non-finite position");
+                }
+                x_[i] = target;
+                v_[i] = (target - kinematicStart[k]) / dt;
+            }
+        }
+        if (settings_.limiter.kind != LimiterKind::None) {
+            ScopedPhase t(timers_, slotLimit_);
+            xBeforeLimit_ = x_;
+            if (settings_.limiter.kind == LimiterKind::StressOrdered) {
+                limiterStats_ = limitStrainStressOrdered(*topology_, invMass_, f_, settings_.limiter,
+                                                         x_, limiterScratch_);
+            } else {
+                limiterStats_ = limitStrainProvot(*topology_, invMass_, settings_.limiter, x_);
+            }
+            if (limiterStats_.corrections > 0) {
+                const double invDt = 1.0 / dt;
+                for (std::size_t i = 0; i < x_.size(); ++i) v_[i] += (x_[i] - xBeforeLimit_[i]) * invDt;
+            }
+        }
+        for (std::size_t s = 0; s < stages_.size(); ++s) {
+            ScopedPhase t(timers_, stageSlots_[s]);
+            stages_[s]->run(*this, dt);
+        }
+        evaluateForces();
+        if (settings_.integrator == IntegratorKind::VelocityVerlet) {
+            ScopedPhase t(timers_, slotFinish_);
+            integrator_->finish(ctx);
+        }
+        checkFinite("the step");
+    } catch (...) {
+        x_.swap(xScratch_);
+        v_.swap(vScratch_);
+        forcesValid_ = false;
+        throw;
+    }
+    time_ += dt;
+    ++steps_;
+}
+
+std::vector<std::string> Cloth::pipeline() const {
+    std::vector<std::string> p;
+    if (!forcesValid_) p.push_back("forces_refresh");
+    p.push_back("integrate");
+    if (!kinematic_.empty()) p.push_back("kinematic");
+    if (settings_.limiter.kind != LimiterKind::None) p.push_back("strain_limit");
+    for (const auto& s : stages_) p.push_back(s->name());
+    for (auto& t : forceModel_->activeTerms()) p.push_back(t);
+    if (settings_.integrator == IntegratorKind::VelocityVerlet) p.push_back("integrate_finish");
+    return p;
+}
+
+// --- pins ---------------------------------------------------------------------------------
+
+namespace {
+void checkIndex(Index i, std::size_t n, const char* what) {
+    if (i >= n) {
+        throw Error(ErrorCode::IndexOutOfRange, std::string(what) + ": particle " +
+                                                    std::to_string(i) + " does not exist (the cloth has " +
+                                                    std::to_string(n) + " particles)");
+    }
+}
+} // namespace
+
+void Cloth::pin(Index i) {
+    checkIndex(i, x_.size(), "pin");
+    pinned_[i] = 1;
+    invMass_[i] = 0.0;
+    v_[i] = Vec3::Zero();
+    kinematic_.erase(std::remove_if(kinematic_.begin(), kinematic_.end(),
+                                    [&](const auto& k) { return k.first == i; }),
+                     kinematic_.end());
+    forcesValid_ = false;
+    invalidateOmega();
+}
+
+void Cloth::pin(Index i, const Vec3& position) {
+    checkIndex(i, x_.size(), "pin");
+    requireFinite(position, "pin position of particle " + std::to_string(i));
+    pin(i);
+    x_[i] = position;
+}
+
+void Cloth::setKinematic(Index i, KinematicPath path) {
+    checkIndex(i, x_.size(), "setKinematic");
+    if (!path) throw Error(ErrorCode::InvalidArgument, "kinematic path of particle " + std::to_string(i) + " is empty");
+    const Vec3 start = path(time_);
+    requireFinite(start, "kinematic path of particle " + std::to_string(i));
+    pin(i);
+    x_[i] = start;
+    kinematic_.emplace_back(i, std::move(path));
+}
+
+void Cloth::unpin(Index i) {
+    checkIndex(i, x_.size(), "unpin");
+    pinned_[i] = 0;
+    invMass_[i] = 1.0 / mass_[i];
+    kinematic_.erase(std::remove_if(kinematic_.begin(), kinematic_.end(),
+                                    [&](const auto& k) { return k.first == i; }),
+                     kinematic_.end());
+    forcesValid_ = false;
+    invalidateOmega();
+}
+
+bool Cloth::isPinned(Index i) const {
+    checkIndex(i, x_.size(), "isPinned");
+    return pinned_[i] != 0;
+}
+
+// --- forces and stages ----------------------------------------------------------------------
+
+void Cloth::setUserForce(Index i, const Vec3& force) {
+    forceModel_->setUserForce(i, force);
+    forcesValid_ = false;
+}
+void Cloth::clearUserForces() {
+    forceModel_->clearUserForces();
+    forcesValid_ = false;
+}
+void Cloth::setWind(const Vec3& wind) {
+    forceModel_->setWind(wind);
+    settings_.aero.wind = wind;
+    forcesValid_ = false;
+}
+void Cloth::setGravity(const Vec3& g) {
+    forceModel_->setGravity(g);
+    settings_.gravity = g;
+    forcesValid_ = false;
+}
+void Cloth::addExternalForce(std::string name, ForceModel::ExternalForce force) {
+    forceModel_->addExternalForce(std::move(name), std::move(force));
+    forcesValid_ = false;
+}
+
+void Cloth::addStage(std::shared_ptr<ClothStage> stage) {
+    if (!stage) throw Error(ErrorCode::InvalidArgument, "addStage: stage is null");
+    stageSlots_.push_back(timers_.slot(stage->name()));
+    stages_.push_back(std::move(stage));
+}
+
+void Cloth::removeStage(const ClothStage* stage) {
+    for (std::size_t s = 0; s < stages_.size(); ++s) {
+        if (stages_[s].get() == stage) {
+            stages_.erase(stages_.begin() + static_cast<std::ptrdiff_t>(s));
+            stageSlots_.erase(stageSlots_.begin() + static_cast<std::ptrdiff_t>(s));
+            return;
+        }
+    }
+}
+
+// --- state ------------------------------------------------------------------------------------
+
+Vec3List& Cloth::mutablePositions() {
+    forcesValid_ = false;
+    return x_;
+}
+Vec3List& Cloth::mutableVelocities() {
+    forcesValid_ = false;
+    return v_;
+}
+void Cloth::setPosition(Index i, const Vec3& x) {
+    checkIndex(i, x_.size(), "setPosition");
+    requireFinite(x, "position of particle " + std::to_string(i));
+    x_[i] = x;
+    forcesValid_ = false;
+}
+void Cloth::setVelocity(Index i, const Vec3& v) {
+    checkIndex(i, x_.size(), "setVelocity");
+    requireFinite(v, "velocity of particle " + std::to_string(i));
+    if (pinned_[i]) return; // pinned and kinematic particles keep their prescribed motion
+    v_[i] = v;
+    forcesValid_ = false;
+}
+
+// --- diagnostics ----------------------------------------------------------------------------
+
+double Cloth::maxStrain() const { return maxSpringStrain(*topology_, x_); }
+double Cloth::meanStrain() const { return meanSpringStrain(*topology_, x_); }
+double Cloth::kineticEnergy() const {
+    double e = 0.0;
+    for (std::size_t i = 0; i < v_.size(); ++i) e += 0.5 * mass_[i] * v_[i].squaredNorm();
+    return e;
+}
+double Cloth::springEnergy() const {
+    return drape::springEnergy(topology_->springs(), forceModel_->stiffness(), x_);
+}
+double Cloth::gravityEnergy() const {
+    double e = 0.0;
+    for (std::size_t i = 0; i < x_.size(); ++i) e -= mass_[i] * settings_.gravity.dot(x_[i]);
+    return e;
+}
+double Cloth::maxAngularFrequency() const {
+    if (omegaMax_ < 0.0) {
+        omegaMax_ = estimateMaxAngularFrequency(*topology_, forceModel_->stiffness(), invMass_);
+    }
+    return omegaMax_;
+}
+double Cloth::stableTimeStep() const {
+    return drape::stableTimeStep(settings_.integrator, maxAngularFrequency());
+}
+
+} // namespace drape

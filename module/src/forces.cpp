@@ -1,0 +1,234 @@
+// The force terms of eq. (5) and ForceModel.
+#include "drape/forces.hpp"
+
+#include "drape/error.hpp"
+
+#include <cmath>
+#include <string>
+
+namespace drape {
+
+void addSpringForces(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
+                     const Vec3List& x, Vec3List& f) {
+    const std::size_t m = springs.size();
+    for (std::size_t s = 0; s < m; ++s) {
+        const Spring& sp = springs[s];
+        const Vec3 d = x[sp.b] - x[sp.a];
+        const double l = d.norm();
+        if (l == 0.0) continue; // coincident ends: no direction, the force is undefined
+        const Vec3 force = (stiffness[s] * (l - sp.restLength) / l) * d;
+        f[sp.a] += force;
+        f[sp.b] -= force;
+    }
+}
+
+void addSpringDamping(const std::vector<Spring>& springs, double c, const Vec3List& x,
+                      const Vec3List& v, Vec3List& f) {
+    for (const Spring& sp : springs) {
+        const Vec3 d = x[sp.b] - x[sp.a];
+        const double l2 = d.squaredNorm();
+        if (l2 == 0.0) continue;
+        const Vec3 force = (c * (v[sp.b] - v[sp.a]).dot(d) / l2) * d;
+        f[sp.a] += force;
+        f[sp.b] -= force;
+    }
+}
+
+void addGravity(const std::vector<double>& mass, const Vec3& g, Vec3List& f) {
+    for (std::size_t i = 0; i < mass.size(); ++i) f[i] += mass[i] * g;
+}
+
+void addLinearDamping(double cd, const Vec3List& v, Vec3List& f) {
+    for (std::size_t i = 0; i < v.size(); ++i) f[i] -= cd * v[i];
+}
+
+void addAeroForces(const std::vector<Triangle>& triangles, const AeroSettings& aero,
+                   const Vec3List& x, const Vec3List& v, Vec3List& f) {
+    const double half = 0.5 * aero.airDensity;
+    for (const Triangle& t : triangles) {
+        const Vec3 cross = (x[t[1]] - x[t[0]]).cross(x[t[2]] - x[t[0]]);
+        const double twiceArea = cross.norm();
+        if (twiceArea == 0.0) continue;
+        const Vec3 n = cross / twiceArea;
+        const double area = 0.5 * twiceArea;
+        const Vec3 u = (v[t[0]] + v[t[1]] + v[t[2]]) / 3.0 - aero.wind;
+        const double speed = u.norm();
+        if (speed == 0.0) continue;
+        const double un = u.dot(n);
+        Vec3 force = (-half * aero.dragCoefficient * area * speed * un) * n;
+        if (aero.liftCoefficient != 0.0) {
+            force += (-half * aero.liftCoefficient * area * std::abs(un) / speed) * n.cross(u).cross(u);
+        }
+        force /= 3.0;
+        f[t[0]] += force;
+        f[t[1]] += force;
+        f[t[2]] += force;
+    }
+}
+
+Eigen::Matrix3d springJacobianBlock(const Vec3& xa, const Vec3& xb, double k, double restLength,
+                                    bool clampCompression) {
+    const Vec3 d = xb - xa;
+    const double l = d.norm();
+    if (l == 0.0) return k * Eigen::Matrix3d::Identity() * 0.0;
+    const Vec3 n = d / l;
+    const Eigen::Matrix3d nnT = n * n.transpose();
+    double transverse = 1.0 - restLength / l;
+    if (clampCompression && transverse < 0.0) transverse = 0.0;
+    return k * (nnT + transverse * (Eigen::Matrix3d::Identity() - nnT));
+}
+
+double springEnergy(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
+                    const Vec3List& x) {
+    double e = 0.0;
+    for (std::size_t s = 0; s < springs.size(); ++s) {
+        const double dl = (x[springs[s].b] - x[springs[s].a]).norm() - springs[s].restLength;
+        e += 0.5 * stiffness[s] * dl * dl;
+    }
+    return e;
+}
+
+ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
+                       std::vector<double> mass, const ClothSettings& settings,
+                       PhaseTimers& timers)
+    : topology_(std::move(topology)), stiffness_(std::move(stiffness)), mass_(std::move(mass)),
+      settings_(settings), timers_(timers) {
+    rebuildPipeline();
+}
+
+void ForceModel::rebuildPipeline() {
+    pipeline_.clear();
+    auto add = [&](Term term, const std::string& name, std::size_t ext = 0) {
+        pipeline_.push_back(Entry{term, timers_.slot(name), ext, name});
+    };
+    add(Term::Springs, "springs");
+    if (settings_.springDamping > 0.0) add(Term::SpringDamping, "spring_damping");
+    if (settings_.gravity != Vec3::Zero()) add(Term::Gravity, "gravity");
+    if (settings_.damping > 0.0) add(Term::Damping, "damping");
+    if (settings_.aero.airDensity > 0.0 &&
+        (settings_.aero.dragCoefficient != 0.0 || settings_.aero.liftCoefficient != 0.0)) {
+        add(Term::Aero, "aero");
+    }
+    if (!userIndices_.empty()) add(Term::User, "user");
+    for (std::size_t e = 0; e < externals_.size(); ++e) {
+        add(Term::External, externals_[e].first, e);
+    }
+}
+
+std::vector<std::string> ForceModel::activeTerms() const {
+    std::vector<std::string> names;
+    for (const auto& e : pipeline_) names.push_back(e.name);
+    return names;
+}
+
+void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
+    f.assign(x.size(), Vec3::Zero());
+    for (const Entry& e : pipeline_) {
+        ScopedPhase timer(timers_, e.timerSlot);
+        switch (e.term) {
+        case Term::Springs: addSpringForces(topology_->springs(), stiffness_, x, f); break;
+        case Term::SpringDamping:
+            addSpringDamping(topology_->springs(), settings_.springDamping, x, v, f);
+            break;
+        case Term::Gravity: addGravity(mass_, settings_.gravity, f); break;
+        case Term::Damping: addLinearDamping(settings_.damping, v, f); break;
+        case Term::Aero: addAeroForces(topology_->triangles(), settings_.aero, x, v, f); break;
+        case Term::User:
+            for (std::size_t k = 0; k < userIndices_.size(); ++k) f[userIndices_[k]] += userForces_[k];
+            break;
+        case Term::External: externals_[e.external].second(x, v, f); break;
+        }
+    }
+}
+
+void ForceModel::assembleJacobians(const Vec3List& x, bool clampCompression,
+                                   Eigen::SparseMatrix<double>& dfdx,
+                                   Eigen::SparseMatrix<double>& dfdv) const {
+    const auto n3 = static_cast<Eigen::Index>(3 * x.size());
+    const auto& springs = topology_->springs();
+    std::vector<Eigen::Triplet<double>> kx, kv;
+    kx.reserve(springs.size() * 36);
+    auto addBlock = [](std::vector<Eigen::Triplet<double>>& out, Index r, Index c,
+                       const Eigen::Matrix3d& b) {
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                out.emplace_back(3 * static_cast<Eigen::Index>(r) + i,
+                                 3 * static_cast<Eigen::Index>(c) + j, b(i, j));
+    };
+    for (std::size_t s = 0; s < springs.size(); ++s) {
+        const Spring& sp = springs[s];
+        const Eigen::Matrix3d K =
+            springJacobianBlock(x[sp.a], x[sp.b], stiffness_[s], sp.restLength, clampCompression);
+        addBlock(kx, sp.a, sp.a, -K);
+        addBlock(kx, sp.a, sp.b, K);
+        addBlock(kx, sp.b, sp.a, K);
+        addBlock(kx, sp.b, sp.b, -K);
+    }
+    if (settings_.springDamping > 0.0) {
+        kv.reserve(springs.size() * 36 + x.size() * 3);
+        for (const Spring& sp : springs) {
+            const Vec3 d = x[sp.b] - x[sp.a];
+            const double l2 = d.squaredNorm();
+            if (l2 == 0.0) continue;
+            const Eigen::Matrix3d C = settings_.springDamping * (d * d.transpose()) / l2;
+            addBlock(kv, sp.a, sp.a, -C);
+            addBlock(kv, sp.a, sp.b, C);
+            addBlock(kv, sp.b, sp.a, C);
+            addBlock(kv, sp.b, sp.b, -C);
+        }
+    }
+    if (settings_.damping > 0.0) {
+        for (Eigen::Index i = 0; i < n3; ++i) kv.emplace_back(i, i, -settings_.damping);
+    }
+    dfdx.resize(n3, n3);
+    dfdx.setFromTriplets(kx.begin(), kx.end());
+    dfdv.resize(n3, n3);
+    dfdv.setFromTriplets(kv.begin(), kv.end());
+}
+
+void ForceModel::setUserForce(Index i, const Vec3& force) {
+    if (i >= mass_.size()) {
+        throw Error(ErrorCode::IndexOutOfRange, "user force on particle " + std::to_string(i) +
+                                                    " but the cloth has " +
+                                                    std::to_string(mass_.size()) + " particles");
+    }
+    if (!force.allFinite()) {
+        throw Error(ErrorCode::NonFinite,
+                    "user force on particle " + std::to_string(i) + " is not finite");
+    }
+    for (std::size_t k = 0; k < userIndices_.size(); ++k) {
+        if (userIndices_[k] == i) {
+            userForces_[k] = force;
+            return;
+        }
+    }
+    const bool wasEmpty = userIndices_.empty();
+    userIndices_.push_back(i);
+    userForces_.push_back(force);
+    if (wasEmpty) rebuildPipeline();
+}
+
+void ForceModel::clearUserForces() {
+    userIndices_.clear();
+    userForces_.clear();
+    rebuildPipeline();
+}
+
+void ForceModel::setWind(const Vec3& wind) {
+    if (!wind.allFinite()) throw Error(ErrorCode::NonFinite, "wind velocity is not finite");
+    settings_.aero.wind = wind;
+}
+
+void ForceModel::setGravity(const Vec3& g) {
+    if (!g.allFinite()) throw Error(ErrorCode::NonFinite, "gravity is not finite");
+    settings_.gravity = g;
+    rebuildPipeline();
+}
+
+void ForceModel::addExternalForce(std::string name, ExternalForce force) {
+    if (!force) throw Error(ErrorCode::InvalidArgument, "external force '" + name + "' is empty");
+    externals_.emplace_back(std::move(name), std::move(force));
+    rebuildPipeline();
+}
+
+} // namespace drape

@@ -1,0 +1,189 @@
+// The five time integrators. See integrators.hpp for how a step is split into advance()
+// and finish() around strain limiting and collisions.
+#include "drape/integrators.hpp"
+
+#include "drape/error.hpp"
+
+#include <Eigen/IterativeLinearSolvers>
+#include <Eigen/SparseCholesky>
+
+namespace drape {
+namespace {
+
+/// Eq. (14) with the time step restored in the velocity term:
+///   x(t+dt) = x(t) + v(t) dt + f(t)/(2m) dt^2
+///   v(t+dt) = v(t) + (f(t) + f(t+dt))/(2m) dt
+/// written as kick (v += f(t) dt/2m), drift (x += v dt), [limit, collide, f(t+dt)],
+/// kick (v += f(t+dt) dt/2m). Algebraically identical to eq. (14); one force evaluation per
+/// step, and f(t+dt) is evaluated at the corrected positions.
+class VelocityVerlet final : public Integrator {
+public:
+    IntegratorKind kind() const override { return IntegratorKind::VelocityVerlet; }
+    void advance(IntegratorContext& c) override {
+        const double h = 0.5 * c.dt;
+        for (std::size_t i = 0; i < c.x.size(); ++i) {
+            c.v[i] += (h * c.invMass[i]) * c.f[i];
+            c.x[i] += c.dt * c.v[i];
+        }
+    }
+    void finish(IntegratorContext& c) override {
+        const double h = 0.5 * c.dt;
+        for (std::size_t i = 0; i < c.x.size(); ++i) c.v[i] += (h * c.invMass[i]) * c.f[i];
+    }
+};
+
+/// x(t+dt) = x + v dt, v(t+dt) = v + a dt: both from the state at t. First order.
+class ExplicitEuler final : public Integrator {
+public:
+    IntegratorKind kind() const override { return IntegratorKind::ExplicitEuler; }
+    void advance(IntegratorContext& c) override {
+        for (std::size_t i = 0; i < c.x.size(); ++i) {
+            c.x[i] += c.dt * c.v[i];
+            c.v[i] += (c.dt * c.invMass[i]) * c.f[i];
+        }
+    }
+};
+
+/// v(t+dt) = v + a dt, x(t+dt) = x + v(t+dt) dt. First order, symplectic.
+class SymplecticEuler final : public Integrator {
+public:
+    IntegratorKind kind() const override { return IntegratorKind::SymplecticEuler; }
+    void advance(IntegratorContext& c) override {
+        for (std::size_t i = 0; i < c.x.size(); ++i) {
+            c.v[i] += (c.dt * c.invMass[i]) * c.f[i];
+            c.x[i] += c.dt * c.v[i];
+        }
+    }
+};
+
+/// Classic fourth-order Runge-Kutta on y = (x, v), y' = (v, f(x, v)/m). Four force
+/// evaluations per step, the first of which is the caller's cached f(t).
+class RungeKutta4 final : public Integrator {
+public:
+    IntegratorKind kind() const override { return IntegratorKind::RungeKutta4; }
+    void advance(IntegratorContext& c) override {
+        const std::size_t n = c.x.size();
+        x0_ = c.x;
+        v0_ = c.v;
+        xs_.resize(n);
+        vs_.resize(n);
+        accX_.resize(n);
+        accV_.resize(n);
+        const double dt = c.dt;
+        // Stage 1 from the cached forces.
+        for (std::size_t i = 0; i < n; ++i) {
+            const Vec3 a = c.invMass[i] * c.f[i];
+            accX_[i] = v0_[i];
+            accV_[i] = a;
+            xs_[i] = x0_[i] + 0.5 * dt * v0_[i];
+            vs_[i] = v0_[i] + 0.5 * dt * a;
+        }
+        const double stageStep[3] = {0.5 * dt, dt, 0.0};
+        const double weight[3] = {2.0, 2.0, 1.0};
+        for (int s = 0; s < 3; ++s) {
+            c.forces.evaluate(xs_, vs_, fs_);
+            for (std::size_t i = 0; i < n; ++i) {
+                const Vec3 a = c.invMass[i] * fs_[i];
+                const Vec3 vStage = vs_[i];
+                accX_[i] += weight[s] * vStage;
+                accV_[i] += weight[s] * a;
+                if (s < 2) {
+                    xs_[i] = x0_[i] + stageStep[s] * vStage;
+                    vs_[i] = v0_[i] + stageStep[s] * a;
+                }
+            }
+        }
+        for (std::size_t i = 0; i < n; ++i) {
+            c.x[i] = x0_[i] + (dt / 6.0) * accX_[i];
+            c.v[i] = v0_[i] + (dt / 6.0) * accV_[i];
+        }
+    }
+
+private:
+    Vec3List x0_, v0_, xs_, vs_, fs_, accX_, accV_;
+};
+
+/// Linearised backward Euler (Baraff & Witkin 1998):
+///   (M - dt df/dv - dt^2 df/dx) dv = dt (f(t) + dt df/dx v(t)),  v += dv,  x += v dt.
+/// Rows and columns of particles with zero inverse mass are replaced by the identity with a
+/// zero right-hand side, so they keep their velocity. Compressed springs drop their
+/// transverse stiffness (clampCompression) so the matrix stays symmetric positive definite.
+class ImplicitEuler final : public Integrator {
+public:
+    explicit ImplicitEuler(const ImplicitSettings& s) : settings_(s) {}
+    IntegratorKind kind() const override { return IntegratorKind::ImplicitEuler; }
+    int lastIterations() const override { return iterations_; }
+
+    void advance(IntegratorContext& c) override {
+        using Vec = Eigen::VectorXd;
+        const std::size_t n = c.x.size();
+        const auto n3 = static_cast<Eigen::Index>(3 * n);
+        c.forces.assembleJacobians(c.x, true, dfdx_, dfdv_);
+        const Eigen::Map<const Vec> v0(c.v[0].data(), n3);
+        const Eigen::Map<const Vec> f0(c.f[0].data(), n3);
+        const double dt = c.dt;
+        Vec b = dt * (f0 + dt * (dfdx_ * v0));
+        Eigen::SparseMatrix<double> A = (-dt) * dfdv_ - (dt * dt) * dfdx_;
+        Vec free(n3);
+        for (std::size_t i = 0; i < n; ++i) {
+            const double f = c.invMass[i] > 0.0 ? 1.0 : 0.0;
+            free.segment<3>(3 * static_cast<Eigen::Index>(i)).setConstant(f);
+        }
+        const Eigen::DiagonalMatrix<double, Eigen::Dynamic> S(free);
+        A = S * A * S;
+        b = free.cwiseProduct(b);
+        Vec diag(n3);
+        for (std::size_t i = 0; i < n; ++i) {
+            const double d = c.invMass[i] > 0.0 ? c.forces.mass()[i] : 1.0;
+            diag.segment<3>(3 * static_cast<Eigen::Index>(i)).setConstant(d);
+        }
+        Eigen::SparseMatrix<double> M(n3, n3);
+        M.reserve(Eigen::VectorXi::Constant(n3, 1));
+        for (Eigen::Index i = 0; i < n3; ++i) M.insert(i, i) = diag[i];
+        A += M;
+
+        if (dv_.size() != n3) dv_ = Vec::Zero(n3);
+        if (settings_.solver == LinearSolverKind::ConjugateGradient) {
+            Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg;
+            cg.setTolerance(settings_.cgTolerance);
+            cg.setMaxIterations(settings_.cgMaxIterations);
+            cg.compute(A);
+            dv_ = cg.solveWithGuess(b, dv_);
+            iterations_ = static_cast<int>(cg.iterations());
+        } else {
+            ldlt_.compute(A);
+            if (ldlt_.info() != Eigen::Success) {
+                throw Error(ErrorCode::SimulationFailure,
+                            "implicit Euler: LDLT factorisation of the system matrix failed");
+            }
+            dv_ = ldlt_.solve(b);
+            iterations_ = 0;
+        }
+        for (std::size_t i = 0; i < n; ++i) {
+            c.v[i] += dv_.segment<3>(3 * static_cast<Eigen::Index>(i));
+            c.x[i] += dt * c.v[i];
+        }
+    }
+
+private:
+    ImplicitSettings settings_;
+    Eigen::SparseMatrix<double> dfdx_, dfdv_;
+    Eigen::VectorXd dv_;
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
+    int iterations_ = 0;
+};
+
+} // namespace
+
+std::unique_ptr<Integrator> makeIntegrator(IntegratorKind kind, const ImplicitSettings& implicit) {
+    switch (kind) {
+    case IntegratorKind::VelocityVerlet: return std::make_unique<VelocityVerlet>();
+    case IntegratorKind::ExplicitEuler: return std::make_unique<ExplicitEuler>();
+    case IntegratorKind::SymplecticEuler: return std::make_unique<SymplecticEuler>();
+    case IntegratorKind::RungeKutta4: return std::make_unique<RungeKutta4>();
+    case IntegratorKind::ImplicitEuler: return std::make_unique<ImplicitEuler>(implicit);
+    }
+    throw Error(ErrorCode::InvalidArgument, "unknown integrator kind");
+}
+
+} // namespace drape
