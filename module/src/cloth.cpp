@@ -193,9 +193,10 @@ void Cloth::step(double dt) {
         if (settings_.limiter.kind != LimiterKind::None) {
             ScopedPhase t(timers_, slotLimit_);
             xBeforeLimit_ = x_;
-            if (settings_.limiter.kind == LimiterKind::StressOrdered) {
-                limiterStats_ = limitStrainStressOrdered(*topology_, invMass_, f_, settings_.limiter,
-                                                         x_, limiterScratch_);
+            if (settings_.limiter.kind != LimiterKind::Provot) {
+                limiterStats_ = limitStrainStressOrdered(
+                    *topology_, invMass_, forceModel_->stiffness(), settings_.limiter, x_,
+                    limiterScratch_, settings_.limiter.kind == LimiterKind::StressOrderedOneSided);
             } else {
                 limiterStats_ = limitStrainProvot(*topology_, invMass_, settings_.limiter, x_);
             }

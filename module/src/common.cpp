@@ -34,6 +34,7 @@ const char* toString(LimiterKind kind) noexcept {
     case LimiterKind::None: return "none";
     case LimiterKind::StressOrdered: return "stress_ordered";
     case LimiterKind::Provot: return "provot";
+    case LimiterKind::StressOrderedOneSided: return "stress_ordered_one_sided";
     }
     return "unknown";
 }
@@ -51,11 +52,12 @@ IntegratorKind integratorFromString(const std::string& name) {
 }
 
 LimiterKind limiterFromString(const std::string& name) {
-    for (auto k : {LimiterKind::None, LimiterKind::StressOrdered, LimiterKind::Provot}) {
+    for (auto k : {LimiterKind::None, LimiterKind::StressOrdered, LimiterKind::Provot,
+                   LimiterKind::StressOrderedOneSided}) {
         if (name == toString(k)) return k;
     }
     throw Error(ErrorCode::InvalidArgument,
-                "unknown strain limiter '" + name + "' (expected none, stress_ordered or provot)");
+                "unknown strain limiter '" + name + "' (expected none, stress_ordered, provot or stress_ordered_one_sided)");
 }
 
 std::size_t PhaseTimers::slot(const std::string& name) {

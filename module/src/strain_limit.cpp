@@ -24,14 +24,23 @@ double meanSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& 
     return topology.springCount() ? sum / static_cast<double>(topology.springCount()) : 0.0;
 }
 
-void stressOrder(const std::vector<Vec3>& f, std::vector<Index>& order, std::vector<double>& key) {
-    const std::size_t n = f.size();
-    order.resize(n);
-    key.resize(n);
-    for (std::size_t i = 0; i < n; ++i) {
-        order[i] = static_cast<Index>(i);
-        key[i] = f[i].squaredNorm();
+void stressOrderByTension(const ClothTopology& topology, const std::vector<double>& invMass,
+                          const std::vector<double>& stiffness, const std::vector<Vec3>& x,
+                          std::vector<Index>& order, std::vector<double>& key) {
+    const std::size_t n = x.size();
+    key.assign(n, 0.0);
+    const auto& springs = topology.springs();
+    for (std::size_t s = 0; s < springs.size(); ++s) {
+        const Spring& sp = springs[s];
+        const double t = stiffness[s] * std::abs((x[sp.b] - x[sp.a]).norm() - sp.restLength);
+        key[sp.a] += t;
+        key[sp.b] += t;
     }
+    for (std::size_t i = 0; i < n; ++i) {
+        if (invMass[i] == 0.0) key[i] = std::numeric_limits<double>::infinity();
+    }
+    order.resize(n);
+    for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<Index>(i);
     std::sort(order.begin(), order.end(), [&](Index a, Index b) {
         return key[a] != key[b] ? key[a] > key[b] : a < b;
     });
@@ -39,8 +48,9 @@ void stressOrder(const std::vector<Vec3>& f, std::vector<Index>& order, std::vec
 
 StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
                                           const std::vector<double>& invMass,
-                                          const std::vector<Vec3>& f, const LimiterSettings& s,
-                                          std::vector<Vec3>& x, StressOrderScratch& scratch) {
+                                          const std::vector<double>& stiffness,
+                                          const LimiterSettings& s, std::vector<Vec3>& x,
+                                          StressOrderScratch& scratch, bool oneSided) {
     StrainLimitStats stats;
     const double stretchLimit = 1.0 + s.maxStrain;
     const double stopLimit = 1.0 + s.maxStrain + s.tolerance;
@@ -54,26 +64,33 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
     stats.maxStrainAfter = stats.maxStrainBefore;
     if (stats.maxStrainBefore + 1.0 <= stopLimit) return stats;
 
-    stressOrder(f, scratch.order, scratch.key);
+    stressOrderByTension(topology, invMass, stiffness, x, scratch.order, scratch.key);
     auto& fixed = scratch.fixed;
     for (int round = 0; round < s.maxRounds; ++round) {
         fixed.assign(n, 0);
         for (std::size_t i = 0; i < n; ++i) fixed[i] = invMass[i] == 0.0;
-        for (Index p : scratch.order) {
-            fixed[p] = 1; // the particle being visited anchors its neighbours for this round
-            const Vec3 xp = x[p];
+        for (std::size_t step = 0; step < n; ++step) {
+            const Index p = scratch.order[(round % 2 == 0 || oneSided) ? step : n - 1 - step];
             for (Index k = off[p]; k < off[p + 1]; ++k) {
                 const Index q = nbr[k];
                 if (fixed[q]) continue;
-                const Vec3 d = x[q] - xp;
+                const Vec3 d = x[q] - x[p];
                 const double l = d.norm();
                 const double lmax = stretchLimit * springs[spr[k]].restLength;
-                if (l > lmax) {
-                    x[q] = xp + (lmax / l) * d; // pull q along the spring toward p
+                if (l <= lmax) continue;
+                if (oneSided || invMass[p] == 0.0) {
+                    x[q] = x[p] + (lmax / l) * d; // pull q along the spring toward p
                     fixed[q] = 1;
-                    ++stats.corrections;
+                } else {
+                    // Provot's rule for two free ends: both move, by inverse-mass share.
+                    const double wp = invMass[p], wq = invMass[q];
+                    const Vec3 corr = ((l - lmax) / (l * (wp + wq))) * d;
+                    x[p] += wp * corr;
+                    x[q] -= wq * corr;
                 }
+                ++stats.corrections;
             }
+            fixed[p] = 1; // regulated: later particles no longer adjust it this round
         }
         stats.rounds = round + 1;
         stats.maxStrainAfter = maxSpringStrain(topology, x);

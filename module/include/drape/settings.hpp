@@ -21,8 +21,9 @@ enum class IntegratorKind {
 /// Strain limiters against the paper's "hyper elasticity".
 enum class LimiterKind {
     None,          ///< springs alone
-    StressOrdered, ///< the paper's section 3.2: walk particles by decreasing force magnitude
+    StressOrdered, ///< the paper's section 3.2: Provot's rule applied in decreasing stress order
     Provot,        ///< Provot 1995: iterate over springs, shorten overstretched ones
+    StressOrderedOneSided, ///< literal one-sided pulls in stress order; unstable, for comparison
 };
 
 /// Linear solver of the implicit integrator.
@@ -41,7 +42,7 @@ const char* toString(IntegratorKind kind) noexcept;
 const char* toString(LimiterKind kind) noexcept;
 /// Parses "velocity_verlet", "explicit_euler", "symplectic_euler", "rk4", "implicit_euler".
 IntegratorKind integratorFromString(const std::string& name);
-/// Parses "none", "stress_ordered", "provot".
+/// Parses "none", "stress_ordered", "provot", "stress_ordered_one_sided".
 LimiterKind limiterFromString(const std::string& name);
 
 /// Aerodynamic drag and lift per triangle, against the wind. Off unless airDensity > 0.
