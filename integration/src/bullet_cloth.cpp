@@ -1,0 +1,715 @@
+// BulletCloth: a drape::Cloth stepped by a Bullet dynamics world (see bullet_cloth.hpp).
+//
+// One Bullet sub-step (btDiscreteDynamicsWorld::internalSingleStepSimulation) runs: rigid
+// bodies predicted, broadphase and narrow-phase, constraints solved, transforms integrated,
+// then the actions -- our updateAction. So when the cloth steps, the bodies are already at the
+// end of the sub-step, and the cloth ends the sub-step at the same instant. The impulses the
+// cloth gives dynamic bodies change their velocities for the next sub-step (the same one-step
+// lag as every Bullet action, e.g. the character controller and the raycast vehicle).
+//
+// Per sub-step:
+//   1. bodies:  the ghost's broadphase overlaps, filtered (no ghosts, soft bodies, triggers),
+//               snapshotted in double precision (pose, velocities, inverse mass and inertia);
+//   2. attach:  attached particles get the body's new attachment point as a kinematic target;
+//   3. step:    cloth.step(dt / substeps), `substeps` times; our ContactStage runs inside it
+//               after strain limiting (self-collision, then particle-body contacts), and the
+//               eq. (7) penalty is one of the cloth's force terms;
+//   4. impulses: the impulses accumulated on dynamic bodies are applied;
+//   5. proxy:   the ghost's AABB becomes the cloth's bounding box plus margin.
+//
+// Contact of particle i (inverse mass w_i) with a body at surface point P, outward normal n,
+// signed distance d, thickness h, penalty band w:
+//   d < h      (touching):  x_i is projected to P + h n; if the relative normal velocity
+//              v_n = (v_i - v_body(P)) . n is negative, an impulse lambda n with
+//              lambda = -v_n / (w_i + w_body(n)) stops the approach (inelastic: cloth does not
+//              bounce), w_body(n) = 1/M + (r x n)^T I^-1 (r x n) for dynamic bodies and 0 for
+//              static and kinematic ones. Coulomb friction: a tangential impulse up to
+//              mu (lambda + F_pen dt) against the relative tangential velocity.
+//   d < h + w  (in the band): eq. (7)'s penalty force F n on the particle (see PenaltyForce),
+//              with the same friction bound.
+// Dynamic bodies get the opposite of every impulse and of F dt at P; their snapshot
+// velocities are updated contact by contact (sequential impulses), so many particles hitting
+// a light body do not each see it at rest.
+#include "drape/bullet/bullet_cloth.hpp"
+
+#include "self_collision.hpp"
+#include "shape_queries.hpp"
+
+#include "drape/error.hpp"
+
+#include <btBulletDynamicsCommon.h>
+#include <BulletCollision/CollisionDispatch/btGhostObject.h>
+#include <BulletCollision/CollisionShapes/btEmptyShape.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <string>
+
+namespace drape::bullet {
+namespace {
+
+using detail::Pose;
+
+Vec3 toVec(const btVector3& v) { return Vec3(double(v.x()), double(v.y()), double(v.z())); }
+btVector3 toBt(const Vec3& v) {
+    return btVector3(btScalar(v.x()), btScalar(v.y()), btScalar(v.z()));
+}
+Eigen::Matrix3d toMat(const btMatrix3x3& m) {
+    Eigen::Matrix3d r;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) r(i, j) = double(m[i][j]);
+    return r;
+}
+Pose toPose(const btTransform& t) { return Pose{toMat(t.getBasis()), toVec(t.getOrigin())}; }
+
+std::string num(double v) {
+    std::ostringstream s;
+    s.precision(6);
+    s << v;
+    return s.str();
+}
+
+void require(bool ok, ErrorCode code, const std::string& message) {
+    if (!ok) throw Error(code, message);
+}
+
+void validate(const BulletClothSettings& s) {
+    const auto& c = s.contact;
+    require(std::isfinite(c.thickness) && c.thickness > 0.0, ErrorCode::InvalidArgument,
+            "contact.thickness must be positive and finite, got " + num(c.thickness));
+    require(std::isfinite(c.penaltyBand), ErrorCode::NonFinite, "contact.penaltyBand is not finite");
+    require(std::isfinite(c.penaltyForce), ErrorCode::NonFinite, "contact.penaltyForce is not finite");
+    require(std::isfinite(c.frictionScale) && c.frictionScale >= 0.0, ErrorCode::InvalidArgument,
+            "contact.frictionScale must be >= 0 and finite, got " + num(c.frictionScale));
+    require(std::isfinite(c.broadphaseMargin), ErrorCode::NonFinite,
+            "contact.broadphaseMargin is not finite");
+    require(s.substeps >= 1, ErrorCode::InvalidArgument,
+            "substeps must be >= 1, got " + std::to_string(s.substeps));
+    const auto& sc = s.selfCollision;
+    if (sc.enabled) {
+        require(std::isfinite(sc.thickness) && sc.thickness > 0.0, ErrorCode::InvalidArgument,
+                "selfCollision.thickness must be positive and finite, got " + num(sc.thickness));
+        require(sc.iterations >= 1, ErrorCode::InvalidArgument,
+                "selfCollision.iterations must be >= 1, got " + std::to_string(sc.iterations));
+        require(std::isfinite(sc.friction) && sc.friction >= 0.0, ErrorCode::InvalidArgument,
+                "selfCollision.friction must be >= 0 and finite, got " + num(sc.friction));
+    }
+}
+
+/// The proxy's shape: no geometry (Bullet's ray tests and contact queries find nothing in
+/// it), only an AABB that we set.
+class BoundsShape final : public btEmptyShape {
+public:
+    BT_DECLARE_ALIGNED_ALLOCATOR();
+    void getAabb(const btTransform&, btVector3& aabbMin, btVector3& aabbMax) const override {
+        aabbMin = min_;
+        aabbMax = max_;
+    }
+    const char* getName() const override { return "DrapeClothBounds"; }
+    void set(const Vec3& lo, const Vec3& hi) {
+        min_ = toBt(lo);
+        max_ = toBt(hi);
+    }
+
+private:
+    btVector3 min_{0, 0, 0};
+    btVector3 max_{0, 0, 0};
+};
+
+/// The proxy: a ghost object whose broadphase overlaps are the cloth's candidate bodies. It
+/// refuses narrow-phase with everything (checkCollideWith), so Bullet's dispatcher never
+/// computes contacts for its pairs.
+class ProxyGhost final : public btGhostObject {
+public:
+    BT_DECLARE_ALIGNED_ALLOCATOR();
+    ProxyGhost() { m_checkCollideWith = 1; }
+    bool checkCollideWithOverride(const btCollisionObject*) const override { return false; }
+};
+
+/// The ghost pair callback that keeps btGhostObject overlap lists. Stateless, so one instance
+/// serves every world; a world that already uses a btGhostPairCallback behaves the same with it.
+btGhostPairCallback& ghostPairCallback() {
+    static btGhostPairCallback callback;
+    return callback;
+}
+
+/// A rigid body as the cloth sees it during one Bullet sub-step.
+struct BodySnapshot {
+    const btCollisionObject* object = nullptr;
+    btRigidBody* dynamicBody = nullptr; ///< non-null when the cloth pushes the body back
+    Pose pose;
+    Vec3 aabbMin = Vec3::Zero(), aabbMax = Vec3::Zero(); ///< world AABB grown by the reach
+    Vec3 com = Vec3::Zero();
+    Vec3 v = Vec3::Zero(), w = Vec3::Zero(); ///< velocities, updated by the cloth's impulses
+    double invMass = 0.0;
+    Eigen::Matrix3d invInertia = Eigen::Matrix3d::Zero(); ///< world frame
+    double friction = 0.0;
+    Vec3 linearImpulse = Vec3::Zero();  ///< accumulated for the body [N s]
+    Vec3 angularImpulse = Vec3::Zero(); ///< about the centre of mass [N m s]
+
+    Vec3 velocityAt(const Vec3& p) const { return v + w.cross(p - com); }
+    /// Inverse effective mass of the body at p along unit direction d.
+    double inverseMassAlong(const Vec3& p, const Vec3& d) const {
+        if (!dynamicBody) return 0.0;
+        const Vec3 rxd = (p - com).cross(d);
+        return invMass + rxd.dot(invInertia * rxd);
+    }
+    void applyImpulse(const Vec3& j, const Vec3& p) {
+        if (!dynamicBody) return;
+        const Vec3 torque = (p - com).cross(j);
+        linearImpulse += j;
+        angularImpulse += torque;
+        v += invMass * j;
+        w += invInertia * torque;
+    }
+};
+
+/// One particle in eq. (7)'s band: the force term reads these.
+struct PenaltyContact {
+    Index particle = 0;
+    std::uint32_t body = 0;
+    Vec3 point = Vec3::Zero();        ///< surface point [m]
+    Vec3 normal = Vec3::UnitY();      ///< outward unit normal
+    Vec3 bodyVelocity = Vec3::Zero(); ///< at the point [m/s]
+    double cp = 0.0;                  ///< C_p for this particle [N]
+    double damping = 0.0;             ///< normal damping [N s/m]
+    double force = 0.0;               ///< magnitude at the last force evaluation [N]
+    bool touching = false;            ///< was within the thickness (projected) this step
+};
+
+/// Shared between the stage, the force term the cloth owns, and the handle.
+struct PenaltyState {
+    std::vector<PenaltyContact> contacts;
+    double thickness = 0.0;
+    double band = 1.0;
+};
+
+constexpr double kE = 2.718281828459045;
+
+/// Eq. (7) regularised. The paper's C_p exp(1 / |PP0|) grows without bound as the particle
+/// reaches the surface and is dimensionally inconsistent; we keep its shape (an exponential
+/// barrier along N_P0, zero without contact) on a band of width w above the thickness h:
+///   phi(g) = (exp(1 - g / w) - 1) / (e - 1),  g = d - h in [0, w),  phi(0) = 1, phi(w) = 0,
+///   F = max(0, C_p phi(g) - c (v_rel . n)),
+/// continuous at the band's edge, bounded by C_p at the thickness (the projection takes over
+/// below it), with a normal damping c that keeps resting particles from oscillating in the band.
+double penaltyShape(double gap, double band) {
+    if (gap >= band) return 0.0;
+    const double g = std::max(gap, 0.0);
+    return (std::exp(1.0 - g / band) - 1.0) / (kE - 1.0);
+}
+
+} // namespace
+
+// --------------------------------------------------------------------------------------------
+
+struct BulletCloth::Impl {
+    class Action;
+    class Stage;
+
+    btDynamicsWorld* world = nullptr;
+    std::shared_ptr<Cloth> cloth;
+    BulletClothSettings settings;
+    bool inWorld = false;
+
+    std::unique_ptr<BoundsShape> boundsShape;
+    std::unique_ptr<ProxyGhost> ghost;
+    std::unique_ptr<Action> action;
+    std::shared_ptr<Stage> stage;
+    std::shared_ptr<PenaltyState> penalty;
+
+    std::vector<BodySnapshot> bodies;
+    std::vector<Attachment> attachments;
+    /// Per attachment: the attachment point at the start and end of the current sub-step.
+    struct Target {
+        Vec3 from = Vec3::Zero(), to = Vec3::Zero();
+    };
+    std::shared_ptr<std::vector<Target>> targets = std::make_shared<std::vector<Target>>();
+    std::shared_ptr<std::pair<double, double>> window = std::make_shared<std::pair<double, double>>(0.0, 1.0);
+
+    Vec3List prevX; ///< positions at the end of the previous step (after contacts)
+    detail::SelfCollider selfCollider;
+    ContactStats last, total;
+    double margin = 0.0;
+    double band = 0.0;
+
+    void gatherBodies();
+    void resolveContacts(Cloth& c, double dt);
+    void updateBounds(double dt);
+    Vec3 attachmentPoint(const Attachment& a) const {
+        return toPose(a.body->getWorldTransform()).toWorld(a.localPoint);
+    }
+    void step(double dt);
+};
+
+class BulletCloth::Impl::Action final : public btActionInterface {
+public:
+    explicit Action(Impl& impl) : impl_(impl) {}
+    void updateAction(btCollisionWorld*, btScalar dt) override { impl_.step(double(dt)); }
+    void debugDraw(btIDebugDraw* drawer) override {
+        if (!drawer) return;
+        const Cloth& c = *impl_.cloth;
+        const btVector3 colour(0.8f, 0.5f, 0.2f);
+        for (const auto& s : c.topology().springs()) {
+            drawer->drawLine(toBt(c.positions()[s.a]), toBt(c.positions()[s.b]), colour);
+        }
+    }
+
+private:
+    Impl& impl_;
+};
+
+class BulletCloth::Impl::Stage final : public ClothStage {
+public:
+    explicit Stage(Impl& impl) : impl_(impl) {}
+    std::string name() const override { return "bullet_contacts"; }
+    void run(Cloth& c, double dt) override { impl_.resolveContacts(c, dt); }
+
+private:
+    Impl& impl_;
+};
+
+void BulletCloth::Impl::gatherBodies() {
+    bodies.clear();
+    const double reach = settings.contact.thickness + band;
+    const auto& overlaps = ghost->getOverlappingPairs();
+    for (int k = 0; k < overlaps.size(); ++k) {
+        const btCollisionObject* obj = overlaps[k];
+        if (!obj || obj == ghost.get()) continue;
+        const int type = obj->getInternalType();
+        if (type != btCollisionObject::CO_RIGID_BODY && type != btCollisionObject::CO_COLLISION_OBJECT) {
+            continue; // ghosts (other cloths' proxies, triggers), soft bodies, multibodies
+        }
+        if (!obj->hasContactResponse() || !obj->getCollisionShape()) continue;
+        BodySnapshot b;
+        b.object = obj;
+        b.pose = toPose(obj->getWorldTransform());
+        b.com = b.pose.t;
+        b.friction = double(obj->getFriction()) * settings.contact.frictionScale;
+        btVector3 mn, mx;
+        obj->getCollisionShape()->getAabb(obj->getWorldTransform(), mn, mx);
+        b.aabbMin = toVec(mn).array() - reach;
+        b.aabbMax = toVec(mx).array() + reach;
+        if (const btRigidBody* rb = btRigidBody::upcast(obj)) {
+            b.v = toVec(rb->getLinearVelocity());
+            b.w = toVec(rb->getAngularVelocity());
+            if (!rb->isStaticOrKinematicObject() && rb->getInvMass() > 0.0f) {
+                b.dynamicBody = const_cast<btRigidBody*>(rb); // impulses are applied after the step
+                b.invMass = double(rb->getInvMass());
+                b.invInertia = toMat(rb->getInvInertiaTensorWorld());
+            }
+        }
+        bodies.push_back(b);
+    }
+    last.candidateBodies = bodies.size();
+}
+
+void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
+    const std::size_t n = c.particleCount();
+    if (prevX.size() != n) prevX = c.positions();
+    penalty->contacts.clear();
+    const bool self = settings.selfCollision.enabled;
+    if (bodies.empty() && !self) {
+        prevX = c.positions();
+        return; // no rigid collider near the cloth: no collision work at all
+    }
+    Vec3List& x = c.mutablePositions();
+    Vec3List& v = c.mutableVelocities();
+    const auto& invMass = c.inverseMasses();
+    const auto& mass = c.masses();
+
+    if (self) {
+        const auto& sc = settings.selfCollision;
+        const auto counts = selfCollider.run(c.topology(), invMass, prevX, x, v, sc.thickness,
+                                             sc.friction, sc.iterations);
+        last.selfPairTests += counts.pairTests;
+        last.selfContacts += counts.contacts;
+    }
+
+    const auto& cs = settings.contact;
+    const double h = cs.thickness;
+    const double gravity = c.settings().gravity.norm();
+    detail::QueryCounters counters;
+    for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
+        BodySnapshot& b = bodies[bi];
+        for (std::size_t i = 0; i < n; ++i) {
+            const double wi = invMass[i];
+            if (wi == 0.0) continue; // pinned, kinematic and attached particles
+            const Vec3 xi = x[i];
+            const Vec3 from = prevX[i];
+            const bool sweep = cs.continuous && (xi - from).squaredNorm() > h * h;
+            const Vec3 lo = sweep ? Vec3(xi.cwiseMin(from)) : xi;
+            const Vec3 hi = sweep ? Vec3(xi.cwiseMax(from)) : xi;
+            ++last.particleBoxTests;
+            if ((hi.array() < b.aabbMin.array()).any() || (lo.array() > b.aabbMax.array()).any()) continue;
+
+            detail::SurfaceHit hit;
+            bool crossed = false;
+            if (sweep) {
+                // Did the particle's path since the last step enter the body?
+                ++last.rayQueries;
+                btTransform t0, t1;
+                t0.setIdentity();
+                t1.setIdentity();
+                t0.setOrigin(toBt(from));
+                t1.setOrigin(toBt(xi));
+                btCollisionWorld::ClosestRayResultCallback ray(t0.getOrigin(), t1.getOrigin());
+                btCollisionWorld::rayTestSingle(t0, t1, const_cast<btCollisionObject*>(b.object),
+                                                b.object->getCollisionShape(),
+                                                b.object->getWorldTransform(), ray);
+                if (ray.hasHit()) {
+                    Vec3 nrm = toVec(ray.m_hitNormalWorld);
+                    const double len = nrm.norm();
+                    if (len > 0.0) {
+                        nrm /= len;
+                        if (nrm.dot(from - xi) < 0.0) nrm = -nrm; // face where the particle came from
+                        crossed = true;
+                        hit.valid = true;
+                        hit.point = toVec(ray.m_hitPointWorld);
+                        hit.normal = nrm;
+                        hit.distance = std::min((xi - hit.point).dot(nrm), 0.0);
+                    }
+                }
+            }
+            if (!crossed) {
+                hit = detail::closestSurface(b.object->getCollisionShape(), b.pose, xi, from, h + band,
+                                             counters);
+                if (!hit.valid || hit.distance >= h + band) continue;
+            }
+
+            // Eq. (7) penalty band (also for particles below the thickness: they end at its
+            // bottom after the projection).
+            const double mi = mass[i];
+            double cp = cs.penaltyForce < 0.0 ? 2.0 * mi * gravity : cs.penaltyForce;
+            double penaltyImpulse = 0.0;
+            if (cp > 0.0) {
+                // Keep the penalty spring (stiffness cp e / ((e - 1) w)) and its damping inside
+                // the explicit stability limits of this step: k dt^2 / m <= 1, c dt / m <= 1/2.
+                const double kMax = mi / (dt * dt);
+                const double k = cp * kE / ((kE - 1.0) * band);
+                if (k > kMax) cp *= kMax / k;
+                const double kEff = std::min(k, kMax);
+                const double damping = std::min(2.0 * std::sqrt(kEff * mi), 0.5 * mi / dt);
+                PenaltyContact pc;
+                pc.particle = static_cast<Index>(i);
+                pc.body = bi;
+                pc.point = hit.point;
+                pc.normal = hit.normal;
+                pc.bodyVelocity = b.velocityAt(hit.point);
+                pc.cp = cp;
+                pc.damping = damping;
+                pc.touching = hit.distance < h;
+                penalty->contacts.push_back(pc);
+                penaltyImpulse = cp * penaltyShape(std::max(hit.distance, h) - h, band) * dt;
+            }
+
+            if (hit.distance >= h) continue; // in the band only: the penalty handles it
+            ++last.contacts;
+            ++last.projections;
+            x[i] = xi + (h - hit.distance) * hit.normal;
+            const Vec3 vb = b.velocityAt(hit.point);
+            const Vec3 rel = v[i] - vb;
+            const double vn = rel.dot(hit.normal);
+            double lambda = 0.0;
+            if (vn < 0.0) {
+                lambda = -vn / (wi + b.inverseMassAlong(hit.point, hit.normal));
+                const Vec3 j = lambda * hit.normal;
+                v[i] += wi * j;
+                b.applyImpulse(-j, hit.point);
+                last.impulseOnCloth += j;
+                if (b.dynamicBody) last.impulseOnBodies -= j;
+            }
+            // Coulomb friction against the relative tangential velocity.
+            const Vec3 vt = rel - vn * hit.normal;
+            const double vtLen = vt.norm();
+            const double budget = b.friction * (lambda + penaltyImpulse);
+            if (vtLen > 0.0 && budget > 0.0) {
+                const Vec3 tdir = vt / vtLen;
+                const double jt = std::min(vtLen / (wi + b.inverseMassAlong(hit.point, tdir)), budget);
+                const Vec3 j = -jt * tdir;
+                v[i] += wi * j;
+                b.applyImpulse(-j, hit.point);
+                last.impulseOnCloth += j;
+                if (b.dynamicBody) last.impulseOnBodies -= j;
+            }
+        }
+    }
+    // Friction for particles supported by the penalty alone (in the band, not touching).
+    for (const auto& pc : penalty->contacts) {
+        const Index i = pc.particle;
+        BodySnapshot& b = bodies[pc.body];
+        if (pc.touching) continue; // friction was applied with the projection
+        const double gap = (x[i] - pc.point).dot(pc.normal) - h;
+        const double budget = b.friction * pc.cp * penaltyShape(gap, band) * dt;
+        if (budget <= 0.0) continue;
+        const Vec3 rel = v[i] - b.velocityAt(pc.point);
+        const Vec3 vt = rel - rel.dot(pc.normal) * pc.normal;
+        const double vtLen = vt.norm();
+        if (vtLen <= 0.0) continue;
+        const Vec3 tdir = vt / vtLen;
+        const double jt = std::min(vtLen / (invMass[i] + b.inverseMassAlong(pc.point, tdir)), budget);
+        const Vec3 j = -jt * tdir;
+        v[i] += invMass[i] * j;
+        b.applyImpulse(-j, pc.point);
+        last.impulseOnCloth += j;
+        if (b.dynamicBody) last.impulseOnBodies -= j;
+    }
+    last.narrowphaseQueries += counters.queries;
+    prevX = x;
+}
+
+void BulletCloth::Impl::updateBounds(double dt) {
+    const Cloth& c = *cloth;
+    Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
+    Vec3 hi = -lo;
+    double reachMove = 0.0;
+    for (std::size_t i = 0; i < c.particleCount(); ++i) {
+        lo = lo.cwiseMin(c.positions()[i]);
+        hi = hi.cwiseMax(c.positions()[i]);
+        reachMove = std::max(reachMove, c.velocities()[i].norm() * dt);
+    }
+    // Grow by where the particles can get in the next sub-step, plus the contact reach.
+    const double grow = margin + settings.contact.thickness + band + reachMove;
+    boundsShape->set(lo.array() - grow, hi.array() + grow);
+    if (inWorld) world->updateSingleAabb(ghost.get());
+}
+
+void BulletCloth::Impl::step(double dt) {
+    last = ContactStats{};
+    gatherBodies();
+    Cloth& c = *cloth;
+    const double t0 = c.time();
+    *window = {t0, t0 + dt};
+    for (std::size_t a = 0; a < attachments.size(); ++a) {
+        (*targets)[a].from = (*targets)[a].to;
+        (*targets)[a].to = attachmentPoint(attachments[a]);
+    }
+    const double h = dt / settings.substeps;
+    for (int s = 0; s < settings.substeps; ++s) {
+        c.step(h);
+        ++last.steps;
+        // The eq. (7) force the particles got at the end of this step acts for h; the body
+        // gets the opposite.
+        for (const auto& pc : penalty->contacts) {
+            if (pc.force == 0.0) continue;
+            const Vec3 j = pc.force * h * pc.normal;
+            last.impulseOnCloth += j;
+            BodySnapshot& b = bodies[pc.body];
+            if (b.dynamicBody) {
+                b.applyImpulse(-j, pc.point);
+                last.impulseOnBodies -= j;
+            }
+        }
+        // Attachments to dynamic bodies: the body carries the force the cloth puts on the
+        // attached particle (springs and the particle's own weight).
+        for (const auto& a : attachments) {
+            const btRigidBody* rb = btRigidBody::upcast(a.body);
+            if (!rb || rb->isStaticOrKinematicObject() || rb->getInvMass() <= 0.0f) continue;
+            const Vec3 j = c.forces()[a.particle] * h;
+            const Vec3 at = c.positions()[a.particle];
+            last.impulseOnBodies += j;
+            auto snap = std::find_if(bodies.begin(), bodies.end(),
+                                     [&](const BodySnapshot& b) { return b.object == a.body; });
+            if (snap != bodies.end()) {
+                snap->applyImpulse(j, at);
+            } else {
+                // The body is outside the proxy (possible with a long attachment): apply now.
+                auto* body = const_cast<btRigidBody*>(rb);
+                body->applyImpulse(toBt(j), toBt(at - toVec(body->getCenterOfMassPosition())));
+                body->activate();
+            }
+        }
+    }
+    for (auto& b : bodies) {
+        if (!b.dynamicBody) continue;
+        if (b.linearImpulse.squaredNorm() == 0.0 && b.angularImpulse.squaredNorm() == 0.0) continue;
+        btRigidBody* rb = b.dynamicBody;
+        // A sleeping body is not woken by nudges below its sleeping threshold.
+        const double dv = b.linearImpulse.norm() * b.invMass;
+        if (!rb->isActive() && dv < double(rb->getLinearSleepingThreshold())) continue;
+        rb->applyCentralImpulse(toBt(b.linearImpulse));
+        rb->applyTorqueImpulse(toBt(b.angularImpulse));
+        rb->activate();
+    }
+    updateBounds(dt);
+    total.candidateBodies += last.candidateBodies;
+    total.particleBoxTests += last.particleBoxTests;
+    total.narrowphaseQueries += last.narrowphaseQueries;
+    total.rayQueries += last.rayQueries;
+    total.contacts += last.contacts;
+    total.projections += last.projections;
+    total.selfContacts += last.selfContacts;
+    total.selfPairTests += last.selfPairTests;
+    total.impulseOnBodies += last.impulseOnBodies;
+    total.impulseOnCloth += last.impulseOnCloth;
+    total.steps += last.steps;
+}
+
+// --------------------------------------------------------------------------------------------
+
+BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
+                         const BulletClothSettings& settings)
+    : impl_(std::make_unique<Impl>()) {
+    require(world != nullptr, ErrorCode::InvalidArgument, "addCloth: the Bullet world is null");
+    require(cloth != nullptr, ErrorCode::InvalidArgument, "addCloth: the cloth is null");
+    validate(settings);
+    Impl& m = *impl_;
+    m.world = world;
+    m.cloth = std::move(cloth);
+    m.settings = settings;
+    const double h = settings.contact.thickness;
+    m.band = settings.contact.penaltyBand < 0.0 ? h : settings.contact.penaltyBand;
+    require(m.band > 0.0 || settings.contact.penaltyForce == 0.0, ErrorCode::InvalidArgument,
+            "contact.penaltyBand must be positive when the penalty force is on");
+    if (!(m.band > 0.0)) m.band = h;
+    if (settings.contact.broadphaseMargin >= 0.0) {
+        m.margin = settings.contact.broadphaseMargin;
+    } else {
+        double sum = 0.0;
+        for (const auto& s : m.cloth->topology().springs()) sum += s.restLength;
+        const auto count = double(std::max<std::size_t>(1, m.cloth->topology().springCount()));
+        m.margin = sum / count + 4.0 * h;
+    }
+    if (settings.useWorldGravity) m.cloth->setGravity(toVec(world->getGravity()));
+
+    m.penalty = std::make_shared<PenaltyState>();
+    m.penalty->thickness = h;
+    m.penalty->band = m.band;
+    // The force term lives as long as the cloth; it reads the contact list, which is empty
+    // once this handle is removed.
+    m.cloth->addExternalForce("contact_penalty", [state = m.penalty](const Vec3List& x,
+                                                                     const Vec3List& v, Vec3List& f) {
+        for (auto& pc : state->contacts) {
+            const Vec3& xi = x[pc.particle];
+            const double gap = (xi - pc.point).dot(pc.normal) - state->thickness;
+            const double shape = penaltyShape(gap, state->band);
+            if (shape <= 0.0) {
+                pc.force = 0.0;
+                continue;
+            }
+            const double vn = (v[pc.particle] - pc.bodyVelocity).dot(pc.normal);
+            pc.force = std::max(0.0, pc.cp * shape - pc.damping * vn);
+            f[pc.particle] += pc.force * pc.normal;
+        }
+    });
+    m.stage = std::make_shared<Impl::Stage>(m);
+    m.cloth->addStage(m.stage);
+    m.prevX = m.cloth->positions();
+
+    m.boundsShape = std::make_unique<BoundsShape>();
+    m.ghost = std::make_unique<ProxyGhost>();
+    m.ghost->setCollisionShape(m.boundsShape.get());
+    m.ghost->setCollisionFlags(m.ghost->getCollisionFlags() |
+                               btCollisionObject::CF_NO_CONTACT_RESPONSE);
+    m.ghost->setActivationState(DISABLE_DEACTIVATION);
+    m.ghost->setUserPointer(this);
+    m.updateBounds(0.0);
+    world->getPairCache()->setInternalGhostPairCallback(&ghostPairCallback());
+    world->addCollisionObject(m.ghost.get(), settings.collisionGroup, settings.collisionMask);
+    m.action = std::make_unique<Impl::Action>(m);
+    world->addAction(m.action.get());
+    m.inWorld = true;
+}
+
+BulletCloth::~BulletCloth() { remove(); }
+
+void BulletCloth::remove() {
+    Impl& m = *impl_;
+    if (!m.inWorld) return;
+    m.world->removeAction(m.action.get());
+    m.world->removeCollisionObject(m.ghost.get());
+    m.cloth->removeStage(m.stage.get());
+    m.penalty->contacts.clear();
+    for (const auto& a : m.attachments) m.cloth->unpin(a.particle);
+    m.attachments.clear();
+    m.targets->clear();
+    m.bodies.clear();
+    m.inWorld = false;
+}
+
+bool BulletCloth::inWorld() const { return impl_->inWorld; }
+
+void BulletCloth::attach(Index particle, const btCollisionObject* body, const Vec3& localPoint) {
+    Impl& m = *impl_;
+    require(m.inWorld, ErrorCode::InvalidArgument, "attach: the cloth has been removed from its world");
+    require(particle < m.cloth->particleCount(), ErrorCode::IndexOutOfRange,
+            "attach: particle " + std::to_string(particle) + " does not exist (the cloth has " +
+                std::to_string(m.cloth->particleCount()) + " particles)");
+    require(body != nullptr, ErrorCode::InvalidArgument,
+            "attach: the body for particle " + std::to_string(particle) + " is null");
+    require(localPoint.allFinite(), ErrorCode::NonFinite,
+            "attach: the local point for particle " + std::to_string(particle) + " is not finite");
+    detach(particle);
+    Attachment a{particle, body, localPoint};
+    const Vec3 p = m.attachmentPoint(a);
+    m.attachments.push_back(a);
+    m.targets->push_back(Impl::Target{p, p});
+    const std::size_t slot = m.attachments.size() - 1;
+    // The particle's path interpolates the attachment point across the current sub-step.
+    m.cloth->setKinematic(particle, [targets = m.targets, window = m.window, slot](double t) {
+        const auto& tg = (*targets)[slot];
+        const double span = window->second - window->first;
+        const double s = span > 0.0 ? std::clamp((t - window->first) / span, 0.0, 1.0) : 1.0;
+        return Vec3(tg.from + s * (tg.to - tg.from));
+    });
+}
+
+void BulletCloth::attachHere(Index particle, const btCollisionObject* body) {
+    require(body != nullptr, ErrorCode::InvalidArgument,
+            "attachHere: the body for particle " + std::to_string(particle) + " is null");
+    require(particle < impl_->cloth->particleCount(), ErrorCode::IndexOutOfRange,
+            "attachHere: particle " + std::to_string(particle) + " does not exist (the cloth has " +
+                std::to_string(impl_->cloth->particleCount()) + " particles)");
+    const Pose pose = toPose(body->getWorldTransform());
+    attach(particle, body, pose.toLocal(impl_->cloth->positions()[particle]));
+}
+
+void BulletCloth::detach(Index particle) {
+    Impl& m = *impl_;
+    for (std::size_t k = 0; k < m.attachments.size(); ++k) {
+        if (m.attachments[k].particle != particle) continue;
+        m.cloth->unpin(particle);
+        // Slots are captured by index: re-register the paths of the attachments that move.
+        m.attachments.erase(m.attachments.begin() + static_cast<std::ptrdiff_t>(k));
+        m.targets->erase(m.targets->begin() + static_cast<std::ptrdiff_t>(k));
+        for (std::size_t r = k; r < m.attachments.size(); ++r) {
+            const Index pr = m.attachments[r].particle;
+            m.cloth->setKinematic(pr, [targets = m.targets, window = m.window, r](double t) {
+                const auto& tg = (*targets)[r];
+                const double span = window->second - window->first;
+                const double s = span > 0.0 ? std::clamp((t - window->first) / span, 0.0, 1.0) : 1.0;
+                return Vec3(tg.from + s * (tg.to - tg.from));
+            });
+        }
+        return;
+    }
+}
+
+const std::vector<Attachment>& BulletCloth::attachments() const { return impl_->attachments; }
+Cloth& BulletCloth::cloth() { return *impl_->cloth; }
+const Cloth& BulletCloth::cloth() const { return *impl_->cloth; }
+const std::shared_ptr<Cloth>& BulletCloth::clothPtr() const { return impl_->cloth; }
+const BulletClothSettings& BulletCloth::settings() const { return impl_->settings; }
+const btCollisionObject* BulletCloth::proxyObject() const { return impl_->ghost.get(); }
+const ContactStats& BulletCloth::lastStats() const { return impl_->last; }
+const ContactStats& BulletCloth::totalStats() const { return impl_->total; }
+void BulletCloth::debugDraw(btIDebugDraw* drawer) const { impl_->action->debugDraw(drawer); }
+
+void BulletCloth::stepInWorld(double dt) {
+    require(std::isfinite(dt) && dt > 0.0, ErrorCode::InvalidArgument,
+            "stepInWorld: dt must be positive and finite, got " + num(dt));
+    require(impl_->inWorld, ErrorCode::InvalidArgument,
+            "stepInWorld: the cloth has been removed from its world");
+    impl_->step(dt);
+}
+
+std::unique_ptr<BulletCloth> addCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
+                                      const BulletClothSettings& settings) {
+    return std::make_unique<BulletCloth>(world, std::move(cloth), settings);
+}
+
+void removeCloth(BulletCloth& cloth) { cloth.remove(); }
+
+} // namespace drape::bullet

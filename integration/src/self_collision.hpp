@@ -1,0 +1,35 @@
+// self_collision.hpp (private to drape::bullet): particle-triangle collision of a cloth with
+// itself (the paper's particle against "triangular patch of fabrics" test), with a spatial
+// hash as broadphase. Plain Eigen data; no Bullet types.
+#pragma once
+
+#include "drape/forces.hpp"
+#include "drape/topology.hpp"
+
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+namespace drape::bullet::detail {
+
+struct SelfCollisionCounts {
+    std::size_t pairTests = 0; ///< particle-triangle pairs given to the exact test
+    std::size_t contacts = 0;  ///< pairs closer than the thickness that were corrected
+};
+
+/// Keeps every free particle at least `thickness` [m] from every triangle of the same cloth
+/// that it is not a corner of, on the side it was on at the previous step (`xPrev`).
+/// A contact moves the particle and the triangle's corners apart along the triangle normal,
+/// weighted by inverse mass and barycentric coordinates (momentum is conserved), removes
+/// their approaching normal velocity, and applies Coulomb friction `friction` [-].
+class SelfCollider {
+public:
+    SelfCollisionCounts run(const ClothTopology& topology, const std::vector<double>& invMass,
+                            const Vec3List& xPrev, Vec3List& x, Vec3List& v, double thickness,
+                            double friction, int iterations);
+
+private:
+    std::vector<std::pair<std::uint64_t, Index>> cells_; ///< (cell key, triangle), sorted
+};
+
+} // namespace drape::bullet::detail

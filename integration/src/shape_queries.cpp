@@ -1,0 +1,300 @@
+// Closest surface points of Bullet collision shapes (see shape_queries.hpp).
+#include "shape_queries.hpp"
+
+#include <btBulletCollisionCommon.h>
+#include <BulletCollision/NarrowPhaseCollision/btGjkEpaPenetrationDepthSolver.h>
+#include <BulletCollision/NarrowPhaseCollision/btGjkPairDetector.h>
+#include <BulletCollision/NarrowPhaseCollision/btPointCollector.h>
+#include <BulletCollision/NarrowPhaseCollision/btVoronoiSimplexSolver.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace drape::bullet::detail {
+namespace {
+
+Vec3 toVec(const btVector3& v) { return Vec3(double(v.x()), double(v.y()), double(v.z())); }
+btVector3 toBt(const Vec3& v) {
+    return btVector3(btScalar(v.x()), btScalar(v.y()), btScalar(v.z()));
+}
+
+Pose toPose(const btTransform& t) {
+    Pose p;
+    const btMatrix3x3& b = t.getBasis();
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) p.R(r, c) = double(b[r][c]);
+    p.t = toVec(t.getOrigin());
+    return p;
+}
+
+/// Fills a hit from a local-frame result.
+SurfaceHit makeHit(const Pose& pose, double distance, const Vec3& localNormal, const Vec3& localPoint) {
+    SurfaceHit h;
+    h.valid = true;
+    h.distance = distance;
+    h.normal = pose.R * localNormal;
+    h.point = pose.toWorld(localPoint);
+    return h;
+}
+
+// Box with half extents e centred at the origin. Outside: distance to the clamped point.
+// Inside: the nearest face (the smallest e_k - |p_k|) gives a negative distance.
+SurfaceHit boxQuery(const Vec3& e, const Vec3& p, const Pose& pose) {
+    const Vec3 q = p.cwiseMax(-e).cwiseMin(e);
+    const Vec3 d = p - q;
+    const double dist = d.norm();
+    if (dist > 0.0) return makeHit(pose, dist, d / dist, q);
+    int axis = 0;
+    double best = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < 3; ++k) {
+        const double depth = e[k] - std::abs(p[k]);
+        if (depth < best) {
+            best = depth;
+            axis = k;
+        }
+    }
+    Vec3 n = Vec3::Zero();
+    n[axis] = p[axis] >= 0.0 ? 1.0 : -1.0;
+    Vec3 s = p;
+    s[axis] = n[axis] * e[axis];
+    return makeHit(pose, -best, n, s);
+}
+
+SurfaceHit sphereQuery(double r, const Vec3& p, const Pose& pose) {
+    const double len = p.norm();
+    const Vec3 n = len > 0.0 ? Vec3(p / len) : Vec3(Vec3::UnitY());
+    return makeHit(pose, len - r, n, r * n);
+}
+
+// Capsule: a segment of half length hh along `axis`, radius r.
+SurfaceHit capsuleQuery(int axis, double hh, double r, const Vec3& p, const Pose& pose) {
+    Vec3 c = Vec3::Zero();
+    c[axis] = std::clamp(p[axis], -hh, hh);
+    const Vec3 d = p - c;
+    const double len = d.norm();
+    Vec3 n;
+    if (len > 0.0) {
+        n = d / len;
+    } else { // on the axis: any direction across it
+        n = Vec3::Zero();
+        n[(axis + 1) % 3] = 1.0;
+    }
+    return makeHit(pose, len - r, n, c + r * n);
+}
+
+// Cylinder of radius r and half height hh along `axis`.
+SurfaceHit cylinderQuery(int axis, double r, double hh, const Vec3& p, const Pose& pose) {
+    Vec3 radial = p;
+    radial[axis] = 0.0;
+    const double rho = radial.norm();
+    const Vec3 u = rho > 0.0 ? Vec3(radial / rho) : Vec3(Vec3::Unit((axis + 1) % 3));
+    Vec3 up = Vec3::Zero();
+    up[axis] = p[axis] >= 0.0 ? 1.0 : -1.0;
+    const double dr = rho - r;                  // > 0 outside the side wall
+    const double da = std::abs(p[axis]) - hh;   // > 0 beyond a cap
+    if (dr <= 0.0 && da <= 0.0) {               // inside: nearest of wall and cap
+        if (dr > da) {
+            Vec3 s = r * u;
+            s[axis] = p[axis];
+            return makeHit(pose, dr, u, s);
+        }
+        Vec3 s = p;
+        s[axis] = up[axis] * hh;
+        return makeHit(pose, da, up, s);
+    }
+    Vec3 q = std::min(rho, r) * u;
+    q[axis] = std::clamp(p[axis], -hh, hh);
+    const Vec3 d = p - q;
+    const double len = d.norm();
+    return makeHit(pose, len, d / len, q);
+}
+
+SurfaceHit planeQuery(const btStaticPlaneShape* plane, const Vec3& p, const Pose& pose) {
+    const Vec3 n = toVec(plane->getPlaneNormal()).normalized();
+    const double dist = n.dot(p) - double(plane->getPlaneConstant());
+    return makeHit(pose, dist, n, p - dist * n);
+}
+
+// Any other convex shape: Bullet's GJK (distance outside) and EPA (depth inside) between the
+// shape, margin included as Bullet's rigid bodies see it, and a point (a zero-radius sphere).
+SurfaceHit convexQuery(const btConvexShape* shape, const Vec3& p, const Pose& pose) {
+    btSphereShape point(0.0f);
+    btVoronoiSimplexSolver simplex;
+    btGjkEpaPenetrationDepthSolver epa;
+    btGjkPairDetector gjk(&point, shape, &simplex, &epa);
+    btGjkPairDetector::ClosestPointInput in;
+    in.m_transformA.setIdentity();
+    in.m_transformA.setOrigin(toBt(p));
+    in.m_transformB.setIdentity();
+    btPointCollector out;
+    gjk.getClosestPoints(in, out, nullptr);
+    if (!out.m_hasResult) return {};
+    Vec3 n = toVec(out.m_normalOnBInWorld);
+    const double len = n.norm();
+    if (!(len > 0.0) || !std::isfinite(len)) return {};
+    n /= len;
+    return makeHit(pose, double(out.m_distance), n, toVec(out.m_pointInWorld));
+}
+
+// Concave shapes: the nearest triangle within reach. The surface is two-sided; the point
+// belongs to the side its previous position was on, so a point that crossed a triangle
+// within a step gets a negative distance and is pushed back.
+class NearestTriangle : public btTriangleCallback {
+public:
+    NearestTriangle(const Vec3& p, const Vec3& prev) : p_(p), prev_(prev) {}
+    void processTriangle(btVector3* tri, int, int) override {
+        const Vec3 a = toVec(tri[0]), b = toVec(tri[1]), c = toVec(tri[2]);
+        Vec3 bary;
+        const Vec3 q = closestPointOnTriangle(p_, a, b, c, bary);
+        Vec3 face = (b - a).cross(c - a);
+        const double area2 = face.norm();
+        if (!(area2 > 0.0)) return; // degenerate triangle in the user's mesh: no normal
+        face /= area2;
+        const double sidePrev = (prev_ - q).dot(face);
+        const double sideNow = (p_ - q).dot(face);
+        const Vec3 d = p_ - q;
+        const double len = d.norm();
+        double signedDist;
+        Vec3 n;
+        if (sidePrev * sideNow < 0.0) { // crossed the plane of this triangle since last step
+            n = sidePrev > 0.0 ? face : Vec3(-face);
+            signedDist = -len;
+        } else if (len > 1e-12) {
+            n = d / len;
+            signedDist = len;
+        } else {
+            n = sidePrev >= 0.0 ? face : Vec3(-face);
+            signedDist = 0.0;
+        }
+        if (!found_ || signedDist < best_) {
+            found_ = true;
+            best_ = signedDist;
+            normal_ = n;
+            point_ = q;
+        }
+    }
+    bool found_ = false;
+    double best_ = 0.0;
+    Vec3 normal_ = Vec3::UnitY();
+    Vec3 point_ = Vec3::Zero();
+
+private:
+    Vec3 p_, prev_;
+};
+
+} // namespace
+
+Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c,
+                            Vec3& bary) {
+    // Voronoi regions of the vertices, edges and face, tested in turn.
+    const Vec3 ab = b - a, ac = c - a, ap = p - a;
+    const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+    if (d1 <= 0.0 && d2 <= 0.0) {
+        bary = Vec3(1, 0, 0);
+        return a;
+    }
+    const Vec3 bp = p - b;
+    const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+    if (d3 >= 0.0 && d4 <= d3) {
+        bary = Vec3(0, 1, 0);
+        return b;
+    }
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+        const double v = d1 / (d1 - d3);
+        bary = Vec3(1 - v, v, 0);
+        return a + v * ab;
+    }
+    const Vec3 cp = p - c;
+    const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+    if (d6 >= 0.0 && d5 <= d6) {
+        bary = Vec3(0, 0, 1);
+        return c;
+    }
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+        const double w = d2 / (d2 - d6);
+        bary = Vec3(1 - w, 0, w);
+        return a + w * ac;
+    }
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+        const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        bary = Vec3(0, 1 - w, w);
+        return b + w * (c - b);
+    }
+    const double denom = 1.0 / (va + vb + vc);
+    const double v = vb * denom, w = vc * denom;
+    bary = Vec3(1 - v - w, v, w);
+    return a + v * ab + w * ac;
+}
+
+SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const Vec3& p,
+                          const Vec3& prev, double reach, QueryCounters& counters) {
+    const Vec3 local = pose.toLocal(p);
+    switch (shape->getShapeType()) {
+    case BOX_SHAPE_PROXYTYPE: {
+        ++counters.queries;
+        const auto* box = static_cast<const btBoxShape*>(shape);
+        return boxQuery(toVec(box->getHalfExtentsWithMargin()), local, pose);
+    }
+    case SPHERE_SHAPE_PROXYTYPE: {
+        ++counters.queries;
+        return sphereQuery(double(static_cast<const btSphereShape*>(shape)->getRadius()), local, pose);
+    }
+    case CAPSULE_SHAPE_PROXYTYPE: {
+        ++counters.queries;
+        const auto* cap = static_cast<const btCapsuleShape*>(shape);
+        return capsuleQuery(cap->getUpAxis(), double(cap->getHalfHeight()), double(cap->getRadius()),
+                            local, pose);
+    }
+    case CYLINDER_SHAPE_PROXYTYPE: {
+        ++counters.queries;
+        const auto* cyl = static_cast<const btCylinderShape*>(shape);
+        const int axis = cyl->getUpAxis();
+        const Vec3 e = toVec(cyl->getHalfExtentsWithMargin());
+        return cylinderQuery(axis, e[(axis + 1) % 3], e[axis], local, pose);
+    }
+    case STATIC_PLANE_PROXYTYPE: {
+        ++counters.queries;
+        return planeQuery(static_cast<const btStaticPlaneShape*>(shape), local, pose);
+    }
+    case COMPOUND_SHAPE_PROXYTYPE: {
+        const auto* compound = static_cast<const btCompoundShape*>(shape);
+        SurfaceHit best;
+        for (int c = 0; c < compound->getNumChildShapes(); ++c) {
+            const btCollisionShape* child = compound->getChildShape(c);
+            const btTransform& ct = compound->getChildTransform(c);
+            btVector3 mn, mx;
+            child->getAabb(ct, mn, mx);
+            const btVector3 lp = toBt(local);
+            const auto r = btScalar(reach);
+            if (lp.x() < mn.x() - r || lp.y() < mn.y() - r || lp.z() < mn.z() - r ||
+                lp.x() > mx.x() + r || lp.y() > mx.y() + r || lp.z() > mx.z() + r) {
+                continue;
+            }
+            const SurfaceHit h = closestSurface(child, pose * toPose(ct), p, prev, reach, counters);
+            if (h.valid && (!best.valid || h.distance < best.distance)) best = h;
+        }
+        return best;
+    }
+    default: break;
+    }
+    if (shape->isConvex()) {
+        ++counters.queries;
+        return convexQuery(static_cast<const btConvexShape*>(shape), local, pose);
+    }
+    if (shape->isConcave()) {
+        ++counters.queries;
+        const auto* concave = static_cast<const btConcaveShape*>(shape);
+        NearestTriangle cb(local, pose.toLocal(prev));
+        const Vec3 r = Vec3::Constant(reach);
+        concave->processAllTriangles(&cb, toBt(local - r), toBt(local + r));
+        if (!cb.found_) return {};
+        return makeHit(pose, cb.best_, cb.normal_, cb.point_);
+    }
+    return {}; // soft bodies, empty shapes and the like: nothing to collide with
+}
+
+} // namespace drape::bullet::detail

@@ -1,0 +1,48 @@
+// shape_queries.hpp (private to drape::bullet): where is the surface of a Bullet collision
+// shape nearest to a point? Analytic for the primitive shapes, Bullet's GJK/EPA for other
+// convex shapes, per-triangle for concave shapes (static triangle meshes, height fields),
+// recursion for compounds. All in double precision in the body's frame.
+#pragma once
+
+#include "drape/mesh.hpp"
+
+#include <Eigen/Core>
+
+class btCollisionShape;
+
+namespace drape::bullet::detail {
+
+/// A rigid transform in double precision: world = R local + t.
+struct Pose {
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+    Vec3 t = Vec3::Zero();
+    Vec3 toLocal(const Vec3& w) const { return R.transpose() * (w - t); }
+    Vec3 toWorld(const Vec3& l) const { return R * l + t; }
+    Pose operator*(const Pose& child) const { return Pose{R * child.R, R * child.t + t}; }
+};
+
+/// Nearest surface point of a shape to a query point.
+struct SurfaceHit {
+    bool valid = false;
+    double distance = 0.0;    ///< signed distance from the surface, negative inside [m]
+    Vec3 normal = Vec3::UnitY(); ///< outward unit normal at `point` (world frame)
+    Vec3 point = Vec3::Zero();   ///< nearest surface point (world frame) [m]
+};
+
+/// Counters the queries add to.
+struct QueryCounters {
+    std::size_t queries = 0; ///< closest-point queries made (a compound counts each child)
+};
+
+/// Signed distance of `p` to `shape` placed at `pose`. Only surfaces nearer than `reach` [m]
+/// need to be found (concave shapes search triangles within it; the result is invalid if none
+/// is). `prev` is where the point was at the previous step: for two-sided surfaces (triangle
+/// meshes) it decides which side the point belongs to.
+SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const Vec3& p,
+                          const Vec3& prev, double reach, QueryCounters& counters);
+
+/// Closest point to p on triangle (a, b, c); also returns its barycentric weights.
+Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c,
+                            Vec3& barycentric);
+
+} // namespace drape::bullet::detail

@@ -1,0 +1,117 @@
+// The cloth in a Bullet world: one call in, one call out, stepped inside stepSimulation in
+// every internal sub-step, bad input rejected with drape::Error, and the broadphase used.
+#include "world_fixture.hpp"
+
+#include "drape/error.hpp"
+
+#include <catch2/catch.hpp>
+
+using namespace drape;
+using namespace drape::testing;
+
+namespace {
+ClothSettings softCloth() {
+    ClothSettings s;
+    s.particleMass = 0.01;
+    s.springStiffness = 50.0;
+    return s;
+}
+} // namespace
+
+TEST_CASE("addCloth and removeCloth put the cloth into stepSimulation and take it out", "[world]") {
+    TestWorld w;
+    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), softCloth());
+    auto handle = bullet::addCloth(&w.world, cloth);
+    REQUIRE(handle->inWorld());
+    // Bullet's default gravity is replaced by the world's: the cloth uses -9.81 too.
+    CHECK(cloth->settings().gravity.y() == Approx(-9.81).epsilon(1e-6));
+
+    // stepSimulation(1/60, 10, 1/240) makes exactly 4 internal sub-steps of 1/240 s; the
+    // cloth must take one step in each.
+    const double fixed = 1.0 / 240.0;
+    w.world.stepSimulation(btScalar(1.0 / 60.0), 10, btScalar(fixed));
+    CHECK(cloth->stepCount() == 4);
+    CHECK(cloth->time() == Approx(4 * fixed).epsilon(1e-5));
+    // Free fall over those 4 steps: y drops by g t^2 / 2 (Velocity-Verlet is exact for a
+    // constant force; float time steps limit the agreement to ~1e-6 relative).
+    const double t = 4 * fixed;
+    CHECK(cloth->positions()[0].y() == Approx(1.0 - 0.5 * 9.81 * t * t).epsilon(1e-6));
+
+    bullet::removeCloth(*handle);
+    CHECK_FALSE(handle->inWorld());
+    w.world.stepSimulation(btScalar(1.0 / 60.0), 10, btScalar(fixed));
+    CHECK(cloth->stepCount() == 4); // no longer stepped
+    // The proxy left the broadphase.
+    CHECK(w.world.getNumCollisionObjects() == 0);
+}
+
+TEST_CASE("bad input gets a drape::Error naming the problem", "[world][errors]") {
+    TestWorld w;
+    auto cloth = makeCloth(horizontalSheet(3, 3, 0.1, 1.0), softCloth());
+    auto code = [](auto&& f) {
+        try {
+            f();
+        } catch (const Error& e) {
+            return e.code();
+        }
+        return ErrorCode::SimulationFailure; // "no error" marker, never expected below
+    };
+    CHECK(code([&] { bullet::addCloth(nullptr, cloth); }) == ErrorCode::InvalidArgument);
+    CHECK(code([&] { bullet::addCloth(&w.world, nullptr); }) == ErrorCode::InvalidArgument);
+    bullet::BulletClothSettings bad;
+    bad.contact.thickness = -0.01;
+    CHECK_THROWS_WITH(bullet::addCloth(&w.world, cloth, bad), Catch::Contains("thickness"));
+    bad = {};
+    bad.substeps = 0;
+    CHECK_THROWS_WITH(bullet::addCloth(&w.world, cloth, bad), Catch::Contains("substeps"));
+    bad = {};
+    bad.contact.frictionScale = std::nan("");
+    CHECK_THROWS_WITH(bullet::addCloth(&w.world, cloth, bad), Catch::Contains("frictionScale"));
+
+    auto& handle = w.add(cloth);
+    auto* box = w.body(w.shape<btBoxShape>(btVector3(0.1f, 0.1f, 0.1f)), 0.0, Vec3(0, 0, 0));
+    CHECK(code([&] { handle.attach(9, box, Vec3::Zero()); }) == ErrorCode::IndexOutOfRange);
+    CHECK_THROWS_WITH(handle.attach(9, box, Vec3::Zero()), Catch::Contains("particle 9"));
+    CHECK(code([&] { handle.attach(0, nullptr, Vec3::Zero()); }) == ErrorCode::InvalidArgument);
+    CHECK(code([&] { handle.attach(0, box, Vec3(std::nan(""), 0, 0)); }) == ErrorCode::NonFinite);
+    CHECK(code([&] { handle.stepInWorld(-1.0); }) == ErrorCode::InvalidArgument);
+}
+
+TEST_CASE("the cloth's candidates come from the broadphase: far bodies cost nothing", "[world][broadphase]") {
+    // Same cloth, same fall, in three worlds: empty; with 1000 static and dynamic bodies far
+    // away; with one box right under it. The counts of narrow-phase work must be identical
+    // for the first two (zero: no rigid collider near, no collision work) and non-zero for
+    // the third (so the counts do measure something).
+    auto run = [](int farBodies, bool nearBox) {
+        TestWorld w;
+        auto* small = w.shape<btSphereShape>(btScalar(0.5));
+        for (int k = 0; k < farBodies; ++k) {
+            const double x = 100.0 + 3.0 * (k % 10), y = 3.0 * ((k / 10) % 10), z = 3.0 * (k / 100);
+            w.body(small, (k % 2) ? 1.0 : 0.0, Vec3(x, y, z));
+        }
+        if (nearBox) w.body(w.shape<btBoxShape>(btVector3(1, 0.1f, 1)), 0.0, Vec3(0, 0.5, 0));
+        auto cloth = makeCloth(horizontalSheet(10, 10, 0.1, 1.0), softCloth());
+        bullet::BulletClothSettings bs;
+        bs.substeps = 3; // 1/60 s is beyond this cloth's stability limit; 1/180 s is not
+        auto& h = w.add(cloth, bs);
+        bullet::ContactStats sum;
+        for (int s = 0; s < 60; ++s) {
+            w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+            sum.candidateBodies += h.lastStats().candidateBodies;
+            sum.particleBoxTests += h.lastStats().particleBoxTests;
+            sum.narrowphaseQueries += h.lastStats().narrowphaseQueries;
+        }
+        return sum;
+    };
+    const auto empty = run(0, false);
+    const auto crowded = run(1000, false);
+    const auto near = run(0, true);
+    CHECK(empty.candidateBodies == 0);
+    CHECK(empty.particleBoxTests == 0);
+    CHECK(empty.narrowphaseQueries == 0);
+    CHECK(crowded.candidateBodies == empty.candidateBodies);
+    CHECK(crowded.particleBoxTests == empty.particleBoxTests);
+    CHECK(crowded.narrowphaseQueries == empty.narrowphaseQueries);
+    CHECK(near.candidateBodies > 0);
+    CHECK(near.narrowphaseQueries > 0);
+}
