@@ -142,13 +142,14 @@ public:
         for (Eigen::Index i = 0; i < n3; ++i) M.insert(i, i) = diag[i];
         A += M;
 
-        if (dv_.size() != n3) dv_ = Vec::Zero(n3);
         if (settings_.solver == LinearSolverKind::ConjugateGradient) {
             Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg;
             cg.setTolerance(settings_.cgTolerance);
             cg.setMaxIterations(settings_.cgMaxIterations);
             cg.compute(A);
-            dv_ = cg.solveWithGuess(b, dv_);
+            // No warm start from the previous step's dv: the result then depends only on the
+            // state, which keeps restored snapshots bit-identical to uninterrupted runs.
+            dv_ = cg.solve(b);
             iterations_ = static_cast<int>(cg.iterations());
         } else {
             ldlt_.compute(A);

@@ -116,7 +116,8 @@ public:
     const Integrator& integrator() const { return *integrator_; }
 
 private:
-    void applyKinematics(double tEnd, const Vec3List& xStart, double dt);
+    friend std::vector<unsigned char> saveSnapshot(const Cloth&);
+    friend void loadSnapshot(Cloth&, const std::vector<unsigned char>&);
     void evaluateForces();
     void checkFinite(const char* where);
     void invalidateOmega() { omegaMax_ = -1.0; }

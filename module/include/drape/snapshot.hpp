@@ -1,0 +1,41 @@
+// drape/snapshot.hpp: saving and restoring a cloth's complete dynamic state, and a hash of
+// it for determinism checks.
+//
+// A snapshot holds what a step reads: time, step count, positions, velocities, the cached
+// forces, pins and their positions, user forces are not included (they are inputs the
+// caller sets again). Kinematic paths are functions and cannot be stored: a restored cloth
+// keeps the kinematic paths it already has. Restoring into a cloth built from the same
+// topology and settings and then stepping gives bit-identical results to the uninterrupted
+// run.
+//
+// File layout (little-endian): "DRAPESNP", u32 version, u64 topology fingerprint,
+// u64 particle count, f64 time, u64 steps, u8 forces-valid, then per particle
+// x, v, f (9 f64) and u8 pinned, and finally a u64 FNV-1a checksum of everything before it.
+#pragma once
+
+#include "drape/cloth.hpp"
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace drape {
+
+/// FNV-1a 64-bit hash of the cloth's positions and velocities (bit patterns): equal hashes
+/// mean (with overwhelming probability) bit-identical states.
+std::uint64_t stateHash(const Cloth& cloth);
+
+/// A fingerprint of the topology (rest positions, triangles): snapshots refuse to load into
+/// a cloth with a different one.
+std::uint64_t topologyFingerprint(const ClothTopology& topology);
+
+/// Serialises the cloth's state to bytes / a file. Throws drape::Error on I/O failure.
+std::vector<unsigned char> saveSnapshot(const Cloth& cloth);
+void saveSnapshotFile(const Cloth& cloth, const std::string& path);
+
+/// Restores a state saved by saveSnapshot. Throws drape::Error (InvalidArgument) naming the
+/// problem for a truncated, corrupt or foreign snapshot; the cloth is unchanged then.
+void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes);
+void loadSnapshotFile(Cloth& cloth, const std::string& path);
+
+} // namespace drape

@@ -1,0 +1,181 @@
+// Snapshot save/restore and state hashing (format in snapshot.hpp).
+#include "drape/snapshot.hpp"
+
+#include "drape/error.hpp"
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+
+namespace drape {
+namespace {
+
+constexpr char kMagic[8] = {'D', 'R', 'A', 'P', 'E', 'S', 'N', 'P'};
+constexpr std::uint32_t kVersion = 1;
+
+struct Fnv {
+    std::uint64_t h = 1469598103934665603ull;
+    void bytes(const void* data, std::size_t n) {
+        const auto* p = static_cast<const unsigned char*>(data);
+        for (std::size_t i = 0; i < n; ++i) {
+            h ^= p[i];
+            h *= 1099511628211ull;
+        }
+    }
+    template <class T> void pod(const T& v) { bytes(&v, sizeof(T)); }
+};
+
+class Writer {
+public:
+    template <class T> void pod(const T& v) {
+        const auto* p = reinterpret_cast<const unsigned char*>(&v);
+        out.insert(out.end(), p, p + sizeof(T));
+    }
+    std::vector<unsigned char> out;
+};
+
+class Reader {
+public:
+    explicit Reader(const std::vector<unsigned char>& b) : bytes(b) {}
+    template <class T> T pod(const char* what) {
+        if (pos + sizeof(T) > bytes.size()) {
+            throw Error(ErrorCode::InvalidArgument,
+                        std::string("snapshot is truncated (ends inside ") + what + ")");
+        }
+        T v;
+        std::memcpy(&v, bytes.data() + pos, sizeof(T));
+        pos += sizeof(T);
+        return v;
+    }
+    const std::vector<unsigned char>& bytes;
+    std::size_t pos = 0;
+};
+
+} // namespace
+
+std::uint64_t stateHash(const Cloth& cloth) {
+    Fnv f;
+    for (const auto& x : cloth.positions()) f.bytes(x.data(), 3 * sizeof(double));
+    for (const auto& v : cloth.velocities()) f.bytes(v.data(), 3 * sizeof(double));
+    return f.h;
+}
+
+std::uint64_t topologyFingerprint(const ClothTopology& topology) {
+    Fnv f;
+    const std::uint64_t n = topology.particleCount(), t = topology.triangleCount();
+    f.pod(n);
+    f.pod(t);
+    for (const auto& x : topology.restPositions()) f.bytes(x.data(), 3 * sizeof(double));
+    for (const auto& tri : topology.triangles()) f.bytes(tri.data(), 3 * sizeof(Index));
+    return f.h;
+}
+
+std::vector<unsigned char> saveSnapshot(const Cloth& cloth) {
+    Writer w;
+    for (char c : kMagic) w.pod(c);
+    w.pod(kVersion);
+    w.pod(topologyFingerprint(cloth.topology()));
+    w.pod(static_cast<std::uint64_t>(cloth.particleCount()));
+    w.pod(cloth.time_);
+    w.pod(static_cast<std::uint64_t>(cloth.steps_));
+    w.pod(static_cast<std::uint8_t>(cloth.forcesValid_ ? 1 : 0));
+    for (std::size_t i = 0; i < cloth.particleCount(); ++i) {
+        for (const Vec3* v : {&cloth.x_[i], &cloth.v_[i], &cloth.f_[i]})
+            for (int c = 0; c < 3; ++c) w.pod((*v)[c]);
+        w.pod(static_cast<std::uint8_t>(cloth.pinned_[i]));
+    }
+    Fnv sum;
+    sum.bytes(w.out.data(), w.out.size());
+    w.pod(sum.h);
+    return std::move(w.out);
+}
+
+void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
+    if (bytes.size() < sizeof(kMagic) || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
+        throw Error(ErrorCode::InvalidArgument, "not a drape snapshot (bad magic bytes)");
+    }
+    if (bytes.size() < sizeof(kMagic) + 8) {
+        throw Error(ErrorCode::InvalidArgument, "snapshot is truncated (no checksum)");
+    }
+    Fnv sum;
+    sum.bytes(bytes.data(), bytes.size() - 8);
+    std::uint64_t stored;
+    std::memcpy(&stored, bytes.data() + bytes.size() - 8, 8);
+    Reader r(bytes);
+    r.pos = sizeof(kMagic);
+    const auto version = r.pod<std::uint32_t>("the version");
+    if (version != kVersion) {
+        throw Error(ErrorCode::InvalidArgument, "snapshot version " + std::to_string(version) +
+                                                    " is not supported (expected " +
+                                                    std::to_string(kVersion) + ")");
+    }
+    const auto fingerprint = r.pod<std::uint64_t>("the topology fingerprint");
+    const auto n = r.pod<std::uint64_t>("the particle count");
+    if (n != cloth.particleCount()) {
+        throw Error(ErrorCode::InvalidArgument, "snapshot has " + std::to_string(n) +
+                                                    " particles but the cloth has " +
+                                                    std::to_string(cloth.particleCount()));
+    }
+    const std::size_t expected = sizeof(kMagic) + 4 + 8 + 8 + 8 + 8 + 1 + n * (9 * 8 + 1) + 8;
+    if (bytes.size() != expected) {
+        throw Error(ErrorCode::InvalidArgument,
+                    "snapshot is " + std::to_string(bytes.size()) + " bytes, expected " +
+                        std::to_string(expected) + (bytes.size() < expected ? " (truncated)" : ""));
+    }
+    if (stored != sum.h) {
+        throw Error(ErrorCode::InvalidArgument, "snapshot checksum mismatch (the file is corrupt)");
+    }
+    if (fingerprint != topologyFingerprint(cloth.topology())) {
+        throw Error(ErrorCode::InvalidArgument,
+                    "snapshot was saved from a cloth with a different topology");
+    }
+    const double time = r.pod<double>("the time");
+    const auto steps = r.pod<std::uint64_t>("the step count");
+    const auto valid = r.pod<std::uint8_t>("the force flag");
+    Vec3List x(n), v(n), f(n);
+    std::vector<unsigned char> pinned(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        for (Vec3* dst : {&x[i], &v[i], &f[i]})
+            for (int c = 0; c < 3; ++c) (*dst)[c] = r.pod<double>("the particle data");
+        pinned[i] = r.pod<std::uint8_t>("the pin flags");
+        if (!x[i].allFinite() || !v[i].allFinite() || !f[i].allFinite()) {
+            throw Error(ErrorCode::NonFinite,
+                        "snapshot holds a non-finite state at particle " + std::to_string(i));
+        }
+    }
+    if (!std::isfinite(time)) throw Error(ErrorCode::NonFinite, "snapshot time is not finite");
+    // Commit: nothing above modified the cloth.
+    cloth.x_ = std::move(x);
+    cloth.v_ = std::move(v);
+    cloth.f_ = std::move(f);
+    cloth.time_ = time;
+    cloth.steps_ = steps;
+    cloth.forcesValid_ = valid != 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        cloth.pinned_[i] = pinned[i];
+        cloth.invMass_[i] = pinned[i] ? 0.0 : 1.0 / cloth.mass_[i];
+    }
+    cloth.invalidateOmega();
+}
+
+void saveSnapshotFile(const Cloth& cloth, const std::string& path) {
+    const auto bytes = saveSnapshot(cloth);
+    std::ofstream out(path, std::ios::binary);
+    if (!out) throw Error(ErrorCode::InvalidArgument, "cannot open snapshot file '" + path + "' for writing");
+    out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    if (!out) throw Error(ErrorCode::InvalidArgument, "failed writing snapshot file '" + path + "'");
+}
+
+void loadSnapshotFile(Cloth& cloth, const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw Error(ErrorCode::InvalidArgument, "cannot open snapshot file '" + path + "'");
+    std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    try {
+        loadSnapshot(cloth, bytes);
+    } catch (const Error& e) {
+        throw Error(e.code(), "snapshot file '" + path + "': " + e.what());
+    }
+}
+
+} // namespace drape
