@@ -1,0 +1,51 @@
+// drape_samples/run.hpp: running a scene headless and writing its outputs (what drape-run
+// does): PNG frames, the final cloth as OBJ, a CSV of per-frame statistics, a summary and,
+// when ffmpeg is installed, an MP4 of the frames.
+#pragma once
+
+#include "drape_samples/scene.hpp"
+
+#include <filesystem>
+#include <iosfwd>
+#include <optional>
+#include <string>
+
+namespace drape::samples {
+
+/// Command-line overrides of the scene.
+struct RunOptions {
+    std::filesystem::path scene;
+    std::filesystem::path outDir;
+    std::optional<std::size_t> steps;   ///< run this many steps instead of the duration
+    std::optional<double> seconds;      ///< run this long [s] instead of the duration
+    std::optional<std::string> integrator;
+    std::optional<double> timeStep;     ///< [s]
+    std::optional<double> fps;          ///< frames per simulated second
+    std::optional<int> width, height;   ///< image size [px]
+    bool render = true;                 ///< PNG frames (and the MP4)
+    bool video = true;                  ///< MP4 through ffmpeg when it is on the PATH
+    bool progress = false;              ///< progress bar on stderr
+};
+
+/// What a run did, for the summary.
+struct RunResult {
+    std::size_t steps = 0;
+    std::size_t frames = 0;
+    double simulatedSeconds = 0.0;
+    double wallSeconds = 0.0;        ///< whole run, rendering included
+    double stepWallSeconds = 0.0;    ///< time spent stepping only
+    double renderWallSeconds = 0.0;
+    double finalMaxStrain = 0.0;
+    double peakMaxStrain = 0.0;
+    std::size_t particles = 0;
+    std::size_t springs = 0;
+    std::string video;               ///< path of the MP4, or why there is none
+};
+
+/// Applies the overrides to a loaded scene (throws SceneError on impossible values).
+void applyOverrides(SceneDesc& scene, const RunOptions& options);
+
+/// Loads, runs and writes everything. Messages go to `log`. Throws SceneError on any error.
+RunResult runScene(const RunOptions& options, std::ostream& log);
+
+} // namespace drape::samples

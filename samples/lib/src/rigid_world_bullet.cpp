@@ -1,0 +1,248 @@
+// rigid_world_bullet.cpp: the scene's rigid bodies in a btDiscreteDynamicsWorld, with the
+// cloth added through drape::bullet so that one stepSimulation steps both.
+#include "rigid_world.hpp"
+
+#include "drape_samples/mesh_io.hpp"
+
+#include <drape/bullet/bullet_cloth.hpp>
+#include <drape/error.hpp>
+
+#include <btBulletDynamicsCommon.h>
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <sstream>
+
+namespace drape::samples {
+
+bool rigidBodiesAvailable() { return true; }
+
+namespace {
+
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+
+btVector3 bt(const Vec3& v) {
+    return btVector3(static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()), static_cast<btScalar>(v.z()));
+}
+Vec3 toVec(const btVector3& v) { return Vec3(v.x(), v.y(), v.z()); }
+
+btQuaternion rotation(const Vec3& deg) {
+    const Eigen::Quaterniond q = Eigen::AngleAxisd(deg.z() * kDegToRad, Vec3::UnitZ()) *
+                                 Eigen::AngleAxisd(deg.y() * kDegToRad, Vec3::UnitY()) *
+                                 Eigen::AngleAxisd(deg.x() * kDegToRad, Vec3::UnitX());
+    return btQuaternion(static_cast<btScalar>(q.x()), static_cast<btScalar>(q.y()),
+                        static_cast<btScalar>(q.z()), static_cast<btScalar>(q.w()));
+}
+
+btTransform pose(const Vec3& position, const Vec3& rotationDeg) {
+    return btTransform(rotation(rotationDeg), bt(position));
+}
+
+/// Keyframe interpolation: linear in position, spherical in rotation; held at the ends.
+btTransform keyframePose(const std::vector<KeyframeDesc>& keys, const RigidBodyDesc& b, double t) {
+    if (keys.empty()) return pose(b.position, b.rotationDeg);
+    if (t <= keys.front().time) return pose(keys.front().position, keys.front().rotationDeg);
+    if (t >= keys.back().time) return pose(keys.back().position, keys.back().rotationDeg);
+    std::size_t k = 0;
+    while (keys[k + 1].time < t) ++k;
+    const KeyframeDesc& a = keys[k];
+    const KeyframeDesc& c = keys[k + 1];
+    const double s = (t - a.time) / (c.time - a.time);
+    const Vec3 p = a.position + s * (c.position - a.position);
+    const btQuaternion q = rotation(a.rotationDeg).slerp(rotation(c.rotationDeg), static_cast<btScalar>(s));
+    return btTransform(q, bt(p));
+}
+
+class BulletWorld final : public Simulation::RigidWorld {
+public:
+    BulletWorld(const SceneDesc& scene, Cloth& cloth, const std::vector<std::vector<Index>>& attachSets)
+        : scene_(scene),
+          dispatcher_(&config_),
+          world_(&dispatcher_, &broadphase_, &solver_, &config_) {
+        world_.setGravity(bt(scene.cloth.gravity));
+        for (const RigidBodyDesc& d : scene.rigidBodies) addBody(d);
+
+        // The cloth is owned by Simulation; the integration wants a shared_ptr, so hand it
+        // a non-owning one (the world is destroyed before the cloth).
+        std::shared_ptr<Cloth> shared(&cloth, [](Cloth*) {});
+        bullet::BulletClothSettings s;
+        const CollisionDesc c = scene.collision.value_or(CollisionDesc{});
+        double meanEdge = 0.0;
+        for (const Spring& sp : cloth.topology().springs()) meanEdge += sp.restLength;
+        meanEdge /= static_cast<double>(std::max<std::size_t>(1, cloth.topology().springCount()));
+        s.contact.thickness = c.thickness > 0.0 ? c.thickness : 0.1 * meanEdge;
+        s.contact.frictionScale = c.frictionScale;
+        if (c.penaltyForce >= 0.0) s.contact.penaltyForce = c.penaltyForce;
+        s.contact.continuous = c.continuous;
+        s.substeps = c.substeps;
+        s.selfCollision.enabled = c.selfCollision;
+        s.selfCollision.thickness = c.selfThickness > 0.0 ? c.selfThickness : s.contact.thickness;
+        s.useWorldGravity = false; // the scene's gravity is already in the cloth
+        try {
+            cloth_ = bullet::addCloth(&world_, shared, s);
+            for (std::size_t a = 0; a < scene.attachments.size(); ++a) {
+                const std::size_t b = bodyIndex(scene.attachments[a].body);
+                for (Index i : attachSets[a]) cloth_->attachHere(i, bodies_[b].body.get());
+            }
+        } catch (const drape::Error& e) {
+            throw SceneError(scene.sourceFile.string() + ": collision: " + e.what());
+        }
+    }
+
+    ~BulletWorld() override {
+        if (cloth_) cloth_->remove();
+        cloth_.reset();
+        for (auto& b : bodies_)
+            if (b.inWorld) world_.removeRigidBody(b.body.get());
+    }
+
+    void step(double t, double dt) override {
+        for (std::size_t i = 0; i < bodies_.size(); ++i) {
+            Body& b = bodies_[i];
+            const RigidBodyDesc& d = scene_.rigidBodies[i];
+            if (d.motion == MotionKind::Kinematic) {
+                b.motion->setWorldTransform(keyframePose(d.keyframes, d, t + dt));
+            } else if (d.motion == MotionKind::Dynamic && !b.inWorld && !b.manual && t + 0.5 * dt >= d.launchTime) {
+                b.body->setLinearVelocity(bt(d.linearVelocity));
+                b.body->setAngularVelocity(bt(d.angularVelocity));
+                world_.addRigidBody(b.body.get());
+                b.inWorld = true;
+            }
+        }
+        // maxSubSteps = 0: exactly one internal step of dt (no accumulator, no rounding).
+        world_.stepSimulation(static_cast<btScalar>(dt), 0);
+    }
+
+    std::size_t contactCount() const override { return cloth_->lastStats().contacts; }
+
+    Eigen::Matrix4f transform(std::size_t i) const override {
+        btTransform tr;
+        const Body& b = bodies_[i];
+        if (b.motion) b.motion->getWorldTransform(tr);
+        else tr = b.body->getWorldTransform();
+        Eigen::Matrix4f m = Eigen::Matrix4f::Identity();
+        const btMatrix3x3& r = tr.getBasis();
+        for (int row = 0; row < 3; ++row) {
+            for (int col = 0; col < 3; ++col) m(row, col) = static_cast<float>(r[row][col]);
+            m(row, 3) = static_cast<float>(tr.getOrigin()[row]);
+        }
+        return m;
+    }
+
+    Vec3 velocity(std::size_t i) const override { return toVec(bodies_[i].body->getLinearVelocity()); }
+
+    void launch(std::size_t i, const Vec3& position, const Vec3& velocity) override {
+        Body& b = bodies_[i];
+        b.manual = true;
+        btTransform tr = b.body->getWorldTransform();
+        tr.setOrigin(bt(position));
+        b.body->setWorldTransform(tr);
+        b.body->setInterpolationWorldTransform(tr);
+        if (b.motion) b.motion->setWorldTransform(tr);
+        b.body->setLinearVelocity(bt(velocity));
+        b.body->setAngularVelocity(btVector3(0, 0, 0));
+        b.body->clearForces();
+        if (!b.inWorld) {
+            world_.addRigidBody(b.body.get());
+            b.inWorld = true;
+        }
+        b.body->activate(true);
+    }
+
+    std::string description() const override {
+        std::ostringstream s;
+        s << "bullet world, " << bodies_.size() << " rigid bod" << (bodies_.size() == 1 ? "y" : "ies");
+        if (!scene_.attachments.empty()) s << ", " << cloth_->attachments().size() << " attached particles";
+        return s.str();
+    }
+
+private:
+    struct Body {
+        std::unique_ptr<btCollisionShape> shape;
+        std::unique_ptr<btTriangleMesh> triangles; // for mesh shapes
+        std::unique_ptr<btDefaultMotionState> motion;
+        std::unique_ptr<btRigidBody> body;
+        bool inWorld = false;
+        bool manual = false; // launched by the program (a game), not by launch_time
+    };
+
+    std::size_t bodyIndex(const std::string& name) const {
+        for (std::size_t i = 0; i < scene_.rigidBodies.size(); ++i)
+            if (scene_.rigidBodies[i].name == name) return i;
+        throw SceneError(scene_.sourceFile.string() + ": no rigid body named \"" + name + "\"");
+    }
+
+    void addBody(const RigidBodyDesc& d) {
+        Body b;
+        switch (d.shape.kind) {
+        case ShapeKind::Box: b.shape = std::make_unique<btBoxShape>(bt(d.shape.halfExtents)); break;
+        case ShapeKind::Sphere:
+            b.shape = std::make_unique<btSphereShape>(static_cast<btScalar>(d.shape.radius));
+            break;
+        case ShapeKind::Capsule:
+            b.shape = std::make_unique<btCapsuleShape>(static_cast<btScalar>(d.shape.radius),
+                                                       static_cast<btScalar>(d.shape.height));
+            break;
+        case ShapeKind::Plane:
+            b.shape = std::make_unique<btStaticPlaneShape>(bt(d.shape.normal),
+                                                           static_cast<btScalar>(d.shape.offset));
+            break;
+        case ShapeKind::Mesh: {
+            const ImportedMesh im = importMesh(d.shape.mesh);
+            b.triangles = std::make_unique<btTriangleMesh>(true, false);
+            for (const Triangle& t : im.mesh.triangles)
+                b.triangles->addTriangle(bt(im.mesh.vertices[t[0]]), bt(im.mesh.vertices[t[1]]),
+                                         bt(im.mesh.vertices[t[2]]), false);
+            b.shape = std::make_unique<btBvhTriangleMeshShape>(b.triangles.get(), true);
+            break;
+        }
+        }
+        const bool dynamic = d.motion == MotionKind::Dynamic;
+        btVector3 inertia(0, 0, 0);
+        const btScalar mass = dynamic ? static_cast<btScalar>(d.mass) : btScalar(0);
+        if (dynamic) b.shape->calculateLocalInertia(mass, inertia);
+        const btTransform start = d.motion == MotionKind::Kinematic ? keyframePose(d.keyframes, d, 0.0)
+                                                                   : pose(d.position, d.rotationDeg);
+        if (d.motion == MotionKind::Kinematic) b.motion = std::make_unique<btDefaultMotionState>(start);
+        btRigidBody::btRigidBodyConstructionInfo info(mass, b.motion.get(), b.shape.get(), inertia);
+        info.m_startWorldTransform = start;
+        info.m_friction = static_cast<btScalar>(d.friction);
+        info.m_restitution = static_cast<btScalar>(d.restitution);
+        b.body = std::make_unique<btRigidBody>(info);
+        if (d.motion == MotionKind::Kinematic) {
+            b.body->setCollisionFlags(b.body->getCollisionFlags() | btCollisionObject::CF_KINEMATIC_OBJECT);
+            b.body->setActivationState(DISABLE_DEACTIVATION);
+        }
+        if (dynamic) {
+            b.body->setLinearVelocity(bt(d.linearVelocity));
+            b.body->setAngularVelocity(bt(d.angularVelocity));
+            // Thrown objects should not stop in mid-air because Bullet put them to sleep.
+            b.body->setActivationState(DISABLE_DEACTIVATION);
+        }
+        if (!dynamic || d.launchTime <= 0.0) {
+            world_.addRigidBody(b.body.get());
+            b.inWorld = true;
+        }
+        bodies_.push_back(std::move(b));
+    }
+
+    const SceneDesc& scene_;
+    btDefaultCollisionConfiguration config_;
+    btCollisionDispatcher dispatcher_;
+    btDbvtBroadphase broadphase_;
+    btSequentialImpulseConstraintSolver solver_;
+    btDiscreteDynamicsWorld world_;
+    std::vector<Body> bodies_;
+    std::unique_ptr<bullet::BulletCloth> cloth_;
+};
+
+} // namespace
+
+std::unique_ptr<Simulation::RigidWorld>
+Simulation::RigidWorld::create(const SceneDesc& scene, Cloth& cloth,
+                               const std::vector<std::vector<Index>>& attachSets) {
+    return std::make_unique<BulletWorld>(scene, cloth, attachSets);
+}
+
+} // namespace drape::samples

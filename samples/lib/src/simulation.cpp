@@ -1,0 +1,273 @@
+// simulation.cpp: builds a cloth (and its rigid world) from a scene and steps it.
+#include "drape_samples/simulation.hpp"
+
+#include "drape_samples/mesh_io.hpp"
+#include "rigid_world.hpp"
+
+#include <drape/error.hpp>
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+
+namespace drape::samples {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+std::string origin(const SceneDesc& s) {
+    return s.sourceFile.empty() ? std::string("scene") : s.sourceFile.string();
+}
+
+std::vector<DrawMesh> shapeMeshes(const RigidBodyDesc& b, const Vec3& around, double planeSize) {
+    DrawMesh m;
+    switch (b.shape.kind) {
+    case ShapeKind::Box: m = makeBoxMesh(b.shape.halfExtents); break;
+    case ShapeKind::Sphere: m = makeSphereMesh(b.shape.radius); break;
+    case ShapeKind::Capsule: m = makeCapsuleMesh(b.shape.radius, b.shape.height); break;
+    case ShapeKind::Plane:
+        // Planes are infinite and static: draw a checkered square under the cloth, in world space.
+        return makePlaneMeshes(b.shape.normal, b.shape.offset, around, planeSize, b.color);
+    case ShapeKind::Mesh: {
+        ImportedMesh im = importMesh(b.shape.mesh);
+        m = toDrawMesh(im.mesh.vertices, im.mesh.triangles, b.color, b.color);
+        break;
+    }
+    }
+    m.front = m.back = b.color;
+    return {m};
+}
+
+} // namespace
+
+Simulation::Simulation(const SceneDesc& scene) : scene_(scene) {
+    const std::string org = origin(scene_);
+    TriangleMesh mesh;
+    std::map<std::string, std::vector<Index>> groups;
+    if (scene_.sheet) {
+        try {
+            mesh = makeSheet(scene_.sheet->spec);
+        } catch (const drape::Error& e) {
+            fail("cloth.sheet", e.what());
+        }
+    } else {
+        ImportedMesh im = importMesh(*scene_.mesh); // SceneError names the file
+        mesh = std::move(im.mesh);
+        groups = std::move(im.groups);
+    }
+    if (mesh.vertices.size() > kMaxSceneParticles)
+        fail("cloth", std::to_string(mesh.vertices.size()) + " particles exceeds the limit of " +
+                          std::to_string(kMaxSceneParticles));
+
+    TopologyPtr topo;
+    try {
+        TopologyOptions opts;
+        if (scene_.mesh) opts.weldTolerance = scene_.mesh->weldTolerance;
+        topo = ClothTopology::build(mesh, opts);
+    } catch (const drape::Error& e) {
+        fail(scene_.mesh ? "cloth.mesh (" + scene_.mesh->file.string() + ")" : "cloth.sheet", e.what());
+    }
+    try {
+        cloth_ = std::make_unique<Cloth>(topo, scene_.cloth);
+    } catch (const drape::Error& e) {
+        fail("cloth", e.what());
+    }
+    const Vec3 g = scene_.cloth.gravity;
+    up_ = g.norm() > 0.0 ? Vec3(-g.normalized()) : Vec3::UnitY();
+
+    const auto& v2p = topo->vertexToParticle();
+    for (const PinDesc& pin : scene_.pins) {
+        std::vector<Index> set = resolve(pin.select, v2p, groups);
+        for (Index i : set) {
+            if (pin.velocity.isZero()) {
+                cloth_->pin(i);
+            } else {
+                const Vec3 x0 = cloth_->positions()[i];
+                const Vec3 vel = pin.velocity;
+                const double t0 = pin.startTime, t1 = pin.endTime;
+                cloth_->setKinematic(i, [x0, vel, t0, t1](double t) {
+                    return Vec3(x0 + vel * (std::clamp(t, t0, t1) - t0));
+                });
+            }
+        }
+        pinSets_.push_back(std::move(set));
+    }
+    for (const AttachmentDesc& a : scene_.attachments) attachSets_.push_back(resolve(a.select, v2p, groups));
+
+    // Rigid bodies: drawables first (a broken collider mesh is reported before Bullet runs).
+    Vec3 lo = cloth_->positions()[0], hi = lo;
+    for (const Vec3& x : cloth_->positions()) {
+        lo = lo.cwiseMin(x);
+        hi = hi.cwiseMax(x);
+    }
+    const Vec3 centre = 0.5 * (lo + hi);
+    const double planeSize = 4.0 * std::max((hi - lo).norm(), (scene_.camera.position - centre).norm());
+    for (const RigidBodyDesc& b : scene_.rigidBodies) bodyMeshes_.push_back(shapeMeshes(b, centre, planeSize));
+    if (scene_.needsBullet()) world_ = RigidWorld::create(scene_, *cloth_, attachSets_);
+    applyWind();
+}
+
+Simulation::~Simulation() = default;
+
+void Simulation::fail(const std::string& path, const std::string& what) const {
+    throw SceneError(origin(scene_) + ": " + path + ": " + what);
+}
+
+std::vector<Index> Simulation::resolve(const ParticleSelector& sel, const std::vector<Index>& v2p,
+                                       const std::map<std::string, std::vector<Index>>& groups) const {
+    const std::size_t n = cloth_->particleCount();
+    std::vector<unsigned char> chosen(n, 0);
+    for (std::size_t k = 0; k < sel.indices.size(); ++k) {
+        const Index i = sel.indices[k];
+        // Indices count welded mesh vertices (see SCENES.md); the topology may drop unused ones.
+        if (i >= v2p.size() || v2p[i] >= n)
+            fail(sel.path + ".indices[" + std::to_string(k) + "]",
+                 "particle " + std::to_string(i) + " is out of range (the cloth has " +
+                     std::to_string(n) + " particles)");
+        chosen[v2p[i]] = 1;
+    }
+    for (std::size_t k = 0; k < sel.gridCells.size(); ++k) {
+        const auto& spec = scene_.sheet->spec;
+        const auto [r, c] = sel.gridCells[k];
+        if (r >= spec.rows || c >= spec.cols)
+            fail(sel.path + ".grid[" + std::to_string(k) + "]",
+                 "(" + std::to_string(r) + ", " + std::to_string(c) + ") is outside the " +
+                     std::to_string(spec.rows) + " x " + std::to_string(spec.cols) + " sheet");
+        chosen[v2p[sheetIndex(spec, r, c)]] = 1;
+    }
+    if (sel.box) {
+        std::size_t hits = 0;
+        for (std::size_t i = 0; i < n; ++i) {
+            const Vec3& x = cloth_->positions()[i];
+            if ((x.array() >= (*sel.box)[0].array()).all() && (x.array() <= (*sel.box)[1].array()).all()) {
+                chosen[i] = 1;
+                ++hits;
+            }
+        }
+        if (hits == 0) fail(sel.path + ".box", "contains no particle of the cloth");
+    }
+    for (std::size_t k = 0; k < sel.groups.size(); ++k) {
+        auto it = groups.find(sel.groups[k]);
+        if (it == groups.end()) {
+            std::string names;
+            for (const auto& [name, idx] : groups) names += (names.empty() ? "" : ", ") + ("\"" + name + "\"");
+            fail(sel.path + ".groups[" + std::to_string(k) + "]",
+                 "the mesh has no group \"" + sel.groups[k] + "\"" +
+                     (names.empty() ? std::string(" (it has no named groups)") : " (it has " + names + ")"));
+        }
+        for (Index i : it->second)
+            if (i < v2p.size() && v2p[i] < n) chosen[v2p[i]] = 1;
+    }
+    std::vector<Index> out;
+    for (std::size_t i = 0; i < n; ++i)
+        if (chosen[i]) out.push_back(static_cast<Index>(i));
+    return out;
+}
+
+void Simulation::applyWind() {
+    if (!scene_.wind) return;
+    const double t = time();
+    const WindDesc& w = *scene_.wind;
+    cloth_->setWind(w.velocity + w.gustAmplitude * std::sin(2.0 * kPi * w.gustFrequency * t));
+}
+
+double Simulation::time() const { return static_cast<double>(steps_) * scene_.timeStep; }
+
+void Simulation::step() {
+    const double dt = scene_.timeStep;
+    try {
+        if (world_) world_->step(time(), dt);
+        else cloth_->step(dt);
+    } catch (const drape::Error& e) {
+        throw StepError(origin(scene_) + ": step " + std::to_string(steps_ + 1) + " (t = " +
+                         std::to_string(time()) + " s) failed: " + e.what());
+    }
+    ++steps_;
+    applyWind();
+}
+
+std::size_t Simulation::contactCount() const { return world_ ? world_->contactCount() : 0; }
+
+FrameStats Simulation::stats() const {
+    FrameStats s;
+    s.time = time();
+    s.steps = steps_;
+    s.maxStrain = cloth_->maxStrain();
+    s.meanStrain = cloth_->meanStrain();
+    s.kineticEnergy = cloth_->kineticEnergy();
+    double lowest = std::numeric_limits<double>::infinity();
+    for (const Vec3& x : cloth_->positions()) lowest = std::min(lowest, x.dot(up_));
+    s.lowestPoint = lowest;
+    s.contacts = contactCount();
+    return s;
+}
+
+TriangleMesh Simulation::clothMesh() const {
+    TriangleMesh m;
+    m.vertices = cloth_->positions();
+    m.triangles = cloth_->topology().triangles();
+    return m;
+}
+
+std::vector<BodyView> Simulation::bodies() const {
+    std::vector<BodyView> out;
+    if (!world_) return out;
+    for (std::size_t i = 0; i < scene_.rigidBodies.size(); ++i) {
+        BodyView v;
+        v.name = scene_.rigidBodies[i].name;
+        v.transform = scene_.rigidBodies[i].shape.kind == ShapeKind::Plane
+                          ? Eigen::Matrix4f::Identity() // drawn in world space
+                          : world_->transform(i);
+        v.meshes = &bodyMeshes_[i];
+        out.push_back(v);
+    }
+    return out;
+}
+
+std::vector<DrawMesh> Simulation::drawMeshes() const {
+    std::vector<DrawMesh> out;
+    out.push_back(toDrawMesh(cloth_->positions(), cloth_->topology().triangles(), scene_.frontColor,
+                             scene_.backColor));
+    for (const BodyView& b : bodies()) {
+        for (const DrawMesh& m : *b.meshes) {
+            out.push_back(m);
+            out.back().model = b.transform;
+        }
+    }
+    return out;
+}
+
+namespace {
+std::size_t findBody(const SceneDesc& s, const std::string& name) {
+    for (std::size_t i = 0; i < s.rigidBodies.size(); ++i)
+        if (s.rigidBodies[i].name == name) return i;
+    throw SceneError(origin(s) + ": no rigid body named \"" + name + "\"");
+}
+} // namespace
+
+Vec3 Simulation::bodyPosition(const std::string& name) const {
+    const std::size_t i = findBody(scene_, name);
+    if (!world_) return scene_.rigidBodies[i].position;
+    return world_->transform(i).block<3, 1>(0, 3).cast<double>();
+}
+
+Vec3 Simulation::bodyVelocity(const std::string& name) const {
+    const std::size_t i = findBody(scene_, name);
+    return world_ ? world_->velocity(i) : Vec3::Zero();
+}
+
+void Simulation::launchBody(const std::string& name, const Vec3& position, const Vec3& velocity) {
+    const std::size_t i = findBody(scene_, name);
+    if (scene_.rigidBodies[i].motion != MotionKind::Dynamic)
+        throw SceneError(origin(scene_) + ": rigid body \"" + name + "\" is not dynamic");
+    if (!world_) throw SceneError(origin(scene_) + ": no rigid world");
+    world_->launch(i, position, velocity);
+}
+
+std::string Simulation::worldDescription() const {
+    return world_ ? world_->description() : std::string("cloth only");
+}
+
+} // namespace drape::samples
