@@ -24,28 +24,6 @@ double meanSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& 
     return topology.springCount() ? sum / static_cast<double>(topology.springCount()) : 0.0;
 }
 
-void stressOrderByTension(const ClothTopology& topology, const std::vector<double>& invMass,
-                          const std::vector<double>& stiffness, const std::vector<Vec3>& x,
-                          std::vector<Index>& order, std::vector<double>& key) {
-    const std::size_t n = x.size();
-    key.assign(n, 0.0);
-    const auto& springs = topology.springs();
-    for (std::size_t s = 0; s < springs.size(); ++s) {
-        const Spring& sp = springs[s];
-        const double t = stiffness[s] * std::abs((x[sp.b] - x[sp.a]).norm() - sp.restLength);
-        key[sp.a] += t;
-        key[sp.b] += t;
-    }
-    for (std::size_t i = 0; i < n; ++i) {
-        if (invMass[i] == 0.0) key[i] = std::numeric_limits<double>::infinity();
-    }
-    order.resize(n);
-    for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<Index>(i);
-    std::sort(order.begin(), order.end(), [&](Index a, Index b) {
-        return key[a] != key[b] ? key[a] > key[b] : a < b;
-    });
-}
-
 StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
                                           const std::vector<double>& invMass,
                                           const std::vector<double>& stiffness,
@@ -60,23 +38,50 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
     const auto& spr = topology.adjacentSprings();
     const std::size_t n = x.size();
 
-    stats.maxStrainBefore = maxSpringStrain(topology, x);
+    // One pass over the springs gives both the stress keys and the largest strain.
+    auto& key = scratch.key;
+    key.assign(n, 0.0);
+    double worst = 0.0;
+    for (std::size_t si = 0; si < springs.size(); ++si) {
+        const Spring& sp = springs[si];
+        const double l = (x[sp.b] - x[sp.a]).norm();
+        worst = std::max(worst, l / sp.restLength);
+        const double t = stiffness[si] * std::abs(l - sp.restLength);
+        key[sp.a] += t;
+        key[sp.b] += t;
+    }
+    stats.maxStrainBefore = worst - 1.0;
     stats.maxStrainAfter = stats.maxStrainBefore;
-    if (stats.maxStrainBefore + 1.0 <= stopLimit) return stats;
+    if (worst <= stopLimit) return stats;
 
-    stressOrderByTension(topology, invMass, stiffness, x, scratch.order, scratch.key);
+    for (std::size_t i = 0; i < n; ++i) {
+        if (invMass[i] == 0.0) key[i] = std::numeric_limits<double>::infinity();
+    }
+    auto& order = scratch.order;
+    order.resize(n);
+    for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<Index>(i);
+    std::sort(order.begin(), order.end(),
+              [&](Index a, Index b) { return key[a] != key[b] ? key[a] > key[b] : a < b; });
+
     auto& fixed = scratch.fixed;
     for (int round = 0; round < s.maxRounds; ++round) {
         fixed.assign(n, 0);
         for (std::size_t i = 0; i < n; ++i) fixed[i] = invMass[i] == 0.0;
+        // Each spring is looked at once per round, from whichever end is visited first. The
+        // largest strain seen decides whether another round is needed.
+        worst = 0.0;
         for (std::size_t step = 0; step < n; ++step) {
-            const Index p = scratch.order[(round % 2 == 0 || oneSided) ? step : n - 1 - step];
+            // Odd rounds walk the order backwards (a symmetric Gauss-Seidel sweep), which
+            // carries corrections back up toward the anchors and converges faster.
+            const Index p = order[(round % 2 == 0 || oneSided) ? step : n - 1 - step];
             for (Index k = off[p]; k < off[p + 1]; ++k) {
                 const Index q = nbr[k];
                 if (fixed[q]) continue;
                 const Vec3 d = x[q] - x[p];
                 const double l = d.norm();
-                const double lmax = stretchLimit * springs[spr[k]].restLength;
+                const double rest = springs[spr[k]].restLength;
+                worst = std::max(worst, l / rest);
+                const double lmax = stretchLimit * rest;
                 if (l <= lmax) continue;
                 if (oneSided || invMass[p] == 0.0) {
                     x[q] = x[p] + (lmax / l) * d; // pull q along the spring toward p
@@ -93,9 +98,14 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
             fixed[p] = 1; // regulated: later particles no longer adjust it this round
         }
         stats.rounds = round + 1;
-        stats.maxStrainAfter = maxSpringStrain(topology, x);
-        if (stats.maxStrainAfter + 1.0 <= stopLimit) break;
+        // Corrections later in a round can re-stretch springs looked at earlier, so the
+        // strain seen during the walk is only a lower bound: measure before stopping.
+        if (worst <= stopLimit) {
+            stats.maxStrainAfter = maxSpringStrain(topology, x);
+            if (stats.maxStrainAfter + 1.0 <= stopLimit) break;
+        }
     }
+    stats.maxStrainAfter = maxSpringStrain(topology, x);
     return stats;
 }
 

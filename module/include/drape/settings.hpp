@@ -59,7 +59,7 @@ struct LimiterSettings {
     double maxStrain = 0.10;  ///< largest allowed (l - L0) / L0 [-]; the paper's 10 %
     int maxRounds = 64;       ///< rounds (stress-ordered) or sweeps (Provot) per step
     /// Rounds stop once every spring is within maxStrain + tolerance [-].
-    double tolerance = 1e-4;
+    double tolerance = 1e-3;
 };
 
 /// Implicit Euler settings.

@@ -28,24 +28,21 @@ struct StressOrderScratch {
     std::vector<unsigned char> fixed;
 };
 
-/// The paper's stress order: particles sorted by decreasing "stress", the magnitude of the
-/// spring forces they receive, sum_s k_s |l_s - L0_s|, in the current configuration; pinned
-/// particles first (ties by increasing index, so the order is a pure function of the state).
-/// We use the spring forces rather than the net force |f_i|: in a hanging or resting cloth
-/// the net force is close to zero everywhere (springs balance gravity), so sorting by it is
-/// sorting noise, while the spring tension is largest at the suspension points and falls off
-/// away from them, which is the order the paper's figure 5 walks.
-void stressOrderByTension(const ClothTopology& topology, const std::vector<double>& invMass,
-                          const std::vector<double>& stiffness, const std::vector<Vec3>& x,
-                          std::vector<Index>& order, std::vector<double>& key);
-
 /// The paper's stress-ordered limiter (section 3.2): "apply Provot's method and sequentially
 /// update P_k1 ... P_kn" in stress order, a regulated particle not being adjusted again in the
 /// same round. A round visits the particles in stress order; for the current particle p,
 /// every overstretched spring to a neighbour q not yet regulated this round is shortened to
 /// (1 + maxStrain) L0 by Provot's rule: only q moves when p is pinned, otherwise both ends
 /// move by their inverse-mass share. Then p counts as regulated. Rounds repeat (same order,
-/// new positions) until every spring is within maxStrain + tolerance or maxRounds is reached.
+/// alternately forwards and backwards) until a round sees no spring longer than
+/// (1 + maxStrain + tolerance) L0, or maxRounds is reached.
+///
+/// Stress: the magnitude of the spring forces a particle receives, sum_s k_s |l_s - L0_s|,
+/// in the configuration being limited; pinned particles come first; ties by index, so the
+/// order is a pure function of the state. We sort by the spring forces rather than by the
+/// net force |f_i|: in a hanging or resting cloth the net force is near zero everywhere
+/// (springs balance gravity) and sorting by it sorts noise, while the spring tension is
+/// largest at the suspension points and falls off away from them, the walk of figure 5.
 ///
 /// With oneSided = true, q is always pulled the whole way toward p and then fixed for the
 /// round (the most literal reading of the paper's figure 5). That variant does not conserve
