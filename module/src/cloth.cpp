@@ -4,8 +4,11 @@
 #include "drape/error.hpp"
 #include "drape/stability.hpp"
 
+#include "parallel.hpp"
+
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <sstream>
 #include <string>
 
@@ -96,6 +99,10 @@ void validateSettings(const ClothSettings& s) {
                     "limiter.maxRounds must be >= 1, got " + std::to_string(s.limiter.maxRounds));
     }
     requirePositive(s.implicit.cgTolerance, "implicit.cgTolerance");
+    if (s.threads < 1 || s.threads > 256) {
+        throw Error(ErrorCode::InvalidArgument,
+                    "threads must be between 1 and 256, got " + std::to_string(s.threads));
+    }
     if (s.implicit.cgMaxIterations < 1) {
         throw Error(ErrorCode::InvalidArgument, "implicit.cgMaxIterations must be >= 1, got " +
                                                     std::to_string(s.implicit.cgMaxIterations));
@@ -115,8 +122,9 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     v_.assign(x_.size(), Vec3::Zero());
     f_.assign(x_.size(), Vec3::Zero());
     pinned_.assign(x_.size(), 0);
+    if (settings_.threads > 1) poolStorage_ = std::make_unique<detail::ThreadPool>(settings_.threads);
     forceModel_ = std::make_unique<ForceModel>(topology_, buildStiffness(*topology_, settings_),
-                                               mass_, settings_, timers_);
+                                               mass_, settings_, timers_, poolStorage_.get());
     integrator_ = makeIntegrator(settings_.integrator, settings_.implicit);
     slotForcesStale_ = timers_.slot("forces_refresh");
     slotIntegrate_ = timers_.slot("integrate");
@@ -159,9 +167,24 @@ void Cloth::step(double dt) {
                             " sub-steps, or implicit_euler");
         }
     }
+    // Runs body over [0, n) on the pool when the cloth has one.
+    auto forRange = [&](std::size_t n, const std::function<void(std::size_t, std::size_t)>& body) {
+        if (poolStorage_) {
+            poolStorage_->parallelFor(n, body);
+        } else {
+            body(0, n);
+        }
+    };
     // Keep the state from before the step so a failure leaves the cloth as it was.
-    xScratch_ = x_;
-    vScratch_ = v_;
+    const std::size_t n = x_.size();
+    xScratch_.resize(n);
+    vScratch_.resize(n);
+    forRange(n, [&](std::size_t b, std::size_t e) {
+        std::copy(x_.begin() + static_cast<std::ptrdiff_t>(b), x_.begin() + static_cast<std::ptrdiff_t>(e),
+                  xScratch_.begin() + static_cast<std::ptrdiff_t>(b));
+        std::copy(v_.begin() + static_cast<std::ptrdiff_t>(b), v_.begin() + static_cast<std::ptrdiff_t>(e),
+                  vScratch_.begin() + static_cast<std::ptrdiff_t>(b));
+    });
     try {
         if (!forcesValid_) {
             ScopedPhase t(timers_, slotForcesStale_);
@@ -172,7 +195,7 @@ void Cloth::step(double dt) {
             kinematicStart.reserve(kinematic_.size());
             for (const auto& k : kinematic_) kinematicStart.push_back(x_[k.first]);
         }
-        IntegratorContext ctx{x_, v_, f_, invMass_, dt, *forceModel_};
+        IntegratorContext ctx{x_, v_, f_, invMass_, dt, *forceModel_, poolStorage_.get()};
         {
             ScopedPhase t(timers_, slotIntegrate_);
             integrator_->advance(ctx);
@@ -202,7 +225,9 @@ void Cloth::step(double dt) {
             }
             if (limiterStats_.corrections > 0) {
                 const double invDt = 1.0 / dt;
-                for (std::size_t i = 0; i < x_.size(); ++i) v_[i] += (x_[i] - xBeforeLimit_[i]) * invDt;
+                forRange(n, [&](std::size_t b, std::size_t e) {
+                    for (std::size_t i = b; i < e; ++i) v_[i] += (x_[i] - xBeforeLimit_[i]) * invDt;
+                });
             }
         }
         for (std::size_t s = 0; s < stages_.size(); ++s) {
@@ -214,6 +239,7 @@ void Cloth::step(double dt) {
             ScopedPhase t(timers_, slotFinish_);
             integrator_->finish(ctx);
         }
+        // One flag per chunk would do; a plain check is cheap next to the force pass.
         checkFinite("the step");
     } catch (...) {
         x_.swap(xScratch_);

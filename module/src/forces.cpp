@@ -3,6 +3,8 @@
 
 #include "drape/error.hpp"
 
+#include "parallel.hpp"
+
 #include <cmath>
 #include <string>
 
@@ -19,6 +21,36 @@ void addSpringForces(const std::vector<Spring>& springs, const std::vector<doubl
         const Vec3 force = (stiffness[s] * (l - sp.restLength) / l) * d;
         f[sp.a] += force;
         f[sp.b] -= force;
+    }
+}
+
+void springForceVectors(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
+                        const Vec3List& x, Vec3List& perSpring, std::size_t begin,
+                        std::size_t end) {
+    for (std::size_t s = begin; s < end; ++s) {
+        const Spring& sp = springs[s];
+        const Vec3 d = x[sp.b] - x[sp.a];
+        const double l = d.norm();
+        perSpring[s] = l == 0.0 ? Vec3::Zero() : Vec3((stiffness[s] * (l - sp.restLength) / l) * d);
+    }
+}
+
+void gatherSpringForces(const ClothTopology& topology, const Vec3List& perSpring, Vec3List& f,
+                        std::size_t begin, std::size_t end) {
+    const auto& off = topology.adjacencyOffsets();
+    const auto& spr = topology.adjacentSprings();
+    const auto& springs = topology.springs();
+    for (std::size_t i = begin; i < end; ++i) {
+        Vec3 sum = Vec3::Zero();
+        for (Index k = off[i]; k < off[i + 1]; ++k) {
+            const Index s = spr[k];
+            if (springs[s].a == i) {
+                sum += perSpring[s];
+            } else {
+                sum -= perSpring[s];
+            }
+        }
+        f[i] += sum;
     }
 }
 
@@ -90,9 +122,9 @@ double springEnergy(const std::vector<Spring>& springs, const std::vector<double
 
 ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
                        std::vector<double> mass, const ClothSettings& settings,
-                       PhaseTimers& timers)
+                       PhaseTimers& timers, detail::ThreadPool* pool)
     : topology_(std::move(topology)), stiffness_(std::move(stiffness)), mass_(std::move(mass)),
-      settings_(settings), timers_(timers) {
+      settings_(settings), timers_(timers), pool_(pool) {
     rebuildPipeline();
 }
 
@@ -122,16 +154,46 @@ std::vector<std::string> ForceModel::activeTerms() const {
 }
 
 void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
-    f.assign(x.size(), Vec3::Zero());
+    const std::size_t n = x.size();
+    f.resize(n);
+    // Runs a per-particle or per-spring loop on the pool when there is one.
+    auto forRange = [&](std::size_t count, const std::function<void(std::size_t, std::size_t)>& body) {
+        if (pool_) {
+            pool_->parallelFor(count, body);
+        } else {
+            body(0, count);
+        }
+    };
+    forRange(n, [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i) f[i].setZero();
+    });
     for (const Entry& e : pipeline_) {
         ScopedPhase timer(timers_, e.timerSlot);
         switch (e.term) {
-        case Term::Springs: addSpringForces(topology_->springs(), stiffness_, x, f); break;
+        case Term::Springs: {
+            const auto& springs = topology_->springs();
+            perSpring_.resize(springs.size());
+            forRange(springs.size(), [&](std::size_t b, std::size_t end) {
+                springForceVectors(springs, stiffness_, x, perSpring_, b, end);
+            });
+            forRange(n, [&](std::size_t b, std::size_t end) {
+                gatherSpringForces(*topology_, perSpring_, f, b, end);
+            });
+            break;
+        }
         case Term::SpringDamping:
             addSpringDamping(topology_->springs(), settings_.springDamping, x, v, f);
             break;
-        case Term::Gravity: addGravity(mass_, settings_.gravity, f); break;
-        case Term::Damping: addLinearDamping(settings_.damping, v, f); break;
+        case Term::Gravity:
+            forRange(n, [&](std::size_t b, std::size_t end) {
+                for (std::size_t i = b; i < end; ++i) f[i] += mass_[i] * settings_.gravity;
+            });
+            break;
+        case Term::Damping:
+            forRange(n, [&](std::size_t b, std::size_t end) {
+                for (std::size_t i = b; i < end; ++i) f[i] -= settings_.damping * v[i];
+            });
+            break;
         case Term::Aero: addAeroForces(topology_->triangles(), settings_.aero, x, v, f); break;
         case Term::User:
             for (std::size_t k = 0; k < userIndices_.size(); ++k) f[userIndices_[k]] += userForces_[k];

@@ -4,11 +4,25 @@
 
 #include "drape/error.hpp"
 
+#include "parallel.hpp"
+
 #include <Eigen/IterativeLinearSolvers>
 #include <Eigen/SparseCholesky>
 
 namespace drape {
 namespace {
+
+/// Runs body(i) for every particle, on the context's pool when it has one.
+template <class Body> void forParticles(IntegratorContext& c, Body body) {
+    auto range = [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i) body(i);
+    };
+    if (c.pool) {
+        c.pool->parallelFor(c.x.size(), range);
+    } else {
+        range(0, c.x.size());
+    }
+}
 
 /// Eq. (14) with the time step restored in the velocity term:
 ///   x(t+dt) = x(t) + v(t) dt + f(t)/(2m) dt^2
@@ -21,14 +35,14 @@ public:
     IntegratorKind kind() const override { return IntegratorKind::VelocityVerlet; }
     void advance(IntegratorContext& c) override {
         const double h = 0.5 * c.dt;
-        for (std::size_t i = 0; i < c.x.size(); ++i) {
+        forParticles(c, [&](std::size_t i) {
             c.v[i] += (h * c.invMass[i]) * c.f[i];
             c.x[i] += c.dt * c.v[i];
-        }
+        });
     }
     void finish(IntegratorContext& c) override {
         const double h = 0.5 * c.dt;
-        for (std::size_t i = 0; i < c.x.size(); ++i) c.v[i] += (h * c.invMass[i]) * c.f[i];
+        forParticles(c, [&](std::size_t i) { c.v[i] += (h * c.invMass[i]) * c.f[i]; });
     }
 };
 
@@ -37,10 +51,10 @@ class ExplicitEuler final : public Integrator {
 public:
     IntegratorKind kind() const override { return IntegratorKind::ExplicitEuler; }
     void advance(IntegratorContext& c) override {
-        for (std::size_t i = 0; i < c.x.size(); ++i) {
+        forParticles(c, [&](std::size_t i) {
             c.x[i] += c.dt * c.v[i];
             c.v[i] += (c.dt * c.invMass[i]) * c.f[i];
-        }
+        });
     }
 };
 
@@ -49,10 +63,10 @@ class SymplecticEuler final : public Integrator {
 public:
     IntegratorKind kind() const override { return IntegratorKind::SymplecticEuler; }
     void advance(IntegratorContext& c) override {
-        for (std::size_t i = 0; i < c.x.size(); ++i) {
+        forParticles(c, [&](std::size_t i) {
             c.v[i] += (c.dt * c.invMass[i]) * c.f[i];
             c.x[i] += c.dt * c.v[i];
-        }
+        });
     }
 };
 

@@ -27,6 +27,9 @@
 namespace drape {
 
 class Cloth;
+namespace detail {
+class ThreadPool;
+}
 
 /// A stage the caller plugs into the step after strain limiting (a collision stage, for
 /// example). It may move particles (Cloth::mutablePositions()) and change velocities.
@@ -130,6 +133,7 @@ private:
     Vec3List xScratch_, vScratch_, xBeforeLimit_;
     std::vector<unsigned char> pinned_;
     std::vector<std::pair<Index, KinematicPath>> kinematic_;
+    std::unique_ptr<detail::ThreadPool> poolStorage_;
     std::unique_ptr<ForceModel> forceModel_;
     std::unique_ptr<Integrator> integrator_;
     std::vector<std::shared_ptr<ClothStage>> stages_;

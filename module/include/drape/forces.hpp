@@ -15,12 +15,26 @@
 
 namespace drape {
 
+namespace detail {
+class ThreadPool;
+}
+
 using Vec3List = std::vector<Vec3>;
 
 /// Eq. (4), Hooke's linked springs: particle a gets k (l - L0) n with n the unit vector from a
 /// to b and l the current length; b gets the opposite. The energy is k (l - L0)^2 / 2.
 void addSpringForces(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
                      const Vec3List& x, Vec3List& f);
+
+/// The same forces as addSpringForces, in two passes that parallelise without changing a
+/// bit of the result: springForceVectors writes each spring's force on its end a into
+/// perSpring[s] (for s in [begin, end)); gatherSpringForces adds to each particle in
+/// [begin, end) the forces of its springs in adjacency order (+ for end a, - for end b).
+void springForceVectors(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
+                        const Vec3List& x, Vec3List& perSpring, std::size_t begin,
+                        std::size_t end);
+void gatherSpringForces(const ClothTopology& topology, const Vec3List& perSpring, Vec3List& f,
+                        std::size_t begin, std::size_t end);
 
 /// Damping along springs: a gets c ((v_b - v_a) . n) n, b the opposite. Dissipates relative
 /// motion along the spring only, so rigid motion is not damped.
@@ -58,8 +72,11 @@ public:
     /// stage, for example): called with (x, v, f) and adds to f.
     using ExternalForce = std::function<void(const Vec3List& x, const Vec3List& v, Vec3List& f)>;
 
+    /// `pool` (may be null) runs the spring, gravity and damping terms on several threads;
+    /// the result is bit-identical for any number of threads.
     ForceModel(TopologyPtr topology, std::vector<double> stiffness, std::vector<double> mass,
-               const ClothSettings& settings, PhaseTimers& timers);
+               const ClothSettings& settings, PhaseTimers& timers,
+               detail::ThreadPool* pool = nullptr);
 
     /// f = sum of all active terms at state (x, v).
     void evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f);
@@ -102,6 +119,8 @@ private:
     Vec3List userForces_;
     std::vector<std::pair<std::string, ExternalForce>> externals_;
     std::vector<Entry> pipeline_;
+    detail::ThreadPool* pool_ = nullptr;
+    Vec3List perSpring_;
 };
 
 } // namespace drape

@@ -25,6 +25,7 @@ struct IntegratorContext {
     const std::vector<double>& invMass; ///< 1/m, 0 for pinned and kinematic particles [1/kg]
     double dt;                          ///< time step [s]
     ForceModel& forces;                 ///< for integrators that evaluate forces more than once
+    detail::ThreadPool* pool = nullptr; ///< splits particle loops over threads when set
 };
 
 /// One time integrator; holds its own scratch buffers, so one instance per cloth.
