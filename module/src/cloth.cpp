@@ -99,6 +99,12 @@ void validateSettings(const ClothSettings& s) {
                     "limiter.maxRounds must be >= 1, got " + std::to_string(s.limiter.maxRounds));
     }
     requirePositive(s.implicit.cgTolerance, "implicit.cgTolerance");
+    requireNonNegative(s.failure.maxStrain, "failure.maxStrain");
+    requireNonNegative(s.failure.maxEnergyGrowth, "failure.maxEnergyGrowth");
+    if (s.failure.retrySubsteps < 0 || s.failure.retrySubsteps > 1024) {
+        throw Error(ErrorCode::InvalidArgument, "failure.retrySubsteps must be between 0 and 1024, got " +
+                                                    std::to_string(s.failure.retrySubsteps));
+    }
     if (s.threads < 1 || s.threads > 256) {
         throw Error(ErrorCode::InvalidArgument,
                     "threads must be between 1 and 256, got " + std::to_string(s.threads));
@@ -153,6 +159,47 @@ void Cloth::checkFinite(const char* where) {
 }
 
 void Cloth::step(double dt) {
+    if (settings_.failure.retrySubsteps < 2) {
+        stepOnce(dt);
+        return;
+    }
+    try {
+        stepOnce(dt);
+    } catch (const Error& e) {
+        if (e.code() != ErrorCode::SimulationFailure) throw;
+        // Retry the step as sub-steps; if that fails too, restore the state from before it.
+        const Vec3List x0 = x_, v0 = v_;
+        const double t0 = time_;
+        const std::uint64_t s0 = steps_;
+        const int k = settings_.failure.retrySubsteps;
+        try {
+            for (int i = 0; i < k; ++i) stepOnce(dt / k);
+        } catch (const Error& again) {
+            x_ = x0;
+            v_ = v0;
+            time_ = t0;
+            steps_ = s0;
+            forcesValid_ = false;
+            throw Error(again.code(), std::string(e.what()) + " Retrying as " + std::to_string(k) +
+                                          " sub-steps failed too: " + again.what());
+        }
+        ++retries_;
+        steps_ = s0 + 1; // the sub-steps count as the one step the caller asked for
+    }
+}
+
+double Cloth::energyScale() const {
+    // Kinetic plus elastic energy, floored by the work gravity does over one mean spring
+    // length, so that a cloth at rest still has a finite scale.
+    double totalMass = 0.0;
+    for (double m : mass_) totalMass += m;
+    double meanRest = 0.0;
+    for (const auto& s : topology_->springs()) meanRest += s.restLength;
+    meanRest /= static_cast<double>(std::max<std::size_t>(topology_->springCount(), 1));
+    return kineticEnergy() + springEnergy() + totalMass * settings_.gravity.norm() * meanRest;
+}
+
+void Cloth::stepOnce(double dt) {
     if (!std::isfinite(dt)) throw Error(ErrorCode::NonFinite, "time step is not finite");
     if (!(dt > 0.0)) throw Error(ErrorCode::InvalidArgument, "time step must be positive, got " + num(dt));
     if (settings_.rejectUnstableTimeStep) {
@@ -175,6 +222,16 @@ void Cloth::step(double dt) {
             body(0, n);
         }
     };
+    // Energy can only grow through wind, user forces, kinematic particles and stages
+    // (contacts with moving bodies): check it only without those sources.
+    const bool checkEnergy = settings_.failure.maxEnergyGrowth > 0.0 && kinematic_.empty() &&
+                             stages_.empty() && forceModel_->activeTerms().size() ==
+                                 forceModel_->passiveTermCount();
+    double energyBefore = 0.0, scaleBefore = 0.0;
+    if (checkEnergy) {
+        energyBefore = kineticEnergy() + springEnergy() + gravityEnergy();
+        scaleBefore = energyScale();
+    }
     // Keep the state from before the step so a failure leaves the cloth as it was.
     const std::size_t n = x_.size();
     xScratch_.resize(n);
@@ -239,8 +296,29 @@ void Cloth::step(double dt) {
             ScopedPhase t(timers_, slotFinish_);
             integrator_->finish(ctx);
         }
-        // One flag per chunk would do; a plain check is cheap next to the force pass.
         checkFinite("the step");
+        if (settings_.failure.maxStrain > 0.0) {
+            const double strain = maxStrain();
+            if (strain > settings_.failure.maxStrain) {
+                throw Error(ErrorCode::SimulationFailure,
+                            "strain " + num(strain) + " exceeds the hard cap failure.maxStrain = " +
+                                num(settings_.failure.maxStrain) + " in step " +
+                                std::to_string(steps_ + 1) + " (t = " + num(time_) +
+                                " s); the cloth keeps its state from before the step");
+            }
+        }
+        if (checkEnergy) {
+            const double after = kineticEnergy() + springEnergy() + gravityEnergy();
+            if (after - energyBefore > settings_.failure.maxEnergyGrowth * scaleBefore) {
+                throw Error(ErrorCode::SimulationFailure,
+                            "mechanical energy grew by " + num(after - energyBefore) +
+                                " J in step " + std::to_string(steps_ + 1) + " (t = " +
+                                num(time_) + " s), more than failure.maxEnergyGrowth = " +
+                                num(settings_.failure.maxEnergyGrowth) + " times the energy scale " +
+                                num(scaleBefore) + " J, with no energy source; the cloth keeps "
+                                "its state from before the step");
+            }
+        }
     } catch (...) {
         x_.swap(xScratch_);
         v_.swap(vScratch_);

@@ -153,6 +153,15 @@ std::vector<std::string> ForceModel::activeTerms() const {
     return names;
 }
 
+std::size_t ForceModel::passiveTermCount() const {
+    std::size_t count = 0;
+    for (const auto& e : pipeline_) {
+        count += e.term == Term::Springs || e.term == Term::SpringDamping ||
+                 e.term == Term::Gravity || e.term == Term::Damping;
+    }
+    return count;
+}
+
 void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
     const std::size_t n = x.size();
     f.resize(n);

@@ -56,8 +56,12 @@ public:
 
     /// Advances the cloth by dt [s]. Throws drape::Error on a non-positive or non-finite dt,
     /// on a dt beyond the stability limit (if settings.rejectUnstableTimeStep), and when the
-    /// state stops being finite (the state is then left as it was before the step).
+    /// state stops being finite or fails a check of settings.failure (the state is then left
+    /// as it was before the step). With failure.retrySubsteps >= 2 a failed step is first
+    /// retried as that many sub-steps.
     void step(double dt);
+    /// Steps that failed and succeeded when retried as sub-steps.
+    std::uint64_t retriedSteps() const { return retries_; }
 
     // --- pins -----------------------------------------------------------------------------
     /// Fixes particle i where it is now (or at `position`); it never moves until unpinned.
@@ -121,6 +125,8 @@ public:
 private:
     friend std::vector<unsigned char> saveSnapshot(const Cloth&);
     friend void loadSnapshot(Cloth&, const std::vector<unsigned char>&);
+    void stepOnce(double dt);
+    double energyScale() const;
     void evaluateForces();
     void checkFinite(const char* where);
     void invalidateOmega() { omegaMax_ = -1.0; }
@@ -146,6 +152,7 @@ private:
     mutable double omegaMax_ = -1.0;
     double time_ = 0.0;
     std::uint64_t steps_ = 0;
+    std::uint64_t retries_ = 0;
 };
 
 } // namespace drape

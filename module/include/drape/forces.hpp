@@ -99,6 +99,8 @@ public:
     const ClothSettings& settings() const { return settings_; }
     /// Names of the force terms in the pipeline, in evaluation order.
     std::vector<std::string> activeTerms() const;
+    /// Number of active terms that cannot add energy (springs, damping, gravity).
+    std::size_t passiveTermCount() const;
 
 private:
     enum class Term { Springs, SpringDamping, Gravity, Damping, Aero, User, External };

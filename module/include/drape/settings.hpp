@@ -69,6 +69,19 @@ struct ImplicitSettings {
     int cgMaxIterations = 500;  ///< CG iteration cap per step
 };
 
+/// Blow-up detection beyond the always-on check for non-finite positions and velocities.
+struct FailureSettings {
+    /// Hard cap on the largest strain (l - L0) / L0 after a step; 0 turns it off [-].
+    double maxStrain = 0.0;
+    /// A step fails when the mechanical energy (kinetic + springs + gravity) grows by more
+    /// than this times the energy scale (kinetic + elastic + total weight times the mean
+    /// spring length). Only checked when nothing can add energy (no wind or user forces, no
+    /// kinematic particles, no stages); 0 turns it off [-]. Costs two energy passes a step.
+    double maxEnergyGrowth = 0.0;
+    /// Retry a failed step as this many sub-steps before giving up (0 or 1: no retry).
+    int retrySubsteps = 0;
+};
+
 /// Everything a Cloth needs besides its topology.
 struct ClothSettings {
     IntegratorKind integrator = IntegratorKind::VelocityVerlet;
@@ -87,6 +100,7 @@ struct ClothSettings {
     AeroSettings aero;          ///< air drag and lift; off by default
     LimiterSettings limiter;    ///< strain limiting; stress-ordered 10 % by default
     ImplicitSettings implicit;  ///< used by ImplicitEuler only
+    FailureSettings failure;    ///< blow-up detection and retry
 
     /// Threads a step may use (>= 1, the caller's included). Springs, gravity, damping and
     /// the explicit integrators' particle loops are split over them; results are
