@@ -147,6 +147,10 @@ void Cloth::evaluateForces() {
 }
 
 void Cloth::checkFinite(const char* where) {
+    // A NaN or infinity anywhere makes the sum non-finite; only then look for the particle.
+    double sum = 0.0;
+    for (std::size_t i = 0; i < x_.size(); ++i) sum += x_[i].sum() + v_[i].sum() + f_[i].sum();
+    if (std::isfinite(sum)) return;
     for (std::size_t i = 0; i < x_.size(); ++i) {
         if (!x_[i].allFinite() || !v_[i].allFinite() || !f_[i].allFinite()) {
             throw Error(ErrorCode::SimulationFailure,
@@ -156,6 +160,10 @@ void Cloth::checkFinite(const char* where) {
                             "the step. Reduce the time step or the stiffness.");
         }
     }
+    // Finite values whose sum overflows: the state is out of any sensible range.
+    throw Error(ErrorCode::SimulationFailure,
+                std::string("state magnitude overflowed after ") + where + " in step " +
+                    std::to_string(steps_ + 1) + "; the cloth keeps its state from before the step");
 }
 
 void Cloth::step(double dt) {

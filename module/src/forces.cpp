@@ -37,19 +37,12 @@ void springForceVectors(const std::vector<Spring>& springs, const std::vector<do
 
 void gatherSpringForces(const ClothTopology& topology, const Vec3List& perSpring, Vec3List& f,
                         std::size_t begin, std::size_t end) {
-    const auto& off = topology.adjacencyOffsets();
-    const auto& spr = topology.adjacentSprings();
-    const auto& springs = topology.springs();
+    const Index* off = topology.adjacencyOffsets().data();
+    const Index* spr = topology.adjacentSprings().data();
+    const double* sign = topology.adjacentSpringSigns().data();
     for (std::size_t i = begin; i < end; ++i) {
         Vec3 sum = Vec3::Zero();
-        for (Index k = off[i]; k < off[i + 1]; ++k) {
-            const Index s = spr[k];
-            if (springs[s].a == i) {
-                sum += perSpring[s];
-            } else {
-                sum -= perSpring[s];
-            }
-        }
+        for (Index k = off[i]; k < off[i + 1]; ++k) sum += sign[k] * perSpring[spr[k]];
         f[i] += sum;
     }
 }
