@@ -24,27 +24,35 @@ void addSpringForces(const std::vector<Spring>& springs, const std::vector<doubl
     }
 }
 
-void springForceVectors(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
-                        const Vec3List& x, Vec3List& perSpring, std::size_t begin,
-                        std::size_t end) {
-    for (std::size_t s = begin; s < end; ++s) {
+void addSpringForcesSubset(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
+                           const std::vector<Index>& subset, const Vec3List& x, Vec3List& f) {
+    for (Index s : subset) {
         const Spring& sp = springs[s];
         const Vec3 d = x[sp.b] - x[sp.a];
         const double l = d.norm();
-        perSpring[s] = l == 0.0 ? Vec3::Zero() : Vec3((stiffness[s] * (l - sp.restLength) / l) * d);
+        if (l == 0.0) continue;
+        const Vec3 force = (stiffness[s] * (l - sp.restLength) / l) * d;
+        f[sp.a] += force;
+        f[sp.b] -= force;
     }
 }
 
-void gatherSpringForces(const ClothTopology& topology, const Vec3List& perSpring, Vec3List& f,
-                        std::size_t begin, std::size_t end) {
-    const Index* off = topology.adjacencyOffsets().data();
-    const Index* spr = topology.adjacentSprings().data();
-    const double* sign = topology.adjacentSpringSigns().data();
-    for (std::size_t i = begin; i < end; ++i) {
-        Vec3 sum = Vec3::Zero();
-        for (Index k = off[i]; k < off[i + 1]; ++k) sum += sign[k] * perSpring[spr[k]];
-        f[i] += sum;
+SpringBlocks makeSpringBlocks(const ClothTopology& topology, std::size_t blocks) {
+    const std::size_t n = topology.particleCount();
+    blocks = std::max<std::size_t>(1, std::min(blocks, n));
+    SpringBlocks out;
+    out.inner.resize(blocks);
+    auto blockOf = [&](Index i) { return static_cast<std::size_t>(i) * blocks / n; };
+    const auto& springs = topology.springs();
+    for (std::size_t s = 0; s < springs.size(); ++s) {
+        const std::size_t ba = blockOf(springs[s].a), bb = blockOf(springs[s].b);
+        if (ba == bb) {
+            out.inner[ba].push_back(static_cast<Index>(s));
+        } else {
+            out.crossing.push_back(static_cast<Index>(s));
+        }
     }
+    return out;
 }
 
 void addSpringDamping(const std::vector<Spring>& springs, double c, const Vec3List& x,
@@ -118,6 +126,9 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
                        PhaseTimers& timers, detail::ThreadPool* pool)
     : topology_(std::move(topology)), stiffness_(std::move(stiffness)), mass_(std::move(mass)),
       settings_(settings), timers_(timers), pool_(pool) {
+    // A fixed number of blocks (independent of the thread count, so sums do not change with
+    // it): one per 16384 particles, at most 64.
+    blocks_ = makeSpringBlocks(*topology_, std::min<std::size_t>(64, 1 + topology_->particleCount() / 16384));
     rebuildPipeline();
 }
 
@@ -166,31 +177,38 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
             body(0, count);
         }
     };
+    const bool gravity = settings_.gravity != Vec3::Zero();
+    // Start from gravity (eq. (6)) or zero: one pass instead of two.
     forRange(n, [&](std::size_t b, std::size_t e) {
-        for (std::size_t i = b; i < e; ++i) f[i].setZero();
+        if (gravity) {
+            for (std::size_t i = b; i < e; ++i) f[i] = mass_[i] * settings_.gravity;
+        } else {
+            for (std::size_t i = b; i < e; ++i) f[i].setZero();
+        }
     });
     for (const Entry& e : pipeline_) {
         ScopedPhase timer(timers_, e.timerSlot);
         switch (e.term) {
         case Term::Springs: {
             const auto& springs = topology_->springs();
-            perSpring_.resize(springs.size());
-            forRange(springs.size(), [&](std::size_t b, std::size_t end) {
-                springForceVectors(springs, stiffness_, x, perSpring_, b, end);
-            });
-            forRange(n, [&](std::size_t b, std::size_t end) {
-                gatherSpringForces(*topology_, perSpring_, f, b, end);
-            });
+            const std::size_t nb = blocks_.inner.size();
+            auto blockRange = [&](std::size_t b, std::size_t end) {
+                for (std::size_t k = b; k < end; ++k) {
+                    addSpringForcesSubset(springs, stiffness_, blocks_.inner[k], x, f);
+                }
+            };
+            if (pool_) {
+                pool_->parallelFor(nb, blockRange, 1);
+            } else {
+                blockRange(0, nb);
+            }
+            addSpringForcesSubset(springs, stiffness_, blocks_.crossing, x, f);
             break;
         }
         case Term::SpringDamping:
             addSpringDamping(topology_->springs(), settings_.springDamping, x, v, f);
             break;
-        case Term::Gravity:
-            forRange(n, [&](std::size_t b, std::size_t end) {
-                for (std::size_t i = b; i < end; ++i) f[i] += mass_[i] * settings_.gravity;
-            });
-            break;
+        case Term::Gravity: break; // applied when f was initialised above
         case Term::Damping:
             forRange(n, [&](std::size_t b, std::size_t end) {
                 for (std::size_t i = b; i < end; ++i) f[i] -= settings_.damping * v[i];

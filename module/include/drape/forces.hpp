@@ -26,15 +26,20 @@ using Vec3List = std::vector<Vec3>;
 void addSpringForces(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
                      const Vec3List& x, Vec3List& f);
 
-/// The same forces as addSpringForces, in two passes that parallelise without changing a
-/// bit of the result: springForceVectors writes each spring's force on its end a into
-/// perSpring[s] (for s in [begin, end)); gatherSpringForces adds to each particle in
-/// [begin, end) the forces of its springs in adjacency order (+ for end a, - for end b).
-void springForceVectors(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
-                        const Vec3List& x, Vec3List& perSpring, std::size_t begin,
-                        std::size_t end);
-void gatherSpringForces(const ClothTopology& topology, const Vec3List& perSpring, Vec3List& f,
-                        std::size_t begin, std::size_t end);
+/// addSpringForces over the springs listed in `subset` (spring indices, in order).
+void addSpringForcesSubset(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
+                           const std::vector<Index>& subset, const Vec3List& x, Vec3List& f);
+
+/// A fixed split of the springs for parallel accumulation. Particles are cut into `blocks`
+/// contiguous index ranges; inner[b] lists (in index order) the springs with both ends in
+/// block b, crossing the springs joining two blocks. Every particle then receives its inner
+/// springs first, in index order, then its crossing springs, in index order: the same
+/// floating-point sums whether the blocks run on one thread or many.
+struct SpringBlocks {
+    std::vector<std::vector<Index>> inner;
+    std::vector<Index> crossing;
+};
+SpringBlocks makeSpringBlocks(const ClothTopology& topology, std::size_t blocks);
 
 /// Damping along springs: a gets c ((v_b - v_a) . n) n, b the opposite. Dissipates relative
 /// motion along the spring only, so rigid motion is not damped.
@@ -122,7 +127,7 @@ private:
     std::vector<std::pair<std::string, ExternalForce>> externals_;
     std::vector<Entry> pipeline_;
     detail::ThreadPool* pool_ = nullptr;
-    Vec3List perSpring_;
+    SpringBlocks blocks_;
 };
 
 } // namespace drape
