@@ -36,6 +36,7 @@
 #include "shape_queries.hpp"
 
 #include "drape/error.hpp"
+#include "drape/strain_limit.hpp"
 
 #include <btBulletDynamicsCommon.h>
 #include <BulletCollision/CollisionDispatch/btGhostObject.h>
@@ -177,6 +178,9 @@ struct PenaltyContact {
     double damping = 0.0;             ///< normal damping [N s/m]
     double force = 0.0;               ///< magnitude at the last force evaluation [N]
     bool touching = false;            ///< was within the thickness (projected) this step
+    bool stuck = false;               ///< static friction: no tangential slip this step
+    double mu = 0.0;                  ///< Coulomb coefficient [-]
+    Vec3 friction = Vec3::Zero();     ///< static friction force at the last evaluation [N]
 };
 
 /// Shared between the stage, the force term the cloth owns, and the handle.
@@ -187,6 +191,8 @@ struct PenaltyState {
 };
 
 constexpr double kE = 2.718281828459045;
+/// Limiter passes (with touching particles held) after the contact projection.
+constexpr int kRelimitPasses = 2;
 
 /// Eq. (7) regularised. The paper's C_p exp(1 / |PP0|) grows without bound as the particle
 /// reaches the surface and is dimensionally inconsistent; we keep its shape (an exponential
@@ -235,7 +241,19 @@ struct BulletCloth::Impl {
     double margin = 0.0;
     double band = 0.0;
 
+    // Scratch of the contact stage.
+    std::vector<unsigned char> touching; ///< particle touched a body this step
+    std::vector<double> heldInvMass;
+    Vec3List xBeforeLimit;
+    std::vector<std::size_t> moved;
+    StressOrderScratch limitScratch;
+
     void gatherBodies();
+    /// Contact of particle i with body bi (projection, velocity response, friction, and its
+    /// eq. (7) record). Returns whether it is within the contact reach.
+    bool collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, double dt,
+                         detail::QueryCounters& counters);
+    std::vector<std::int64_t> recordOf; ///< per particle: its latest PenaltyContact, or -1
     void resolveContacts(Cloth& c, double dt);
     void updateBounds(double dt);
     Vec3 attachmentPoint(const Attachment& a) const {
@@ -306,6 +324,128 @@ void BulletCloth::Impl::gatherBodies() {
     last.candidateBodies = bodies.size();
 }
 
+bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, double dt,
+                                        detail::QueryCounters& counters) {
+    BodySnapshot& b = bodies[bi];
+    Vec3List& x = c.mutablePositions();
+    Vec3List& v = c.mutableVelocities();
+    const double wi = c.inverseMasses()[i];
+    const auto& cs = settings.contact;
+    const double h = cs.thickness;
+    const Vec3 xi = x[i];
+    const Vec3 from = prevX[i];
+    const bool sweep = cs.continuous && (xi - from).squaredNorm() > h * h;
+    const Vec3 lo = sweep ? Vec3(xi.cwiseMin(from)) : xi;
+    const Vec3 hi = sweep ? Vec3(xi.cwiseMax(from)) : xi;
+    ++last.particleBoxTests;
+    if ((hi.array() < b.aabbMin.array()).any() || (lo.array() > b.aabbMax.array()).any()) return false;
+
+    detail::SurfaceHit hit;
+    bool crossed = false;
+    if (sweep) {
+        // Did the particle's path since the last step enter the body?
+        ++last.rayQueries;
+        btTransform t0, t1;
+        t0.setIdentity();
+        t1.setIdentity();
+        t0.setOrigin(toBt(from));
+        t1.setOrigin(toBt(xi));
+        btCollisionWorld::ClosestRayResultCallback ray(t0.getOrigin(), t1.getOrigin());
+        btCollisionWorld::rayTestSingle(t0, t1, const_cast<btCollisionObject*>(b.object),
+                                        b.object->getCollisionShape(), b.object->getWorldTransform(),
+                                        ray);
+        if (ray.hasHit()) {
+            Vec3 nrm = toVec(ray.m_hitNormalWorld);
+            const double len = nrm.norm();
+            if (len > 0.0) {
+                nrm /= len;
+                if (nrm.dot(from - xi) < 0.0) nrm = -nrm; // face where the particle came from
+                crossed = true;
+                hit.valid = true;
+                hit.point = toVec(ray.m_hitPointWorld);
+                hit.normal = nrm;
+                hit.distance = std::min((xi - hit.point).dot(nrm), 0.0);
+            }
+        }
+    }
+    if (!crossed) {
+        hit = detail::closestSurface(b.object->getCollisionShape(), b.pose, xi, from, h + band, counters);
+        if (!hit.valid || hit.distance >= h + band) return false;
+    }
+
+    // Eq. (7) penalty band (also for particles below the thickness: they end at its bottom
+    // after the projection).
+    const double mi = c.masses()[i];
+    double cp = cs.penaltyForce < 0.0 ? 2.0 * mi * c.settings().gravity.norm() : cs.penaltyForce;
+    double penaltyImpulse = 0.0;
+    PenaltyContact* pc = nullptr;
+    if (cp > 0.0) {
+        // Keep the penalty spring (stiffness cp e / ((e - 1) w)) and its damping inside the
+        // explicit stability limits of this step: k dt^2 / m <= 1, c dt / m <= 1/2.
+        const double kMax = mi / (dt * dt);
+        const double k = cp * kE / ((kE - 1.0) * band);
+        if (k > kMax) cp *= kMax / k;
+        const double kEff = std::min(k, kMax);
+        // One record per particle and body: a second visit (after re-limiting) updates it.
+        const std::int64_t existing = recordOf[i];
+        if (existing >= 0 && penalty->contacts[std::size_t(existing)].body == bi) {
+            pc = &penalty->contacts[std::size_t(existing)];
+        } else {
+            recordOf[i] = std::int64_t(penalty->contacts.size());
+            penalty->contacts.emplace_back();
+            pc = &penalty->contacts.back();
+        }
+        PenaltyContact& rec = *pc;
+        rec.particle = static_cast<Index>(i);
+        rec.body = bi;
+        rec.point = hit.point;
+        rec.normal = hit.normal;
+        rec.bodyVelocity = b.velocityAt(hit.point);
+        rec.cp = cp;
+        rec.damping = std::min(2.0 * std::sqrt(kEff * mi), 0.5 * mi / dt);
+        // Resting at the band's bottom counts as touching (1e-6 of the thickness: float noise),
+        // so the support force below applies every step, not every other one.
+        rec.touching = rec.touching || hit.distance < h * (1.0 + 1e-6);
+        rec.mu = b.friction;
+        penaltyImpulse = cp * penaltyShape(std::max(hit.distance, h) - h, band) * dt;
+    }
+    if (hit.distance >= h) return true; // in the band only: the penalty handles it
+
+    ++last.contacts;
+    ++last.projections;
+    touching[i] = 1;
+    x[i] = xi + (h - hit.distance) * hit.normal;
+    const Vec3 rel = v[i] - b.velocityAt(hit.point);
+    const double vn = rel.dot(hit.normal);
+    double lambda = 0.0;
+    if (vn < 0.0) {
+        lambda = -vn / (wi + b.inverseMassAlong(hit.point, hit.normal));
+        const Vec3 j = lambda * hit.normal;
+        v[i] += wi * j;
+        b.applyImpulse(-j, hit.point);
+        last.impulseOnCloth += j;
+        if (b.dynamicBody) last.impulseOnBodies -= j;
+    }
+    // Coulomb friction against the relative tangential velocity.
+    const Vec3 vt = rel - vn * hit.normal;
+    const double vtLen = vt.norm();
+    const double budget = b.friction * (lambda + penaltyImpulse);
+    if (vtLen > 0.0 && budget > 0.0) {
+        const Vec3 tdir = vt / vtLen;
+        const double need = vtLen / (wi + b.inverseMassAlong(hit.point, tdir));
+        const double jt = std::min(need, budget);
+        if (pc && need <= budget) pc->stuck = true;
+        const Vec3 j = -jt * tdir;
+        v[i] += wi * j;
+        b.applyImpulse(-j, hit.point);
+        last.impulseOnCloth += j;
+        if (b.dynamicBody) last.impulseOnBodies -= j;
+    } else if (pc && vtLen == 0.0) {
+        pc->stuck = true;
+    }
+    return true;
+}
+
 void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     const std::size_t n = c.particleCount();
     if (prevX.size() != n) prevX = c.positions();
@@ -318,7 +458,6 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     Vec3List& x = c.mutablePositions();
     Vec3List& v = c.mutableVelocities();
     const auto& invMass = c.inverseMasses();
-    const auto& mass = c.masses();
 
     if (self) {
         const auto& sc = settings.selfCollision;
@@ -328,128 +467,67 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
         last.selfContacts += counts.contacts;
     }
 
-    const auto& cs = settings.contact;
-    const double h = cs.thickness;
-    const double gravity = c.settings().gravity.norm();
     detail::QueryCounters counters;
+    touching.assign(n, 0);
+    recordOf.assign(n, -1);
+    bool anyTouching = false;
     for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
-        BodySnapshot& b = bodies[bi];
         for (std::size_t i = 0; i < n; ++i) {
-            const double wi = invMass[i];
-            if (wi == 0.0) continue; // pinned, kinematic and attached particles
-            const Vec3 xi = x[i];
-            const Vec3 from = prevX[i];
-            const bool sweep = cs.continuous && (xi - from).squaredNorm() > h * h;
-            const Vec3 lo = sweep ? Vec3(xi.cwiseMin(from)) : xi;
-            const Vec3 hi = sweep ? Vec3(xi.cwiseMax(from)) : xi;
-            ++last.particleBoxTests;
-            if ((hi.array() < b.aabbMin.array()).any() || (lo.array() > b.aabbMax.array()).any()) continue;
-
-            detail::SurfaceHit hit;
-            bool crossed = false;
-            if (sweep) {
-                // Did the particle's path since the last step enter the body?
-                ++last.rayQueries;
-                btTransform t0, t1;
-                t0.setIdentity();
-                t1.setIdentity();
-                t0.setOrigin(toBt(from));
-                t1.setOrigin(toBt(xi));
-                btCollisionWorld::ClosestRayResultCallback ray(t0.getOrigin(), t1.getOrigin());
-                btCollisionWorld::rayTestSingle(t0, t1, const_cast<btCollisionObject*>(b.object),
-                                                b.object->getCollisionShape(),
-                                                b.object->getWorldTransform(), ray);
-                if (ray.hasHit()) {
-                    Vec3 nrm = toVec(ray.m_hitNormalWorld);
-                    const double len = nrm.norm();
-                    if (len > 0.0) {
-                        nrm /= len;
-                        if (nrm.dot(from - xi) < 0.0) nrm = -nrm; // face where the particle came from
-                        crossed = true;
-                        hit.valid = true;
-                        hit.point = toVec(ray.m_hitPointWorld);
-                        hit.normal = nrm;
-                        hit.distance = std::min((xi - hit.point).dot(nrm), 0.0);
-                    }
-                }
-            }
-            if (!crossed) {
-                hit = detail::closestSurface(b.object->getCollisionShape(), b.pose, xi, from, h + band,
-                                             counters);
-                if (!hit.valid || hit.distance >= h + band) continue;
-            }
-
-            // Eq. (7) penalty band (also for particles below the thickness: they end at its
-            // bottom after the projection).
-            const double mi = mass[i];
-            double cp = cs.penaltyForce < 0.0 ? 2.0 * mi * gravity : cs.penaltyForce;
-            double penaltyImpulse = 0.0;
-            if (cp > 0.0) {
-                // Keep the penalty spring (stiffness cp e / ((e - 1) w)) and its damping inside
-                // the explicit stability limits of this step: k dt^2 / m <= 1, c dt / m <= 1/2.
-                const double kMax = mi / (dt * dt);
-                const double k = cp * kE / ((kE - 1.0) * band);
-                if (k > kMax) cp *= kMax / k;
-                const double kEff = std::min(k, kMax);
-                const double damping = std::min(2.0 * std::sqrt(kEff * mi), 0.5 * mi / dt);
-                PenaltyContact pc;
-                pc.particle = static_cast<Index>(i);
-                pc.body = bi;
-                pc.point = hit.point;
-                pc.normal = hit.normal;
-                pc.bodyVelocity = b.velocityAt(hit.point);
-                pc.cp = cp;
-                pc.damping = damping;
-                pc.touching = hit.distance < h;
-                penalty->contacts.push_back(pc);
-                penaltyImpulse = cp * penaltyShape(std::max(hit.distance, h) - h, band) * dt;
-            }
-
-            if (hit.distance >= h) continue; // in the band only: the penalty handles it
-            ++last.contacts;
-            ++last.projections;
-            x[i] = xi + (h - hit.distance) * hit.normal;
-            const Vec3 vb = b.velocityAt(hit.point);
-            const Vec3 rel = v[i] - vb;
-            const double vn = rel.dot(hit.normal);
-            double lambda = 0.0;
-            if (vn < 0.0) {
-                lambda = -vn / (wi + b.inverseMassAlong(hit.point, hit.normal));
-                const Vec3 j = lambda * hit.normal;
-                v[i] += wi * j;
-                b.applyImpulse(-j, hit.point);
-                last.impulseOnCloth += j;
-                if (b.dynamicBody) last.impulseOnBodies -= j;
-            }
-            // Coulomb friction against the relative tangential velocity.
-            const Vec3 vt = rel - vn * hit.normal;
-            const double vtLen = vt.norm();
-            const double budget = b.friction * (lambda + penaltyImpulse);
-            if (vtLen > 0.0 && budget > 0.0) {
-                const Vec3 tdir = vt / vtLen;
-                const double jt = std::min(vtLen / (wi + b.inverseMassAlong(hit.point, tdir)), budget);
-                const Vec3 j = -jt * tdir;
-                v[i] += wi * j;
-                b.applyImpulse(-j, hit.point);
-                last.impulseOnCloth += j;
-                if (b.dynamicBody) last.impulseOnBodies -= j;
-            }
+            if (invMass[i] == 0.0) continue; // pinned, kinematic and attached particles
+            collideParticle(c, bi, i, dt, counters);
         }
     }
+    for (unsigned char t : touching) anyTouching = anyTouching || t != 0;
+
+    // The projection may have overstretched springs the limiter had just fixed (a cloth
+    // pressed onto a sphere by its hanging sides). Limit once more with the touching
+    // particles held where the contacts put them, so the limiter pulls the free cloth toward
+    // them and not into the body; then re-project the particles it moved.
+    const auto& lim = c.settings().limiter;
+    for (int pass = 0; anyTouching && lim.kind != LimiterKind::None && pass < kRelimitPasses; ++pass) {
+        heldInvMass = invMass;
+        xBeforeLimit = x;
+        StrainLimitStats st;
+        if (lim.kind == LimiterKind::Provot) {
+            st = limitStrainProvot(c.topology(), heldInvMass, lim, x);
+        } else {
+            st = limitStrainStressOrdered(c.topology(), heldInvMass, c.stiffness(), lim, x, limitScratch,
+                                          lim.kind == LimiterKind::StressOrderedOneSided);
+        }
+        if (st.corrections == 0) break;
+        moved.clear();
+        for (std::size_t i = 0; i < n; ++i) {
+            const Vec3 dx = x[i] - xBeforeLimit[i];
+            if (dx.squaredNorm() == 0.0) continue;
+            v[i] += dx / dt;
+            moved.push_back(i);
+        }
+        // Re-project what the limiter moved; a particle it pulled into a body is held in the
+        // next pass.
+        for (std::uint32_t bi = 0; bi < bodies.size(); ++bi)
+            for (std::size_t i : moved) collideParticle(c, bi, i, dt, counters);
+    }
+
     // Friction for particles supported by the penalty alone (in the band, not touching).
-    for (const auto& pc : penalty->contacts) {
+    const double h = settings.contact.thickness;
+    for (auto& pc : penalty->contacts) {
+        if (pc.touching) continue; // friction was applied with the projection
         const Index i = pc.particle;
         BodySnapshot& b = bodies[pc.body];
-        if (pc.touching) continue; // friction was applied with the projection
         const double gap = (x[i] - pc.point).dot(pc.normal) - h;
         const double budget = b.friction * pc.cp * penaltyShape(gap, band) * dt;
         if (budget <= 0.0) continue;
         const Vec3 rel = v[i] - b.velocityAt(pc.point);
         const Vec3 vt = rel - rel.dot(pc.normal) * pc.normal;
         const double vtLen = vt.norm();
-        if (vtLen <= 0.0) continue;
+        if (vtLen <= 0.0) {
+            pc.stuck = true;
+            continue;
+        }
         const Vec3 tdir = vt / vtLen;
-        const double jt = std::min(vtLen / (invMass[i] + b.inverseMassAlong(pc.point, tdir)), budget);
+        const double need = vtLen / (invMass[i] + b.inverseMassAlong(pc.point, tdir));
+        const double jt = std::min(need, budget);
+        pc.stuck = need <= budget;
         const Vec3 j = -jt * tdir;
         v[i] += invMass[i] * j;
         b.applyImpulse(-j, pc.point);
@@ -494,7 +572,7 @@ void BulletCloth::Impl::step(double dt) {
         // gets the opposite.
         for (const auto& pc : penalty->contacts) {
             if (pc.force == 0.0) continue;
-            const Vec3 j = pc.force * h * pc.normal;
+            const Vec3 j = (pc.force * pc.normal + pc.friction) * h;
             last.impulseOnCloth += j;
             BodySnapshot& b = bodies[pc.body];
             if (b.dynamicBody) {
@@ -592,6 +670,31 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
             const double vn = (v[pc.particle] - pc.bodyVelocity).dot(pc.normal);
             pc.force = std::max(0.0, pc.cp * shape - pc.damping * vn);
             f[pc.particle] += pc.force * pc.normal;
+            if (pc.touching) {
+                // A particle the stage had to project rests on the body: the body also supports
+                // whatever still presses it in (a load beyond C_p, such as the tension of a
+                // cloth hanging over an edge), so Velocity-Verlet's half kicks do not push it
+                // into the body every step.
+                const double fn = f[pc.particle].dot(pc.normal);
+                if (fn < 0.0) {
+                    f[pc.particle] -= fn * pc.normal;
+                    pc.force -= fn;
+                }
+            }
+            pc.friction = Vec3::Zero();
+            if (pc.stuck && pc.mu > 0.0) {
+                // Static friction as a force: cancel the tangential part of every force on the
+                // particle (springs, gravity... all terms before this one) up to mu F_n, so a
+                // particle the stage found sticking is not pushed on by Velocity-Verlet's
+                // half kicks (which otherwise make resting cloth creep down slopes).
+                Vec3& fi = f[pc.particle];
+                const Vec3 ft = fi - fi.dot(pc.normal) * pc.normal;
+                const double len = ft.norm();
+                if (len > 0.0) {
+                    pc.friction = -ft * std::min(1.0, pc.mu * pc.force / len);
+                    fi += pc.friction;
+                }
+            }
         }
     });
     m.stage = std::make_shared<Impl::Stage>(m);
