@@ -1,0 +1,186 @@
+// The step pipeline holds only the phases a cloth uses, in the documented order, and the phase
+// timers count every call. Also: two identical runs give identical states.
+#include "helpers.hpp"
+
+#include "drape/cloth.hpp"
+
+#include <algorithm>
+
+using namespace drape;
+using namespace drape_test;
+
+namespace {
+
+bool has(const std::vector<std::string>& p, const std::string& name) {
+    return std::find(p.begin(), p.end(), name) != p.end();
+}
+std::ptrdiff_t pos(const std::vector<std::string>& p, const std::string& name) {
+    return std::find(p.begin(), p.end(), name) - p.begin();
+}
+
+TopologyPtr smallSheet() {
+    SheetSpec spec;
+    spec.rows = 5;
+    spec.cols = 4;
+    spec.spacing = 0.1;
+    return ClothTopology::build(makeSheet(spec));
+}
+
+ClothSettings basic() {
+    ClothSettings s;
+    s.particleMass = 0.01;
+    s.springStiffness = 20.0;
+    return s;
+}
+
+std::uint64_t calls(const Cloth& c, const std::string& name) {
+    const PhaseTimer* t = c.timers().find(name);
+    return t ? t->calls : 0;
+}
+
+class CountingStage : public ClothStage {
+public:
+    std::string name() const override { return "test_stage"; }
+    void run(Cloth& cloth, double dt) override {
+        ++runs;
+        lastDt = dt;
+        stepsSeen = cloth.stepCount();
+    }
+    int runs = 0;
+    double lastDt = 0.0;
+    std::uint64_t stepsSeen = 0;
+};
+
+} // namespace
+
+TEST_CASE("A plain cloth's pipeline holds only what it uses", "[pipeline]") {
+    Cloth cloth(smallSheet(), basic()); // VV, stress-ordered limiter, gravity, no damping/aero/user
+    cloth.pin(0);
+    cloth.step(0.001);
+    const auto p = cloth.pipeline();
+    INFO("pipeline has " << p.size() << " phases");
+    for (const auto& name : p) INFO(name);
+    REQUIRE(!p.empty());
+    CHECK(p.front() == "integrate");
+    CHECK(p.back() == "integrate_finish"); // Velocity-Verlet's closing half kick
+    CHECK(has(p, "strain_limit"));
+    CHECK(pos(p, "integrate") < pos(p, "strain_limit"));
+    CHECK(has(p, "springs"));
+    CHECK(has(p, "gravity"));
+    CHECK(pos(p, "strain_limit") < pos(p, "springs"));
+    for (const char* unused : {"aero", "user", "damping", "spring_damping", "kinematic", "forces_refresh"})
+        CHECK_FALSE(has(p, unused));
+}
+
+TEST_CASE("Phases appear when a cloth starts to use them", "[pipeline]") {
+    SECTION("no limiter, no gravity, another integrator") {
+        ClothSettings s = basic();
+        s.limiter.kind = LimiterKind::None;
+        s.gravity = Vec3::Zero();
+        s.integrator = IntegratorKind::RungeKutta4;
+        Cloth cloth(smallSheet(), s);
+        cloth.step(0.001);
+        const auto p = cloth.pipeline();
+        CHECK_FALSE(has(p, "strain_limit"));
+        CHECK_FALSE(has(p, "gravity"));
+        CHECK_FALSE(has(p, "integrate_finish"));
+        CHECK(calls(cloth, "strain_limit") == 0u);
+    }
+    SECTION("damping, aerodynamics, user and external forces, stages") {
+        ClothSettings s = basic();
+        s.damping = 0.01;
+        s.springDamping = 0.02;
+        s.aero.airDensity = 1.2;
+        Cloth cloth(smallSheet(), s);
+        cloth.step(0.001);
+        auto p = cloth.pipeline();
+        CHECK(has(p, "damping"));
+        CHECK(has(p, "spring_damping"));
+        CHECK(has(p, "aero"));
+        CHECK_FALSE(has(p, "user"));
+
+        cloth.setUserForce(3, Vec3(0, 0, 0.1));
+        CHECK(has(cloth.pipeline(), "user"));
+        cloth.clearUserForces();
+        CHECK_FALSE(has(cloth.pipeline(), "user"));
+
+        cloth.addExternalForce("contact_penalty", [](const Vec3List&, const Vec3List&, Vec3List& f) {
+            f[0] += Vec3(0, 1e-3, 0);
+        });
+        CHECK(has(cloth.pipeline(), "contact_penalty"));
+
+        auto stage = std::make_shared<CountingStage>();
+        cloth.addStage(stage);
+        p = cloth.pipeline();
+        REQUIRE(has(p, "test_stage"));
+        CHECK(pos(p, "strain_limit") < pos(p, "test_stage"));
+        CHECK(pos(p, "test_stage") < pos(p, "springs"));
+        for (int n = 0; n < 7; ++n) cloth.step(0.001);
+        CHECK(stage->runs == 7);
+        CHECK(stage->lastDt == 0.001);
+        CHECK(stage->stepsSeen == 7u); // runs inside step 8 (count 7 before it completes)
+        CHECK(calls(cloth, "test_stage") == 7u);
+        CHECK(calls(cloth, "contact_penalty") == 8u); // one refresh after the edit + 7 steps
+        cloth.removeStage(stage.get());
+        CHECK_FALSE(has(cloth.pipeline(), "test_stage"));
+        cloth.step(0.001);
+        CHECK(stage->runs == 7);
+    }
+}
+
+TEST_CASE("Phase timers count calls", "[pipeline][timers]") {
+    const int N = 25;
+    SECTION("Velocity-Verlet: one force evaluation per step plus the first") {
+        Cloth cloth(smallSheet(), basic());
+        cloth.pin(0);
+        for (int n = 0; n < N; ++n) cloth.step(0.001);
+        CHECK(calls(cloth, "integrate") == static_cast<std::uint64_t>(N));
+        CHECK(calls(cloth, "strain_limit") == static_cast<std::uint64_t>(N));
+        CHECK(calls(cloth, "integrate_finish") == static_cast<std::uint64_t>(N));
+        CHECK(calls(cloth, "forces_refresh") == 1u);
+        CHECK(calls(cloth, "springs") == static_cast<std::uint64_t>(N + 1));
+        CHECK(calls(cloth, "gravity") == static_cast<std::uint64_t>(N + 1));
+        for (const PhaseTimer& t : cloth.timers().all()) CHECK(t.seconds >= 0.0);
+        // Every phase of the pipeline has a timer that ran on every step.
+        for (const auto& name : cloth.pipeline()) CHECK(calls(cloth, name) >= static_cast<std::uint64_t>(N));
+        cloth.timers().reset();
+        CHECK(calls(cloth, "integrate") == 0u);
+    }
+    SECTION("RK4: four force evaluations per step, the first one cached") {
+        ClothSettings s = basic();
+        s.integrator = IntegratorKind::RungeKutta4;
+        Cloth cloth(smallSheet(), s);
+        for (int n = 0; n < N; ++n) cloth.step(0.001);
+        CHECK(calls(cloth, "springs") == static_cast<std::uint64_t>(1 + 4 * N));
+    }
+    SECTION("an edit between steps refreshes the forces once") {
+        Cloth cloth(smallSheet(), basic());
+        cloth.step(0.001);
+        cloth.setPosition(7, cloth.positions()[7] + Vec3(0, 0, 0.01));
+        CHECK(has(cloth.pipeline(), "forces_refresh"));
+        cloth.step(0.001);
+        CHECK(calls(cloth, "forces_refresh") == 2u);
+        CHECK_FALSE(has(cloth.pipeline(), "forces_refresh"));
+    }
+}
+
+TEST_CASE("Same input, same output", "[pipeline][determinism]") {
+    auto run = [] {
+        SheetSpec spec;
+        spec.rows = 12;
+        spec.cols = 12;
+        spec.spacing = 10.0;
+        ClothSettings s;
+        s.particleMass = 0.5;
+        s.springStiffness = 20.0;
+        s.gravity = Vec3(0, -9.8, 0);
+        auto cloth = std::make_unique<Cloth>(ClothTopology::build(makeSheet(spec)), s);
+        cloth->pin(0);
+        cloth->pin(11);
+        for (int n = 0; n < 100; ++n) cloth->step(0.01);
+        return cloth;
+    };
+    const auto a = run(), b = run();
+    CHECK(a->positions() == b->positions()); // bit for bit
+    CHECK(a->velocities() == b->velocities());
+}
