@@ -1,0 +1,281 @@
+// Two-way coupling with dynamic bodies (momentum, a trampoline, a cloth on a light box),
+// kinematic bodies, and attachments (a cloth following a moving kinematic pole, a box hanging
+// from a cloth).
+#include "world_fixture.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+using namespace drape;
+using namespace drape::testing;
+
+namespace {
+
+constexpr double kStep = 1.0 / 240.0;
+
+void stepWorld(TestWorld& w, int steps = 1) {
+    for (int s = 0; s < steps; ++s) w.world.stepSimulation(btScalar(kStep), 1, btScalar(kStep));
+}
+
+Vec3 clothMomentum(const Cloth& c) {
+    Vec3 p = Vec3::Zero();
+    for (std::size_t i = 0; i < c.particleCount(); ++i) p += c.masses()[i] * c.velocities()[i];
+    return p;
+}
+
+} // namespace
+
+TEST_CASE("contacts with a dynamic body conserve momentum (zero gravity)", "[coupling][momentum]") {
+    // A 0.5 kg ball at 2 m/s hits a free 1.21 kg cloth at rest; no gravity, no other body, so
+    // ball + cloth momentum must stay what it was. Bullet's velocities are single precision:
+    // 1e-5 of the initial 1 kg m/s covers float round-off over the 240 steps.
+    TestWorld w(Vec3::Zero());
+    const double ballMass = 0.5, radius = 0.1;
+    btRigidBody* ball = w.body(w.shape<btSphereShape>(btScalar(radius)), ballMass, Vec3(0.0, 0.3, 0.0));
+    ball->setLinearVelocity(btVector3(0, -2, 0));
+    ball->setActivationState(DISABLE_DEACTIVATION);
+    ClothSettings s;
+    s.particleMass = 0.01;
+    s.springStiffness = 50.0;
+    auto cloth = makeCloth(horizontalSheet(11, 11, 0.05, 0.0), s);
+    auto& handle = w.add(cloth);
+    const Vec3 p0 = ballMass * eig(ball->getLinearVelocity()) + clothMomentum(*cloth);
+    stepWorld(w, 240);
+    const Vec3 pBall = ballMass * eig(ball->getLinearVelocity());
+    const Vec3 pCloth = clothMomentum(*cloth);
+    INFO("ball momentum " << pBall.transpose() << ", cloth momentum " << pCloth.transpose());
+    CHECK((pBall + pCloth - p0).norm() <= 1e-5 * p0.norm());
+    // Momentum really changed hands: the ball lost a good part of it to the cloth.
+    CHECK(handle.totalStats().contacts > 0);
+    CHECK(pCloth.y() < -0.2 * std::abs(p0.y()));
+    CHECK(pBall.y() > 0.8 * p0.y());
+    // Impulses: what the cloth got from the ball is what the ball got, reversed.
+    CHECK((handle.totalStats().impulseOnBodies + handle.totalStats().impulseOnCloth).norm() <= 1e-9);
+    // No particle inside the ball deeper than the thickness.
+    for (const auto& x : cloth->positions()) CHECK((x - eig(ball->getCenterOfMassPosition())).norm() >= radius);
+}
+
+TEST_CASE("a ball dropped on a trampoline stretches it and bounces back", "[coupling][trampoline]") {
+    TestWorld w;
+    const double ballMass = 0.5, radius = 0.2, dropHeight = 0.5;
+    ClothSettings s;
+    s.particleMass = 0.002; // a 0.88 kg membrane under a 0.5 kg ball
+    s.springStiffness = 150.0;
+    s.limiter.kind = LimiterKind::None; // an elastic membrane: the springs must give the bounce
+    constexpr Index n = 21;
+    auto cloth = makeCloth(horizontalSheet(n, n, 0.1, 0.0), s);
+    for (Index k = 0; k < n; ++k) { // pinned border: a 2 x 2 m trampoline
+        cloth->pin(k);
+        cloth->pin((n - 1) * n + k);
+        cloth->pin(k * n);
+        cloth->pin(k * n + n - 1);
+    }
+    bullet::BulletClothSettings bs;
+    bs.contact.thickness = 0.01;
+    bs.substeps = 3; // the membrane's stable step is ~1/500 s; the world's is 1/240 s
+    auto& handle = w.add(cloth, bs);
+    btRigidBody* ball = w.body(w.shape<btSphereShape>(btScalar(radius)), ballMass,
+                               Vec3(0.0, radius + bs.contact.thickness + dropHeight, 0.0));
+    ball->setActivationState(DISABLE_DEACTIVATION);
+
+    double lowestBall = std::numeric_limits<double>::infinity();
+    double lowestCloth = 0.0;
+    double deepest = std::numeric_limits<double>::infinity();
+    double topAfterBounce = -std::numeric_limits<double>::infinity();
+    double minVy = 0.0;
+    bool bounced = false;
+    // Ball momentum bookkeeping over the whole run: its change must equal gravity's impulse
+    // plus what the cloth gave it.
+    const double vy0 = double(ball->getLinearVelocity().y());
+    for (int step = 0; step < 480; ++step) {
+        stepWorld(w);
+        const Vec3 c = eig(ball->getCenterOfMassPosition());
+        const double vy = double(ball->getLinearVelocity().y());
+        lowestBall = std::min(lowestBall, c.y());
+        minVy = std::min(minVy, vy);
+        for (const auto& x : cloth->positions()) {
+            deepest = std::min(deepest, (x - c).norm() - radius);
+            lowestCloth = std::min(lowestCloth, x.y());
+        }
+        if (!bounced && vy > 0.5) bounced = true;
+        if (bounced) topAfterBounce = std::max(topAfterBounce, c.y());
+    }
+    const double t = 480 * kStep;
+    const double expectedDv = -9.81 * t + handle.totalStats().impulseOnBodies.y() / ballMass;
+    const double dv = double(ball->getLinearVelocity().y()) - vy0;
+    std::printf("trampoline: ball lowest %.3f m, cloth lowest %.3f m, closest particle %.4f m from the ball, rebound top %.3f m, impact speed %.2f m/s\n",
+                lowestBall, lowestCloth, deepest, topAfterBounce, -minVy);
+    INFO("ball lowest " << lowestBall << ", cloth lowest " << lowestCloth << ", closest " << deepest
+                        << ", top after bounce " << topAfterBounce);
+    // No particle inside the ball (deeper than the thickness, within float noise).
+    CHECK(deepest >= bs.contact.thickness - 1e-5);
+    // The ball stretched the cloth down (it fell 0.5 m onto a membrane at y = 0).
+    CHECK(lowestCloth < -0.1);
+    CHECK(lowestBall < radius - 0.1);
+    // It came back up, to a good fraction of its drop height (the membrane is elastic; contact
+    // is inelastic and the cloth keeps some of the energy as vibration).
+    CHECK(bounced);
+    CHECK(topAfterBounce > radius + 0.25 * dropHeight);
+    // The cloth's impulses are what moved the ball: dv = -g t + J / m (float velocities:
+    // 1e-4 m/s).
+    CHECK(dv == Approx(expectedDv).margin(1e-4));
+}
+
+TEST_CASE("a cloth dropped on a light box pushes it down with the cloth's weight", "[coupling][box]") {
+    // A 0.05 kg box stands on a static ground; a 1 kg cloth falls on it and hangs from it
+    // without reaching the ground. At rest the box must carry the cloth's whole weight: the
+    // impulse the cloth gives it per second is M_cloth g (and the box stays put on the ground).
+    TestWorld w;
+    w.body(w.shape<btStaticPlaneShape>(btVector3(0, 1, 0), btScalar(0.0)), 0.0, Vec3::Zero());
+    btRigidBody* box = w.body(w.shape<btBoxShape>(btVector3(0.1f, 0.5f, 0.1f)), 0.05, Vec3(0, 0.5, 0));
+    box->setActivationState(DISABLE_DEACTIVATION);
+    ClothSettings s;
+    s.particleMass = 1.0 / 121.0;
+    s.springStiffness = 60.0;
+    s.damping = 0.02;
+    auto cloth = makeCloth(horizontalSheet(11, 11, 0.05, 1.1), s);
+    bullet::BulletClothSettings bs;
+    bs.contact.thickness = 0.01;
+    auto& handle = w.add(cloth, bs);
+    stepWorld(w, 480); // fall and settle
+    Vec3 impulse = Vec3::Zero();
+    const int window = 240;
+    for (int k = 0; k < window; ++k) {
+        stepWorld(w);
+        impulse += handle.lastStats().impulseOnBodies;
+    }
+    const double weight = 9.81 * 121.0 * s.particleMass;
+    const double lowest = std::min_element(cloth->positions().begin(), cloth->positions().end(),
+                                           [](const Vec3& a, const Vec3& b) { return a.y() < b.y(); })->y();
+    INFO("mean force on the box " << (impulse / (window * kStep)).transpose() << " N, cloth weight " << weight
+                                  << " N, lowest particle " << lowest);
+    REQUIRE(lowest > 0.05); // hangs free of the ground
+    // 2 %: what is left of the cloth's sway after 2 s of damping.
+    CHECK(impulse.y() / (window * kStep) == Approx(-weight).epsilon(0.02));
+    CHECK(std::abs(eig(box->getCenterOfMassPosition()).y() - 0.5) < 0.01); // still standing on the ground
+}
+
+TEST_CASE("a cloth attached to a moving kinematic pole follows it", "[coupling][attach][kinematic]") {
+    TestWorld w;
+    btRigidBody* pole = w.kinematic(w.shape<btCapsuleShapeX>(btScalar(0.02), btScalar(0.6)), Vec3(0, 1, 0));
+    ClothSettings s;
+    s.particleMass = 0.005;
+    s.springStiffness = 40.0;
+    s.damping = 0.005;
+    SheetSpec spec; // a flag: 7 columns along x, 6 rows down from the pole
+    spec.rows = 6;
+    spec.cols = 7;
+    spec.spacing = 0.05;
+    spec.origin = Vec3(-0.15, 0.97, 0.0);
+    auto cloth = makeCloth(makeSheet(spec), s);
+    auto& handle = w.add(cloth);
+    for (Index c = 0; c < spec.cols; ++c) handle.attachHere(c, pole);
+    // The pole moves along z at 1 m/s and turns about x (a waved flag), driven through its
+    // motion state as Bullet expects for kinematic bodies.
+    const int steps = 240;
+    double worstFollow = 0.0;
+    for (int k = 1; k <= steps; ++k) {
+        const double t = k * kStep;
+        btTransform tr(btQuaternion(btVector3(1, 0, 0), btScalar(0.5 * t)), btVector3(0, 1, btScalar(t)));
+        pole->getMotionState()->setWorldTransform(tr);
+        stepWorld(w);
+        for (const auto& a : handle.attachments()) {
+            const btVector3 target = pole->getWorldTransform() * bt(a.localPoint);
+            worstFollow = std::max(worstFollow, (cloth->positions()[a.particle] - eig(target)).norm());
+        }
+    }
+    INFO("largest distance of an attached particle from its point on the pole " << worstFollow);
+    // Attached particles sit on their points (float transforms: 1e-6 m).
+    CHECK(worstFollow < 1e-5);
+    // The whole flag came along: its mean z moved ~1 m (it trails the pole a little).
+    double meanZ = 0.0;
+    for (const auto& x : cloth->positions()) meanZ += x.z();
+    meanZ /= double(cloth->particleCount());
+    CHECK(meanZ > 0.8);
+    CHECK(meanZ < 1.0 + 1e-6);
+    CHECK(cloth->maxStrain() <= cloth->settings().limiter.maxStrain + 0.005);
+}
+
+TEST_CASE("a kinematic paddle pushes a hanging cloth", "[coupling][kinematic]") {
+    TestWorld w;
+    btRigidBody* paddle = w.kinematic(w.shape<btBoxShape>(btVector3(0.1f, 0.1f, 0.02f)), Vec3(0, 0.6, -0.2));
+    ClothSettings s;
+    s.particleMass = 0.005;
+    s.springStiffness = 40.0;
+    s.damping = 0.005;
+    SheetSpec spec; // a curtain in the x-y plane hanging from its pinned top row
+    spec.rows = 11;
+    spec.cols = 11;
+    spec.spacing = 0.05;
+    spec.origin = Vec3(-0.25, 1.0, 0.0);
+    auto cloth = makeCloth(makeSheet(spec), s);
+    for (Index c = 0; c < spec.cols; ++c) cloth->pin(c);
+    bullet::BulletClothSettings bs;
+    bs.contact.thickness = 0.01;
+    auto& handle = w.add(cloth, bs);
+    double deepest = std::numeric_limits<double>::infinity();
+    for (int k = 1; k <= 240; ++k) { // the paddle moves 0.4 m through the curtain's plane
+        const double z = -0.2 + 0.4 * k / 240.0;
+        paddle->getMotionState()->setWorldTransform(btTransform(btQuaternion::getIdentity(), btVector3(0, 0.6f, btScalar(z))));
+        stepWorld(w);
+        for (const auto& x : cloth->positions()) {
+            const Vec3 d = (x - eig(paddle->getCenterOfMassPosition())).cwiseAbs() - Vec3(0.1, 0.1, 0.02);
+            deepest = std::min(deepest, d.cwiseMax(0.0).norm() + std::min(d.maxCoeff(), 0.0));
+        }
+    }
+    INFO("closest approach to the paddle " << deepest);
+    CHECK(handle.totalStats().contacts > 0);
+    CHECK(deepest > -bs.contact.thickness); // never inside by more than the thickness
+    // The particle in front of the paddle was pushed along with it to z ~ 0.2 (paddle centre
+    // 0.2, front face 0.22, plus the thickness).
+    const Vec3 pushed = cloth->positions()[8 * 11 + 5];
+    CHECK(pushed.z() > 0.2);
+}
+
+TEST_CASE("a dynamic box hanging from a cloth is held up", "[coupling][attach][sling]") {
+    // A vertical banner, top row pinned, bottom row attached to a 0.2 kg box. The box must end
+    // at rest, held by the cloth: the cloth's pull on it balances its weight.
+    TestWorld w;
+    ClothSettings s;
+    s.particleMass = 0.005;
+    s.springStiffness = 200.0;
+    s.damping = 0.01;
+    s.springDamping = 0.5; // also damps the box's bounce: the attached particles move with it
+    SheetSpec spec;
+    spec.rows = 11;
+    spec.cols = 6;
+    spec.spacing = 0.05;
+    spec.origin = Vec3(-0.125, 1.0, 0.0);
+    auto cloth = makeCloth(makeSheet(spec), s);
+    for (Index c = 0; c < spec.cols; ++c) cloth->pin(c);
+    bullet::BulletClothSettings bs;
+    bs.substeps = 2; // this cloth's stable step is below 1/240 s
+    auto& handle = w.add(cloth, bs);
+    const double boxMass = 0.2;
+    const double bottom = 1.0 - 10 * 0.05;
+    btRigidBody* box = w.body(w.shape<btBoxShape>(btVector3(0.15f, 0.05f, 0.05f)), boxMass, Vec3(0, bottom - 0.05 - 0.011, 0));
+    box->setActivationState(DISABLE_DEACTIVATION);
+    for (Index c = 0; c < spec.cols; ++c) handle.attach(10 * spec.cols + c, box, Vec3(-0.125 + 0.05 * c, 0.05, 0.0));
+    stepWorld(w, 720);
+    Vec3 impulse = Vec3::Zero();
+    const int window = 240;
+    double drift = 0.0;
+    const double y0 = eig(box->getCenterOfMassPosition()).y();
+    for (int k = 0; k < window; ++k) {
+        stepWorld(w);
+        impulse += handle.lastStats().impulseOnBodies;
+        drift = std::max(drift, std::abs(eig(box->getCenterOfMassPosition()).y() - y0));
+    }
+    const double boxY = eig(box->getCenterOfMassPosition()).y();
+    INFO("box centre at y = " << boxY << ", mean pull " << (impulse / (window * kStep)).transpose() << " N");
+    // Held: it stays within the cloth's reach (10 springs of 0.05 at most 20 % stretched)
+    // and over the last second only sways (5 mm), it does not fall.
+    CHECK(boxY > bottom - 0.05 - 0.1 - 0.011);
+    CHECK(drift < 5e-3);
+    // The cloth carries the box's weight: mean pull = M g upward, within 2 % (residual sway).
+    CHECK(impulse.y() / (window * kStep) == Approx(boxMass * 9.81).epsilon(0.02));
+}
