@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 #include <string>
@@ -54,8 +55,28 @@ public:
     }
     const Json& require(const std::string& key) {
         const Json* v = find(key);
-        if (!v) failKey(key, "required field is missing");
+        if (!v) failKey(key, "required field is missing" + misspellingHint(key));
         return *v;
+    }
+
+    /// " (is \"spacng\" a misspelling of it?)" when a present key is within two edits of `key`.
+    std::string misspellingHint(const std::string& key) const {
+        for (auto it = j_.begin(); it != j_.end(); ++it)
+            if (editDistance(it.key(), key) <= 2)
+                return " (is \"" + it.key() + "\" a misspelling of it?)";
+        return {};
+    }
+
+    static std::size_t editDistance(const std::string& a, const std::string& b) {
+        std::vector<std::size_t> prev(b.size() + 1), cur(b.size() + 1);
+        for (std::size_t j = 0; j <= b.size(); ++j) prev[j] = j;
+        for (std::size_t i = 1; i <= a.size(); ++i) {
+            cur[0] = i;
+            for (std::size_t j = 1; j <= b.size(); ++j)
+                cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] == b[j - 1] ? 0u : 1u)});
+            std::swap(prev, cur);
+        }
+        return prev[b.size()];
     }
 
     double toNumber(const Json& v, const std::string& path, Range r) const {
@@ -90,7 +111,8 @@ public:
             fail(path, "expected an integer, got " + typeName(v));
         }
         if (v.is_number_unsigned() && v.get<unsigned long long>() > static_cast<unsigned long long>(hi))
-            fail(path, "must be <= " + std::to_string(hi) + ", got " + v.dump());
+            fail(path, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " +
+                           v.dump());
         const long long x = v.get<long long>();
         if (x < lo || x > hi)
             fail(path, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) +

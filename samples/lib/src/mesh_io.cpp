@@ -191,9 +191,9 @@ void exportMesh(const TriangleMesh& mesh, const std::filesystem::path& file) {
     else if (ext == ".ply") format = "ply";
     else if (ext == ".gltf") format = "gltf2";
     else if (ext == ".glb") format = "glb2";
-    else if (ext == ".stl") format = "stl";
-    else if (ext == ".3ds") format = "3ds";
-    else meshFail(file, "unknown mesh format \"" + ext + "\" (use .obj, .ply, .gltf, .glb, .stl or .3ds)");
+    // STL and 3DS are left out: STL has no shared vertices and assimp's 3DS writer splits
+    // them, so neither could keep vertex i of the cloth as vertex i of the file.
+    else meshFail(file, "unknown mesh format \"" + ext + "\" for export (use .obj, .ply, .gltf or .glb)");
     if (mesh.vertices.empty() || mesh.triangles.empty()) meshFail(file, "nothing to export");
 
     // Area-weighted vertex normals, so that other tools shade the mesh smoothly.

@@ -93,10 +93,8 @@ void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDi
     if (hasSheet) {
         JsonObject s = o.object("sheet");
         SheetDesc d;
-        d.spec.rows = static_cast<Index>(s.integer("rows", 0, 2, 1 << 20));
-        if (!s.has("rows")) s.failKey("rows", "required field is missing");
-        d.spec.cols = static_cast<Index>(s.integer("cols", 0, 2, 1 << 20));
-        if (!s.has("cols")) s.failKey("cols", "required field is missing");
+        d.spec.rows = static_cast<Index>(s.toInteger(s.require("rows"), s.pathOf("rows"), 2, 1 << 20));
+        d.spec.cols = static_cast<Index>(s.toInteger(s.require("cols"), s.pathOf("cols"), 2, 1 << 20));
         if (static_cast<std::size_t>(d.spec.rows) * d.spec.cols > kMaxSceneParticles)
             s.fail(s.path(), "rows x cols = " +
                                  std::to_string(static_cast<std::size_t>(d.spec.rows) * d.spec.cols) +

@@ -42,7 +42,7 @@ void transformMesh(TriangleMesh& mesh, const Vec3& scale, const Vec3& rotationDe
 /// Reads a MeshDesc's file and applies its transform.
 ImportedMesh importMesh(const MeshDesc& desc);
 
-/// Writes a mesh; the format follows the extension (.obj, .ply, .gltf, .glb, .stl, .3ds).
+/// Writes a mesh; the format follows the extension (.obj, .ply, .gltf, .glb).
 /// Vertex i of the mesh is vertex i of the file. Throws SceneError on failure.
 void exportMesh(const TriangleMesh& mesh, const std::filesystem::path& file);
 

@@ -1,0 +1,22 @@
+# Runs CMD with ARGS (a ;-list) and checks its exit code (EXPECT_CODE), that stderr matches
+# EXPECT_STDERR (a regex, optional) and that the |-separated EXPECT_FILES exist under OUT.
+execute_process(COMMAND ${CMD} ${ARGS}
+    RESULT_VARIABLE code OUTPUT_VARIABLE out ERROR_VARIABLE err TIMEOUT 300)
+if(NOT code STREQUAL "${EXPECT_CODE}")
+    message(FATAL_ERROR "exit code ${code}, expected ${EXPECT_CODE}\nstdout:\n${out}\nstderr:\n${err}")
+endif()
+if(DEFINED EXPECT_STDERR AND NOT err MATCHES "${EXPECT_STDERR}")
+    message(FATAL_ERROR "stderr does not match '${EXPECT_STDERR}':\n${err}")
+endif()
+if(DEFINED EXPECT_FILES)
+    string(REPLACE "|" ";" files "${EXPECT_FILES}")
+    foreach(f ${files})
+        if(NOT EXISTS "${OUT}/${f}")
+            message(FATAL_ERROR "missing output ${OUT}/${f}")
+        endif()
+        file(SIZE "${OUT}/${f}" size)
+        if(size EQUAL 0)
+            message(FATAL_ERROR "empty output ${OUT}/${f}")
+        endif()
+    endforeach()
+endif()

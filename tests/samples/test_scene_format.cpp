@@ -1,0 +1,184 @@
+// Scene files: every shipped scene parses, the paper's experiments carry the paper's numbers,
+// and broken scenes are refused with the path of the offending field.
+#include "drape_samples/scene.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <set>
+#include <string>
+
+using namespace drape;
+using namespace drape::samples;
+namespace fs = std::filesystem;
+
+namespace {
+
+const fs::path kScenes = fs::path(DRAPE_SAMPLES_DIR) / "scenes";
+
+std::vector<fs::path> shippedScenes() {
+    std::vector<fs::path> out;
+    for (const auto& e : fs::directory_iterator(kScenes))
+        if (e.path().extension() == ".json") out.push_back(e.path());
+    std::sort(out.begin(), out.end());
+    return out;
+}
+
+SceneDesc parse(const std::string& text) { return parseScene(text, "test.json", kScenes); }
+
+/// The message parseScene throws for `text` (fails the test if it does not throw).
+std::string errorOf(const std::string& text) {
+    try {
+        parse(text);
+    } catch (const SceneError& e) {
+        return e.what();
+    }
+    FAIL("scene was accepted: " << text);
+    return {};
+}
+
+const char* kCloth = R"("cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
+                                  "particle_mass": 0.01, "stiffness": 50.0})";
+
+std::string withCloth(const std::string& rest) {
+    return std::string("{") + kCloth + (rest.empty() ? "" : ", " + rest) + "}";
+}
+
+} // namespace
+
+TEST_CASE("every shipped scene parses, has a description and a unique name", "[scene]") {
+    const auto scenes = shippedScenes();
+    REQUIRE(scenes.size() >= 6);
+    std::set<std::string> names;
+    for (const auto& file : scenes) {
+        INFO(file);
+        const SceneDesc s = loadScene(file);
+        CHECK_FALSE(s.description.empty());
+        CHECK(names.insert(s.name).second);
+        CHECK(s.stepCount() > 0);
+    }
+}
+
+TEST_CASE("Experiment I carries the paper's parameters", "[scene]") {
+    const SceneDesc s = loadScene(kScenes / "experiment1_suspended_sheet.json");
+    REQUIRE(s.sheet);
+    CHECK(s.sheet->spec.rows == 35);
+    CHECK(s.sheet->spec.cols == 35);
+    CHECK(s.sheet->spec.spacing == 10.0);
+    CHECK(s.cloth.particleMass == 0.5);
+    CHECK(s.cloth.springStiffness == 20.0);
+    CHECK(s.timeStep == 0.01);
+    CHECK(s.cloth.gravity.norm() == Approx(9.8));
+    CHECK(s.cloth.integrator == IntegratorKind::VelocityVerlet);
+    REQUIRE(s.pins.size() == 1);
+    const auto& cells = s.pins[0].select.gridCells;
+    REQUIRE(cells.size() == 2);
+    CHECK(cells[0] == std::array<Index, 2>{0, 0});
+    CHECK(cells[1] == std::array<Index, 2>{0, 34});
+    CHECK(s.rigidBodies.empty()); // gravity and springs only: no Bullet world
+    CHECK_FALSE(s.needsBullet());
+}
+
+TEST_CASE("Experiment II carries the paper's parameters and a desk", "[scene]") {
+    const SceneDesc s = loadScene(kScenes / "experiment2_tablecloth.json");
+    REQUIRE(s.sheet);
+    CHECK(s.sheet->spec.rows == 30);
+    CHECK(s.sheet->spec.cols == 60);
+    CHECK(s.sheet->spec.spacing == 10.0);
+    CHECK(s.cloth.particleMass == 0.5);
+    CHECK(s.cloth.springStiffness == 20.0);
+    CHECK(s.timeStep == 0.01);
+    CHECK(s.cloth.gravity.norm() == Approx(9.8));
+    CHECK(s.pins.empty()); // it falls freely
+    CHECK(s.needsBullet());
+    CHECK(s.cloth.limiter.kind != LimiterKind::None);
+}
+
+TEST_CASE("a minimal scene gets the documented defaults", "[scene]") {
+    const SceneDesc s = parse(withCloth(""));
+    CHECK(s.cloth.limiter.kind == LimiterKind::None); // strain limiting only when asked for
+    CHECK(s.timeStep == 0.01);
+    CHECK(s.duration == 5.0);
+    CHECK(s.cloth.gravity.isApprox(Vec3(0.0, -9.81, 0.0)));
+    CHECK(s.cloth.aero.airDensity == 0.0);
+    CHECK_FALSE(s.wind);
+    CHECK(s.camera.width == 640);
+    CHECK(s.output.fps == 25.0);
+    CHECK(s.stepCount() == 500);
+}
+
+TEST_CASE("broken scenes are refused with the path of the field", "[scene][errors]") {
+    using Catch::Matchers::Contains;
+    CHECK_THAT(errorOf("{\"cloth\": "), Contains("test.json: not valid JSON"));
+    CHECK_THAT(errorOf("[1, 2]"), Contains("(top level): expected an object, got array"));
+    CHECK_THAT(errorOf("{}"), Contains("cloth: required field is missing"));
+    CHECK_THAT(errorOf(withCloth(R"("camera": {"fov": 40})")),
+               Contains("camera.fov: unknown field"));
+    CHECK_THAT(errorOf(withCloth(R"("simulatoin": {})")), Contains("simulatoin: unknown field"));
+    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4.5, "cols": 5, "spacing": 0.1},
+                           "particle_mass": 0.01, "stiffness": 50.0}})"),
+               Contains("cloth.sheet.rows: expected an integer, got 4.5"));
+    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 1, "cols": 5, "spacing": 0.1},
+                           "particle_mass": 0.01, "stiffness": 50.0}})"),
+               Contains("cloth.sheet.rows: must be in [2,"));
+    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4000, "cols": 4000, "spacing": 0.1},
+                           "particle_mass": 0.01, "stiffness": 50.0}})"),
+               Contains("exceeds the limit"));
+    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
+                           "particle_mass": -0.01, "stiffness": 50.0}})"),
+               Contains("cloth.particle_mass: must be > 0"));
+    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
+                           "stiffness": 50.0}})"),
+               Contains("cloth: no mass"));
+    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
+                           "mesh": {"file": "x.obj"}, "particle_mass": 0.01, "stiffness": 5}})"),
+               Contains("exactly one of cloth.sheet"));
+    CHECK_THAT(errorOf(withCloth(R"("simulation": {"time_step": 0})")),
+               Contains("simulation.time_step: must be > 0, got 0"));
+    CHECK_THAT(errorOf(withCloth(R"("simulation": {"integrator": "leapfrog"})")),
+               Contains("simulation.integrator: unknown value \"leapfrog\""));
+    CHECK_THAT(errorOf(withCloth(R"("simulation": {"gravity": [0, -9.8]})")),
+               Contains("simulation.gravity: expected an array of 3 numbers"));
+    CHECK_THAT(errorOf(withCloth(R"("simulation": {"time_step": 1e-9, "duration": 1000})")),
+               Contains("steps exceeds the limit"));
+    CHECK_THAT(errorOf(withCloth(R"("output": {"fps": 1000}, "simulation": {"duration": 1000})")),
+               Contains("frames exceeds the limit"));
+    CHECK_THAT(errorOf(withCloth(R"("wind": {"velocity": [5, 0, 0]})")),
+               Contains("wind: wind acts through the air: set cloth.air.density"));
+    CHECK_THAT(errorOf(withCloth(R"("pins": [{"velocity": [0, 1, 0]}])")),
+               Contains("pins[0]: selects nothing"));
+    CHECK_THAT(errorOf(withCloth(R"("pins": [{"groups": ["rail"]}])")),
+               Contains("pins[0].groups: named groups come from a mesh file"));
+    CHECK_THAT(errorOf(withCloth(R"("pins": [{"box": {"min": [1, 0, 0], "max": [0, 1, 1]}}])")),
+               Contains("pins[0].box.min: min must not exceed max"));
+    CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "box", "half_extents": [1, 1, 1]}},
+                                                      {"shape": {"type": "sphere", "radius": "big"}}])")),
+               Contains("rigid_bodies[1].shape.radius: expected a number, got string"));
+    CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "cone"}}])")),
+               Contains("rigid_bodies[0].shape.type: unknown value \"cone\""));
+    CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "sphere", "radius": 1},
+                                                       "mass": 2}])")),
+               Contains("rigid_bodies[0].mass: only dynamic bodies have a mass"));
+    CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"name": "a", "shape": {"type": "sphere", "radius": 1}},
+                                                      {"name": "a", "shape": {"type": "sphere", "radius": 1}}])")),
+               Contains("rigid_bodies[1].name: \"a\" is used by rigid_bodies[0] already"));
+    CHECK_THAT(errorOf(withCloth(R"("attachments": [{"body": "pole", "indices": [0]}])")),
+               Contains("attachments[0].body: no rigid body named \"pole\""));
+    CHECK_THAT(errorOf(withCloth(R"("camera": {"position": [0, 0, 1], "target": [0, 0, 1]})")),
+               Contains("camera.target: must differ from position"));
+    CHECK_THAT(errorOf(withCloth(R"("camera": {"width": 100000})")),
+               Contains("camera.width: must be in [16, 8192]"));
+    CHECK_THAT(errorOf(withCloth(R"("cloth2": 1)")), Contains("cloth2: unknown field"));
+    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "colls": 5, "spacing": 0.1},
+                           "particle_mass": 0.01, "stiffness": 50.0}})"),
+               Contains("cloth.sheet.cols: required field is missing (is \"colls\" a misspelling of it?)"));
+    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
+                           "particle_mass": 0.01, "stiffness": 50.0, "front_color": [2, 0, 0]}})"),
+               Contains("cloth.front_color[0]: colour components are in [0, 1]"));
+}
+
+TEST_CASE("a missing or unreadable scene file is named", "[scene][errors]") {
+    using Catch::Matchers::Contains;
+    CHECK_THROWS_WITH(loadScene("/nonexistent/scene.json"), Contains("scene.json: scene file not found"));
+    CHECK_THROWS_WITH(loadScene(kScenes), Contains("is a folder"));
+}

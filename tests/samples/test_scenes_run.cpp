@@ -1,0 +1,181 @@
+// Shipped scenes run headless: a few steps of each stay finite; pins and groups resolve to
+// the right particles; drape-run's outputs agree with the simulation (the OBJ is in particle
+// order, the CSV has one row per frame); runs are deterministic.
+#include "drape_samples/mesh_io.hpp"
+#include "drape_samples/run.hpp"
+#include "drape_samples/simulation.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+using namespace drape;
+using namespace drape::samples;
+namespace fs = std::filesystem;
+
+namespace {
+
+const fs::path kScenes = fs::path(DRAPE_SAMPLES_DIR) / "scenes";
+
+std::vector<fs::path> shippedScenes() {
+    std::vector<fs::path> out;
+    for (const auto& e : fs::directory_iterator(kScenes))
+        if (e.path().extension() == ".json") out.push_back(e.path());
+    std::sort(out.begin(), out.end());
+    return out;
+}
+
+bool allFinite(const Vec3List& xs) {
+    for (const Vec3& x : xs)
+        if (!x.allFinite()) return false;
+    return true;
+}
+
+} // namespace
+
+TEST_CASE("every shipped scene builds and runs a few steps", "[scenes]") {
+    for (const auto& file : shippedScenes()) {
+        INFO(file);
+        const SceneDesc scene = loadScene(file);
+        if (scene.needsBullet() && !rigidBodiesAvailable()) {
+            WARN("skipped (no Bullet integration in this build): " << file);
+            continue;
+        }
+        Simulation sim(scene);
+        const Vec3List start = sim.cloth().positions();
+        for (int k = 0; k < 5; ++k) sim.step();
+        CHECK(sim.steps() == 5);
+        CHECK(sim.time() == Approx(5 * scene.timeStep));
+        CHECK(allFinite(sim.cloth().positions()));
+        CHECK(allFinite(sim.cloth().velocities()));
+        // Something moved (every scene has gravity): the scene is actually running.
+        double moved = 0.0;
+        for (std::size_t i = 0; i < start.size(); ++i)
+            moved = std::max(moved, (sim.cloth().positions()[i] - start[i]).norm());
+        CHECK(moved > 0.0);
+        const FrameStats s = sim.stats();
+        CHECK(std::isfinite(s.maxStrain));
+        CHECK(std::isfinite(s.kineticEnergy));
+        CHECK(s.kineticEnergy > 0.0);
+    }
+}
+
+TEST_CASE("Experiment I pins exactly the two top corners, which never move", "[scenes]") {
+    Simulation sim(loadScene(kScenes / "experiment1_suspended_sheet.json"));
+    REQUIRE(sim.pinnedParticles().size() == 1);
+    CHECK(sim.pinnedParticles()[0] == std::vector<Index>{0, 34});
+    const Vec3 a = sim.cloth().positions()[0], b = sim.cloth().positions()[34];
+    for (int k = 0; k < 20; ++k) sim.step();
+    CHECK(sim.cloth().positions()[0] == a);
+    CHECK(sim.cloth().positions()[34] == b);
+    CHECK(sim.cloth().positions()[35].y() < -10.0); // the row below fell
+    // Free fall for 0.2 s moves a free particle by g t^2 / 2 = 0.196 at most.
+    CHECK(sim.cloth().positions()[35 * 34 + 17].y() == Approx(-340.0 - 0.196).margin(0.02));
+}
+
+TEST_CASE("pins by named group and by region box select the right particles", "[scenes]") {
+    if (!meshIoAvailable()) { WARN("skipped: built without assimp"); return; }
+    SceneDesc curtain = loadScene(kScenes / "curtain_ball.json");
+    curtain.rigidBodies.clear(); // only the cloth matters here
+    curtain.collision.reset();
+    Simulation sim(curtain);
+    REQUIRE(sim.pinnedParticles().size() == 1);
+    CHECK(sim.pinnedParticles()[0].size() == 52); // the top two rows of 26
+    for (Index i : sim.pinnedParticles()[0]) CHECK(sim.cloth().isPinned(i));
+
+    SceneDesc flag = loadScene(kScenes / "flag_in_wind.json");
+    flag.rigidBodies.clear();
+    flag.collision.reset();
+    Simulation f(flag);
+    REQUIRE(f.pinnedParticles().size() == 1);
+    CHECK(f.pinnedParticles()[0].size() == 21); // the column at the pole
+    for (Index i : f.pinnedParticles()[0]) CHECK(i % 31 == 0);
+}
+
+TEST_CASE("runScene writes frames, a CSV row per frame and the final mesh in particle order",
+          "[scenes][runner]") {
+    RunOptions o;
+    o.scene = kScenes / "experiment1_suspended_sheet.json";
+    o.outDir = fs::path(DRAPE_TEST_OUT_DIR) / "run_experiment1";
+    o.steps = 30;
+    o.fps = 50.0; // a frame every 2 steps of 0.01 s
+    o.width = 64;
+    o.height = 48;
+    o.render = renderingAvailable();
+    o.video = false;
+    std::ostringstream log;
+    const RunResult r = runScene(o, log);
+    CHECK(r.steps == 30);
+    CHECK(r.frames == 16); // t = 0, 0.02, ..., 0.30
+    CHECK(r.simulatedSeconds == Approx(0.30));
+    CHECK(log.str().find("particles") != std::string::npos);
+
+    std::ifstream csv(o.outDir / "stats.csv");
+    std::string line;
+    std::getline(csv, line);
+    CHECK(line.rfind("frame,time_s,steps,max_strain,mean_strain,kinetic_energy_J,lowest_point_m,contacts,wall_ms_per_step", 0) == 0);
+    std::size_t rows = 0;
+    double lastTime = -1.0;
+    while (std::getline(csv, line)) {
+        std::stringstream ss(line);
+        std::string frame, time;
+        std::getline(ss, frame, ',');
+        std::getline(ss, time, ',');
+        CHECK(std::stod(time) > lastTime);
+        lastTime = std::stod(time);
+        ++rows;
+    }
+    CHECK(rows == r.frames);
+    CHECK(lastTime == Approx(0.30));
+    if (o.render) {
+        CHECK(fs::exists(o.outDir / "frames" / "frame_00000.png"));
+        CHECK(fs::exists(o.outDir / "frames" / "frame_00015.png"));
+        CHECK_FALSE(fs::exists(o.outDir / "frames" / "frame_00016.png"));
+    }
+    CHECK(fs::exists(o.outDir / "summary.txt"));
+
+    if (meshIoAvailable()) {
+        // The exported mesh is the cloth after 30 steps, vertex i = particle i.
+        Simulation sim(loadScene(o.scene));
+        for (int k = 0; k < 30; ++k) sim.step();
+        const ImportedMesh m = importMesh(o.outDir / "cloth_final.obj");
+        REQUIRE(m.mesh.vertices.size() == sim.cloth().particleCount());
+        REQUIRE(m.mesh.triangles.size() == sim.cloth().topology().triangleCount());
+        double worst = 0.0;
+        for (std::size_t i = 0; i < m.mesh.vertices.size(); ++i)
+            worst = std::max(worst, (m.mesh.vertices[i] - sim.cloth().positions()[i]).norm());
+        CHECK(worst < 1e-3); // float storage of coordinates of order 100
+    }
+}
+
+TEST_CASE("the same scene run twice gives bit-identical cloth", "[scenes]") {
+    for (const char* name : {"experiment1_suspended_sheet.json", "trampoline.json"}) {
+        INFO(name);
+        const SceneDesc scene = loadScene(kScenes / name);
+        if (scene.needsBullet() && !rigidBodiesAvailable()) continue;
+        Simulation a(scene), b(scene);
+        for (int k = 0; k < 25; ++k) {
+            a.step();
+            b.step();
+        }
+        CHECK(a.cloth().positions() == b.cloth().positions());
+        CHECK(a.cloth().velocities() == b.cloth().velocities());
+    }
+}
+
+TEST_CASE("overrides replace the scene's integrator, time step and length", "[scenes][runner]") {
+    SceneDesc s = loadScene(kScenes / "experiment1_suspended_sheet.json");
+    RunOptions o;
+    o.integrator = "rk4";
+    o.timeStep = 0.005;
+    o.seconds = 0.5;
+    applyOverrides(s, o);
+    CHECK(s.cloth.integrator == IntegratorKind::RungeKutta4);
+    CHECK(s.timeStep == 0.005);
+    CHECK(s.stepCount() == 100);
+    RunOptions bad;
+    bad.steps = 0;
+    CHECK_THROWS_AS(applyOverrides(s, bad), SceneError);
+}
