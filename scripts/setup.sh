@@ -15,6 +15,7 @@ packages=(
     libcli11-dev           # samples/: command-line parsing
     catch2                 # tests/
     libbenchmark-dev       # benchmarks
+    gnuplot-nox            # samples/reports: plots
 )
 
 missing=()

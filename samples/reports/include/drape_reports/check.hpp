@@ -1,0 +1,45 @@
+// drape_reports/check.hpp: "will this time step blow up?", asked before a run.
+//
+// The answer comes from the cloth's largest angular frequency omega_max (an upper bound from
+// the mass-weighted spring Laplacian, see drape/stability.hpp) and each integrator's
+// stability region on the imaginary axis (a spring mode without damping):
+//   Velocity-Verlet, symplectic Euler: dt < 2 / omega_max
+//   RK4:                               dt < 2.785 / omega_max
+//   implicit Euler:                    any dt (A-stable); accuracy, not stability, limits it
+//   explicit Euler:                    |1 + i omega dt| > 1 for every dt: an undamped spring
+//     gains energy at any time step. With damping, a mode x'' = -omega^2 x - 2 gamma x' is
+//     stable when |1 + lambda dt| < 1, i.e. dt < 2 gamma / omega^2. Particle damping C_d gives
+//     2 gamma = C_d / m; spring damping c_s gives 2 gamma = c_s omega^2 / k on the stiffest
+//     mode, so dt < C_d / (m omega_max^2) + c_s / k. Usually far below 2 / omega_max.
+// The runner can call checkTimeStep(cloth, dt) before stepping and print .message; drape-check
+// does the same from the command line.
+#pragma once
+
+#include <drape/cloth.hpp>
+
+#include <string>
+
+namespace drape::reports {
+
+/// The verdict on one (cloth, integrator, dt).
+struct TimeStepCheck {
+    IntegratorKind integrator = IntegratorKind::VelocityVerlet;
+    double timeStep = 0.0;       ///< the dt asked about [s]
+    double omegaMax = 0.0;       ///< upper bound on the largest angular frequency [rad/s]
+    double limit = 0.0;          ///< largest stable dt of the integrator [s]; inf if none
+    bool stable = false;         ///< timeStep <= limit
+    double suggestedTimeStep = 0.0; ///< a stable dt with a 10 % margin [s] (0: none exists)
+    int substeps = 1;            ///< sub-steps of timeStep that make it stable (0: none do)
+    std::string message;         ///< the verdict in one or two sentences, for a user
+};
+
+/// Checks dt for the cloth's integrator (or `integrator` when given), stiffness, masses,
+/// damping and pins.
+TimeStepCheck checkTimeStep(const Cloth& cloth, double dt);
+TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integrator);
+
+/// Explicit Euler's damped limit C_d / (m_max omega^2) + c_s / k_max [s] (0 without damping).
+double explicitEulerLimit(double omegaMax, double particleDamping, double springDamping,
+                          double maxMass, double maxStiffness);
+
+} // namespace drape::reports
