@@ -248,7 +248,11 @@ struct BulletCloth::Impl {
     std::vector<std::size_t> moved;
     StressOrderScratch limitScratch;
 
-    void gatherBodies();
+    std::vector<const btCollisionObject*> candidates;
+    Vec3 proxyMin = Vec3::Zero(), proxyMax = Vec3::Zero(); ///< the proxy's AABB [m]
+    void gatherBodies(double dt);
+    void sweptBounds(double dt, Vec3& lo, Vec3& hi) const;
+    void setProxyBounds(const Vec3& lo, const Vec3& hi);
     /// Contact of particle i with body bi (projection, velocity response, friction, and its
     /// eq. (7) record). Returns whether it is within the contact reach.
     bool collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, double dt,
@@ -289,12 +293,39 @@ private:
     Impl& impl_;
 };
 
-void BulletCloth::Impl::gatherBodies() {
+namespace {
+/// Collects the objects of the broadphase proxies overlapping a box.
+struct CollectObjects final : btBroadphaseAabbCallback {
+    std::vector<const btCollisionObject*>* out = nullptr;
+    bool process(const btBroadphaseProxy* proxy) override {
+        out->push_back(static_cast<const btCollisionObject*>(proxy->m_clientObject));
+        return true;
+    }
+};
+} // namespace
+
+void BulletCloth::Impl::gatherBodies(double dt) {
     bodies.clear();
-    const double reach = settings.contact.thickness + band;
+    candidates.clear();
     const auto& overlaps = ghost->getOverlappingPairs();
-    for (int k = 0; k < overlaps.size(); ++k) {
-        const btCollisionObject* obj = overlaps[k];
+    for (int k = 0; k < overlaps.size(); ++k) candidates.push_back(overlaps[k]);
+    // The proxy's box was set at the end of the previous step for the motion expected then.
+    // If the cloth will sweep beyond it in this step (a first step, velocities set by the user,
+    // a longer step), move the proxy now and ask the broadphase directly (a tree query, not
+    // a loop over bodies) for what the larger box overlaps.
+    Vec3 lo, hi;
+    sweptBounds(dt, lo, hi);
+    if ((lo.array() < proxyMin.array()).any() || (hi.array() > proxyMax.array()).any()) {
+        setProxyBounds(lo, hi);
+        CollectObjects collect;
+        collect.out = &candidates;
+        world->getBroadphase()->aabbTest(toBt(proxyMin), toBt(proxyMax), collect);
+        std::sort(candidates.begin(), candidates.end());
+        candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+        ++last.proxyRefreshes;
+    }
+    const double reach = settings.contact.thickness + band;
+    for (const btCollisionObject* obj : candidates) {
         if (!obj || obj == ghost.get()) continue;
         const int type = obj->getInternalType();
         if (type != btCollisionObject::CO_RIGID_BODY && type != btCollisionObject::CO_COLLISION_OBJECT) {
@@ -538,25 +569,39 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     prevX = x;
 }
 
-void BulletCloth::Impl::updateBounds(double dt) {
+void BulletCloth::Impl::sweptBounds(double dt, Vec3& lo, Vec3& hi) const {
     const Cloth& c = *cloth;
-    Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
-    Vec3 hi = -lo;
-    double reachMove = 0.0;
+    lo = Vec3::Constant(std::numeric_limits<double>::infinity());
+    hi = -lo;
     for (std::size_t i = 0; i < c.particleCount(); ++i) {
-        lo = lo.cwiseMin(c.positions()[i]);
-        hi = hi.cwiseMax(c.positions()[i]);
-        reachMove = std::max(reachMove, c.velocities()[i].norm() * dt);
+        const Vec3& x = c.positions()[i];
+        const Vec3 ahead = x + dt * c.velocities()[i];
+        lo = lo.cwiseMin(x).cwiseMin(ahead);
+        hi = hi.cwiseMax(x).cwiseMax(ahead);
     }
-    // Grow by where the particles can get in the next sub-step, plus the contact reach.
-    const double grow = margin + settings.contact.thickness + band + reachMove;
-    boundsShape->set(lo.array() - grow, hi.array() + grow);
+    const double grow = settings.contact.thickness + band;
+    lo.array() -= grow;
+    hi.array() += grow;
+}
+
+void BulletCloth::Impl::setProxyBounds(const Vec3& lo, const Vec3& hi) {
+    proxyMin = lo;
+    proxyMax = hi;
+    boundsShape->set(lo, hi);
     if (inWorld) world->updateSingleAabb(ghost.get());
+}
+
+void BulletCloth::Impl::updateBounds(double dt) {
+    // Where the particles can get in the next step (at the speed they have now), plus the
+    // contact reach, plus the margin for bodies moving toward the cloth.
+    Vec3 lo, hi;
+    sweptBounds(dt, lo, hi);
+    setProxyBounds(lo.array() - margin, hi.array() + margin);
 }
 
 void BulletCloth::Impl::step(double dt) {
     last = ContactStats{};
-    gatherBodies();
+    gatherBodies(dt);
     Cloth& c = *cloth;
     const double t0 = c.time();
     *window = {t0, t0 + dt};
@@ -623,6 +668,7 @@ void BulletCloth::Impl::step(double dt) {
     total.impulseOnBodies += last.impulseOnBodies;
     total.impulseOnCloth += last.impulseOnCloth;
     total.steps += last.steps;
+    total.proxyRefreshes += last.proxyRefreshes;
 }
 
 // --------------------------------------------------------------------------------------------

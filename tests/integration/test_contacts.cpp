@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <limits>
 
@@ -187,4 +188,56 @@ TEST_CASE("a cloth drapes over a static triangle mesh (a roof ridge)", "[contact
     CHECK(cloth->positions()[mid].y() - cloth->positions()[right].y() > 0.15);
     CHECK(cloth->kineticEnergy() < 1e-6);
     w.cloths.clear(); // before the mesh goes
+}
+
+namespace {
+
+/// Drops a 1 m cloth (11 x 11, spacing 0.1) at `speed` [m/s] onto a thin static box (2 cm
+/// thick, top at y = 0.01) in a metre-scale scene at dt 0.01 s, and returns how many
+/// particles ended up below the box (passed through it).
+std::size_t particlesThroughThinBox(double speed, bool continuous) {
+    TestWorld w;
+    w.body(w.shape<btBoxShape>(btVector3(2.0f, 0.01f, 2.0f)), 0.0, Vec3::Zero());
+    ClothSettings s;
+    s.particleMass = 0.01;
+    s.springStiffness = 20.0;
+    auto cloth = makeCloth(horizontalSheet(11, 11, 0.1, 0.5), s);
+    for (Index i = 0; i < cloth->particleCount(); ++i) cloth->setVelocity(i, Vec3(0.0, -speed, 0.0));
+    bullet::BulletClothSettings bs;
+    bs.contact.thickness = 0.01;
+    bs.contact.continuous = continuous;
+    w.add(cloth, bs);
+    const double dt = 0.01;
+    const int steps = int(std::ceil(0.6 / (speed * dt))) + 20; // well past the box
+    for (int k = 0; k < steps; ++k) w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
+    return std::size_t(std::count_if(cloth->positions().begin(), cloth->positions().end(),
+                                     [](const Vec3& x) { return x.y() < 0.0; }));
+}
+
+} // namespace
+
+TEST_CASE("a fast cloth does not tunnel through a thin static box", "[contacts][tunnelling]") {
+    // 20 m/s at dt 0.01 s is 0.2 m per step, ten times the box's 2 cm: without the swept test
+    // most particles would jump over it. With it, none may pass, even at 100 m/s.
+    CHECK(particlesThroughThinBox(20.0, true) == 0);
+    CHECK(particlesThroughThinBox(100.0, true) == 0);
+
+    // Without the swept test (contact.continuous = false) the proximity test alone stops a
+    // particle only if it lands inside the box nearer its top face than its bottom face: a
+    // step of less than the half thickness (1 cm) is always caught, a step longer than the
+    // gap it started from plus the whole box can never be. At dt 0.01 s the first speed at
+    // which particles pass must therefore lie between 1 m/s and (band + thickness + 2 cm) /
+    // 0.01 s = 4 m/s (plus what gravity adds in one step, < 0.1 m/s).
+    double firstLeak = -1.0;
+    for (double v = 0.5; v <= 20.0; v += 0.25) {
+        if (particlesThroughThinBox(v, false) > 0) {
+            firstLeak = v;
+            break;
+        }
+    }
+    std::printf("tunnelling without the swept test starts at %.2f m/s (dt 0.01 s, box 2 cm, thickness 1 cm)\n", firstLeak);
+    CHECK(firstLeak >= 1.0);
+    CHECK(firstLeak <= 4.1);
+    // And at 20 m/s it does leak: the swept test is what prevents it.
+    CHECK(particlesThroughThinBox(20.0, false) > 0);
 }

@@ -99,6 +99,9 @@ struct ContactStats {
     /// contacts with dynamic bodies.
     Vec3 impulseOnCloth = Vec3::Zero();
     std::uint64_t steps = 0;             ///< cloth steps taken by this handle since it was added
+    /// Sub-steps in which the cloth would have swept out of its proxy, so the proxy was moved
+    /// and the broadphase queried directly (btBroadphaseInterface::aabbTest).
+    std::size_t proxyRefreshes = 0;
 };
 
 /// A particle held at a point fixed in a body's frame.
