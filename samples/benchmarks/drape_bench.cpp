@@ -98,6 +98,7 @@ std::string cpuModel() {
 /// and at the end prints all medians again as one Markdown table.
 class MedianReporter : public benchmark::ConsoleReporter {
 public:
+    MedianReporter() : ConsoleReporter(OO_Tabular) {} // plain text: the output is meant for files
     void ReportRuns(const std::vector<Run>& runs) override {
         std::vector<Run> keep;
         for (const Run& r : runs) {
@@ -162,11 +163,9 @@ int main(int argc, char** argv) {
 
     // Defaults first, so that flags given on the command line (parsed later) win.
     std::vector<char*> args{argv[0]};
-    std::string reps = "--benchmark_repetitions=5", aggregates = "--benchmark_report_aggregates_only=true",
-                color = "--benchmark_color=false";
+    std::string reps = "--benchmark_repetitions=5", aggregates = "--benchmark_report_aggregates_only=true";
     args.push_back(reps.data());
     args.push_back(aggregates.data());
-    args.push_back(color.data());
     for (int i = 1; i < argc; ++i) args.push_back(argv[i]);
     int n = static_cast<int>(args.size());
 
