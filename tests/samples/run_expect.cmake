@@ -1,5 +1,5 @@
 # Runs CMD with ARGS (a ;-list) and checks its exit code (EXPECT_CODE), that stderr matches
-# EXPECT_STDERR (a regex, optional) and that the |-separated EXPECT_FILES exist under OUT.
+# EXPECT_STDERR and stdout matches EXPECT_STDOUT (regexes, optional) and that the |-separated EXPECT_FILES exist under OUT.
 execute_process(COMMAND ${CMD} ${ARGS}
     RESULT_VARIABLE code OUTPUT_VARIABLE out ERROR_VARIABLE err TIMEOUT 300)
 if(NOT code STREQUAL "${EXPECT_CODE}")
@@ -7,6 +7,9 @@ if(NOT code STREQUAL "${EXPECT_CODE}")
 endif()
 if(DEFINED EXPECT_STDERR AND NOT err MATCHES "${EXPECT_STDERR}")
     message(FATAL_ERROR "stderr does not match '${EXPECT_STDERR}':\n${err}")
+endif()
+if(DEFINED EXPECT_STDOUT AND NOT out MATCHES "${EXPECT_STDOUT}")
+    message(FATAL_ERROR "stdout does not match '${EXPECT_STDOUT}':\n${out}")
 endif()
 if(DEFINED EXPECT_FILES)
     string(REPLACE "|" ";" files "${EXPECT_FILES}")
