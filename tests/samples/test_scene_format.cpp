@@ -5,7 +5,9 @@
 #include <catch2/catch.hpp>
 
 #include <filesystem>
+#include <fstream>
 #include <set>
+#include <sstream>
 #include <string>
 
 using namespace drape;
@@ -181,4 +183,26 @@ TEST_CASE("a missing or unreadable scene file is named", "[scene][errors]") {
     using Catch::Matchers::Contains;
     CHECK_THROWS_WITH(loadScene("/nonexistent/scene.json"), Contains("scene.json: scene file not found"));
     CHECK_THROWS_WITH(loadScene(kScenes), Contains("is a folder"));
+}
+
+TEST_CASE("the JSON examples in SCENES.md parse", "[scene][docs]") {
+    std::ifstream in(fs::path(DRAPE_SAMPLES_DIR) / "SCENES.md");
+    REQUIRE(in);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    const std::string doc = ss.str();
+    std::size_t pos = 0, blocks = 0;
+    while ((pos = doc.find("```json\n", pos)) != std::string::npos) {
+        const std::size_t start = pos + 8;
+        const std::size_t end = doc.find("```", start);
+        REQUIRE(end != std::string::npos);
+        const std::string block = doc.substr(start, end - start);
+        INFO(block);
+        // Whole scenes parse as they are; fragments (a field and its value) inside a scene.
+        const std::string text = block.front() == '{' ? block : withCloth(block);
+        CHECK_NOTHROW(parse(text));
+        ++blocks;
+        pos = end + 3;
+    }
+    CHECK(blocks >= 2);
 }
