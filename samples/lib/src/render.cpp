@@ -112,7 +112,10 @@ Image OffscreenRenderer::render(const CameraDesc& camera, const std::vector<Draw
     glLightModeli(GL_LIGHT_MODEL_TWO_SIDE, GL_TRUE);
     const GLfloat globalAmbient[4] = {0.25f, 0.25f, 0.27f, 1.0f};
     glLightModelfv(GL_LIGHT_MODEL_AMBIENT, globalAmbient);
-    const GLfloat keyDir[4] = {0.45f, 0.75f, 0.5f, 0.0f};
+    // The key light is a point above and to the right of the camera, so that even a flat
+    // sheet shows a gradient; the fill light is directional from the left.
+    const float d = static_cast<float>(dist);
+    const GLfloat keyDir[4] = {0.7f * d, 1.0f * d, 0.2f * d, 1.0f};
     const GLfloat keyCol[4] = {0.75f, 0.74f, 0.70f, 1.0f};
     const GLfloat fillDir[4] = {-0.6f, 0.1f, 0.8f, 0.0f};
     const GLfloat fillCol[4] = {0.30f, 0.32f, 0.36f, 1.0f};

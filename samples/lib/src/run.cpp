@@ -215,7 +215,8 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
         if (!csv) throw SceneError((options.outDir / "stats.csv").string() + ": write failed");
     }
 
-    if (scene.output.obj) exportMesh(sim.clothMesh(), options.outDir / "cloth_final.obj");
+    const bool writeObj = scene.output.obj && meshIoAvailable();
+    if (writeObj) exportMesh(sim.clothMesh(), options.outDir / "cloth_final.obj");
 
     if (render && options.video && scene.output.video) {
         if (!onPath("ffmpeg")) {
@@ -258,7 +259,8 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
         << "kinetic energy      " << cloth.kineticEnergy() << " J (final)\n"
         << "frames              " << r.frames << (render ? " PNG in " + framesDir.string() : std::string(" (not rendered)")) << "\n"
         << "video               " << r.video << "\n";
-    if (scene.output.obj) sum << "final mesh          " << (options.outDir / "cloth_final.obj").string() << "\n";
+    if (writeObj) sum << "final mesh          " << (options.outDir / "cloth_final.obj").string() << "\n";
+    else if (scene.output.obj) sum << "final mesh          none (built without assimp)\n";
     if (scene.output.csv) sum << "statistics          " << (options.outDir / "stats.csv").string() << "\n";
     sum << "phases (wall time):\n";
     for (const auto& t : cloth.timers().all())
