@@ -219,6 +219,7 @@ struct BulletCloth::Impl {
     std::shared_ptr<Cloth> cloth;
     BulletClothSettings settings;
     bool inWorld = false;
+    bool inStep = false; ///< inside step(): the stage has a fresh body snapshot
 
     std::unique_ptr<BoundsShape> boundsShape;
     std::unique_ptr<ProxyGhost> ghost;
@@ -479,6 +480,10 @@ bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t 
 
 void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     const std::size_t n = c.particleCount();
+    if (!inStep) { // the cloth was stepped outside the world: no snapshot to collide with
+        prevX = c.positions();
+        return;
+    }
     if (prevX.size() != n) prevX = c.positions();
     penalty->contacts.clear();
     const bool self = settings.selfCollision.enabled;
@@ -609,7 +614,18 @@ void BulletCloth::Impl::step(double dt) {
         (*targets)[a].from = (*targets)[a].to;
         (*targets)[a].to = attachmentPoint(attachments[a]);
     }
+    if (settings.useWorldGravity) { // follow the world's gravity if the user changes it
+        const Vec3 g = toVec(world->getGravity());
+        if (g != c.settings().gravity) c.setGravity(g);
+    }
     const double h = dt / settings.substeps;
+    struct InStep {
+        bool& flag;
+        explicit InStep(bool& f) : flag(f) { flag = true; }
+        ~InStep() { flag = false; }
+        InStep(const InStep&) = delete;
+        InStep& operator=(const InStep&) = delete;
+    } guard(inStep);
     for (int s = 0; s < settings.substeps; ++s) {
         c.step(h);
         ++last.steps;

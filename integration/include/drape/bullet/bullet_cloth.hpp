@@ -74,8 +74,8 @@ struct BulletClothSettings {
     /// Cloth steps per internal Bullet sub-step (>= 1): a stiff cloth can run at
     /// fixedTimeStep / substeps while the rigid bodies keep the world's step.
     int substeps = 1;
-    /// Copy the world's gravity into the cloth when it is added (drape's default gravity is
-    /// -9.81 m/s^2 along y, Bullet's is -10).
+    /// Use the world's gravity for the cloth (copied when it is added and whenever the world's
+    /// changes). drape's default gravity is -9.81 m/s^2 along y, Bullet's is -10.
     bool useWorldGravity = true;
     /// Broadphase filter group and mask of the cloth's proxy (Bullet's collision filtering).
     int collisionGroup = 1;  ///< btBroadphaseProxy::DefaultFilter
@@ -113,7 +113,8 @@ struct Attachment {
 
 /// A cloth added to a Bullet world. Created by addCloth; removed from the world by
 /// removeCloth or by its destructor. Remove it (or destroy it) before the world, and detach
-/// particles from a body before removing that body from the world.
+/// particles from a body before removing that body from the world. Stepping the cloth
+/// directly (Cloth::step) while it is in a world runs no contacts: the world steps it.
 class BulletCloth {
 public:
     /// Prefer addCloth(). Throws drape::Error on a null world or cloth or bad settings.
