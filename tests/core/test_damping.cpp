@@ -1,0 +1,220 @@
+// Damping and external forces inside a running cloth, against analytic solutions: the damped
+// breathing triangle (spring damping and linear damping), convergence orders with damping,
+// terminal velocity under aerodynamic drag, the static stretch of a user force, and the
+// implicit integrator's two linear solvers agreeing.
+#include "helpers.hpp"
+
+#include "drape/cloth.hpp"
+
+#include <cstdio>
+
+using namespace drape;
+using namespace drape_test;
+
+namespace {
+
+/// The breathing mode of a free equilateral triangle (see test_integrators.cpp) with damping.
+/// Spring damping c acts on the rate of change of each edge, l' = sqrt(3) r', and sums to a
+/// radial 3 c r' exactly as the springs sum to 3 k (r - r0); linear damping C_d gives C_d r'.
+/// So m r'' = -3k (r - r0) - (3c + C_d) r': a damped linear oscillator with
+/// gamma = (3c + C_d) / (2m) and omega_d = sqrt(3k/m - gamma^2).
+struct DampedBreathing {
+    double r0 = 1.0, m = 1.0, k = 1.0, amp = 0.1;
+    double springDamping = 0.0, linearDamping = 0.0;
+    double gamma() const { return (3.0 * springDamping + linearDamping) / (2.0 * m); }
+    double omegaD() const { return std::sqrt(3.0 * k / m - gamma() * gamma()); }
+
+    std::unique_ptr<Cloth> make(IntegratorKind kind) const {
+        ClothSettings s;
+        s.integrator = kind;
+        s.particleMass = m;
+        s.springStiffness = k;
+        s.springDamping = springDamping;
+        s.damping = linearDamping;
+        s.gravity = Vec3::Zero();
+        s.limiter.kind = LimiterKind::None;
+        auto cloth = std::make_unique<Cloth>(ClothTopology::build(equilateralTriangle(r0)), s);
+        const auto d = equilateralDirections();
+        for (Index i = 0; i < 3; ++i) cloth->setPosition(i, (r0 + amp) * d[i]);
+        return cloth;
+    }
+    /// Radial displacement and velocity of the analytic solution released from rest.
+    double u(double t) const {
+        const double g = gamma(), w = omegaD();
+        return amp * std::exp(-g * t) * (std::cos(w * t) + g / w * std::sin(w * t));
+    }
+    double du(double t) const {
+        const double g = gamma(), w = omegaD();
+        return -amp * std::exp(-g * t) * (g * g / w + w) * std::sin(w * t);
+    }
+    /// sqrt(sum |x - x*|^2 + |v - v*|^2 / omega^2) over the three corners [m].
+    double error(const Cloth& c, double t) const {
+        const auto d = equilateralDirections();
+        const double w2 = 3.0 * k / m;
+        double e2 = 0.0;
+        for (Index i = 0; i < 3; ++i) {
+            e2 += (c.positions()[i] - (r0 + u(t)) * d[i]).squaredNorm() +
+                  (c.velocities()[i] - du(t) * d[i]).squaredNorm() / w2;
+        }
+        return std::sqrt(e2);
+    }
+};
+
+double convergenceOrder(const DampedBreathing& osc, IntegratorKind kind, const std::vector<int>& Ns, double T) {
+    std::vector<double> dts, errs;
+    for (int N : Ns) {
+        auto cloth = osc.make(kind);
+        for (int n = 0; n < N; ++n) cloth->step(T / N);
+        dts.push_back(T / N);
+        errs.push_back(osc.error(*cloth, T));
+    }
+    const double slope = logLogSlope(dts, errs);
+    std::printf("[measured] damped breathing, %-16s:", toString(kind));
+    for (std::size_t i = 0; i < dts.size(); ++i) std::printf("  dt=%.4f: %.3e", dts[i], errs[i]);
+    std::printf("  -> order %.3f\n", slope);
+    return slope;
+}
+
+} // namespace
+
+TEST_CASE("Damped oscillator decays as the analytic solution", "[damping]") {
+    // RK4 at dt = 1e-3 is accurate to ~1e-13 here, so the comparison tests the damping forces
+    // themselves (their coefficient and direction), not the integrator.
+    for (int which = 0; which < 2; ++which) {
+        DampedBreathing osc;
+        (which == 0 ? osc.springDamping : osc.linearDamping) = 0.2;
+        INFO((which == 0 ? "spring damping" : "linear damping"));
+        auto cloth = osc.make(IntegratorKind::RungeKutta4);
+        const int N = 3000;
+        const double dt = 1e-3;
+        double e0 = cloth->kineticEnergy() + cloth->springEnergy();
+        for (int n = 0; n < N; ++n) cloth->step(dt);
+        CHECK(osc.error(*cloth, N * dt) < 1e-10);
+        // And the energy went down (dissipation), by the factor of the envelope exp(-2 gamma t)
+        // up to the phase-dependent split between kinetic and potential energy.
+        const double e = cloth->kineticEnergy() + cloth->springEnergy();
+        CHECK(e < e0);
+        CHECK(e < e0 * std::exp(-2.0 * osc.gamma() * N * dt) * 1.5);
+    }
+}
+
+TEST_CASE("Convergence orders with damping", "[damping][convergence]") {
+    DampedBreathing osc;
+    osc.springDamping = 0.2; // damping ratio gamma / omega = 0.17
+    const double T = 2.0;
+    // Same ranges and tolerance as the undamped orders (test_integrators.cpp).
+    CHECK(convergenceOrder(osc, IntegratorKind::RungeKutta4, {50, 100, 200, 400}, T) == Approx(4.0).margin(0.1));
+    CHECK(convergenceOrder(osc, IntegratorKind::SymplecticEuler, {400, 800, 1600, 3200}, T) == Approx(1.0).margin(0.1));
+    CHECK(convergenceOrder(osc, IntegratorKind::ImplicitEuler, {400, 800, 1600, 3200}, T) == Approx(1.0).margin(0.1));
+}
+
+// Known gap (see the test report): the closing half kick evaluates the damping forces with the
+// half-step velocity v(t + dt/2) instead of v(t + dt). That is an O(dt) error in the force,
+// O(dt^2) per step, so Velocity-Verlet drops to first order as soon as damping is on
+// (measured 1.0 here; 2.0 without damping). A second evaluation of the velocity-dependent
+// terms (or solving the linear damping implicitly in the last kick) would restore order 2.
+TEST_CASE("Velocity-Verlet stays second order with damping", "[damping][convergence][!mayfail]") {
+    DampedBreathing osc;
+    osc.springDamping = 0.2;
+    CHECK(convergenceOrder(osc, IntegratorKind::VelocityVerlet, {50, 100, 200, 400}, 2.0) == Approx(2.0).margin(0.1));
+}
+
+TEST_CASE("A falling plate reaches the terminal velocity of its drag", "[aero]") {
+    // One triangle held horizontal (normal along gravity), drag only: by symmetry each corner
+    // carries a third of the weight and of the drag, the springs stay at rest and the plate
+    // falls flat. Terminal speed: rho/2 C_d A v^2 = M g.
+    TriangleMesh m;
+    m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 0, -1)}; // in the x-z plane, area 0.5
+    m.triangles = {{0, 1, 2}};
+    ClothSettings s;
+    s.particleMass = 0.01;
+    s.springStiffness = 10.0;
+    s.gravity = Vec3(0, -9.81, 0);
+    s.aero.airDensity = 1.2;
+    s.aero.dragCoefficient = 1.0;
+    s.limiter.kind = LimiterKind::None;
+    Cloth cloth(ClothTopology::build(m), s);
+    const double M = 0.03, A = 0.5;
+    const double vt = std::sqrt(2.0 * M * 9.81 / (1.2 * 1.0 * A));
+    const double tau = vt / 9.81; // ~0.1 s
+    // v(t) = vt tanh(t / tau); after 20 tau it is vt to 1e-17. VV's error at dt = 1e-3 is
+    // O((dt/tau)^2) ~ 1e-4 relative in transients and vanishes at the fixed point.
+    for (int n = 0; n < 2000; ++n) cloth.step(1e-3);
+    for (Index i = 0; i < 3; ++i) {
+        CHECK(cloth.velocities()[i].y() == Approx(-vt).epsilon(1e-6));
+        CHECK(std::abs(cloth.velocities()[i].x()) < 1e-9);
+        CHECK(std::abs(cloth.velocities()[i].z()) < 1e-9);
+    }
+    std::printf("[measured] falling plate: speed %.9f m/s, terminal speed %.9f m/s\n",
+                -cloth.velocities()[0].y(), vt);
+    // The transient itself, v = vt tanh(t / tau), with RK4 (error ~(dt/tau)^4 = 1e-8): this
+    // checks the drag force's magnitude away from the fixed point. (Velocity-Verlet is only
+    // first order with velocity-dependent forces; see test "Velocity-Verlet stays second
+    // order with damping".)
+    s.integrator = IntegratorKind::RungeKutta4;
+    Cloth again(ClothTopology::build(m), s);
+    const int steps = 100;
+    for (int n = 0; n < steps; ++n) again.step(1e-3);
+    CHECK(-again.velocities()[0].y() == Approx(vt * std::tanh(steps * 1e-3 / tau)).epsilon(1e-6));
+}
+
+TEST_CASE("A user force stretches a spring by F / k", "[forces][user]") {
+    // Free corner at the origin, pinned corners at (L, 0) and (0, L); a force -F x pulls the
+    // free corner away from (L, 0): equilibrium at u = F / k along -x (the other spring turns
+    // and adds an x force of O(k u^3 / L^2), a 1e-6 relative correction for u = 1e-3 L).
+    TriangleMesh m;
+    m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0)};
+    m.triangles = {{0, 1, 2}};
+    ClothSettings s;
+    s.integrator = IntegratorKind::ImplicitEuler;
+    s.particleMass = 0.1;
+    s.springStiffness = 50.0;
+    s.gravity = Vec3::Zero();
+    s.damping = 1.0;
+    s.limiter.kind = LimiterKind::None;
+    Cloth cloth(ClothTopology::build(m), s);
+    cloth.pin(1);
+    cloth.pin(2);
+    const double F = 0.05;
+    cloth.setUserForce(0, Vec3(-F, 0, 0));
+    for (int n = 0; n < 400; ++n) cloth.step(0.05);
+    CHECK(cloth.velocities()[0].norm() < 1e-12);
+    CHECK(-cloth.positions()[0].x() == Approx(F / 50.0).epsilon(1e-4));
+    // The pinned corner at (0, L) is now u^2 / 2L too far away; its spring pulls the free
+    // corner toward it until y = u^2 / 2L (up to F / kL = 1e-3 relative).
+    const double u = F / 50.0;
+    CHECK(cloth.positions()[0].y() == Approx(u * u / 2.0).epsilon(1e-2));
+    cloth.clearUserForces();
+    for (int n = 0; n < 400; ++n) cloth.step(0.05);
+    CHECK(cloth.positions()[0].norm() < 1e-10); // back to rest
+}
+
+TEST_CASE("Implicit Euler: CG and LDLT give the same steps", "[integrators][implicit]") {
+    auto run = [](LinearSolverKind solver) {
+        SheetSpec spec;
+        spec.rows = 8;
+        spec.cols = 8;
+        spec.spacing = 0.1;
+        ClothSettings s;
+        s.integrator = IntegratorKind::ImplicitEuler;
+        s.implicit.solver = solver;
+        s.particleMass = 0.01;
+        s.springStiffness = 100.0;
+        s.damping = 0.01;
+        auto cloth = std::make_unique<Cloth>(ClothTopology::build(makeSheet(spec)), s);
+        cloth->pin(0);
+        cloth->pin(7);
+        for (int n = 0; n < 100; ++n) cloth->step(0.01);
+        return cloth;
+    };
+    const auto cg = run(LinearSolverKind::ConjugateGradient), ldlt = run(LinearSolverKind::LDLT);
+    double diff = 0.0, size = 0.0;
+    for (std::size_t i = 0; i < cg->particleCount(); ++i) {
+        diff = std::max(diff, (cg->positions()[i] - ldlt->positions()[i]).norm());
+        size = std::max(size, (ldlt->positions()[i] - ldlt->topology().restPositions()[i]).norm());
+    }
+    // CG stops at a relative residual of 1e-10 per step; over 100 steps the difference stays
+    // many orders below the motion (~0.1 m).
+    CHECK(size > 0.01);
+    CHECK(diff < 1e-6 * size);
+}
