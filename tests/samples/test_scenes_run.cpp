@@ -246,3 +246,35 @@ TEST_CASE("curtain_ball: the curtain stops the ball and is pushed back by it", "
     CHECK(std::abs(v.z()) < 2.0);
     CHECK(deepestCloth < -0.2); // the ball pushed the cloth back (two-way coupling)
 }
+
+TEST_CASE("attachments follow a kinematic body along its keyframes and index pins stay put",
+          "[scenes]") {
+    if (!rigidBodiesAvailable()) { WARN("skipped: no Bullet integration"); return; }
+    // A 5 x 5 sheet hangs from a bar that moves 1 m along +x during the first second; its
+    // bottom-left corner is pinned by index.
+    const SceneDesc scene = parseScene(R"({
+      "cloth": {"sheet": {"rows": 5, "cols": 5, "spacing": 0.1, "origin": [0, 1, 0]},
+                "particle_mass": 0.01, "stiffness": 20.0, "damping": 0.01},
+      "simulation": {"time_step": 0.002, "duration": 1.5},
+      "pins": [{"indices": [20]}],
+      "rigid_bodies": [{"name": "bar", "shape": {"type": "box", "half_extents": [0.3, 0.02, 0.02]},
+                        "motion": "kinematic",
+                        "keyframes": [{"time": 0, "position": [0.2, 1.03, 0]},
+                                      {"time": 1, "position": [1.2, 1.03, 0]}]}],
+      "attachments": [{"body": "bar", "grid": [[0, 0], [0, 2], [0, 4]]}],
+      "collision": {"thickness": 0.005}
+    })", "attach.json", kScenes);
+    Simulation sim(scene);
+    REQUIRE(sim.attachedParticles().size() == 1);
+    CHECK(sim.attachedParticles()[0] == std::vector<Index>{0, 2, 4});
+    CHECK(sim.pinnedParticles()[0] == std::vector<Index>{20});
+    const Vec3 a0 = sim.cloth().positions()[0], a4 = sim.cloth().positions()[4];
+    const Vec3 p20 = sim.cloth().positions()[20];
+    while (sim.time() < 1.2 - 1e-9) sim.step();
+    // The bar moved by (1, 0, 0); attached particles move with it (to float precision of
+    // Bullet's transforms), and the bar holds still after its last keyframe.
+    CHECK((sim.cloth().positions()[0] - (a0 + Vec3(1, 0, 0))).norm() < 1e-4);
+    CHECK((sim.cloth().positions()[4] - (a4 + Vec3(1, 0, 0))).norm() < 1e-4);
+    CHECK(sim.bodyPosition("bar").isApprox(Vec3(1.2, 1.03, 0.0), 1e-5));
+    CHECK(sim.cloth().positions()[20] == p20);
+}
