@@ -112,6 +112,8 @@ TEST_CASE("a minimal scene gets the documented defaults", "[scene]") {
 TEST_CASE("broken scenes are refused with the path of the field", "[scene][errors]") {
     using Catch::Matchers::Contains;
     CHECK_THAT(errorOf("{\"cloth\": "), Contains("test.json: not valid JSON"));
+    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 1e999}}})"),
+               Contains("test.json: not usable JSON: "));
     CHECK_THAT(errorOf("[1, 2]"), Contains("(top level): expected an object, got array"));
     CHECK_THAT(errorOf("{}"), Contains("cloth: required field is missing"));
     CHECK_THAT(errorOf(withCloth(R"("camera": {"fov": 40})")),

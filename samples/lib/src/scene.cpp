@@ -336,6 +336,9 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
     } catch (const Json::parse_error& e) {
         // nlohmann's message carries the line and column.
         throw SceneError(origin + ": not valid JSON: " + e.what());
+    } catch (const Json::exception& e) {
+        // For example a number too large for a double ("1e999").
+        throw SceneError(origin + ": not usable JSON: " + e.what());
     }
     JsonObject top(root, "", origin);
     SceneDesc sc;

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace drape::samples {
 
@@ -43,7 +44,6 @@ std::vector<DrawMesh> shapeMeshes(const RigidBodyDesc& b, const Vec3& around, do
 } // namespace
 
 Simulation::Simulation(const SceneDesc& scene) : scene_(scene) {
-    const std::string org = origin(scene_);
     TriangleMesh mesh;
     std::map<std::string, std::vector<Index>> groups;
     if (scene_.sheet) {
