@@ -129,6 +129,10 @@ TEST_CASE("broken or missing mesh files are named with what is wrong", "[mesh][e
     CHECK_THROWS_WITH(importMesh(fs::path(DRAPE_TEST_DATA_DIR) / "garbage.obj"), Contains("garbage.obj: "));
     writeText(outDir() / "points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\np 1 2 3\nl 1 2\n");
     CHECK_THROWS_WITH(importMesh(outDir() / "points.obj"), Contains("points.obj: contains no triangles"));
+    writeText(outDir() / "nan.obj", "v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    CHECK_THROWS_WITH(importMesh(outDir() / "nan.obj"), Contains("nan.obj: vertex 0 of mesh") && Contains("is not finite"));
+    writeText(outDir() / "range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99\n");
+    CHECK_THROWS_WITH(importMesh(outDir() / "range.obj"), Contains("range.obj: assimp cannot read it: OBJ: vertex index out of range"));
     writeText(outDir() / "unknown.xyz123", "1 2 3\n");
     CHECK_THROWS_WITH(importMesh(outDir() / "unknown.xyz123"), Contains("assimp cannot read it"));
     CHECK_THROWS_WITH(importMesh(fs::path(DRAPE_SAMPLES_DIR)), Contains("is a folder"));
