@@ -259,6 +259,7 @@ struct BulletCloth::Impl {
     bool collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, double dt,
                          detail::QueryCounters& counters);
     std::vector<std::int64_t> recordOf; ///< per particle: its latest PenaltyContact, or -1
+    std::vector<double> lastSupport;    ///< per particle: contact normal force, last step [N]
     void resolveContacts(Cloth& c, double dt);
     void updateBounds(double dt);
     Vec3 attachmentPoint(const Attachment& a) const {
@@ -461,7 +462,10 @@ bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t 
     // Coulomb friction against the relative tangential velocity.
     const Vec3 vt = rel - vn * hit.normal;
     const double vtLen = vt.norm();
-    const double budget = b.friction * (lambda + penaltyImpulse);
+    // The normal impulse of this step: the approach stopped now, and the support of the
+    // penalty or, for a particle pressed on harder, of the contact force at the last step.
+    const double support = std::max(penaltyImpulse, i < lastSupport.size() ? lastSupport[i] * dt : 0.0);
+    const double budget = b.friction * (lambda + support);
     if (vtLen > 0.0 && budget > 0.0) {
         const Vec3 tdir = vt / vtLen;
         const double need = vtLen / (wi + b.inverseMassAlong(hit.point, tdir));
@@ -551,7 +555,9 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
         const Index i = pc.particle;
         BodySnapshot& b = bodies[pc.body];
         const double gap = (x[i] - pc.point).dot(pc.normal) - h;
-        const double budget = b.friction * pc.cp * penaltyShape(gap, band) * dt;
+        const double support = std::max(pc.cp * penaltyShape(gap, band),
+                                        i < lastSupport.size() ? lastSupport[i] : 0.0);
+        const double budget = b.friction * support * dt;
         if (budget <= 0.0) continue;
         const Vec3 rel = v[i] - b.velocityAt(pc.point);
         const Vec3 vt = rel - rel.dot(pc.normal) * pc.normal;
@@ -630,7 +636,9 @@ void BulletCloth::Impl::step(double dt) {
         c.step(h);
         ++last.steps;
         // The eq. (7) force the particles got at the end of this step acts for h; the body
-        // gets the opposite.
+        // gets the opposite. It also bounds the friction of the next step.
+        lastSupport.assign(c.particleCount(), 0.0);
+        for (const auto& pc : penalty->contacts) lastSupport[pc.particle] += pc.force;
         for (const auto& pc : penalty->contacts) {
             if (pc.force == 0.0) continue;
             const Vec3 j = (pc.force * pc.normal + pc.friction) * h;

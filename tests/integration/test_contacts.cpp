@@ -63,6 +63,15 @@ TEST_CASE("a small cloth comes to rest on every supported shape at the contact d
              return hull;
          },
          0.1, true},
+        {"convex hull with Bullet's default margin",
+         [](TestWorld& w) {
+             auto* hull = w.shape<btConvexHullShape>();
+             for (int k = 0; k < 8; ++k) {
+                 hull->addPoint(btVector3((k & 1) ? 0.3f : -0.3f, (k & 2) ? 0.1f : -0.1f, (k & 4) ? 0.3f : -0.3f));
+             }
+             return hull; // margin 0.04: rigid bodies and the cloth meet its surface at 0.14
+         },
+         0.1 + double(CONVEX_DISTANCE_MARGIN), true},
         {"compound",
          [](TestWorld& w) {
              auto* c = w.shape<btCompoundShape>();
