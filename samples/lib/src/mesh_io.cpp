@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 
+#include <cctype>
 #include <cmath>
 
 #if DRAPE_SAMPLES_HAVE_ASSIMP
@@ -20,12 +21,6 @@ namespace {
 
 [[noreturn]] void meshFail(const std::filesystem::path& file, const std::string& what) {
     throw SceneError(file.string() + ": " + what);
-}
-
-std::string lowerExtension(const std::filesystem::path& file) {
-    std::string ext = file.extension().string();
-    for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-    return ext;
 }
 
 } // namespace
@@ -54,6 +49,12 @@ ImportedMesh importMesh(const MeshDesc& desc) {
 bool meshIoAvailable() { return true; }
 
 namespace {
+
+std::string lowerExtension(const std::filesystem::path& file) {
+    std::string ext = file.extension().string();
+    for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    return ext;
+}
 
 struct RawMesh {
     TriangleMesh mesh;
