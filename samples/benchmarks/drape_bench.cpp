@@ -28,12 +28,13 @@ using namespace drape;
 
 struct SceneSpec {
     const char* name;
-    Index size;     ///< particles per side
-    int steps;      ///< measured steps per repetition (explicit integrators)
+    Index size;        ///< particles per side
+    int steps;         ///< measured steps per repetition (explicit integrators)
     int stepsImplicit; ///< measured steps per repetition for implicit Euler (much slower)
 };
 
-std::unique_ptr<Cloth> makeScene(const SceneSpec& scene, IntegratorKind integrator, LimiterKind limiter) {
+std::unique_ptr<Cloth> makeScene(const SceneSpec& scene, IntegratorKind integrator,
+                                 LimiterKind limiter) {
     SheetSpec spec;
     spec.rows = scene.size;
     spec.cols = scene.size;
@@ -56,7 +57,8 @@ double phaseMsPerStep(const Cloth& cloth, const char* phase, double steps) {
     return t && steps > 0 ? 1e3 * t->seconds / steps : 0.0;
 }
 
-void runSteps(benchmark::State& state, SceneSpec scene, IntegratorKind integrator, LimiterKind limiter) {
+void runSteps(benchmark::State& state, SceneSpec scene, IntegratorKind integrator,
+              LimiterKind limiter) {
     constexpr double dt = 0.01;
     auto cloth = makeScene(scene, integrator, limiter);
     // Untimed warm-up step: the first step evaluates the initial forces and estimates the
@@ -65,7 +67,8 @@ void runSteps(benchmark::State& state, SceneSpec scene, IntegratorKind integrato
     cloth->timers().reset();
     const std::uint64_t before = cloth->stepCount();
     try {
-        for (auto _ : state) cloth->step(dt);
+        for (auto _ : state)
+            cloth->step(dt);
     } catch (const Error& e) {
         state.SkipWithError(e.what());
         return;
@@ -77,8 +80,10 @@ void runSteps(benchmark::State& state, SceneSpec scene, IntegratorKind integrato
     state.counters["integrate_ms"] = phaseMsPerStep(*cloth, "integrate", steps);
     state.counters["limit_ms"] = phaseMsPerStep(*cloth, "strain_limit", steps);
     state.counters["limit_rounds"] = cloth->lastLimiterStats().rounds;
-    if (integrator == IntegratorKind::ImplicitEuler) state.counters["cg_iters"] = cloth->integrator().lastIterations();
-    state.SetItemsProcessed(static_cast<std::int64_t>(steps) * static_cast<std::int64_t>(cloth->particleCount()));
+    if (integrator == IntegratorKind::ImplicitEuler)
+        state.counters["cg_iters"] = cloth->integrator().lastIterations();
+    state.SetItemsProcessed(static_cast<std::int64_t>(steps) *
+                            static_cast<std::int64_t>(cloth->particleCount()));
 }
 
 std::string cpuModel() {
@@ -93,11 +98,10 @@ std::string cpuModel() {
     return "unknown";
 }
 
-
 /// Shows only the median of the repetitions (or the single run) of each case on the console,
 /// and at the end prints all medians again as one Markdown table.
 class MedianReporter : public benchmark::ConsoleReporter {
-public:
+  public:
     MedianReporter() : ConsoleReporter(OO_Tabular) {} // plain text: the output is meant for files
     void ReportRuns(const std::vector<Run>& runs) override {
         std::vector<Run> keep;
@@ -108,7 +112,8 @@ public:
         }
         if (keep.empty()) return;
         ConsoleReporter::ReportRuns(keep);
-        for (const Run& r : keep) rows_.push_back(r);
+        for (const Run& r : keep)
+            rows_.push_back(r);
     }
     void Finalize() override {
         ConsoleReporter::Finalize();
@@ -127,14 +132,14 @@ public:
                 return it == r.counters.end() ? 0.0 : it->second.value;
             };
             char line[512];
-            std::snprintf(line, sizeof line, "| %s | %.3f | %.3f | %.3f | %.4f | %.0f |\n", name.c_str(),
-                          r.GetAdjustedRealTime(), r.GetAdjustedCPUTime(), counter("limit_ms"),
-                          counter("max_strain"), counter("limit_rounds"));
+            std::snprintf(line, sizeof line, "| %s | %.3f | %.3f | %.3f | %.4f | %.0f |\n",
+                          name.c_str(), r.GetAdjustedRealTime(), r.GetAdjustedCPUTime(),
+                          counter("limit_ms"), counter("max_strain"), counter("limit_rounds"));
             out << line;
         }
     }
 
-private:
+  private:
     std::vector<Run> rows_;
 };
 
@@ -142,20 +147,23 @@ private:
 
 int main(int argc, char** argv) {
     const std::vector<SceneSpec> scenes{
-        {"exp1_35x35", 35, 200, 50},      // 2 s (0.5 s for implicit Euler) of Experiment I
-        {"sheet_256x256", 256, 10, 2},    // 65,536 particles: a few steps are enough to time
+        {"exp1_35x35", 35, 200, 50},   // 2 s (0.5 s for implicit Euler) of Experiment I
+        {"sheet_256x256", 256, 10, 2}, // 65,536 particles: a few steps are enough to time
     };
-    const IntegratorKind integrators[] = {IntegratorKind::VelocityVerlet, IntegratorKind::ExplicitEuler,
-                                          IntegratorKind::SymplecticEuler, IntegratorKind::RungeKutta4,
-                                          IntegratorKind::ImplicitEuler};
-    const LimiterKind limiters[] = {LimiterKind::None, LimiterKind::StressOrdered, LimiterKind::Provot};
+    const IntegratorKind integrators[] = {
+        IntegratorKind::VelocityVerlet, IntegratorKind::ExplicitEuler,
+        IntegratorKind::SymplecticEuler, IntegratorKind::RungeKutta4,
+        IntegratorKind::ImplicitEuler};
+    const LimiterKind limiters[] = {LimiterKind::None, LimiterKind::StressOrdered,
+                                    LimiterKind::Provot};
     for (const SceneSpec& scene : scenes) {
         for (IntegratorKind integrator : integrators) {
             for (LimiterKind limiter : limiters) {
                 const std::string name =
                     std::string(scene.name) + "/" + toString(integrator) + "/" + toString(limiter);
                 benchmark::RegisterBenchmark(name.c_str(), runSteps, scene, integrator, limiter)
-                    ->Iterations(integrator == IntegratorKind::ImplicitEuler ? scene.stepsImplicit : scene.steps)
+                    ->Iterations(integrator == IntegratorKind::ImplicitEuler ? scene.stepsImplicit
+                                                                             : scene.steps)
                     ->Unit(benchmark::kMillisecond);
             }
         }
@@ -163,15 +171,19 @@ int main(int argc, char** argv) {
 
     // Defaults first, so that flags given on the command line (parsed later) win.
     std::vector<char*> args{argv[0]};
-    std::string reps = "--benchmark_repetitions=5", aggregates = "--benchmark_report_aggregates_only=true";
+    std::string reps = "--benchmark_repetitions=5",
+                aggregates = "--benchmark_report_aggregates_only=true";
     args.push_back(reps.data());
     args.push_back(aggregates.data());
-    for (int i = 1; i < argc; ++i) args.push_back(argv[i]);
+    for (int i = 1; i < argc; ++i)
+        args.push_back(argv[i]);
     int n = static_cast<int>(args.size());
 
     benchmark::AddCustomContext("cpu_model", cpuModel());
-    benchmark::AddCustomContext("scene", "mass 0.5, spacing 10, k 20, g 9.8, two top corners pinned, dt 0.01");
-    benchmark::AddCustomContext("time_per_step", "the Time/CPU columns are per step (one iteration = one step)");
+    benchmark::AddCustomContext(
+        "scene", "mass 0.5, spacing 10, k 20, g 9.8, two top corners pinned, dt 0.01");
+    benchmark::AddCustomContext("time_per_step",
+                                "the Time/CPU columns are per step (one iteration = one step)");
     benchmark::Initialize(&n, args.data());
     if (benchmark::ReportUnrecognizedArguments(n, args.data())) return 1;
     MedianReporter reporter;

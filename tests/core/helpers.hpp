@@ -29,7 +29,7 @@ constexpr double kPi = 3.14159265358979323846;
 
 /// A tiny deterministic generator (SplitMix64), so meshes are identical on every platform.
 class Rng {
-public:
+  public:
     explicit Rng(std::uint64_t seed) : state_(seed) {}
     std::uint64_t next() {
         std::uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
@@ -43,7 +43,7 @@ public:
     }
     int below(int n) { return static_cast<int>(next() % static_cast<std::uint64_t>(n)); }
 
-private:
+  private:
     std::uint64_t state_;
 };
 
@@ -80,7 +80,8 @@ inline TriangleMesh irregularMesh(int nx, int ny, std::uint64_t seed, bool curve
                 break;
             default: {
                 const Index e = static_cast<Index>(m.vertices.size());
-                Vec3 centre = 0.25 * (m.vertices[a] + m.vertices[b] + m.vertices[c] + m.vertices[d]);
+                Vec3 centre =
+                    0.25 * (m.vertices[a] + m.vertices[b] + m.vertices[c] + m.vertices[d]);
                 m.vertices.push_back(centre);
                 m.triangles.push_back({a, b, e});
                 m.triangles.push_back({b, c, e});
@@ -126,7 +127,8 @@ inline std::vector<Vec3> equilateralDirections() {
 /// One equilateral triangle with corners at distance r0 from the origin (side sqrt(3) r0).
 inline TriangleMesh equilateralTriangle(double r0) {
     TriangleMesh m;
-    for (const Vec3& d : equilateralDirections()) m.vertices.push_back(r0 * d);
+    for (const Vec3& d : equilateralDirections())
+        m.vertices.push_back(r0 * d);
     m.triangles.push_back({0, 1, 2});
     return m;
 }

@@ -35,7 +35,8 @@ struct DampedBreathing {
         s.limiter.kind = LimiterKind::None;
         auto cloth = std::make_unique<Cloth>(ClothTopology::build(equilateralTriangle(r0)), s);
         const auto d = equilateralDirections();
-        for (Index i = 0; i < 3; ++i) cloth->setPosition(i, (r0 + amp) * d[i]);
+        for (Index i = 0; i < 3; ++i)
+            cloth->setPosition(i, (r0 + amp) * d[i]);
         return cloth;
     }
     /// Radial displacement and velocity of the analytic solution released from rest.
@@ -60,17 +61,20 @@ struct DampedBreathing {
     }
 };
 
-double convergenceOrder(const DampedBreathing& osc, IntegratorKind kind, const std::vector<int>& Ns, double T) {
+double convergenceOrder(const DampedBreathing& osc, IntegratorKind kind, const std::vector<int>& Ns,
+                        double T) {
     std::vector<double> dts, errs;
     for (int N : Ns) {
         auto cloth = osc.make(kind);
-        for (int n = 0; n < N; ++n) cloth->step(T / N);
+        for (int n = 0; n < N; ++n)
+            cloth->step(T / N);
         dts.push_back(T / N);
         errs.push_back(osc.error(*cloth, T));
     }
     const double slope = logLogSlope(dts, errs);
     std::printf("[measured] damped breathing, %-16s:", toString(kind));
-    for (std::size_t i = 0; i < dts.size(); ++i) std::printf("  dt=%.4f: %.3e", dts[i], errs[i]);
+    for (std::size_t i = 0; i < dts.size(); ++i)
+        std::printf("  dt=%.4f: %.3e", dts[i], errs[i]);
     std::printf("  -> order %.3f\n", slope);
     return slope;
 }
@@ -88,7 +92,8 @@ TEST_CASE("Damped oscillator decays as the analytic solution", "[damping]") {
         const int N = 3000;
         const double dt = 1e-3;
         double e0 = cloth->kineticEnergy() + cloth->springEnergy();
-        for (int n = 0; n < N; ++n) cloth->step(dt);
+        for (int n = 0; n < N; ++n)
+            cloth->step(dt);
         CHECK(osc.error(*cloth, N * dt) < 1e-10);
         // And the energy went down (dissipation), by the factor of the envelope exp(-2 gamma t)
         // up to the phase-dependent split between kinetic and potential energy.
@@ -103,9 +108,12 @@ TEST_CASE("Convergence orders with damping", "[damping][convergence]") {
     osc.springDamping = 0.2; // damping ratio gamma / omega = 0.17
     const double T = 2.0;
     // Same ranges and tolerance as the undamped orders (test_integrators.cpp).
-    CHECK(convergenceOrder(osc, IntegratorKind::RungeKutta4, {50, 100, 200, 400}, T) == Approx(4.0).margin(0.1));
-    CHECK(convergenceOrder(osc, IntegratorKind::SymplecticEuler, {400, 800, 1600, 3200}, T) == Approx(1.0).margin(0.1));
-    CHECK(convergenceOrder(osc, IntegratorKind::ImplicitEuler, {400, 800, 1600, 3200}, T) == Approx(1.0).margin(0.1));
+    CHECK(convergenceOrder(osc, IntegratorKind::RungeKutta4, {50, 100, 200, 400}, T) ==
+          Approx(4.0).margin(0.1));
+    CHECK(convergenceOrder(osc, IntegratorKind::SymplecticEuler, {400, 800, 1600, 3200}, T) ==
+          Approx(1.0).margin(0.1));
+    CHECK(convergenceOrder(osc, IntegratorKind::ImplicitEuler, {400, 800, 1600, 3200}, T) ==
+          Approx(1.0).margin(0.1));
 }
 
 // Known gap (see the test report): the closing half kick evaluates the damping forces with the
@@ -116,7 +124,8 @@ TEST_CASE("Convergence orders with damping", "[damping][convergence]") {
 TEST_CASE("Velocity-Verlet stays second order with damping", "[damping][convergence][!mayfail]") {
     DampedBreathing osc;
     osc.springDamping = 0.2;
-    CHECK(convergenceOrder(osc, IntegratorKind::VelocityVerlet, {50, 100, 200, 400}, 2.0) == Approx(2.0).margin(0.1));
+    CHECK(convergenceOrder(osc, IntegratorKind::VelocityVerlet, {50, 100, 200, 400}, 2.0) ==
+          Approx(2.0).margin(0.1));
 }
 
 TEST_CASE("A falling plate reaches the terminal velocity of its drag", "[aero]") {
@@ -139,7 +148,8 @@ TEST_CASE("A falling plate reaches the terminal velocity of its drag", "[aero]")
     const double tau = vt / 9.81; // ~0.1 s
     // v(t) = vt tanh(t / tau); after 20 tau it is vt to 1e-17. VV's error at dt = 1e-3 is
     // O((dt/tau)^2) ~ 1e-4 relative in transients and vanishes at the fixed point.
-    for (int n = 0; n < 2000; ++n) cloth.step(1e-3);
+    for (int n = 0; n < 2000; ++n)
+        cloth.step(1e-3);
     for (Index i = 0; i < 3; ++i) {
         CHECK(cloth.velocities()[i].y() == Approx(-vt).epsilon(1e-6));
         CHECK(std::abs(cloth.velocities()[i].x()) < 1e-9);
@@ -154,7 +164,8 @@ TEST_CASE("A falling plate reaches the terminal velocity of its drag", "[aero]")
     s.integrator = IntegratorKind::RungeKutta4;
     Cloth again(ClothTopology::build(m), s);
     const int steps = 100;
-    for (int n = 0; n < steps; ++n) again.step(1e-3);
+    for (int n = 0; n < steps; ++n)
+        again.step(1e-3);
     CHECK(-again.velocities()[0].y() == Approx(vt * std::tanh(steps * 1e-3 / tau)).epsilon(1e-6));
 }
 
@@ -177,7 +188,8 @@ TEST_CASE("A user force stretches a spring by F / k", "[forces][user]") {
     cloth.pin(2);
     const double F = 0.05;
     cloth.setUserForce(0, Vec3(-F, 0, 0));
-    for (int n = 0; n < 400; ++n) cloth.step(0.05);
+    for (int n = 0; n < 400; ++n)
+        cloth.step(0.05);
     CHECK(cloth.velocities()[0].norm() < 1e-12);
     CHECK(-cloth.positions()[0].x() == Approx(F / 50.0).epsilon(1e-4));
     // The pinned corner at (0, L) is now u^2 / 2L too far away; its spring pulls the free
@@ -185,7 +197,8 @@ TEST_CASE("A user force stretches a spring by F / k", "[forces][user]") {
     const double u = F / 50.0;
     CHECK(cloth.positions()[0].y() == Approx(u * u / 2.0).epsilon(1e-2));
     cloth.clearUserForces();
-    for (int n = 0; n < 400; ++n) cloth.step(0.05);
+    for (int n = 0; n < 400; ++n)
+        cloth.step(0.05);
     CHECK(cloth.positions()[0].norm() < 1e-10); // back to rest
 }
 
@@ -204,7 +217,8 @@ TEST_CASE("Implicit Euler: CG and LDLT give the same steps", "[integrators][impl
         auto cloth = std::make_unique<Cloth>(ClothTopology::build(makeSheet(spec)), s);
         cloth->pin(0);
         cloth->pin(7);
-        for (int n = 0; n < 100; ++n) cloth->step(0.01);
+        for (int n = 0; n < 100; ++n)
+            cloth->step(0.01);
         return cloth;
     };
     const auto cg = run(LinearSolverKind::ConjugateGradient), ldlt = run(LinearSolverKind::LDLT);

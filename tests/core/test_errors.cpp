@@ -60,7 +60,8 @@ TEST_CASE("Bad meshes are refused with a clear error", "[errors][mesh]") {
         TriangleMesh m = square();
         m.triangles.clear();
         REQUIRE_DRAPE_ERROR(ClothTopology::build(m), ErrorCode::InvalidMesh, "no triangles");
-        REQUIRE_DRAPE_ERROR(ClothTopology::build(TriangleMesh{}), ErrorCode::InvalidMesh, "no vertices");
+        REQUIRE_DRAPE_ERROR(ClothTopology::build(TriangleMesh{}), ErrorCode::InvalidMesh,
+                            "no vertices");
     }
     SECTION("the same triangle twice") {
         TriangleMesh m = square();
@@ -99,7 +100,8 @@ TEST_CASE("Bad cloth parameters are refused with a clear error", "[errors][setti
         s.material.thickness = 1e-4;
         REQUIRE_DRAPE_ERROR(build(s), ErrorCode::InvalidArgument, "density");
         REQUIRE_DRAPE_ERROR(uniformMasses(*topo, 0.0), ErrorCode::InvalidArgument, "totalMass");
-        REQUIRE_DRAPE_ERROR(areaLumpedMasses(*topo, 1e3, -1e-4), ErrorCode::InvalidArgument, "thickness");
+        REQUIRE_DRAPE_ERROR(areaLumpedMasses(*topo, 1e3, -1e-4), ErrorCode::InvalidArgument,
+                            "thickness");
     }
     SECTION("stiffness") {
         s.springStiffness = -10.0;
@@ -108,9 +110,10 @@ TEST_CASE("Bad cloth parameters are refused with a clear error", "[errors][setti
         REQUIRE_DRAPE_ERROR(build(s), ErrorCode::NonFinite, "springStiffness");
         s.springStiffness = 0.0; // nothing given
         REQUIRE_DRAPE_ERROR(build(s), ErrorCode::InvalidArgument, "stiffness");
-        REQUIRE_DRAPE_ERROR(springStiffnessFromMaterial(*topo, 0.0, 1e-4), ErrorCode::InvalidArgument,
-                            "youngsModulus");
-        REQUIRE_DRAPE_ERROR(springStiffnessFromMaterial(*topo, 1e9, kNaN), ErrorCode::NonFinite, "thickness");
+        REQUIRE_DRAPE_ERROR(springStiffnessFromMaterial(*topo, 0.0, 1e-4),
+                            ErrorCode::InvalidArgument, "youngsModulus");
+        REQUIRE_DRAPE_ERROR(springStiffnessFromMaterial(*topo, 1e9, kNaN), ErrorCode::NonFinite,
+                            "thickness");
     }
     SECTION("other settings") {
         s.damping = -1.0;
@@ -124,18 +127,24 @@ TEST_CASE("Bad cloth parameters are refused with a clear error", "[errors][setti
         s = basic();
         s.limiter.maxRounds = 0;
         REQUIRE_DRAPE_ERROR(build(s), ErrorCode::InvalidArgument, "maxRounds");
-        REQUIRE_DRAPE_ERROR(integratorFromString("leapfrog"), ErrorCode::InvalidArgument, "leapfrog");
-        REQUIRE_DRAPE_ERROR(limiterFromString("sometimes"), ErrorCode::InvalidArgument, "sometimes");
+        REQUIRE_DRAPE_ERROR(integratorFromString("leapfrog"), ErrorCode::InvalidArgument,
+                            "leapfrog");
+        REQUIRE_DRAPE_ERROR(limiterFromString("sometimes"), ErrorCode::InvalidArgument,
+                            "sometimes");
         CHECK(integratorFromString("rk4") == IntegratorKind::RungeKutta4);
         CHECK(limiterFromString("provot") == LimiterKind::Provot);
     }
     SECTION("particle indices and values given to a cloth") {
         Cloth cloth(topo, basic());
         REQUIRE_DRAPE_ERROR(cloth.pin(4), ErrorCode::IndexOutOfRange, "particle 4");
-        REQUIRE_DRAPE_ERROR(cloth.setPosition(9, Vec3::Zero()), ErrorCode::IndexOutOfRange, "particle 9");
-        REQUIRE_DRAPE_ERROR(cloth.setUserForce(4, Vec3::Zero()), ErrorCode::IndexOutOfRange, "particle 4");
-        REQUIRE_DRAPE_ERROR(cloth.setPosition(1, Vec3(kNaN, 0, 0)), ErrorCode::NonFinite, "particle 1");
-        REQUIRE_DRAPE_ERROR(cloth.setVelocity(1, Vec3(0, kInf, 0)), ErrorCode::NonFinite, "particle 1");
+        REQUIRE_DRAPE_ERROR(cloth.setPosition(9, Vec3::Zero()), ErrorCode::IndexOutOfRange,
+                            "particle 9");
+        REQUIRE_DRAPE_ERROR(cloth.setUserForce(4, Vec3::Zero()), ErrorCode::IndexOutOfRange,
+                            "particle 4");
+        REQUIRE_DRAPE_ERROR(cloth.setPosition(1, Vec3(kNaN, 0, 0)), ErrorCode::NonFinite,
+                            "particle 1");
+        REQUIRE_DRAPE_ERROR(cloth.setVelocity(1, Vec3(0, kInf, 0)), ErrorCode::NonFinite,
+                            "particle 1");
         REQUIRE_DRAPE_ERROR(cloth.pin(2, Vec3(0, 0, kNaN)), ErrorCode::NonFinite, "particle 2");
     }
 }
@@ -181,5 +190,6 @@ TEST_CASE("A blow-up is reported, not hidden, and the state is kept", "[errors][
     }
     REQUIRE(threw);
     CHECK(cloth.positions() == lastGood);
-    for (const Vec3& x : cloth.positions()) CHECK(x.allFinite());
+    for (const Vec3& x : cloth.positions())
+        CHECK(x.allFinite());
 }

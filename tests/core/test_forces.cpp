@@ -25,9 +25,11 @@ Scene perturbedScene(std::uint64_t seed) {
     Scene s;
     s.topo = ClothTopology::build(irregularMesh(3, 3, seed, true));
     Rng rng(seed + 100);
-    for (std::size_t i = 0; i < s.topo->springCount(); ++i) s.k.push_back(rng.uniform(5.0, 50.0));
+    for (std::size_t i = 0; i < s.topo->springCount(); ++i)
+        s.k.push_back(rng.uniform(5.0, 50.0));
     for (const Vec3& p : s.topo->restPositions())
-        s.x.push_back(p + Vec3(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3)));
+        s.x.push_back(p +
+                      Vec3(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3)));
     return s;
 }
 
@@ -37,7 +39,9 @@ Vec3List springForces(const Scene& s, const Vec3List& x) {
     return f;
 }
 
-Eigen::MatrixXd dense(const Eigen::SparseMatrix<double>& m) { return Eigen::MatrixXd(m); }
+Eigen::MatrixXd dense(const Eigen::SparseMatrix<double>& m) {
+    return Eigen::MatrixXd(m);
+}
 
 } // namespace
 
@@ -52,7 +56,8 @@ TEST_CASE("Spring force is minus the gradient of the spring energy", "[forces]")
 
     const Vec3List f = springForces(s, s.x);
     double fmax = 0.0;
-    for (const Vec3& fi : f) fmax = std::max(fmax, fi.norm());
+    for (const Vec3& fi : f)
+        fmax = std::max(fmax, fi.norm());
     // Central differences with h = 1e-6: truncation ~ h^2 k = 5e-11, rounding ~ 1e-16 E / h
     // = 1e-10 (E ~ 1 J); 1e-7 relative to the largest force (~10 N) is far above both.
     const double h = 1e-6;
@@ -62,7 +67,8 @@ TEST_CASE("Spring force is minus the gradient of the spring energy", "[forces]")
             xp[i][c] += h;
             xm[i][c] -= h;
             const double grad = (springEnergy(s.topo->springs(), s.k, xp) -
-                                 springEnergy(s.topo->springs(), s.k, xm)) / (2 * h);
+                                 springEnergy(s.topo->springs(), s.k, xm)) /
+                                (2 * h);
             CHECK(f[i][c] == Approx(-grad).margin(1e-7 * fmax));
         }
     }
@@ -76,7 +82,8 @@ TEST_CASE("Spring force is minus the gradient of the spring energy", "[forces]")
     CHECK(torque.norm() < 1e-12 * fmax * static_cast<double>(f.size()));
 }
 
-TEST_CASE("springJacobianBlock matches finite differences, stretched and compressed", "[forces][jacobian]") {
+TEST_CASE("springJacobianBlock matches finite differences, stretched and compressed",
+          "[forces][jacobian]") {
     Rng rng(3);
     for (int trial = 0; trial < 20; ++trial) {
         const Vec3 xa(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
@@ -98,7 +105,8 @@ TEST_CASE("springJacobianBlock matches finite differences, stretched and compres
             bm[c] -= h;
             const Vec3 col = (fa(bp) - fa(bm)) / (2 * h);
             // Truncation h^2 |f'''| ~ 1e-12 k / l^2 and rounding 1e-16 k / h ~ 1e-8: 1e-6 k.
-            for (int r = 0; r < 3; ++r) CHECK(J(r, c) == Approx(col[r]).margin(1e-6 * k));
+            for (int r = 0; r < 3; ++r)
+                CHECK(J(r, c) == Approx(col[r]).margin(1e-6 * k));
         }
         // Symmetric (a conservative force has a symmetric Hessian).
         CHECK((J - J.transpose()).norm() < 1e-12 * k);
@@ -113,7 +121,8 @@ TEST_CASE("springJacobianBlock matches finite differences, stretched and compres
     }
 }
 
-TEST_CASE("ForceModel::assembleJacobians matches finite differences of the forces", "[forces][jacobian]") {
+TEST_CASE("ForceModel::assembleJacobians matches finite differences of the forces",
+          "[forces][jacobian]") {
     const Scene s = perturbedScene(8);
     const std::size_t n = s.x.size();
     std::vector<double> mass(n, 0.2);
@@ -151,7 +160,8 @@ TEST_CASE("ForceModel::assembleJacobians matches finite differences of the force
                 for (int r = 0; r < 3; ++r) {
                     const double fd = (fp[i][r] - fm[i][r]) / (2 * h);
                     // Same budget as the single-block test: 1e-6 k.
-                    CHECK(Kx(static_cast<Eigen::Index>(3 * i + r), static_cast<Eigen::Index>(3 * j + c)) ==
+                    CHECK(Kx(static_cast<Eigen::Index>(3 * i + r),
+                             static_cast<Eigen::Index>(3 * j + c)) ==
                           Approx(fd).margin(1e-6 * kmax));
                 }
         }
@@ -161,7 +171,8 @@ TEST_CASE("ForceModel::assembleJacobians matches finite differences of the force
     // d f / d v: the forces are linear in v, so differences are exact up to rounding.
     Rng rng(4);
     Vec3List v;
-    for (std::size_t i = 0; i < n; ++i) v.emplace_back(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
+    for (std::size_t i = 0; i < n; ++i)
+        v.emplace_back(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
     for (std::size_t j = 0; j < n; ++j) {
         for (int c = 0; c < 3; ++c) {
             Vec3List vp = v, vm = v;
@@ -171,8 +182,8 @@ TEST_CASE("ForceModel::assembleJacobians matches finite differences of the force
             for (std::size_t i = 0; i < n; ++i)
                 for (int r = 0; r < 3; ++r) {
                     const double fd = (fp[i][r] - fm[i][r]) / (2 * h);
-                    CHECK(Kv(static_cast<Eigen::Index>(3 * i + r), static_cast<Eigen::Index>(3 * j + c)) ==
-                          Approx(fd).margin(1e-7));
+                    CHECK(Kv(static_cast<Eigen::Index>(3 * i + r),
+                             static_cast<Eigen::Index>(3 * j + c)) == Approx(fd).margin(1e-7));
                 }
         }
     }
@@ -193,7 +204,8 @@ TEST_CASE("Damping dissipates and leaves rigid motion alone", "[forces][damping]
     const std::size_t n = s.x.size();
     Rng rng(5);
     Vec3List v;
-    for (std::size_t i = 0; i < n; ++i) v.emplace_back(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
+    for (std::size_t i = 0; i < n; ++i)
+        v.emplace_back(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
 
     // Spring damping: power sum f . v <= 0, zero net force.
     Vec3List f(n, Vec3::Zero());
@@ -210,20 +222,25 @@ TEST_CASE("Damping dissipates and leaves rigid motion alone", "[forces][damping]
     // Rigid motion v = u + w x x: no relative motion along any spring, no damping force.
     const Vec3 u(0.3, -1.0, 2.0), w(0.5, 0.2, -0.7);
     Vec3List rigid;
-    for (const Vec3& p : s.x) rigid.push_back(u + w.cross(p));
+    for (const Vec3& p : s.x)
+        rigid.push_back(u + w.cross(p));
     Vec3List fr(n, Vec3::Zero());
     addSpringDamping(s.topo->springs(), 0.8, s.x, rigid, fr);
-    for (const Vec3& fi : fr) CHECK(fi.norm() < 1e-12); // rounding of O(1) dot products
+    for (const Vec3& fi : fr)
+        CHECK(fi.norm() < 1e-12); // rounding of O(1) dot products
 
     // Linear damping (eq. 8) and gravity (eq. 6).
     Vec3List fl(n, Vec3::Zero());
     addLinearDamping(0.4, v, fl);
-    for (std::size_t i = 0; i < n; ++i) CHECK((fl[i] + 0.4 * v[i]).norm() == 0.0);
+    for (std::size_t i = 0; i < n; ++i)
+        CHECK((fl[i] + 0.4 * v[i]).norm() == 0.0);
     std::vector<double> mass(n);
-    for (std::size_t i = 0; i < n; ++i) mass[i] = 0.1 * static_cast<double>(i + 1);
+    for (std::size_t i = 0; i < n; ++i)
+        mass[i] = 0.1 * static_cast<double>(i + 1);
     Vec3List fg(n, Vec3::Zero());
     addGravity(mass, Vec3(0, -9.81, 0), fg);
-    for (std::size_t i = 0; i < n; ++i) CHECK((fg[i] - mass[i] * Vec3(0, -9.81, 0)).norm() < 1e-15);
+    for (std::size_t i = 0; i < n; ++i)
+        CHECK((fg[i] - mass[i] * Vec3(0, -9.81, 0)).norm() < 1e-15);
 }
 
 TEST_CASE("Aerodynamic drag and lift follow their formulas", "[forces][aero]") {

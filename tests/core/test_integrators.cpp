@@ -36,7 +36,8 @@ struct Breathing {
         s.limiter.kind = LimiterKind::None;
         auto cloth = std::make_unique<Cloth>(ClothTopology::build(equilateralTriangle(r0)), s);
         const auto d = equilateralDirections();
-        for (Index i = 0; i < 3; ++i) cloth->setPosition(i, (r0 + amp) * d[i]);
+        for (Index i = 0; i < 3; ++i)
+            cloth->setPosition(i, (r0 + amp) * d[i]);
         return cloth;
     }
     /// Phase-space distance to the analytic solution at time t:
@@ -48,17 +49,21 @@ struct Breathing {
         for (Index i = 0; i < 3; ++i) {
             const Vec3 xe = (r0 + amp * std::cos(w * t)) * d[i];
             const Vec3 ve = (-amp * w * std::sin(w * t)) * d[i];
-            e2 += (c.positions()[i] - xe).squaredNorm() + (c.velocities()[i] - ve).squaredNorm() / (w * w);
+            e2 += (c.positions()[i] - xe).squaredNorm() +
+                  (c.velocities()[i] - ve).squaredNorm() / (w * w);
         }
         return std::sqrt(e2);
     }
 };
 
-double totalEnergy(const Cloth& c) { return c.kineticEnergy() + c.springEnergy(); }
+double totalEnergy(const Cloth& c) {
+    return c.kineticEnergy() + c.springEnergy();
+}
 
 /// Measured period of s(t) from its upward zero crossings (linear interpolation between
 /// steps), averaged over all full periods seen.
-double measurePeriod(Cloth& cloth, double dt, int steps, const std::function<double(const Cloth&)>& s) {
+double measurePeriod(Cloth& cloth, double dt, int steps,
+                     const std::function<double(const Cloth&)>& s) {
     std::vector<double> crossings;
     double prev = s(cloth), tPrev = cloth.time();
     for (int n = 0; n < steps; ++n) {
@@ -74,7 +79,8 @@ double measurePeriod(Cloth& cloth, double dt, int steps, const std::function<dou
 
 } // namespace
 
-TEST_CASE("Free fall of a rigidly moving cloth matches x0 + v0 t + g t^2 / 2", "[integrators][freefall]") {
+TEST_CASE("Free fall of a rigidly moving cloth matches x0 + v0 t + g t^2 / 2",
+          "[integrators][freefall]") {
     // One triangle, springs at rest, every particle with the same velocity: spring forces stay
     // zero (up to rounding of the lengths) and each particle is a projectile.
     const Vec3 g(0.0, -9.81, 0.0), v0(1.0, 2.0, -0.5);
@@ -87,8 +93,8 @@ TEST_CASE("Free fall of a rigidly moving cloth matches x0 + v0 t + g t^2 / 2", "
 
     struct Expect {
         IntegratorKind kind;
-        double lag;   // x_N = x0 + v0 t + g (t^2 + lag t dt) / 2 for constant acceleration
-        double tol;   // [m]
+        double lag; // x_N = x0 + v0 t + g (t^2 + lag t dt) / 2 for constant acceleration
+        double tol; // [m]
         const char* why;
     };
     // Velocity-Verlet and RK4 integrate a constant acceleration exactly; the Euler methods
@@ -119,9 +125,11 @@ TEST_CASE("Free fall of a rigidly moving cloth matches x0 + v0 t + g t^2 / 2", "
         s.gravity = g; // default limiter (stress-ordered): nothing is stretched, it must not act
         Cloth cloth(topo, s);
         const Vec3List x0 = cloth.positions();
-        for (Index i = 0; i < 3; ++i) cloth.setVelocity(i, v0);
+        for (Index i = 0; i < 3; ++i)
+            cloth.setVelocity(i, v0);
         const double E0 = cloth.kineticEnergy() + cloth.gravityEnergy();
-        for (int n = 0; n < steps; ++n) cloth.step(dt);
+        for (int n = 0; n < steps; ++n)
+            cloth.step(dt);
         const double t = steps * dt;
         for (Index i = 0; i < 3; ++i) {
             const Vec3 expected = x0[i] + v0 * t + 0.5 * g * (t * t + e.lag * t * dt);
@@ -138,7 +146,8 @@ TEST_CASE("Free fall of a rigidly moving cloth matches x0 + v0 t + g t^2 / 2", "
     }
 }
 
-TEST_CASE("Velocity-Verlet energy error stays bounded over 100,000 steps", "[integrators][energy]") {
+TEST_CASE("Velocity-Verlet energy error stays bounded over 100,000 steps",
+          "[integrators][energy]") {
     Breathing osc;
     osc.amp = 0.2;
     const double dt = 0.05 / osc.omega(); // omega dt = 0.05
@@ -152,8 +161,10 @@ TEST_CASE("Velocity-Verlet energy error stays bounded over 100,000 steps", "[int
         if (n < window) firstMax = std::max(firstMax, err);
         if (n >= steps - window) lastMax = std::max(lastMax, err);
     }
-    std::printf("[measured] VV breathing mode, omega dt = 0.05, 1e5 steps: max |dE|/E first 10%% = %.3e, "
-                "last 10%% = %.3e\n", firstMax, lastMax);
+    std::printf(
+        "[measured] VV breathing mode, omega dt = 0.05, 1e5 steps: max |dE|/E first 10%% = %.3e, "
+        "last 10%% = %.3e\n",
+        firstMax, lastMax);
     // For the harmonic oscillator Verlet exactly conserves v^2 + omega^2 x^2 (1 - (omega dt)^2/4),
     // so E oscillates with a relative amplitude of (omega dt)^2 / 4 = 6.25e-4 and never drifts.
     const double bound = 0.05 * 0.05 / 4.0;
@@ -178,7 +189,9 @@ TEST_CASE("Velocity-Verlet energy error stays bounded over 100,000 steps", "[int
     swing.pin(2);
     swing.setPosition(0, Vec3(0.3, -0.2, 0.25));
     swing.setVelocity(0, Vec3(0.1, 0.3, -0.2));
-    auto energy = [&]() { return swing.kineticEnergy() + swing.springEnergy() + swing.gravityEnergy(); };
+    auto energy = [&]() {
+        return swing.kineticEnergy() + swing.springEnergy() + swing.gravityEnergy();
+    };
     const double e0 = energy();
     const double dts = 0.02; // omega_max = sqrt(2) at most: omega dt < 0.03
     double first = 0.0, last = 0.0;
@@ -188,7 +201,8 @@ TEST_CASE("Velocity-Verlet energy error stays bounded over 100,000 steps", "[int
         if (n < window) first = std::max(first, err);
         if (n >= steps - window) last = std::max(last, err);
     }
-    std::printf("[measured] VV nonlinear swing, 1e5 steps: max |dE| first 10%% = %.3e J, last 10%% = %.3e J\n",
+    std::printf("[measured] VV nonlinear swing, 1e5 steps: max |dE| first 10%% = %.3e J, last 10%% "
+                "= %.3e J\n",
                 first, last);
     // Quasi-periodic motion: windows differ, but a drift over 1e5 steps would be 10x or more.
     CHECK(last <= 2.0 * first + 1e-12);
@@ -214,8 +228,10 @@ TEST_CASE("Oscillator period matches 2 pi sqrt(m / k)", "[integrators][period]")
         cloth.setPosition(0, Vec3(1e-4 * L, 0, 0));
         const double omega = std::sqrt(12.0 / 0.3);
         const double dt = 0.01 / omega;
-        const double T = measurePeriod(cloth, dt, 20 * 629, [](const Cloth& c) { return c.positions()[0].x(); });
-        std::printf("[measured] single spring period %.8f s, analytic %.8f s\n", T, 2 * kPi / omega);
+        const double T =
+            measurePeriod(cloth, dt, 20 * 629, [](const Cloth& c) { return c.positions()[0].x(); });
+        std::printf("[measured] single spring period %.8f s, analytic %.8f s\n", T,
+                    2 * kPi / omega);
         // Verlet's phase error is (omega dt)^2 / 24 = 4e-6 relative; interpolated crossings add
         // O(dt^2) per crossing, averaged out over 20 periods. 1e-4 is a safe bound.
         CHECK(T == Approx(2 * kPi / omega).epsilon(1e-4));
@@ -237,7 +253,8 @@ TEST_CASE("Oscillator period matches 2 pi sqrt(m / k)", "[integrators][period]")
     }
 }
 
-TEST_CASE("Euler methods change the oscillator energy by their exact per-step factors", "[integrators][energy]") {
+TEST_CASE("Euler methods change the oscillator energy by their exact per-step factors",
+          "[integrators][energy]") {
     // On x'' = -omega^2 x, explicit Euler maps Q = v^2 + omega^2 x^2 to Q (1 + omega^2 dt^2)
     // every step and backward Euler to Q / (1 + omega^2 dt^2); E is proportional to Q.
     Breathing osc;
@@ -247,14 +264,16 @@ TEST_CASE("Euler methods change the oscillator energy by their exact per-step fa
     {
         auto cloth = osc.make(IntegratorKind::ExplicitEuler);
         const double E0 = totalEnergy(*cloth);
-        for (int n = 0; n < steps; ++n) cloth->step(dt);
+        for (int n = 0; n < steps; ++n)
+            cloth->step(dt);
         // Exact in exact arithmetic: only rounding of 200 steps (1e-13) remains.
         CHECK(totalEnergy(*cloth) == Approx(E0 * std::pow(factor, steps)).epsilon(1e-10));
     }
     {
         auto cloth = osc.make(IntegratorKind::ImplicitEuler);
         const double E0 = totalEnergy(*cloth);
-        for (int n = 0; n < steps; ++n) cloth->step(dt);
+        for (int n = 0; n < steps; ++n)
+            cloth->step(dt);
         // The linearised step is exact here (the force is linear along the mode and the
         // right-hand side is an eigenvector of the system matrix, so CG converges in one
         // iteration); CG's 1e-10 relative residual is the only slack.
@@ -285,13 +304,15 @@ TEST_CASE("Measured convergence orders of the five integrators", "[integrators][
         for (int N : c.N) {
             auto cloth = osc.make(c.kind);
             const double dt = T / N;
-            for (int n = 0; n < N; ++n) cloth->step(dt);
+            for (int n = 0; n < N; ++n)
+                cloth->step(dt);
             dts.push_back(dt);
             errs.push_back(osc.error(*cloth, N * dt));
         }
         const double slope = logLogSlope(dts, errs);
         std::printf("[measured] %-16s errors at T = 2 s:", toString(c.kind));
-        for (std::size_t i = 0; i < dts.size(); ++i) std::printf("  dt=%.5f: %.3e", dts[i], errs[i]);
+        for (std::size_t i = 0; i < dts.size(); ++i)
+            std::printf("  dt=%.5f: %.3e", dts[i], errs[i]);
         std::printf("  -> order %.3f\n", slope);
         INFO(toString(c.kind) << " slope " << slope);
         // Leading-error dominance: the next term is ~omega dt (<= 7%) of the leading one, so

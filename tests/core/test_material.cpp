@@ -20,14 +20,16 @@ constexpr double kRho = 1.3e3; // kg/m^3
 std::vector<int> trianglesPerSpring(const ClothTopology& topo) {
     const auto uses = edgeUses(meshOf(topo));
     std::vector<int> n;
-    for (const Spring& s : topo.springs()) n.push_back(uses.at({s.a, s.b}));
+    for (const Spring& s : topo.springs())
+        n.push_back(uses.at({s.a, s.b}));
     return n;
 }
 
 /// Positions after the affine map x -> c + F (x - c).
 Vec3List deform(const ClothTopology& topo, const Eigen::Matrix3d& F, const Vec3& c) {
     Vec3List x;
-    for (const Vec3& p : topo.restPositions()) x.push_back(c + F * (p - c));
+    for (const Vec3& p : topo.restPositions())
+        x.push_back(c + F * (p - c));
     return x;
 }
 
@@ -82,8 +84,10 @@ TEST_CASE("Stiffness (M1) does not change under uniform refinement", "[material]
     const auto kc = springStiffnessFromMaterial(*tc, kE, kH);
     const auto kf = springStiffnessFromMaterial(*tf, kE, kH);
     // Springs do not get stiffer as they get shorter (a 2D network's stiffness is scale-free).
-    CHECK(*std::max_element(kc.begin(), kc.end()) == Approx(*std::max_element(kf.begin(), kf.end())).epsilon(1e-12));
-    CHECK(*std::min_element(kc.begin(), kc.end()) == Approx(*std::min_element(kf.begin(), kf.end())).epsilon(1e-12));
+    CHECK(*std::max_element(kc.begin(), kc.end()) ==
+          Approx(*std::max_element(kf.begin(), kf.end())).epsilon(1e-12));
+    CHECK(*std::min_element(kc.begin(), kc.end()) ==
+          Approx(*std::min_element(kf.begin(), kf.end())).epsilon(1e-12));
 
     // The sheet's response is the same: energy of a uniaxial stretch, an equibiaxial stretch
     // and a simple shear (small, so the two sheets see the same affine strain per triangle).
@@ -123,7 +127,8 @@ TEST_CASE("Energy equivalence: equibiaxial stretch stores 1.5 E h eps^2 A", "[ma
         const auto k = springStiffnessFromMaterial(*topo, kE, kH);
         const double area = topo->totalRestArea();
         // Uniform scaling about any centre stretches every spring by exactly eps.
-        const double energy = springEnergy(topo->springs(), k, deform(*topo, F, Vec3(0.3, -0.2, 0.1)));
+        const double energy =
+            springEnergy(topo->springs(), k, deform(*topo, F, Vec3(0.3, -0.2, 0.1)));
         // Exact identity of (M1); l - L0 = eps L0 is computed with a relative rounding error
         // of ~1e-16/eps = 1e-13, so 1e-9 is generous.
         CHECK(energy == Approx(1.5 * kE * kH * eps * eps * area).epsilon(1e-9));
@@ -136,7 +141,8 @@ TEST_CASE("Masses: uniform M/n and area-lumped rho h A", "[material][mass]") {
     // Independent area: sum of the triangle areas of the input mesh.
     const TriangleMesh m = meshOf(*topo);
     double area = 0.0;
-    for (std::size_t t = 0; t < m.triangles.size(); ++t) area += triangleArea(m, t);
+    for (std::size_t t = 0; t < m.triangles.size(); ++t)
+        area += triangleArea(m, t);
     CHECK(A == Approx(area).epsilon(1e-12));
 
     SECTION("uniform") {
@@ -161,8 +167,10 @@ TEST_CASE("Masses: uniform M/n and area-lumped rho h A", "[material][mass]") {
         // A particle's mass is a third of its triangles' mass.
         std::vector<double> expected(topo->particleCount(), 0.0);
         for (std::size_t t = 0; t < m.triangles.size(); ++t)
-            for (Index v : m.triangles[t]) expected[v] += kRho * kH * triangleArea(m, t) / 3.0;
-        for (std::size_t i = 0; i < masses.size(); ++i) CHECK(masses[i] == Approx(expected[i]).epsilon(1e-12));
+            for (Index v : m.triangles[t])
+                expected[v] += kRho * kH * triangleArea(m, t) / 3.0;
+        for (std::size_t i = 0; i < masses.size(); ++i)
+            CHECK(masses[i] == Approx(expected[i]).epsilon(1e-12));
     }
 }
 
@@ -171,7 +179,8 @@ TEST_CASE("Cloth takes masses and stiffness from the settings it is given", "[ma
     const double A = topo->totalRestArea();
     auto total = [](const std::vector<double>& v) {
         double s = 0.0;
-        for (double x : v) s += x;
+        for (double x : v)
+            s += x;
         return s;
     };
 
@@ -180,8 +189,10 @@ TEST_CASE("Cloth takes masses and stiffness from the settings it is given", "[ma
         s.particleMass = 0.5;
         s.springStiffness = 20.0;
         Cloth cloth(topo, s);
-        for (double mi : cloth.masses()) CHECK(mi == 0.5);
-        for (double ks : cloth.stiffness()) CHECK(ks == 20.0);
+        for (double mi : cloth.masses())
+            CHECK(mi == 0.5);
+        for (double ks : cloth.stiffness())
+            CHECK(ks == 20.0);
     }
     SECTION("totalMass, uniform and area-lumped") {
         ClothSettings s;
@@ -203,7 +214,8 @@ TEST_CASE("Cloth takes masses and stiffness from the settings it is given", "[ma
         Cloth cloth(topo, s);
         CHECK(total(cloth.masses()) == Approx(kRho * kH * A).epsilon(1e-12));
         const auto k = springStiffnessFromMaterial(*topo, kE, kH);
-        for (std::size_t i = 0; i < k.size(); ++i) CHECK(cloth.stiffness()[i] == Approx(k[i]).epsilon(1e-14));
+        for (std::size_t i = 0; i < k.size(); ++i)
+            CHECK(cloth.stiffness()[i] == Approx(k[i]).epsilon(1e-14));
         s.lumping = MassLumping::Uniform;
         Cloth uniform(topo, s);
         CHECK(total(uniform.masses()) == Approx(kRho * kH * A).epsilon(1e-12));

@@ -39,7 +39,7 @@ std::uint64_t calls(const Cloth& c, const std::string& name) {
 }
 
 class CountingStage : public ClothStage {
-public:
+  public:
     std::string name() const override { return "test_stage"; }
     void run(Cloth& cloth, double dt) override {
         ++runs;
@@ -59,7 +59,8 @@ TEST_CASE("A plain cloth's pipeline holds only what it uses", "[pipeline]") {
     cloth.step(0.001);
     const auto p = cloth.pipeline();
     INFO("pipeline has " << p.size() << " phases");
-    for (const auto& name : p) INFO(name);
+    for (const auto& name : p)
+        INFO(name);
     REQUIRE(!p.empty());
     CHECK(p.front() == "integrate");
     CHECK(p.back() == "integrate_finish"); // Velocity-Verlet's closing half kick
@@ -68,7 +69,8 @@ TEST_CASE("A plain cloth's pipeline holds only what it uses", "[pipeline]") {
     CHECK(has(p, "springs"));
     CHECK(has(p, "gravity"));
     CHECK(pos(p, "strain_limit") < pos(p, "springs"));
-    for (const char* unused : {"aero", "user", "damping", "spring_damping", "kinematic", "forces_refresh"})
+    for (const char* unused :
+         {"aero", "user", "damping", "spring_damping", "kinematic", "forces_refresh"})
         CHECK_FALSE(has(p, unused));
 }
 
@@ -104,9 +106,8 @@ TEST_CASE("Phases appear when a cloth starts to use them", "[pipeline]") {
         cloth.clearUserForces();
         CHECK_FALSE(has(cloth.pipeline(), "user"));
 
-        cloth.addExternalForce("contact_penalty", [](const Vec3List&, const Vec3List&, Vec3List& f) {
-            f[0] += Vec3(0, 1e-3, 0);
-        });
+        cloth.addExternalForce("contact_penalty", [](const Vec3List&, const Vec3List&,
+                                                     Vec3List& f) { f[0] += Vec3(0, 1e-3, 0); });
         CHECK(has(cloth.pipeline(), "contact_penalty"));
 
         auto stage = std::make_shared<CountingStage>();
@@ -115,7 +116,8 @@ TEST_CASE("Phases appear when a cloth starts to use them", "[pipeline]") {
         REQUIRE(has(p, "test_stage"));
         CHECK(pos(p, "strain_limit") < pos(p, "test_stage"));
         CHECK(pos(p, "test_stage") < pos(p, "springs"));
-        for (int n = 0; n < 7; ++n) cloth.step(0.001);
+        for (int n = 0; n < 7; ++n)
+            cloth.step(0.001);
         CHECK(stage->runs == 7);
         CHECK(stage->lastDt == 0.001);
         CHECK(stage->stepsSeen == 7u); // runs inside step 8 (count 7 before it completes)
@@ -133,16 +135,19 @@ TEST_CASE("Phase timers count calls", "[pipeline][timers]") {
     SECTION("Velocity-Verlet: one force evaluation per step plus the first") {
         Cloth cloth(smallSheet(), basic());
         cloth.pin(0);
-        for (int n = 0; n < N; ++n) cloth.step(0.001);
+        for (int n = 0; n < N; ++n)
+            cloth.step(0.001);
         CHECK(calls(cloth, "integrate") == static_cast<std::uint64_t>(N));
         CHECK(calls(cloth, "strain_limit") == static_cast<std::uint64_t>(N));
         CHECK(calls(cloth, "integrate_finish") == static_cast<std::uint64_t>(N));
         CHECK(calls(cloth, "forces_refresh") == 1u);
         CHECK(calls(cloth, "springs") == static_cast<std::uint64_t>(N + 1));
         CHECK(calls(cloth, "gravity") == static_cast<std::uint64_t>(N + 1));
-        for (const PhaseTimer& t : cloth.timers().all()) CHECK(t.seconds >= 0.0);
+        for (const PhaseTimer& t : cloth.timers().all())
+            CHECK(t.seconds >= 0.0);
         // Every phase of the pipeline has a timer that ran on every step.
-        for (const auto& name : cloth.pipeline()) CHECK(calls(cloth, name) >= static_cast<std::uint64_t>(N));
+        for (const auto& name : cloth.pipeline())
+            CHECK(calls(cloth, name) >= static_cast<std::uint64_t>(N));
         cloth.timers().reset();
         CHECK(calls(cloth, "integrate") == 0u);
     }
@@ -150,7 +155,8 @@ TEST_CASE("Phase timers count calls", "[pipeline][timers]") {
         ClothSettings s = basic();
         s.integrator = IntegratorKind::RungeKutta4;
         Cloth cloth(smallSheet(), s);
-        for (int n = 0; n < N; ++n) cloth.step(0.001);
+        for (int n = 0; n < N; ++n)
+            cloth.step(0.001);
         CHECK(calls(cloth, "springs") == static_cast<std::uint64_t>(1 + 4 * N));
     }
     SECTION("an edit between steps refreshes the forces once") {
@@ -177,7 +183,8 @@ TEST_CASE("Same input, same output", "[pipeline][determinism]") {
         auto cloth = std::make_unique<Cloth>(ClothTopology::build(makeSheet(spec)), s);
         cloth->pin(0);
         cloth->pin(11);
-        for (int n = 0; n < 100; ++n) cloth->step(0.01);
+        for (int n = 0; n < 100; ++n)
+            cloth->step(0.01);
         return cloth;
     };
     const auto a = run(), b = run();

@@ -87,8 +87,10 @@ TEST_CASE("Max angular frequency bounds the true one on larger meshes", "[stabil
         const auto N = static_cast<Eigen::Index>(n);
         Rng rng(seed);
         std::vector<double> k, invMass(n);
-        for (std::size_t s = 0; s < topo->springCount(); ++s) k.push_back(rng.uniform(1.0, 30.0));
-        for (std::size_t i = 0; i < n; ++i) invMass[i] = i % 17 == 0 ? 0.0 : 1.0 / rng.uniform(0.1, 1.0);
+        for (std::size_t s = 0; s < topo->springCount(); ++s)
+            k.push_back(rng.uniform(1.0, 30.0));
+        for (std::size_t i = 0; i < n; ++i)
+            invMass[i] = i % 17 == 0 ? 0.0 : 1.0 / rng.uniform(0.1, 1.0);
 
         Eigen::MatrixXd B = Eigen::MatrixXd::Zero(N, N), K = Eigen::MatrixXd::Zero(3 * N, 3 * N);
         std::vector<double> row(n, 0.0);
@@ -109,15 +111,19 @@ TEST_CASE("Max angular frequency bounds the true one on larger meshes", "[stabil
             K.block<3, 3>(3 * a, 3 * b) -= wa * wb * blk;
             K.block<3, 3>(3 * b, 3 * a) -= wa * wb * blk;
         }
-        const double laplacian = std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(B).eigenvalues().maxCoeff());
-        const double physical = std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(K).eigenvalues().maxCoeff());
+        const double laplacian =
+            std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(B).eigenvalues().maxCoeff());
+        const double physical =
+            std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(K).eigenvalues().maxCoeff());
         const double gershgorin = std::sqrt(*std::max_element(row.begin(), row.end()));
         const double est = estimateMaxAngularFrequency(*topo, k, invMass);
-        std::printf("[measured] omega_max seed %llu: physical at rest %.6f, Laplacian %.6f, estimate %.6f "
-                    "(%+.2e vs Laplacian), Gershgorin %.6f\n",
-                    static_cast<unsigned long long>(seed), physical, laplacian, est, est / laplacian - 1.0,
-                    gershgorin);
-        INFO("seed " << seed << " physical " << physical << " Laplacian " << laplacian << " estimate " << est);
+        std::printf(
+            "[measured] omega_max seed %llu: physical at rest %.6f, Laplacian %.6f, estimate %.6f "
+            "(%+.2e vs Laplacian), Gershgorin %.6f\n",
+            static_cast<unsigned long long>(seed), physical, laplacian, est, est / laplacian - 1.0,
+            gershgorin);
+        INFO("seed " << seed << " physical " << physical << " Laplacian " << laplacian
+                     << " estimate " << est);
         CHECK(est >= physical);
         CHECK(est == Approx(laplacian).epsilon(1e-3));
         CHECK(est <= gershgorin * (1.0 + 1e-12));
@@ -142,13 +148,15 @@ double growth(IntegratorKind kind, double factor, int steps) {
     Cloth cloth(ClothTopology::build(equilateralTriangle(1.0)), s);
     const auto d = equilateralDirections();
     const double amp = 1e-4;
-    for (Index i = 0; i < 3; ++i) cloth.setPosition(i, (1.0 + amp) * d[i]);
+    for (Index i = 0; i < 3; ++i)
+        cloth.setPosition(i, (1.0 + amp) * d[i]);
     const double dt = factor * cloth.stableTimeStep();
     double worst = 0.0;
     try {
         for (int n = 0; n < steps; ++n) {
             cloth.step(dt);
-            for (Index i = 0; i < 3; ++i) worst = std::max(worst, (cloth.positions()[i] - d[i]).norm() / amp);
+            for (Index i = 0; i < 3; ++i)
+                worst = std::max(worst, (cloth.positions()[i] - d[i]).norm() / amp);
         }
     } catch (const Error&) {
         return std::numeric_limits<double>::infinity(); // blew up to non-finite values
@@ -164,7 +172,8 @@ TEST_CASE("Explicit integrators blow up just above the limit and not just below"
         s.particleMass = 0.2;
         s.springStiffness = 5.0;
         Cloth cloth(ClothTopology::build(equilateralTriangle(1.0)), s);
-        REQUIRE(cloth.maxAngularFrequency() == Approx(omega).epsilon(1e-9)); // the bound is tight here
+        REQUIRE(cloth.maxAngularFrequency() ==
+                Approx(omega).epsilon(1e-9)); // the bound is tight here
     }
     // Velocity-Verlet and symplectic Euler: |amplification| = 1 for omega dt < 2 and > 1
     // beyond (at omega dt = 2.04 the growth is 1.49 per step); RK4 (limit 2.785 / omega;
@@ -174,12 +183,15 @@ TEST_CASE("Explicit integrators blow up just above the limit and not just below"
         IntegratorKind kind;
         double above;
     };
-    for (const Case& c : {Case{IntegratorKind::VelocityVerlet, 1.02}, Case{IntegratorKind::SymplecticEuler, 1.02},
-                          Case{IntegratorKind::RungeKutta4, 1.05}}) {
+    for (const Case& c :
+         {Case{IntegratorKind::VelocityVerlet, 1.02}, Case{IntegratorKind::SymplecticEuler, 1.02},
+          Case{IntegratorKind::RungeKutta4, 1.05}}) {
         const double below = growth(c.kind, 0.98, 2000);
         const double aboveGrowth = growth(c.kind, c.above, 2000);
-        std::printf("[measured] %s: max displacement / initial over 2000 steps at 0.98 x limit %.3f, "
-                    "at %.2f x limit %.3g\n", toString(c.kind), below, c.above, aboveGrowth);
+        std::printf(
+            "[measured] %s: max displacement / initial over 2000 steps at 0.98 x limit %.3f, "
+            "at %.2f x limit %.3g\n",
+            toString(c.kind), below, c.above, aboveGrowth);
         INFO(toString(c.kind) << " below " << below << " above " << aboveGrowth);
         // Below: Verlet keeps v^2 + omega^2 x^2 (1 - (omega dt)^2/4), so from rest |x| <= x0;
         // symplectic Euler keeps v^2 + omega^2 x^2 - omega^2 dt x v, so |x| <= x0 /

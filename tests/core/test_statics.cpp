@@ -57,7 +57,8 @@ Strip makeStrip(IntegratorKind kind, double damping) {
 
 double maxSpeed(const Cloth& c) {
     double v = 0.0;
-    for (const Vec3& vi : c.velocities()) v = std::max(v, vi.norm());
+    for (const Vec3& vi : c.velocities())
+        v = std::max(v, vi.norm());
     return v;
 }
 
@@ -84,7 +85,8 @@ void checkStatics(const Strip& s) {
         }
     }
     std::printf("[measured] hanging strip: worst relative error of vertical extensions %.2e "
-                "(top extension %.4e m)\n", worst, topExtension);
+                "(top extension %.4e m)\n",
+                worst, topExtension);
 }
 
 } // namespace
@@ -118,7 +120,8 @@ TEST_CASE("Hanging strip settles to the statically determinate tensions", "[stat
             s.cloth->step(0.02); // ~40 times Velocity-Verlet's stability limit
             ++steps;
         }
-        std::printf("[measured] hanging strip (implicit Euler, dt 0.02 s) settled in %d steps\n", steps);
+        std::printf("[measured] hanging strip (implicit Euler, dt 0.02 s) settled in %d steps\n",
+                    steps);
         REQUIRE(maxSpeed(*s.cloth) <= 1e-10);
         checkStatics(s);
     }

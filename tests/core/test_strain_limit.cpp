@@ -52,7 +52,8 @@ LimiterSettings limiterSettings(double maxStrain = 0.1) {
 
 } // namespace
 
-TEST_CASE("Experiment I without a limiter overstretches far beyond 10 %", "[limiter][experiment1]") {
+TEST_CASE("Experiment I without a limiter overstretches far beyond 10 %",
+          "[limiter][experiment1]") {
     for (bool vertical : {true, false}) {
         auto cloth = experimentOne(LimiterKind::None, vertical);
         double peak = 0.0, at2 = 0.0;
@@ -99,7 +100,8 @@ void experimentOneWithLimiter(LimiterKind kind, bool vertical) {
         }
         finite = finite && allFinite(*cloth);
         pinsHeld = pinsHeld && cloth->positions()[0] == pin0 && cloth->positions()[34] == pin1 &&
-                   cloth->velocities()[0] == Vec3::Zero() && cloth->velocities()[34] == Vec3::Zero();
+                   cloth->velocities()[0] == Vec3::Zero() &&
+                   cloth->velocities()[34] == Vec3::Zero();
     }
     std::printf("[measured] Experiment I (%s start), %s limiter: max strain over 200 steps "
                 "%.6f (limit %.2f + tolerance %.0e), steps over the limit %d, most rounds "
@@ -107,15 +109,16 @@ void experimentOneWithLimiter(LimiterKind kind, bool vertical) {
                 vertical ? "vertical" : "horizontal", toString(kind), worst,
                 cloth->settings().limiter.maxStrain, cloth->settings().limiter.tolerance, over,
                 maxRounds, cloth->settings().limiter.maxRounds);
-    INFO(toString(kind) << (vertical ? " vertical" : " horizontal") << ": worst strain " << worst << ", "
-                        << over << " steps over the limit, first at step " << firstOver);
+    INFO(toString(kind) << (vertical ? " vertical" : " horizontal") << ": worst strain " << worst
+                        << ", " << over << " steps over the limit, first at step " << firstOver);
     CHECK(over == 0);
     CHECK(finite);
     CHECK(pinsHeld);
 }
 } // namespace
 
-TEST_CASE("Experiment I with the Provot limiter stays within 10 % at every step", "[limiter][experiment1]") {
+TEST_CASE("Experiment I with the Provot limiter stays within 10 % at every step",
+          "[limiter][experiment1]") {
     experimentOneWithLimiter(LimiterKind::Provot, true);
     experimentOneWithLimiter(LimiterKind::Provot, false);
 }
@@ -223,7 +226,8 @@ TEST_CASE("Limiters without pins keep the centre of mass (inverse-mass shares)",
     }
     std::vector<Vec3> x;
     for (const Vec3& p : topo->restPositions())
-        x.push_back(1.25 * p + Vec3(rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1)));
+        x.push_back(1.25 * p +
+                    Vec3(rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1)));
     auto centre = [&](const std::vector<Vec3>& y) {
         Vec3 c = Vec3::Zero();
         double M = 0.0;
@@ -257,7 +261,8 @@ TEST_CASE("Limiters without pins keep the centre of mass (inverse-mass shares)",
 TEST_CASE("maxSpringStrain and meanSpringStrain of a uniform stretch", "[limiter]") {
     const auto topo = ClothTopology::build(irregularMesh(4, 3, 8));
     std::vector<Vec3> x;
-    for (const Vec3& p : topo->restPositions()) x.push_back(1.2 * p);
+    for (const Vec3& p : topo->restPositions())
+        x.push_back(1.2 * p);
     CHECK(maxSpringStrain(*topo, x) == Approx(0.2).epsilon(1e-12));
     CHECK(meanSpringStrain(*topo, x) == Approx(0.2).epsilon(1e-12));
 }
@@ -284,7 +289,8 @@ TEST_CASE("Velocities stay consistent with the limiter's corrections", "[limiter
             s.integrator = IntegratorKind::SymplecticEuler;
             Cloth cloth(topo, s);
             cloth.pin(0);
-            for (Index i = 0; i < cloth.particleCount(); ++i) cloth.setPosition(i, 1.5 * topo->restPositions()[i]);
+            for (Index i = 0; i < cloth.particleCount(); ++i)
+                cloth.setPosition(i, 1.5 * topo->restPositions()[i]);
             const Vec3List before = cloth.positions();
             cloth.step(dt);
             REQUIRE(cloth.lastLimiterStats().corrections > 0);
@@ -302,7 +308,8 @@ TEST_CASE("Velocities stay consistent with the limiter's corrections", "[limiter
             s.integrator = IntegratorKind::VelocityVerlet;
             Cloth cloth(topo, s);
             cloth.pin(0);
-            for (Index i = 0; i < cloth.particleCount(); ++i) cloth.setPosition(i, 1.5 * topo->restPositions()[i]);
+            for (Index i = 0; i < cloth.particleCount(); ++i)
+                cloth.setPosition(i, 1.5 * topo->restPositions()[i]);
             const Vec3List before = cloth.positions();
             cloth.step(dt);
             REQUIRE(cloth.lastLimiterStats().corrections > 0);
@@ -346,15 +353,20 @@ TEST_CASE("Pins hold, kinematic particles follow their paths", "[pins]") {
         CHECK(!cloth.isPinned(3));
         CHECK(cloth.inverseMasses()[3] == Approx(1.0 / 0.01));
         const double y = cloth.positions()[3].y();
-        for (int n = 0; n < 50; ++n) cloth.step(0.002);
+        for (int n = 0; n < 50; ++n)
+            cloth.step(0.002);
         CHECK(cloth.positions()[3].y() < y); // free again: it falls (or is pulled) down
     }
     SECTION("kinematic particles follow a path") {
         Cloth cloth(topo, s);
         const Vec3 base = topo->restPositions()[5];
         const double w = 3.0, a = 0.05;
-        auto path = [=](double t) { return Vec3(base + Vec3(a * std::sin(w * t), 0.0, a * (1 - std::cos(w * t)))); };
-        auto speed = [=](double t) { return Vec3(a * w * std::cos(w * t), 0.0, a * w * std::sin(w * t)); };
+        auto path = [=](double t) {
+            return Vec3(base + Vec3(a * std::sin(w * t), 0.0, a * (1 - std::cos(w * t))));
+        };
+        auto speed = [=](double t) {
+            return Vec3(a * w * std::cos(w * t), 0.0, a * w * std::sin(w * t));
+        };
         cloth.setKinematic(5, path);
         cloth.pin(0);
         CHECK(cloth.isPinned(5));
@@ -365,7 +377,8 @@ TEST_CASE("Pins hold, kinematic particles follow their paths", "[pins]") {
             REQUIRE((cloth.positions()[5] - path(t)).norm() < 1e-12); // it is put on the path
             // Its velocity is the path's, up to the O(dt) of a one-step difference: per
             // component |v - x'(t)| <= dt/2 max |x_c''| = dt/2 a w^2, so sqrt(2) times that.
-            REQUIRE((cloth.velocities()[5] - speed(t)).norm() <= 0.5 * dt * a * w * w * std::sqrt(2.0) + 1e-12);
+            REQUIRE((cloth.velocities()[5] - speed(t)).norm() <=
+                    0.5 * dt * a * w * w * std::sqrt(2.0) + 1e-12);
         }
         CHECK(cloth.time() == Approx(300 * dt).epsilon(1e-12));
         CHECK(cloth.stepCount() == 300u);

@@ -74,7 +74,8 @@ TEST_CASE("Topology of a grid sheet satisfies Euler's formula", "[topology]") {
         CHECK(static_cast<long>(topo->boundaryEdgeCount()) == 2 * (R - 1) + 2 * (C - 1));
         checkTopology(*topo, 1);
         // Area of the rectangle (unit spacing).
-        CHECK(topo->totalRestArea() == Approx(static_cast<double>((R - 1) * (C - 1))).epsilon(1e-12));
+        CHECK(topo->totalRestArea() ==
+              Approx(static_cast<double>((R - 1) * (C - 1))).epsilon(1e-12));
     }
 }
 
@@ -138,7 +139,8 @@ TEST_CASE("Duplicate vertices are welded into one particle", "[topology][weld]")
             CHECK(it->second == p);
         }
         std::set<Index> distinct;
-        for (const auto& op : particleOf) distinct.insert(op.second);
+        for (const auto& op : particleOf)
+            distinct.insert(op.second);
         CHECK(distinct.size() == particleOf.size());
     }
 
@@ -147,7 +149,8 @@ TEST_CASE("Duplicate vertices are welded into one particle", "[topology][weld]")
         // tolerance (1e-9 x diagonal), far above zero.
         TriangleMesh noisy = soup;
         Rng rng(11);
-        for (Vec3& p : noisy.vertices) p += Vec3(rng.uniform(-1, 1), rng.uniform(-1, 1), 0) * 1e-12;
+        for (Vec3& p : noisy.vertices)
+            p += Vec3(rng.uniform(-1, 1), rng.uniform(-1, 1), 0) * 1e-12;
         const auto topo = ClothTopology::build(noisy);
         CHECK(topo->particleCount() == shared.vertices.size());
         checkTopology(*topo, 1);
@@ -160,7 +163,8 @@ TEST_CASE("Duplicate vertices are welded into one particle", "[topology][weld]")
             CHECK((w.mesh.vertices[w.remap[v]] - soup.vertices[v]).norm() == 0.0);
         // A mesh without duplicates is returned with its vertex order unchanged.
         const WeldResult same = weldVertices(shared, 0.0);
-        for (std::size_t v = 0; v < shared.vertices.size(); ++v) CHECK(same.remap[v] == v);
+        for (std::size_t v = 0; v < shared.vertices.size(); ++v)
+            CHECK(same.remap[v] == v);
         // Vertices 0.5 apart are not welded at tolerance 0.1, but are at 0.6.
         TriangleMesh two = equilateralTriangle(1.0);
         two.vertices.push_back(two.vertices[0] + Vec3(0.5, 0, 0));
@@ -176,7 +180,7 @@ TEST_CASE("Sheet generator: plane, spacing and no favoured diagonal", "[topology
     spec.cols = 12;
     spec.spacing = 0.25;
     spec.origin = Vec3(1.0, 2.0, -3.0);
-    spec.uAxis = Vec3(0.0, 0.0, 2.0);  // not unit length: normalised by makeSheet
+    spec.uAxis = Vec3(0.0, 0.0, 2.0); // not unit length: normalised by makeSheet
     spec.vAxis = Vec3(-3.0, 0.0, 0.0);
     const TriangleMesh m = makeSheet(spec);
     REQUIRE(m.vertices.size() == 9u * 12u);
@@ -195,7 +199,9 @@ TEST_CASE("Sheet generator: plane, spacing and no favoured diagonal", "[topology
     // Triangles are consistently oriented (all normals the same way).
     int positive = 0, negative = 0;
     for (const Triangle& t : m.triangles) {
-        const double s = (m.vertices[t[1]] - m.vertices[t[0]]).cross(m.vertices[t[2]] - m.vertices[t[0]]).dot(normal);
+        const double s = (m.vertices[t[1]] - m.vertices[t[0]])
+                             .cross(m.vertices[t[2]] - m.vertices[t[0]])
+                             .dot(normal);
         (s > 0 ? positive : negative) += 1;
     }
     CHECK((positive == 0 || negative == 0));
@@ -230,7 +236,8 @@ TEST_CASE("Sheet generator: plane, spacing and no favoured diagonal", "[topology
     // 88 cells: a checkerboard has exactly 44 of each; in every row of 11 cells they differ
     // by one at most.
     CHECK(down == up);
-    for (std::size_t r = 0; r + 1 < spec.rows; ++r) CHECK(std::abs(downPerRow[r] - upPerRow[r]) <= 1);
+    for (std::size_t r = 0; r + 1 < spec.rows; ++r)
+        CHECK(std::abs(downPerRow[r] - upPerRow[r]) <= 1);
 }
 
 TEST_CASE("Sheet generator with an odd number of cells", "[topology][sheet]") {
