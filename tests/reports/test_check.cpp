@@ -1,0 +1,127 @@
+// checkTimeStep against closed-form answers: one spring of stiffness k with one end pinned
+// and mass m on the other is a harmonic oscillator with omega = sqrt(k / m).
+#include <drape_reports/check.hpp>
+
+#include <drape/error.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+using namespace drape;
+using namespace drape::reports;
+
+namespace {
+
+// A single triangle with two corners pinned: the free corner hangs on two springs whose
+// directions n1, n2 have n1 . n2 = 0.6, so its stiffness k (n1 n1^T + n2 n2^T) has
+// eigenvalues k (1 +- 0.6): omega_exact = sqrt(1.6 k / m). drape's Laplacian bound is the
+// row sum 2 k / m: omega_bound = sqrt(2 k / m). checkTimeStep reports limits from the bound
+// (safe); the runs below blow up beyond the exact limits.
+std::unique_ptr<Cloth> oscillator(IntegratorKind kind, double k, double m, double damping) {
+    TriangleMesh mesh;
+    mesh.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0.5, -1, 0)};
+    mesh.triangles = {{0, 2, 1}};
+    ClothSettings s;
+    s.integrator = kind;
+    s.particleMass = m;
+    s.springStiffness = k;
+    s.damping = damping;
+    s.gravity = Vec3::Zero();
+    s.limiter.kind = LimiterKind::None;
+    s.rejectUnstableTimeStep = false;
+    auto c = std::make_unique<Cloth>(ClothTopology::build(mesh), s);
+    c->pin(0);
+    c->pin(1);
+    return c;
+}
+
+/// Steps n times from a displaced start; true when the motion stays bounded.
+bool bounded(Cloth& c, double dt, int n) {
+    c.setPosition(2, c.positions()[2] + Vec3(0.01, 0.01, 0.0));
+    try {
+        for (int i = 0; i < n; ++i) c.step(dt);
+    } catch (const Error& e) {
+        REQUIRE(e.code() == ErrorCode::SimulationFailure);
+        return false;
+    }
+    return (c.positions()[2] - c.topology().restPositions()[2]).norm() < 1.0;
+}
+
+} // namespace
+
+TEST_CASE("checkTimeStep: Velocity-Verlet limit is 2 / sqrt(2 k / m) and holds in a run") {
+    const double k = 50.0, m = 0.2;
+    const double omega = std::sqrt(2.0 * k / m);
+    auto c = oscillator(IntegratorKind::VelocityVerlet, k, m, 0.0);
+    const TimeStepCheck ok = checkTimeStep(*c, 0.9 * 2.0 / omega);
+    CHECK(ok.omegaMax == Approx(omega).epsilon(1e-6));
+    CHECK(ok.limit == Approx(2.0 / omega).epsilon(1e-6));
+    CHECK(ok.stable);
+    CHECK(ok.substeps == 1);
+    const TimeStepCheck bad = checkTimeStep(*c, 3.0 * 2.0 / omega);
+    CHECK_FALSE(bad.stable);
+    CHECK(bad.substeps >= 3);
+    CHECK(bad.message.find("UNSTABLE") != std::string::npos);
+    // The suggested sub-steps really are stable, and the rejected dt really blows up.
+    CHECK(bounded(*c, 3.0 * 2.0 / omega / bad.substeps, 4000));
+    auto c2 = oscillator(IntegratorKind::VelocityVerlet, k, m, 0.0);
+    CHECK_FALSE(bounded(*c2, 3.0 * 2.0 / omega, 4000));
+}
+
+TEST_CASE("checkTimeStep: RK4's limit is 2.785 / omega") {
+    const double k = 10.0, m = 1.0;
+    const double omega = std::sqrt(2.0 * k / m), omegaExact = std::sqrt(1.6 * k / m);
+    auto c = oscillator(IntegratorKind::RungeKutta4, k, m, 0.0);
+    CHECK(checkTimeStep(*c, 0.1).limit == Approx(2.785 / omega).epsilon(1e-6));
+    auto a = oscillator(IntegratorKind::RungeKutta4, k, m, 0.0);
+    CHECK(bounded(*a, 0.99 * 2.785 / omega, 3000));
+    // RK4's stability region meets the imaginary axis at 2 sqrt(2) = 2.828. Just beyond it the
+    // growth is slow and the spring's nonlinearity detunes the mode once its amplitude is a
+    // fraction of the rest length (at 1.02 x the run saturates near 0.17 m); 10 % beyond,
+    // |R(i omega dt)|^2 = 3.6 per step and the run blows up.
+    auto b = oscillator(IntegratorKind::RungeKutta4, k, m, 0.0);
+    CHECK_FALSE(bounded(*b, 1.10 * 2.0 * std::sqrt(2.0) / omegaExact, 3000));
+}
+
+TEST_CASE("checkTimeStep: implicit Euler is stable at any dt, and runs so") {
+    auto c = oscillator(IntegratorKind::ImplicitEuler, 1e4, 0.01, 0.0);
+    const TimeStepCheck r = checkTimeStep(*c, 1.0);
+    CHECK(r.stable);
+    CHECK(std::isinf(r.limit));
+    CHECK(bounded(*c, 1.0, 200));
+}
+
+TEST_CASE("checkTimeStep: explicit Euler needs damping, limit C_d / (m omega^2)") {
+    const double k = 20.0, m = 0.5;
+    const double omega = std::sqrt(2.0 * k / m);
+    auto undamped = oscillator(IntegratorKind::ExplicitEuler, k, m, 0.0);
+    const TimeStepCheck r = checkTimeStep(*undamped, 1e-4);
+    CHECK_FALSE(r.stable);
+    CHECK(r.substeps == 0); // no sub-step count helps
+    const double cd = 0.5;
+    auto damped = oscillator(IntegratorKind::ExplicitEuler, k, m, cd);
+    const TimeStepCheck d = checkTimeStep(*damped, 1e-3);
+    CHECK(d.limit == Approx(cd / (m * omega * omega)).epsilon(1e-6));
+    // A mode x'' = -w^2 x - 2 g x' under explicit Euler: |1 + lambda dt| < 1 iff
+    // dt < 2 g / w^2. Below the limit the run decays, above it grows.
+    auto below = oscillator(IntegratorKind::ExplicitEuler, k, m, cd);
+    CHECK(bounded(*below, 0.8 * d.limit, 20000));
+    auto above = oscillator(IntegratorKind::ExplicitEuler, k, m, cd);
+    CHECK_FALSE(bounded(*above, 3.0 * d.limit, 20000));
+}
+
+TEST_CASE("checkTimeStep: nothing to oscillate when every particle is pinned") {
+    auto c = oscillator(IntegratorKind::VelocityVerlet, 10.0, 1.0, 0.0);
+    c->pin(2);
+    const TimeStepCheck r = checkTimeStep(*c, 10.0);
+    CHECK(r.stable);
+    CHECK(r.omegaMax == 0.0);
+}
+
+TEST_CASE("checkTimeStep: a bad dt gets a message, not a verdict") {
+    auto c = oscillator(IntegratorKind::VelocityVerlet, 10.0, 1.0, 0.0);
+    const TimeStepCheck r = checkTimeStep(*c, -1.0);
+    CHECK_FALSE(r.stable);
+    CHECK(r.message.find("positive") != std::string::npos);
+}
