@@ -149,3 +149,30 @@ TEST_CASE("the README example runs as written", "[world][readme]") {
     CHECK(cloth->stepCount() == 60 * 4 * 2);
     CHECK(cloth->positions()[20 * 21].y() < 1.5 - 0.9); // the curtain hangs down ~1 m
 }
+
+TEST_CASE("two cloths in one world, and a collider removed while the cloth lies on it", "[world]") {
+    TestWorld w;
+    btRigidBody* table = w.body(w.shape<btBoxShape>(btVector3(1, 0.05f, 1)), 0.0, Vec3(0, -0.05, 0));
+    ClothSettings s = softCloth();
+    s.damping = 0.01;
+    auto a = makeCloth(horizontalSheet(5, 5, 0.1, 0.1, -0.5), s);
+    auto b = makeCloth(horizontalSheet(5, 5, 0.1, 0.1, 0.5), s);
+    bullet::BulletClothSettings bs;
+    bs.substeps = 2;
+    auto& ha = w.add(a, bs);
+    auto& hb = w.add(b, bs);
+    for (int k = 0; k < 120; ++k) w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    // Each lies on the table (top at y = 0) in its contact band; neither sees the other's
+    // proxy as a collider (only the table is a candidate).
+    CHECK(a->positions()[12].y() > 0.0);
+    CHECK(b->positions()[12].y() > 0.0);
+    CHECK(a->positions()[12].y() < 0.03);
+    CHECK(ha.lastStats().candidateBodies == 1);
+    CHECK(hb.lastStats().candidateBodies == 1);
+    // Take the table away: the broadphase drops it from both proxies, the cloths fall.
+    w.world.removeRigidBody(table);
+    for (int k = 0; k < 30; ++k) w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    CHECK(ha.lastStats().candidateBodies == 0);
+    CHECK(a->positions()[12].y() < -0.5); // 0.5 s of free fall: 1.2 m
+    w.world.addRigidBody(table);          // back, so the fixture can remove it
+}
