@@ -255,3 +255,20 @@ TEST_CASE("Sheet generator with an odd number of cells", "[topology][sheet]") {
     CHECK(down + up == 15);
     CHECK(std::abs(down - up) == 1);
 }
+
+TEST_CASE("Vertices no triangle uses are not particles", "[topology]") {
+    // A stray point (a file's leftover vertex) between used ones: dropped, mapped to
+    // kNoParticle, and the other vertices keep their order.
+    TriangleMesh m = irregularMesh(2, 2, 5);
+    const std::size_t used = m.vertices.size();
+    m.vertices.insert(m.vertices.begin() + 2, Vec3(50.0, 50.0, 50.0));
+    for (Triangle& t : m.triangles)
+        for (Index& v : t)
+            if (v >= 2) ++v;
+    const auto topo = ClothTopology::build(m);
+    CHECK(topo->particleCount() == used);
+    REQUIRE(topo->vertexToParticle().size() == used + 1);
+    CHECK(topo->vertexToParticle()[2] == kNoParticle);
+    CHECK(topo->vertexToParticle()[3] == 2u);
+    checkTopology(*topo, 1);
+}
