@@ -23,13 +23,22 @@
 //              v_n = (v_i - v_body(P)) . n is negative, an impulse lambda n with
 //              lambda = -v_n / (w_i + w_body(n)) stops the approach (inelastic: cloth does not
 //              bounce), w_body(n) = 1/M + (r x n)^T I^-1 (r x n) for dynamic bodies and 0 for
-//              static and kinematic ones. Coulomb friction: a tangential impulse up to
-//              mu (lambda + F_pen dt) against the relative tangential velocity.
-//   d < h + w  (in the band): eq. (7)'s penalty force F n on the particle (see PenaltyForce),
-//              with the same friction bound.
-// Dynamic bodies get the opposite of every impulse and of F dt at P; their snapshot
-// velocities are updated contact by contact (sequential impulses), so many particles hitting
-// a light body do not each see it at rest.
+//              static and kinematic ones. While it stays touching, the force term also
+//              supports it: the inward part of its other forces is cancelled (a resting load
+//              beyond C_p, such as the tension of a cloth hanging over an edge).
+//   d < h + w  (in the band): eq. (7)'s penalty force F n on the particle (see penaltyShape).
+//   Friction (Coulomb, mu = the body's friction): a tangential impulse of at most
+//              mu (lambda + F_n dt) against the relative tangential velocity, F_n the normal
+//              force of the last step; a particle whose slip it stops is "stuck" and the force
+//              term then also cancels the tangential part of its other forces up to mu F_n, so
+//              Velocity-Verlet's half kicks do not make resting cloth creep.
+// Dynamic bodies get the opposite of every impulse and of every contact force times the step
+// at P; their snapshot velocities are updated contact by contact (sequential impulses), so
+// many particles hitting a light body do not each see it at rest.
+//
+// Fast particles: a particle that moved more than h in a step is also ray-tested along its
+// path (btCollisionWorld::rayTestSingle), so it cannot pass through a thin body.
+// After the projection, limiter and re-projection alternate kRelimitPasses times.
 #include "drape/bullet/bullet_cloth.hpp"
 
 #include "self_collision.hpp"
@@ -239,32 +248,37 @@ struct BulletCloth::Impl {
     Vec3List prevX; ///< positions at the end of the previous step (after contacts)
     detail::SelfCollider selfCollider;
     ContactStats last, total;
-    double margin = 0.0;
-    double band = 0.0;
+    double margin = 0.0; ///< broadphase margin [m]
+    double band = 0.0;   ///< eq. (7) band width [m]
+    std::vector<const btCollisionObject*> candidates;
+    Vec3 proxyMin = Vec3::Zero(), proxyMax = Vec3::Zero(); ///< the proxy's AABB [m]
 
-    // Scratch of the contact stage.
-    std::vector<unsigned char> touching; ///< particle touched a body this step
+    // Scratch of the contact stage, reused every step.
+    std::vector<unsigned char> touching;  ///< particle touched a body this step
+    std::vector<std::int64_t> recordOf;   ///< per particle: its latest PenaltyContact, or -1
+    std::vector<double> lastSupport;      ///< per particle: contact normal force, last step [N]
     Vec3List xBeforeLimit;
     std::vector<std::size_t> moved;
     StressOrderScratch limitScratch;
 
-    std::vector<const btCollisionObject*> candidates;
-    Vec3 proxyMin = Vec3::Zero(), proxyMax = Vec3::Zero(); ///< the proxy's AABB [m]
+    /// One Bullet sub-step of dt [s] (the action's updateAction).
+    void step(double dt);
+    /// Snapshots the bodies among the proxy's overlaps (and the broadphase's answer for a
+    /// larger box when the cloth would sweep out of the proxy in this step).
     void gatherBodies(double dt);
+    /// The cloth's box swept over dt at its current velocities, grown by the contact reach.
     void sweptBounds(double dt, Vec3& lo, Vec3& hi) const;
     void setProxyBounds(const Vec3& lo, const Vec3& hi);
+    void updateBounds(double dt);
+    /// The contact stage: self-collision, particle-body contacts, re-limiting, friction.
+    void resolveContacts(Cloth& c, double dt);
     /// Contact of particle i with body bi (projection, velocity response, friction, and its
     /// eq. (7) record). Returns whether it is within the contact reach.
     bool collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, double dt,
                          detail::QueryCounters& counters);
-    std::vector<std::int64_t> recordOf; ///< per particle: its latest PenaltyContact, or -1
-    std::vector<double> lastSupport;    ///< per particle: contact normal force, last step [N]
-    void resolveContacts(Cloth& c, double dt);
-    void updateBounds(double dt);
     Vec3 attachmentPoint(const Attachment& a) const {
         return toPose(a.body->getWorldTransform()).toWorld(a.localPoint);
     }
-    void step(double dt);
 };
 
 class BulletCloth::Impl::Action final : public btActionInterface {
