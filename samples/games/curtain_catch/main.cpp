@@ -7,7 +7,8 @@
 //   - input is scripted: a seeded generator stands in for the player's throws, so every run
 //     (and every test) plays the same game;
 //   - game state (flying, stopped, through, missed) is read back from the rigid bodies and
-//     shown by the balls' colours in the rendered frames.
+//     shown in the rendered frames: by the balls' colours and by a scoreboard of cubes above
+//     the rail (green: stopped, dark: got past or missed).
 //
 //   curtain_catch [-o OUT] [--throws N] [--seed S] [--no-render] [--width W --height H]
 #include "drape_samples/render.hpp"
@@ -15,6 +16,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
@@ -119,6 +121,7 @@ int main(int argc, char** argv) {
         std::ofstream log(std::filesystem::path(out) / "throws.csv");
         log << "throw,ball,time_s,aim_x_m,aim_y_m,speed_m_s,on_target,result\n";
         std::vector<std::array<double, 4>> aims(balls.size());
+        std::vector<BallState> results; // per throw, in order: the scoreboard
         std::vector<int> throwIndex(balls.size(), -1);
 
         // Play until every throw has been judged.
@@ -165,6 +168,8 @@ int main(int argc, char** argv) {
                         b.state = b.aimedAtCurtain ? BallState::Through : BallState::Missed;
                     }
                     ++scored;
+                    results.resize(static_cast<std::size_t>(throws), BallState::Idle);
+                    results[static_cast<std::size_t>(throwIndex[i])] = b.state;
                     log << throwIndex[i] << ',' << b.name << ',' << b.thrownAt << ',' << aims[i][0]
                         << ',' << aims[i][1] << ',' << aims[i][2] << ',' << (aims[i][3] > 0 ? "yes" : "no")
                         << ',' << toString(b.state) << '\n';
@@ -183,6 +188,19 @@ int main(int argc, char** argv) {
                         for (const Ball& b : balls)
                             if (b.name == bv.name) meshes.back().front = meshes.back().back = colourOf(b.state);
                     }
+                }
+                // Scoreboard: a row of cubes above the rail, one per throw (green = stopped,
+                // dark = got past or missed, light = still to come).
+                for (int k = 0; k < throws; ++k) {
+                    const double spacing = std::min(0.3, 2.6 / throws);
+                    DrawMesh cube = makeBoxMesh(Vec3::Constant(0.35 * spacing));
+                    cube.model(0, 3) = static_cast<float>(-0.5 * spacing * (throws - 1) + spacing * k);
+                    cube.model(1, 3) = 2.75f;
+                    const BallState r = static_cast<std::size_t>(k) < results.size()
+                                            ? results[static_cast<std::size_t>(k)]
+                                            : BallState::Idle;
+                    cube.front = cube.back = r == BallState::Idle ? Color{0.85f, 0.85f, 0.85f} : colourOf(r);
+                    meshes.push_back(std::move(cube));
                 }
                 char name[32];
                 std::snprintf(name, sizeof name, "frame_%05zu.png", frame);
