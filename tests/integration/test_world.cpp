@@ -176,3 +176,26 @@ TEST_CASE("two cloths in one world, and a collider removed while the cloth lies 
     CHECK(a->positions()[12].y() < -0.5); // 0.5 s of free fall: 1.2 m
     w.world.addRigidBody(table);          // back, so the fixture can remove it
 }
+
+TEST_CASE("same scene, same result: two runs are bit-identical", "[world][determinism]") {
+    auto run = [] {
+        TestWorld w;
+        w.body(w.shape<btSphereShape>(btScalar(0.2)), 0.0, Vec3(0, 0, 0));
+        btRigidBody* ball = w.body(w.shape<btSphereShape>(btScalar(0.1)), 0.3, Vec3(0.05, 0.6, 0.0));
+        ball->setActivationState(DISABLE_DEACTIVATION);
+        ClothSettings s = softCloth();
+        auto cloth = makeCloth(horizontalSheet(9, 9, 0.05, 0.3), s);
+        bullet::BulletClothSettings bs;
+        bs.substeps = 3;
+        bs.selfCollision.enabled = true;
+        w.add(cloth, bs);
+        for (int k = 0; k < 90; ++k) w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+        std::vector<Vec3> state = cloth->positions();
+        state.push_back(eig(ball->getCenterOfMassPosition()));
+        return state;
+    };
+    const auto a = run();
+    const auto b = run();
+    REQUIRE(a.size() == b.size());
+    for (std::size_t i = 0; i < a.size(); ++i) CHECK(a[i] == b[i]); // exact equality
+}

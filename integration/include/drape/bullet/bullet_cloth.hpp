@@ -168,6 +168,11 @@ private:
 /// Adds `cloth` to `world`: one call. The world then steps it in every internal sub-step of
 /// stepSimulation. Throws drape::Error (InvalidArgument) on a null world or cloth, and on
 /// invalid settings (non-positive thickness, substeps < 1 ...).
+///
+/// A cloth step that fails (for example a fixedTimeStep / substeps beyond the cloth's
+/// stability limit, see Cloth::stableTimeStep) throws its drape::Error out of
+/// stepSimulation; the cloth keeps its state from before that step. Choose substeps so that
+/// fixedTimeStep / substeps <= cloth.stableTimeStep().
 std::unique_ptr<BulletCloth> addCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
                                       const BulletClothSettings& settings = {});
 
