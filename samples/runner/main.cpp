@@ -27,11 +27,14 @@ int main(int argc, char** argv) {
     bool noRender = false, noVideo = false, quiet = false;
     app.add_option("scene", scene, "Scene file (JSON, see samples/SCENES.md)")->required();
     app.add_option("-o,--out", out, "Output folder (created if missing)")->required();
-    auto* optSteps = app.add_option("--steps", steps, "Run this many time steps instead of the scene's duration");
-    auto* optSecs = app.add_option("--seconds", secs, "Run this many simulated seconds instead of the scene's duration");
+    auto* optSteps = app.add_option("--steps", steps,
+                                    "Run this many time steps instead of the scene's duration");
+    auto* optSecs = app.add_option(
+        "--seconds", secs, "Run this many simulated seconds instead of the scene's duration");
     optSteps->excludes(optSecs);
-    auto* optInt = app.add_option("--integrator", integrator,
-                                  "velocity_verlet, explicit_euler, symplectic_euler, rk4 or implicit_euler");
+    auto* optInt =
+        app.add_option("--integrator", integrator,
+                       "velocity_verlet, explicit_euler, symplectic_euler, rk4 or implicit_euler");
     auto* optDt = app.add_option("--dt", dt, "Time step [s]");
     auto* optFps = app.add_option("--fps", fps, "Frames (and CSV rows) per simulated second");
     auto* optW = app.add_option("--width", width, "Image width [px]");

@@ -31,7 +31,8 @@ DrawMesh sheetFacingPlusZ() {
     const Vec3 n = (m.vertices[m.triangles[0][1]] - m.vertices[m.triangles[0][0]])
                        .cross(m.vertices[m.triangles[0][2]] - m.vertices[m.triangles[0][0]]);
     if (n.z() < 0.0)
-        for (Triangle& t : m.triangles) std::swap(t[1], t[2]);
+        for (Triangle& t : m.triangles)
+            std::swap(t[1], t[2]);
     return toDrawMesh(m.vertices, m.triangles, kFront, kBack);
 }
 
@@ -43,11 +44,16 @@ CameraDesc cameraAt(double z) {
     return c;
 }
 
-bool reddish(const std::array<std::uint8_t, 3>& p) { return p[0] > 60 && p[0] > 2 * p[1] && p[0] > 2 * p[2]; }
-bool bluish(const std::array<std::uint8_t, 3>& p) { return p[2] > 60 && p[2] > 2 * p[0] && p[2] > 2 * p[1]; }
+bool reddish(const std::array<std::uint8_t, 3>& p) {
+    return p[0] > 60 && p[0] > 2 * p[1] && p[0] > 2 * p[2];
+}
+bool bluish(const std::array<std::uint8_t, 3>& p) {
+    return p[2] > 60 && p[2] > 2 * p[0] && p[2] > 2 * p[1];
+}
 bool isBackground(const std::array<std::uint8_t, 3>& p) {
     for (int c = 0; c < 3; ++c)
-        if (std::abs(int(p[static_cast<std::size_t>(c)]) - int(kBackground[static_cast<std::size_t>(c)] * 255.0f + 0.5f)) > 2)
+        if (std::abs(int(p[static_cast<std::size_t>(c)]) -
+                     int(kBackground[static_cast<std::size_t>(c)] * 255.0f + 0.5f)) > 2)
             return false;
     return true;
 }
@@ -55,25 +61,29 @@ bool isBackground(const std::array<std::uint8_t, 3>& p) {
 double fraction(const Image& img, bool (*pred)(const std::array<std::uint8_t, 3>&)) {
     std::size_t n = 0;
     for (int y = 0; y < img.height; ++y)
-        for (int x = 0; x < img.width; ++x) n += pred(img.pixel(x, y)) ? 1u : 0u;
+        for (int x = 0; x < img.width; ++x)
+            n += pred(img.pixel(x, y)) ? 1u : 0u;
     return static_cast<double>(n) / (img.width * img.height);
 }
 
 } // namespace
 
 TEST_CASE("the cloth is drawn in its front colour where it is, background elsewhere", "[render]") {
-    if (!renderingAvailable()) { WARN("skipped: built without OSMesa"); return; }
+    if (!renderingAvailable()) {
+        WARN("skipped: built without OSMesa");
+        return;
+    }
     OffscreenRenderer r(160, 120);
     // At distance 3 with a 60 degree field of view the 2 m sheet spans the middle ~58 % of
     // the image height: (2 / 2) / (3 tan 30 deg) = 0.577.
     const Image img = r.render(cameraAt(3.0), {sheetFacingPlusZ()}, kBackground);
     REQUIRE(img.width == 160);
     REQUIRE(img.height == 120);
-    CHECK(reddish(img.pixel(80, 60)));   // centre: cloth
+    CHECK(reddish(img.pixel(80, 60))); // centre: cloth
     CHECK(reddish(img.pixel(60, 45)));
     CHECK(isBackground(img.pixel(2, 2))); // corners: background
     CHECK(isBackground(img.pixel(157, 117)));
-    CHECK(isBackground(img.pixel(80, 5)));  // above the sheet
+    CHECK(isBackground(img.pixel(80, 5))); // above the sheet
     // Expected cloth area: a square 0.577 of the height on a side: 0.577^2 * 120 / 160 = 0.25.
     const double f = fraction(img, reddish);
     CHECK(f == Approx(0.25).margin(0.04));
@@ -83,7 +93,10 @@ TEST_CASE("the cloth is drawn in its front colour where it is, background elsewh
 }
 
 TEST_CASE("the back of the cloth is drawn in the back colour", "[render]") {
-    if (!renderingAvailable()) { WARN("skipped: built without OSMesa"); return; }
+    if (!renderingAvailable()) {
+        WARN("skipped: built without OSMesa");
+        return;
+    }
     OffscreenRenderer r(160, 120);
     const Image img = r.render(cameraAt(-3.0), {sheetFacingPlusZ()}, kBackground);
     CHECK(bluish(img.pixel(80, 60)));
@@ -92,7 +105,10 @@ TEST_CASE("the back of the cloth is drawn in the back colour", "[render]") {
 }
 
 TEST_CASE("rigid bodies are drawn with their transform and hide what is behind them", "[render]") {
-    if (!renderingAvailable()) { WARN("skipped: built without OSMesa"); return; }
+    if (!renderingAvailable()) {
+        WARN("skipped: built without OSMesa");
+        return;
+    }
     OffscreenRenderer r(160, 120);
     DrawMesh box = makeBoxMesh(Vec3(0.3, 0.3, 0.3));
     box.front = box.back = {0.1f, 0.8f, 0.1f};
@@ -101,7 +117,7 @@ TEST_CASE("rigid bodies are drawn with their transform and hide what is behind t
     const Image img = r.render(cameraAt(3.0), {sheetFacingPlusZ(), box}, kBackground);
     const auto c = img.pixel(80, 60);
     CHECK((c[1] > 2 * c[0] && c[1] > 2 * c[2])); // green box in front of the red cloth
-    CHECK(reddish(img.pixel(80, 30)));             // cloth around it
+    CHECK(reddish(img.pixel(80, 30)));           // cloth around it
     DrawMesh sphere = makeSphereMesh(0.4);
     sphere.front = sphere.back = {0.1f, 0.8f, 0.1f};
     const Image img2 = r.render(cameraAt(3.0), {sphere}, kBackground);
@@ -111,7 +127,10 @@ TEST_CASE("rigid bodies are drawn with their transform and hide what is behind t
 }
 
 TEST_CASE("a PNG written to disk reads back with the same pixels", "[render]") {
-    if (!renderingAvailable()) { WARN("skipped: built without OSMesa"); return; }
+    if (!renderingAvailable()) {
+        WARN("skipped: built without OSMesa");
+        return;
+    }
     OffscreenRenderer r(96, 64);
     const Image img = r.render(cameraAt(3.0), {sheetFacingPlusZ()}, kBackground);
     const fs::path dir = fs::path(DRAPE_TEST_OUT_DIR) / "render";
@@ -126,8 +145,12 @@ TEST_CASE("a PNG written to disk reads back with the same pixels", "[render]") {
 }
 
 TEST_CASE("a rendered shipped scene shows its cloth", "[render]") {
-    if (!renderingAvailable()) { WARN("skipped: built without OSMesa"); return; }
-    SceneDesc scene = loadScene(fs::path(DRAPE_SAMPLES_DIR) / "scenes" / "experiment1_suspended_sheet.json");
+    if (!renderingAvailable()) {
+        WARN("skipped: built without OSMesa");
+        return;
+    }
+    SceneDesc scene =
+        loadScene(fs::path(DRAPE_SAMPLES_DIR) / "scenes" / "experiment1_suspended_sheet.json");
     scene.frontColor = kFront;
     scene.backColor = kFront;
     Simulation sim(scene);

@@ -26,7 +26,9 @@ std::vector<fs::path> shippedScenes() {
     return out;
 }
 
-SceneDesc parse(const std::string& text) { return parseScene(text, "test.json", kScenes); }
+SceneDesc parse(const std::string& text) {
+    return parseScene(text, "test.json", kScenes);
+}
 
 /// The message parseScene throws for `text` (fails the test if it does not throw).
 std::string errorOf(const std::string& text) {
@@ -155,15 +157,17 @@ TEST_CASE("broken scenes are refused with the path of the field", "[scene][error
                Contains("pins[0].groups: named groups come from a mesh file"));
     CHECK_THAT(errorOf(withCloth(R"("pins": [{"box": {"min": [1, 0, 0], "max": [0, 1, 1]}}])")),
                Contains("pins[0].box.min: min must not exceed max"));
-    CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "box", "half_extents": [1, 1, 1]}},
+    CHECK_THAT(
+        errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "box", "half_extents": [1, 1, 1]}},
                                                       {"shape": {"type": "sphere", "radius": "big"}}])")),
-               Contains("rigid_bodies[1].shape.radius: expected a number, got string"));
+        Contains("rigid_bodies[1].shape.radius: expected a number, got string"));
     CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "cone"}}])")),
                Contains("rigid_bodies[0].shape.type: unknown value \"cone\""));
     CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "sphere", "radius": 1},
                                                        "mass": 2}])")),
                Contains("rigid_bodies[0].mass: only dynamic bodies have a mass"));
-    CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"name": "a", "shape": {"type": "sphere", "radius": 1}},
+    CHECK_THAT(errorOf(withCloth(
+                   R"("rigid_bodies": [{"name": "a", "shape": {"type": "sphere", "radius": 1}},
                                                       {"name": "a", "shape": {"type": "sphere", "radius": 1}}])")),
                Contains("rigid_bodies[1].name: \"a\" is used by rigid_bodies[0] already"));
     CHECK_THAT(errorOf(withCloth(R"("attachments": [{"body": "pole", "indices": [0]}])")),
@@ -173,9 +177,11 @@ TEST_CASE("broken scenes are refused with the path of the field", "[scene][error
     CHECK_THAT(errorOf(withCloth(R"("camera": {"width": 100000})")),
                Contains("camera.width: must be in [16, 8192]"));
     CHECK_THAT(errorOf(withCloth(R"("cloth2": 1)")), Contains("cloth2: unknown field"));
-    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "colls": 5, "spacing": 0.1},
+    CHECK_THAT(
+        errorOf(R"({"cloth": {"sheet": {"rows": 4, "colls": 5, "spacing": 0.1},
                            "particle_mass": 0.01, "stiffness": 50.0}})"),
-               Contains("cloth.sheet.cols: required field is missing (is \"colls\" a misspelling of it?)"));
+        Contains(
+            "cloth.sheet.cols: required field is missing (is \"colls\" a misspelling of it?)"));
     CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
                            "particle_mass": 0.01, "stiffness": 50.0, "front_color": [2, 0, 0]}})"),
                Contains("cloth.front_color[0]: colour components are in [0, 1]"));
@@ -183,7 +189,8 @@ TEST_CASE("broken scenes are refused with the path of the field", "[scene][error
 
 TEST_CASE("a missing or unreadable scene file is named", "[scene][errors]") {
     using Catch::Matchers::Contains;
-    CHECK_THROWS_WITH(loadScene("/nonexistent/scene.json"), Contains("scene.json: scene file not found"));
+    CHECK_THROWS_WITH(loadScene("/nonexistent/scene.json"),
+                      Contains("scene.json: scene file not found"));
     CHECK_THROWS_WITH(loadScene(kScenes), Contains("is a folder"));
 }
 

@@ -44,14 +44,16 @@ TEST_CASE("every shipped scene builds and runs a few steps", "[scenes]") {
             continue;
         }
         bool usesMeshFiles = scene.mesh.has_value();
-        for (const auto& b : scene.rigidBodies) usesMeshFiles = usesMeshFiles || b.shape.kind == ShapeKind::Mesh;
+        for (const auto& b : scene.rigidBodies)
+            usesMeshFiles = usesMeshFiles || b.shape.kind == ShapeKind::Mesh;
         if (usesMeshFiles && !meshIoAvailable()) {
             WARN("skipped (no assimp in this build): " << file);
             continue;
         }
         Simulation sim(scene);
         const Vec3List start = sim.cloth().positions();
-        for (int k = 0; k < 5; ++k) sim.step();
+        for (int k = 0; k < 5; ++k)
+            sim.step();
         CHECK(sim.steps() == 5);
         CHECK(sim.time() == Approx(5 * scene.timeStep));
         CHECK(allFinite(sim.cloth().positions()));
@@ -73,7 +75,8 @@ TEST_CASE("Experiment I pins exactly the two top corners, which never move", "[s
     REQUIRE(sim.pinnedParticles().size() == 1);
     CHECK(sim.pinnedParticles()[0] == std::vector<Index>{0, 34});
     const Vec3 a = sim.cloth().positions()[0], b = sim.cloth().positions()[34];
-    for (int k = 0; k < 20; ++k) sim.step();
+    for (int k = 0; k < 20; ++k)
+        sim.step();
     CHECK(sim.cloth().positions()[0] == a);
     CHECK(sim.cloth().positions()[34] == b);
     CHECK(sim.cloth().positions()[35].y() < -10.0); // the row below fell
@@ -82,14 +85,18 @@ TEST_CASE("Experiment I pins exactly the two top corners, which never move", "[s
 }
 
 TEST_CASE("pins by named group and by region box select the right particles", "[scenes]") {
-    if (!meshIoAvailable()) { WARN("skipped: built without assimp"); return; }
+    if (!meshIoAvailable()) {
+        WARN("skipped: built without assimp");
+        return;
+    }
     SceneDesc curtain = loadScene(kScenes / "curtain_ball.json");
     curtain.rigidBodies.clear(); // only the cloth matters here
     curtain.collision.reset();
     Simulation sim(curtain);
     REQUIRE(sim.pinnedParticles().size() == 1);
     CHECK(sim.pinnedParticles()[0].size() == 52); // the top two rows of 26
-    for (Index i : sim.pinnedParticles()[0]) CHECK(sim.cloth().isPinned(i));
+    for (Index i : sim.pinnedParticles()[0])
+        CHECK(sim.cloth().isPinned(i));
 
     SceneDesc flag = loadScene(kScenes / "flag_in_wind.json");
     flag.rigidBodies.clear();
@@ -97,7 +104,8 @@ TEST_CASE("pins by named group and by region box select the right particles", "[
     Simulation f(flag);
     REQUIRE(f.pinnedParticles().size() == 1);
     CHECK(f.pinnedParticles()[0].size() == 21); // the column at the pole
-    for (Index i : f.pinnedParticles()[0]) CHECK(i % 31 == 0);
+    for (Index i : f.pinnedParticles()[0])
+        CHECK(i % 31 == 0);
 }
 
 TEST_CASE("runScene writes frames, a CSV row per frame and the final mesh in particle order",
@@ -121,7 +129,9 @@ TEST_CASE("runScene writes frames, a CSV row per frame and the final mesh in par
     std::ifstream csv(o.outDir / "stats.csv");
     std::string line;
     std::getline(csv, line);
-    CHECK(line.rfind("frame,time_s,steps,max_strain,mean_strain,kinetic_energy_J,lowest_point_m,contacts,wall_ms_per_step", 0) == 0);
+    CHECK(line.rfind("frame,time_s,steps,max_strain,mean_strain,kinetic_energy_J,lowest_point_m,"
+                     "contacts,wall_ms_per_step",
+                     0) == 0);
     std::size_t rows = 0;
     double lastTime = -1.0;
     while (std::getline(csv, line)) {
@@ -145,7 +155,8 @@ TEST_CASE("runScene writes frames, a CSV row per frame and the final mesh in par
     if (meshIoAvailable()) {
         // The exported mesh is the cloth after 30 steps, vertex i = particle i.
         Simulation sim(loadScene(o.scene));
-        for (int k = 0; k < 30; ++k) sim.step();
+        for (int k = 0; k < 30; ++k)
+            sim.step();
         const ImportedMesh m = importMesh(o.outDir / "cloth_final.obj");
         REQUIRE(m.mesh.vertices.size() == sim.cloth().particleCount());
         REQUIRE(m.mesh.triangles.size() == sim.cloth().topology().triangleCount());
@@ -208,8 +219,12 @@ TEST_CASE("Experiment I: no spring at the suspension points stretches beyond the
     CHECK(worstAtPins > 0.05); // the corners do carry the sheet (the check is not vacuous)
 }
 
-TEST_CASE("Experiment II: the tablecloth lands on the desk top and rests there", "[scenes][physics]") {
-    if (!rigidBodiesAvailable()) { WARN("skipped: no Bullet integration"); return; }
+TEST_CASE("Experiment II: the tablecloth lands on the desk top and rests there",
+          "[scenes][physics]") {
+    if (!rigidBodiesAvailable()) {
+        WARN("skipped: no Bullet integration");
+        return;
+    }
     SceneDesc scene = loadScene(kScenes / "experiment2_tablecloth.json");
     Simulation sim(scene);
     // Centre particle (row 15, col 30) starts 60 above the desk's centre; the desk top is at
@@ -223,21 +238,26 @@ TEST_CASE("Experiment II: the tablecloth lands on the desk top and rests there",
         maxContacts = std::max(maxContacts, sim.contactCount());
     }
     const Vec3 c = sim.cloth().positions()[centre];
-    CHECK(c.y() > 5.0);          // on top of the desk, not through it
-    CHECK(c.y() < 5.0 + 3.0);    // within a few thicknesses of its surface
-    CHECK(std::abs(c.x() - x0) < 20.0); // it fell straight down, did not slide off
-    CHECK(maxContacts > 100);    // a good part of the cloth touches the desk
+    CHECK(c.y() > 5.0);                             // on top of the desk, not through it
+    CHECK(c.y() < 5.0 + 3.0);                       // within a few thicknesses of its surface
+    CHECK(std::abs(c.x() - x0) < 20.0);             // it fell straight down, did not slide off
+    CHECK(maxContacts > 100);                       // a good part of the cloth touches the desk
     CHECK(sim.stats().lowestPoint > -150.0 - 1e-6); // nothing fell through the floor
 }
 
-TEST_CASE("curtain_ball: the curtain stops the ball and is pushed back by it", "[scenes][physics]") {
-    if (!rigidBodiesAvailable() || !meshIoAvailable()) { WARN("skipped: no Bullet or assimp"); return; }
+TEST_CASE("curtain_ball: the curtain stops the ball and is pushed back by it",
+          "[scenes][physics]") {
+    if (!rigidBodiesAvailable() || !meshIoAvailable()) {
+        WARN("skipped: no Bullet or assimp");
+        return;
+    }
     Simulation sim(loadScene(kScenes / "curtain_ball.json"));
     // The ball leaves z = 2.5 at 6 m/s towards the curtain (z = 0) at t = 0.5 s.
     double deepestCloth = 0.0;
     while (sim.time() < 2.0 - 1e-9) {
         sim.step();
-        for (const Vec3& x : sim.cloth().positions()) deepestCloth = std::min(deepestCloth, x.z());
+        for (const Vec3& x : sim.cloth().positions())
+            deepestCloth = std::min(deepestCloth, x.z());
     }
     const Vec3 ball = sim.bodyPosition("ball");
     const Vec3 v = sim.bodyVelocity("ball");
@@ -249,7 +269,10 @@ TEST_CASE("curtain_ball: the curtain stops the ball and is pushed back by it", "
 
 TEST_CASE("attachments follow a kinematic body along its keyframes and index pins stay put",
           "[scenes]") {
-    if (!rigidBodiesAvailable()) { WARN("skipped: no Bullet integration"); return; }
+    if (!rigidBodiesAvailable()) {
+        WARN("skipped: no Bullet integration");
+        return;
+    }
     // A 5 x 5 sheet hangs from a bar that moves 1 m along +x during the first second; its
     // bottom-left corner is pinned by index.
     const SceneDesc scene = parseScene(R"({
@@ -263,14 +286,16 @@ TEST_CASE("attachments follow a kinematic body along its keyframes and index pin
                                       {"time": 1, "position": [1.2, 1.03, 0]}]}],
       "attachments": [{"body": "bar", "grid": [[0, 0], [0, 2], [0, 4]]}],
       "collision": {"thickness": 0.005}
-    })", "attach.json", kScenes);
+    })",
+                                       "attach.json", kScenes);
     Simulation sim(scene);
     REQUIRE(sim.attachedParticles().size() == 1);
     CHECK(sim.attachedParticles()[0] == std::vector<Index>{0, 2, 4});
     CHECK(sim.pinnedParticles()[0] == std::vector<Index>{20});
     const Vec3 a0 = sim.cloth().positions()[0], a4 = sim.cloth().positions()[4];
     const Vec3 p20 = sim.cloth().positions()[20];
-    while (sim.time() < 1.2 - 1e-9) sim.step();
+    while (sim.time() < 1.2 - 1e-9)
+        sim.step();
     // The bar moved by (1, 0, 0); attached particles move with it (to float precision of
     // Bullet's transforms), and the bar holds still after its last keyframe.
     CHECK((sim.cloth().positions()[0] - (a0 + Vec3(1, 0, 0))).norm() < 1e-4);

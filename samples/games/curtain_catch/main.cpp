@@ -30,15 +30,16 @@ namespace {
 
 /// Deterministic stand-in for a player (a 64-bit linear congruential generator).
 class ScriptedPlayer {
-public:
-    explicit ScriptedPlayer(std::uint64_t seed) : state_(seed * 2862933555777941757ull + 3037000493ull) {}
+  public:
+    explicit ScriptedPlayer(std::uint64_t seed)
+        : state_(seed * 2862933555777941757ull + 3037000493ull) {}
     double uniform(double lo, double hi) {
         state_ = state_ * 6364136223846793005ull + 1442695040888963407ull;
         const double u = static_cast<double>(state_ >> 11) / 9007199254740992.0; // [0, 1)
         return lo + (hi - lo) * u;
     }
 
-private:
+  private:
     std::uint64_t state_;
 };
 
@@ -53,21 +54,29 @@ struct Ball {
 
 const char* toString(BallState s) {
     switch (s) {
-    case BallState::Idle: return "idle";
-    case BallState::Flying: return "flying";
-    case BallState::Stopped: return "stopped";
-    case BallState::Through: return "through";
-    case BallState::Missed: return "missed";
+    case BallState::Idle:
+        return "idle";
+    case BallState::Flying:
+        return "flying";
+    case BallState::Stopped:
+        return "stopped";
+    case BallState::Through:
+        return "through";
+    case BallState::Missed:
+        return "missed";
     }
     return "?";
 }
 
 Color colourOf(BallState s) {
     switch (s) {
-    case BallState::Stopped: return {0.15f, 0.75f, 0.20f};
+    case BallState::Stopped:
+        return {0.15f, 0.75f, 0.20f};
     case BallState::Through:
-    case BallState::Missed: return {0.30f, 0.30f, 0.32f};
-    default: return {0.95f, 0.80f, 0.15f};
+    case BallState::Missed:
+        return {0.30f, 0.30f, 0.32f};
+    default:
+        return {0.95f, 0.80f, 0.15f};
     }
 }
 
@@ -99,8 +108,8 @@ int main(int argc, char** argv) {
         Simulation sim(scene);
         const double dt = scene.timeStep;
         const double frameDt = 1.0 / scene.output.fps;
-        const double throwInterval = 0.8;  // [s] between throws
-        const double judgeAfter = 1.4;     // [s] of flight before a throw is judged
+        const double throwInterval = 0.8; // [s] between throws
+        const double judgeAfter = 1.4;    // [s] of flight before a throw is judged
         const double curtainZ = 0.0, halfWidth = 1.0, top = 2.4, bottom = 0.24;
 
         std::vector<Ball> balls;
@@ -130,7 +139,8 @@ int main(int argc, char** argv) {
             while (accumulator >= dt) {
                 const double t = sim.time();
                 // Scripted input: throw the next ball when it is time.
-                if (thrown < throws && t >= nextThrow && balls[nextBall].state != BallState::Flying) {
+                if (thrown < throws && t >= nextThrow &&
+                    balls[nextBall].state != BallState::Flying) {
                     Ball& b = balls[nextBall];
                     const double aimX = player.uniform(-1.5, 1.5);
                     const double aimY = player.uniform(0.5, 2.1);
@@ -156,7 +166,8 @@ int main(int argc, char** argv) {
                 // Judge balls that have flown long enough: behind the curtain = through.
                 for (std::size_t i = 0; i < balls.size(); ++i) {
                     Ball& b = balls[i];
-                    if (b.state != BallState::Flying || sim.time() - b.thrownAt < judgeAfter) continue;
+                    if (b.state != BallState::Flying || sim.time() - b.thrownAt < judgeAfter)
+                        continue;
                     const Vec3 p = sim.bodyPosition(b.name);
                     // A stopped ball drops at the curtain (it may roll a little way under it);
                     // one that got past is still flying or rolling fast, far behind it.
@@ -171,22 +182,24 @@ int main(int argc, char** argv) {
                     results.resize(static_cast<std::size_t>(throws), BallState::Idle);
                     results[static_cast<std::size_t>(throwIndex[i])] = b.state;
                     log << throwIndex[i] << ',' << b.name << ',' << b.thrownAt << ',' << aims[i][0]
-                        << ',' << aims[i][1] << ',' << aims[i][2] << ',' << (aims[i][3] > 0 ? "yes" : "no")
-                        << ',' << toString(b.state) << '\n';
+                        << ',' << aims[i][1] << ',' << aims[i][2] << ','
+                        << (aims[i][3] > 0 ? "yes" : "no") << ',' << toString(b.state) << '\n';
                     std::cout << "throw " << throwIndex[i] + 1 << ": " << toString(b.state)
                               << "  (score " << stopped << "/" << scored << ")\n";
                 }
             }
             if (renderer) {
                 std::vector<DrawMesh> meshes;
-                meshes.push_back(toDrawMesh(sim.cloth().positions(), sim.cloth().topology().triangles(),
-                                            scene.frontColor, scene.backColor));
+                meshes.push_back(toDrawMesh(sim.cloth().positions(),
+                                            sim.cloth().topology().triangles(), scene.frontColor,
+                                            scene.backColor));
                 for (const BodyView& bv : sim.bodies()) {
                     for (const DrawMesh& m : *bv.meshes) {
                         meshes.push_back(m);
                         meshes.back().model = bv.transform;
                         for (const Ball& b : balls)
-                            if (b.name == bv.name) meshes.back().front = meshes.back().back = colourOf(b.state);
+                            if (b.name == bv.name)
+                                meshes.back().front = meshes.back().back = colourOf(b.state);
                     }
                 }
                 // Scoreboard: a row of cubes above the rail, one per throw (green = stopped,
@@ -194,12 +207,14 @@ int main(int argc, char** argv) {
                 for (int k = 0; k < throws; ++k) {
                     const double spacing = std::min(0.3, 2.6 / throws);
                     DrawMesh cube = makeBoxMesh(Vec3::Constant(0.35 * spacing));
-                    cube.model(0, 3) = static_cast<float>(-0.5 * spacing * (throws - 1) + spacing * k);
+                    cube.model(0, 3) =
+                        static_cast<float>(-0.5 * spacing * (throws - 1) + spacing * k);
                     cube.model(1, 3) = 2.75f;
                     const BallState r = static_cast<std::size_t>(k) < results.size()
                                             ? results[static_cast<std::size_t>(k)]
                                             : BallState::Idle;
-                    cube.front = cube.back = r == BallState::Idle ? Color{0.85f, 0.85f, 0.85f} : colourOf(r);
+                    cube.front = cube.back =
+                        r == BallState::Idle ? Color{0.85f, 0.85f, 0.85f} : colourOf(r);
                     meshes.push_back(std::move(cube));
                 }
                 char name[32];
@@ -208,12 +223,13 @@ int main(int argc, char** argv) {
                          renderer->render(scene.camera, meshes, scene.output.background));
             }
             ++frame;
-            if (sim.time() > 600.0) throw SceneError("the game did not finish in 600 simulated seconds");
+            if (sim.time() > 600.0)
+                throw SceneError("the game did not finish in 600 simulated seconds");
         }
         std::ofstream(std::filesystem::path(out) / "score.txt")
             << "stopped " << stopped << " of " << throws << " balls\n";
-        std::cout << "final score: the curtain stopped " << stopped << " of " << throws << " balls in "
-                  << sim.time() << " s (" << frame << " frames)\n";
+        std::cout << "final score: the curtain stopped " << stopped << " of " << throws
+                  << " balls in " << sim.time() << " s (" << frame << " frames)\n";
     } catch (const std::exception& e) {
         std::cerr << "curtain_catch: error: " << e.what() << "\n";
         return 1;

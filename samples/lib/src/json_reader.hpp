@@ -21,14 +21,15 @@ using Json = nlohmann::json;
 
 enum class Range { Any, Positive, NonNegative, UnitInterval };
 
-inline std::string typeName(const Json& j) { return j.type_name(); }
+inline std::string typeName(const Json& j) {
+    return j.type_name();
+}
 
 class JsonObject {
-public:
+  public:
     JsonObject(const Json& j, std::string path, std::string origin)
         : j_(j), path_(std::move(path)), origin_(std::move(origin)) {
-        if (!j_.is_object())
-            fail(path_, "expected an object, got " + typeName(j_));
+        if (!j_.is_object()) fail(path_, "expected an object, got " + typeName(j_));
     }
 
     const std::string& path() const { return path_; }
@@ -69,11 +70,13 @@ public:
 
     static std::size_t editDistance(const std::string& a, const std::string& b) {
         std::vector<std::size_t> prev(b.size() + 1), cur(b.size() + 1);
-        for (std::size_t j = 0; j <= b.size(); ++j) prev[j] = j;
+        for (std::size_t j = 0; j <= b.size(); ++j)
+            prev[j] = j;
         for (std::size_t i = 1; i <= a.size(); ++i) {
             cur[0] = i;
             for (std::size_t j = 1; j <= b.size(); ++j)
-                cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] == b[j - 1] ? 0u : 1u)});
+                cur[j] = std::min(
+                    {prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] == b[j - 1] ? 0u : 1u)});
             std::swap(prev, cur);
         }
         return prev[b.size()];
@@ -84,7 +87,8 @@ public:
         const double x = v.get<double>();
         if (!std::isfinite(x)) fail(path, "must be finite");
         switch (r) {
-        case Range::Any: break;
+        case Range::Any:
+            break;
         case Range::Positive:
             if (!(x > 0.0)) fail(path, "must be > 0, got " + fmt(x));
             break;
@@ -110,13 +114,14 @@ public:
             if (v.is_number_float()) fail(path, "expected an integer, got " + v.dump());
             fail(path, "expected an integer, got " + typeName(v));
         }
-        if (v.is_number_unsigned() && v.get<unsigned long long>() > static_cast<unsigned long long>(hi))
+        if (v.is_number_unsigned() &&
+            v.get<unsigned long long>() > static_cast<unsigned long long>(hi))
             fail(path, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " +
                            v.dump());
         const long long x = v.get<long long>();
         if (x < lo || x > hi)
-            fail(path, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) +
-                           "], got " + std::to_string(x));
+            fail(path, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " +
+                           std::to_string(x));
         return x;
     }
     long long integer(const std::string& key, long long def, long long lo, long long hi) {
@@ -149,15 +154,16 @@ public:
         for (const auto& c : choices)
             if (c == s) return s;
         std::string list;
-        for (const auto& c : choices) list += (list.empty() ? "" : ", ") + ("\"" + c + "\"");
+        for (const auto& c : choices)
+            list += (list.empty() ? "" : ", ") + ("\"" + c + "\"");
         failKey(key, "unknown value \"" + s + "\" (expected one of " + list + ")");
     }
 
     Vec3 toVec3(const Json& v, const std::string& path) const {
         if (!v.is_array() || v.size() != 3)
-            fail(path, "expected an array of 3 numbers, got " +
-                           (v.is_array() ? "an array of " + std::to_string(v.size())
-                                         : typeName(v)));
+            fail(path,
+                 "expected an array of 3 numbers, got " +
+                     (v.is_array() ? "an array of " + std::to_string(v.size()) : typeName(v)));
         Vec3 r;
         for (int i = 0; i < 3; ++i)
             r[i] = toNumber(v[static_cast<std::size_t>(i)], path + "[" + std::to_string(i) + "]",
@@ -177,7 +183,8 @@ public:
         Color out{};
         for (int i = 0; i < 3; ++i) {
             if (c[i] < 0.0 || c[i] > 1.0)
-                fail(pathOf(key) + "[" + std::to_string(i) + "]", "colour components are in [0, 1]");
+                fail(pathOf(key) + "[" + std::to_string(i) + "]",
+                     "colour components are in [0, 1]");
             out[static_cast<std::size_t>(i)] = static_cast<float>(c[i]);
         }
         return out;
@@ -208,7 +215,8 @@ public:
         for (auto it = j_.begin(); it != j_.end(); ++it) {
             if (known_.count(it.key())) continue;
             std::string list;
-            for (const auto& k : known_) list += (list.empty() ? "" : ", ") + k;
+            for (const auto& k : known_)
+                list += (list.empty() ? "" : ", ") + k;
             fail(pathOf(it.key()), "unknown field (fields allowed here: " + list + ")");
         }
     }
@@ -221,7 +229,7 @@ public:
         return buf;
     }
 
-private:
+  private:
     const Json& j_;
     std::string path_;
     std::string origin_;

@@ -32,10 +32,12 @@ void transformMesh(TriangleMesh& mesh, const Vec3& scale, const Vec3& rotationDe
                                Eigen::AngleAxisd(rotationDeg.y() * d2r, Vec3::UnitY()) *
                                Eigen::AngleAxisd(rotationDeg.x() * d2r, Vec3::UnitX()))
                                   .toRotationMatrix();
-    for (Vec3& v : mesh.vertices) v = r * v.cwiseProduct(scale) + translation;
+    for (Vec3& v : mesh.vertices)
+        v = r * v.cwiseProduct(scale) + translation;
     // A mirroring scale flips every triangle; restore counter-clockwise order.
     if (scale.x() * scale.y() * scale.z() < 0.0)
-        for (Triangle& t : mesh.triangles) std::swap(t[1], t[2]);
+        for (Triangle& t : mesh.triangles)
+            std::swap(t[1], t[2]);
 }
 
 ImportedMesh importMesh(const MeshDesc& desc) {
@@ -46,13 +48,16 @@ ImportedMesh importMesh(const MeshDesc& desc) {
 
 #if DRAPE_SAMPLES_HAVE_ASSIMP
 
-bool meshIoAvailable() { return true; }
+bool meshIoAvailable() {
+    return true;
+}
 
 namespace {
 
 std::string lowerExtension(const std::filesystem::path& file) {
     std::string ext = file.extension().string();
-    for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    for (char& ch : ext)
+        ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
     return ext;
 }
 
@@ -96,8 +101,10 @@ void gather(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent,
             out.mesh.triangles.push_back(t);
         }
         std::vector<Index> all(m.mNumVertices);
-        for (unsigned i = 0; i < m.mNumVertices; ++i) all[i] = static_cast<Index>(base + i);
-        for (const std::string& name : {std::string(m.mName.C_Str()), std::string(node.mName.C_Str())}) {
+        for (unsigned i = 0; i < m.mNumVertices; ++i)
+            all[i] = static_cast<Index>(base + i);
+        for (const std::string& name :
+             {std::string(m.mName.C_Str()), std::string(node.mName.C_Str())}) {
             if (name.empty()) continue;
             auto& g = out.rawGroups[name];
             g.insert(g.end(), all.begin(), all.end());
@@ -121,8 +128,8 @@ ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance)
     Assimp::Importer importer;
     // Points and lines stay in their meshes (they are skipped below) so that the order of
     // first use of every vertex is the file's order.
-    const aiScene* scene = importer.ReadFile(file.string(), aiProcess_Triangulate |
-                                                                aiProcess_ValidateDataStructure);
+    const aiScene* scene =
+        importer.ReadFile(file.string(), aiProcess_Triangulate | aiProcess_ValidateDataStructure);
     if (!scene || !scene->mRootNode)
         meshFail(file, std::string("assimp cannot read it: ") + importer.GetErrorString());
     if (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE)
@@ -131,10 +138,10 @@ ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance)
     RawMesh raw;
     gather(*scene, *scene->mRootNode, aiMatrix4x4(), raw, file);
     if (raw.mesh.triangles.empty())
-        meshFail(file, "contains no triangles" +
-                           (raw.skipped ? " (only " + std::to_string(raw.skipped) +
-                                              " points or lines)"
-                                        : std::string()));
+        meshFail(file,
+                 "contains no triangles" +
+                     (raw.skipped ? " (only " + std::to_string(raw.skipped) + " points or lines)"
+                                  : std::string()));
 
     double tol = weldTolerance;
     if (tol < 0.0) {
@@ -154,7 +161,8 @@ ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance)
     // Drop vertices no triangle uses (point clouds, helper vertices), keeping the order.
     std::vector<Index> used(welded.mesh.vertices.size(), 0);
     for (const Triangle& t : welded.mesh.triangles)
-        for (Index i : t) used[i] = 1;
+        for (Index i : t)
+            used[i] = 1;
     std::vector<Index> compact(used.size(), Index(-1));
     ImportedMesh out;
     for (std::size_t i = 0; i < used.size(); ++i)
@@ -188,31 +196,39 @@ ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance)
 void exportMesh(const TriangleMesh& mesh, const std::filesystem::path& file) {
     const std::string ext = lowerExtension(file);
     const char* format = nullptr;
-    if (ext == ".obj") format = "objnomtl";
-    else if (ext == ".ply") format = "ply";
-    else if (ext == ".gltf") format = "gltf2";
-    else if (ext == ".glb") format = "glb2";
+    if (ext == ".obj")
+        format = "objnomtl";
+    else if (ext == ".ply")
+        format = "ply";
+    else if (ext == ".gltf")
+        format = "gltf2";
+    else if (ext == ".glb")
+        format = "glb2";
     // STL and 3DS are left out: STL has no shared vertices and assimp's 3DS writer splits
     // them, so neither could keep vertex i of the cloth as vertex i of the file.
-    else meshFail(file, "unknown mesh format \"" + ext + "\" for export (use .obj, .ply, .gltf or .glb)");
+    else
+        meshFail(file,
+                 "unknown mesh format \"" + ext + "\" for export (use .obj, .ply, .gltf or .glb)");
     if (mesh.vertices.empty() || mesh.triangles.empty()) meshFail(file, "nothing to export");
 
     // Area-weighted vertex normals, so that other tools shade the mesh smoothly.
     std::vector<Vec3> normals(mesh.vertices.size(), Vec3::Zero());
     for (const Triangle& t : mesh.triangles) {
-        if (t[0] >= mesh.vertices.size() || t[1] >= mesh.vertices.size() || t[2] >= mesh.vertices.size())
+        if (t[0] >= mesh.vertices.size() || t[1] >= mesh.vertices.size() ||
+            t[2] >= mesh.vertices.size())
             meshFail(file, "triangle index out of range");
         const Vec3 n = (mesh.vertices[t[1]] - mesh.vertices[t[0]])
                            .cross(mesh.vertices[t[2]] - mesh.vertices[t[0]]);
-        for (Index i : t) normals[i] += n;
+        for (Index i : t)
+            normals[i] += n;
     }
 
     aiScene scene;
     scene.mRootNode = new aiNode("cloth");
     scene.mNumMaterials = 1;
-    scene.mMaterials = new aiMaterial*[1]{new aiMaterial()};
+    scene.mMaterials = new aiMaterial* [1] { new aiMaterial() };
     scene.mNumMeshes = 1;
-    scene.mMeshes = new aiMesh*[1]{new aiMesh()};
+    scene.mMeshes = new aiMesh* [1] { new aiMesh() };
     scene.mRootNode->mNumMeshes = 1;
     scene.mRootNode->mMeshes = new unsigned[1]{0};
     aiMesh& m = *scene.mMeshes[0];
@@ -243,7 +259,8 @@ void exportMesh(const TriangleMesh& mesh, const std::filesystem::path& file) {
     for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
         aiFace& f = m.mFaces[pointFaces + t];
         f.mNumIndices = 3;
-        f.mIndices = new unsigned[3]{mesh.triangles[t][0], mesh.triangles[t][1], mesh.triangles[t][2]};
+        f.mIndices =
+            new unsigned[3]{mesh.triangles[t][0], mesh.triangles[t][1], mesh.triangles[t][2]};
     }
     m.mPrimitiveTypes = static_cast<unsigned>(aiPrimitiveType_TRIANGLE) |
                         (pointPrefix ? static_cast<unsigned>(aiPrimitiveType_POINT) : 0u);
@@ -255,7 +272,9 @@ void exportMesh(const TriangleMesh& mesh, const std::filesystem::path& file) {
 
 #else // no assimp
 
-bool meshIoAvailable() { return false; }
+bool meshIoAvailable() {
+    return false;
+}
 
 ImportedMesh importMesh(const std::filesystem::path& file, double) {
     meshFail(file, "this build has no mesh import (configure with -DDRAPE_WITH_ASSIMP=ON)");

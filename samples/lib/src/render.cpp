@@ -1,8 +1,8 @@
 // render.cpp: OSMesa offscreen rendering (fixed-function OpenGL) and PNG I/O through libpng.
 #include "drape_samples/render.hpp"
 
-#include <GL/osmesa.h>
 #include <GL/gl.h>
+#include <GL/osmesa.h>
 #include <png.h>
 
 #include <Eigen/Geometry>
@@ -12,7 +12,9 @@
 
 namespace drape::samples {
 
-bool renderingAvailable() { return true; }
+bool renderingAvailable() {
+    return true;
+}
 
 struct OffscreenRenderer::Impl {
     OSMesaContext context = nullptr;
@@ -24,9 +26,11 @@ OffscreenRenderer::OffscreenRenderer(int width, int height, int supersample)
     : width_(width), height_(height), ss_(supersample < 1 ? 1 : supersample) {
     if (width < 1 || height < 1 || width > kMaxImageSide || height > kMaxImageSide)
         throw SceneError("renderer: image size " + std::to_string(width) + "x" +
-                         std::to_string(height) + " is outside 1.." + std::to_string(kMaxImageSide));
+                         std::to_string(height) + " is outside 1.." +
+                         std::to_string(kMaxImageSide));
     // Keep the supersampled buffer within OSMesa's maximum viewport.
-    while (ss_ > 1 && (width * ss_ > 4096 || height * ss_ > 4096)) --ss_;
+    while (ss_ > 1 && (width * ss_ > 4096 || height * ss_ > 4096))
+        --ss_;
     impl_ = new Impl;
     impl_->w = width * ss_;
     impl_->h = height * ss_;
@@ -35,7 +39,8 @@ OffscreenRenderer::OffscreenRenderer(int width, int height, int supersample)
         delete impl_;
         throw SceneError("renderer: OSMesa could not create an OpenGL context");
     }
-    impl_->buffer.assign(static_cast<std::size_t>(impl_->w) * static_cast<std::size_t>(impl_->h) * 4u, 0);
+    impl_->buffer.assign(
+        static_cast<std::size_t>(impl_->w) * static_cast<std::size_t>(impl_->h) * 4u, 0);
 }
 
 OffscreenRenderer::~OffscreenRenderer() {
@@ -87,7 +92,8 @@ void setMaterial(GLenum face, const Color& c) {
 
 Image OffscreenRenderer::render(const CameraDesc& camera, const std::vector<DrawMesh>& meshes,
                                 const Color& background) {
-    if (!OSMesaMakeCurrent(impl_->context, impl_->buffer.data(), GL_UNSIGNED_BYTE, impl_->w, impl_->h))
+    if (!OSMesaMakeCurrent(impl_->context, impl_->buffer.data(), GL_UNSIGNED_BYTE, impl_->w,
+                           impl_->h))
         throw SceneError("renderer: OSMesa could not bind the framebuffer");
     glViewport(0, 0, impl_->w, impl_->h);
     glClearColor(background[0], background[1], background[2], 1.0f);
@@ -168,15 +174,19 @@ Image OffscreenRenderer::render(const CameraDesc& camera, const std::vector<Draw
             for (int dy = 0; dy < s; ++dy)
                 for (int dx = 0; dx < s; ++dx) {
                     const int by = (height_ - 1 - y) * s + dy; // OSMesa rows start at the bottom
-                    const std::size_t o = (static_cast<std::size_t>(by) * static_cast<std::size_t>(impl_->w) +
-                                           static_cast<std::size_t>(x * s + dx)) * 4u;
-                    for (int c = 0; c < 3; ++c) sum[c] += impl_->buffer[o + static_cast<std::size_t>(c)];
+                    const std::size_t o =
+                        (static_cast<std::size_t>(by) * static_cast<std::size_t>(impl_->w) +
+                         static_cast<std::size_t>(x * s + dx)) *
+                        4u;
+                    for (int c = 0; c < 3; ++c)
+                        sum[c] += impl_->buffer[o + static_cast<std::size_t>(c)];
                 }
             const std::size_t o = (static_cast<std::size_t>(y) * static_cast<std::size_t>(width_) +
-                                   static_cast<std::size_t>(x)) * 3u;
+                                   static_cast<std::size_t>(x)) *
+                                  3u;
             for (int c = 0; c < 3; ++c)
-                img.rgb[o + static_cast<std::size_t>(c)] =
-                    static_cast<std::uint8_t>((sum[c] + static_cast<unsigned>(s * s / 2)) / static_cast<unsigned>(s * s));
+                img.rgb[o + static_cast<std::size_t>(c)] = static_cast<std::uint8_t>(
+                    (sum[c] + static_cast<unsigned>(s * s / 2)) / static_cast<unsigned>(s * s));
         }
     return img;
 }

@@ -9,15 +9,23 @@ namespace {
 }
 } // namespace
 
-bool renderingAvailable() { return false; }
+bool renderingAvailable() {
+    return false;
+}
 
 struct OffscreenRenderer::Impl {};
-OffscreenRenderer::OffscreenRenderer(int, int, int) { noRenderer(); }
+OffscreenRenderer::OffscreenRenderer(int, int, int) {
+    noRenderer();
+}
 OffscreenRenderer::~OffscreenRenderer() = default;
 Image OffscreenRenderer::render(const CameraDesc&, const std::vector<DrawMesh>&, const Color&) {
     noRenderer();
 }
-void writePng(const std::filesystem::path&, const Image&) { noRenderer(); }
-Image readPng(const std::filesystem::path&) { noRenderer(); }
+void writePng(const std::filesystem::path&, const Image&) {
+    noRenderer();
+}
+Image readPng(const std::filesystem::path&) {
+    noRenderer();
+}
 
 } // namespace drape::samples

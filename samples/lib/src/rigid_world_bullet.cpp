@@ -16,16 +16,21 @@
 
 namespace drape::samples {
 
-bool rigidBodiesAvailable() { return true; }
+bool rigidBodiesAvailable() {
+    return true;
+}
 
 namespace {
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
 btVector3 bt(const Vec3& v) {
-    return btVector3(static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()), static_cast<btScalar>(v.z()));
+    return btVector3(static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()),
+                     static_cast<btScalar>(v.z()));
 }
-Vec3 toVec(const btVector3& v) { return Vec3(v.x(), v.y(), v.z()); }
+Vec3 toVec(const btVector3& v) {
+    return Vec3(v.x(), v.y(), v.z());
+}
 
 btQuaternion rotation(const Vec3& deg) {
     const Eigen::Quaterniond q = Eigen::AngleAxisd(deg.z() * kDegToRad, Vec3::UnitZ()) *
@@ -45,23 +50,26 @@ btTransform keyframePose(const std::vector<KeyframeDesc>& keys, const RigidBodyD
     if (t <= keys.front().time) return pose(keys.front().position, keys.front().rotationDeg);
     if (t >= keys.back().time) return pose(keys.back().position, keys.back().rotationDeg);
     std::size_t k = 0;
-    while (keys[k + 1].time < t) ++k;
+    while (keys[k + 1].time < t)
+        ++k;
     const KeyframeDesc& a = keys[k];
     const KeyframeDesc& c = keys[k + 1];
     const double s = (t - a.time) / (c.time - a.time);
     const Vec3 p = a.position + s * (c.position - a.position);
-    const btQuaternion q = rotation(a.rotationDeg).slerp(rotation(c.rotationDeg), static_cast<btScalar>(s));
+    const btQuaternion q =
+        rotation(a.rotationDeg).slerp(rotation(c.rotationDeg), static_cast<btScalar>(s));
     return btTransform(q, bt(p));
 }
 
 class BulletWorld final : public Simulation::RigidWorld {
-public:
-    BulletWorld(const SceneDesc& scene, Cloth& cloth, const std::vector<std::vector<Index>>& attachSets)
-        : scene_(scene),
-          dispatcher_(&config_),
+  public:
+    BulletWorld(const SceneDesc& scene, Cloth& cloth,
+                const std::vector<std::vector<Index>>& attachSets)
+        : scene_(scene), dispatcher_(&config_),
           world_(&dispatcher_, &broadphase_, &solver_, &config_) {
         world_.setGravity(bt(scene.cloth.gravity));
-        for (const RigidBodyDesc& d : scene.rigidBodies) addBody(d);
+        for (const RigidBodyDesc& d : scene.rigidBodies)
+            addBody(d);
 
         // The cloth is owned by Simulation; the integration wants a shared_ptr, so hand it
         // a non-owning one (the world is destroyed before the cloth).
@@ -69,7 +77,8 @@ public:
         bullet::BulletClothSettings s;
         const CollisionDesc c = scene.collision.value_or(CollisionDesc{});
         double meanEdge = 0.0;
-        for (const Spring& sp : cloth.topology().springs()) meanEdge += sp.restLength;
+        for (const Spring& sp : cloth.topology().springs())
+            meanEdge += sp.restLength;
         meanEdge /= static_cast<double>(std::max<std::size_t>(1, cloth.topology().springCount()));
         s.contact.thickness = c.thickness > 0.0 ? c.thickness : 0.1 * meanEdge;
         s.contact.frictionScale = c.frictionScale;
@@ -83,7 +92,8 @@ public:
             cloth_ = bullet::addCloth(&world_, shared, s);
             for (std::size_t a = 0; a < scene.attachments.size(); ++a) {
                 const std::size_t b = bodyIndex(scene.attachments[a].body);
-                for (Index i : attachSets[a]) cloth_->attachHere(i, bodies_[b].body.get());
+                for (Index i : attachSets[a])
+                    cloth_->attachHere(i, bodies_[b].body.get());
             }
         } catch (const drape::Error& e) {
             throw SceneError(scene.sourceFile.string() + ": collision: " + e.what());
@@ -103,7 +113,8 @@ public:
             const RigidBodyDesc& d = scene_.rigidBodies[i];
             if (d.motion == MotionKind::Kinematic) {
                 b.motion->setWorldTransform(keyframePose(d.keyframes, d, t + dt));
-            } else if (d.motion == MotionKind::Dynamic && !b.inWorld && !b.manual && t + 0.5 * dt >= d.launchTime) {
+            } else if (d.motion == MotionKind::Dynamic && !b.inWorld && !b.manual &&
+                       t + 0.5 * dt >= d.launchTime) {
                 b.body->setLinearVelocity(bt(d.linearVelocity));
                 b.body->setAngularVelocity(bt(d.angularVelocity));
                 world_.addRigidBody(b.body.get());
@@ -119,18 +130,23 @@ public:
     Eigen::Matrix4f transform(std::size_t i) const override {
         btTransform tr;
         const Body& b = bodies_[i];
-        if (b.motion) b.motion->getWorldTransform(tr);
-        else tr = b.body->getWorldTransform();
+        if (b.motion)
+            b.motion->getWorldTransform(tr);
+        else
+            tr = b.body->getWorldTransform();
         Eigen::Matrix4f m = Eigen::Matrix4f::Identity();
         const btMatrix3x3& r = tr.getBasis();
         for (int row = 0; row < 3; ++row) {
-            for (int col = 0; col < 3; ++col) m(row, col) = static_cast<float>(r[row][col]);
+            for (int col = 0; col < 3; ++col)
+                m(row, col) = static_cast<float>(r[row][col]);
             m(row, 3) = static_cast<float>(tr.getOrigin()[row]);
         }
         return m;
     }
 
-    Vec3 velocity(std::size_t i) const override { return toVec(bodies_[i].body->getLinearVelocity()); }
+    Vec3 velocity(std::size_t i) const override {
+        return toVec(bodies_[i].body->getLinearVelocity());
+    }
 
     void launch(std::size_t i, const Vec3& position, const Vec3& velocity) override {
         Body& b = bodies_[i];
@@ -152,12 +168,14 @@ public:
 
     std::string description() const override {
         std::ostringstream s;
-        s << "bullet world, " << bodies_.size() << " rigid bod" << (bodies_.size() == 1 ? "y" : "ies");
-        if (!scene_.attachments.empty()) s << ", " << cloth_->attachments().size() << " attached particles";
+        s << "bullet world, " << bodies_.size() << " rigid bod"
+          << (bodies_.size() == 1 ? "y" : "ies");
+        if (!scene_.attachments.empty())
+            s << ", " << cloth_->attachments().size() << " attached particles";
         return s.str();
     }
 
-private:
+  private:
     struct Body {
         std::unique_ptr<btCollisionShape> shape;
         std::unique_ptr<btTriangleMesh> triangles; // for mesh shapes
@@ -176,7 +194,9 @@ private:
     void addBody(const RigidBodyDesc& d) {
         Body b;
         switch (d.shape.kind) {
-        case ShapeKind::Box: b.shape = std::make_unique<btBoxShape>(bt(d.shape.halfExtents)); break;
+        case ShapeKind::Box:
+            b.shape = std::make_unique<btBoxShape>(bt(d.shape.halfExtents));
+            break;
         case ShapeKind::Sphere:
             b.shape = std::make_unique<btSphereShape>(static_cast<btScalar>(d.shape.radius));
             break;
@@ -202,16 +222,19 @@ private:
         btVector3 inertia(0, 0, 0);
         const btScalar mass = dynamic ? static_cast<btScalar>(d.mass) : btScalar(0);
         if (dynamic) b.shape->calculateLocalInertia(mass, inertia);
-        const btTransform start = d.motion == MotionKind::Kinematic ? keyframePose(d.keyframes, d, 0.0)
-                                                                   : pose(d.position, d.rotationDeg);
-        if (d.motion == MotionKind::Kinematic) b.motion = std::make_unique<btDefaultMotionState>(start);
+        const btTransform start = d.motion == MotionKind::Kinematic
+                                      ? keyframePose(d.keyframes, d, 0.0)
+                                      : pose(d.position, d.rotationDeg);
+        if (d.motion == MotionKind::Kinematic)
+            b.motion = std::make_unique<btDefaultMotionState>(start);
         btRigidBody::btRigidBodyConstructionInfo info(mass, b.motion.get(), b.shape.get(), inertia);
         info.m_startWorldTransform = start;
         info.m_friction = static_cast<btScalar>(d.friction);
         info.m_restitution = static_cast<btScalar>(d.restitution);
         b.body = std::make_unique<btRigidBody>(info);
         if (d.motion == MotionKind::Kinematic) {
-            b.body->setCollisionFlags(b.body->getCollisionFlags() | btCollisionObject::CF_KINEMATIC_OBJECT);
+            b.body->setCollisionFlags(b.body->getCollisionFlags() |
+                                      btCollisionObject::CF_KINEMATIC_OBJECT);
             b.body->setActivationState(DISABLE_DEACTIVATION);
         }
         if (dynamic) {

@@ -41,7 +41,7 @@ bool onPath(const std::string& program) {
 }
 
 class Progress {
-public:
+  public:
     Progress(bool on, std::size_t total) : on_(on), total_(total), last_(Clock::now()) {}
     void update(std::size_t done, double t, bool force = false) {
         if (!on_) return;
@@ -51,7 +51,8 @@ public:
         const int width = 30;
         const double frac = total_ ? static_cast<double>(done) / static_cast<double>(total_) : 1.0;
         const int fill = static_cast<int>(frac * width);
-        std::fprintf(stderr, "\r[%s%s] %3d%%  step %zu/%zu  t = %.2f s", std::string(static_cast<std::size_t>(fill), '#').c_str(),
+        std::fprintf(stderr, "\r[%s%s] %3d%%  step %zu/%zu  t = %.2f s",
+                     std::string(static_cast<std::size_t>(fill), '#').c_str(),
                      std::string(static_cast<std::size_t>(width - fill), ' ').c_str(),
                      static_cast<int>(frac * 100.0), done, total_, t);
         std::fflush(stderr);
@@ -60,7 +61,7 @@ public:
         if (on_) std::fprintf(stderr, "\n");
     }
 
-private:
+  private:
     bool on_;
     std::size_t total_;
     Clock::time_point last_;
@@ -94,21 +95,25 @@ void applyOverrides(SceneDesc& scene, const RunOptions& o) {
         scene.duration = *o.seconds;
     }
     if (scene.duration / scene.timeStep > static_cast<double>(kMaxSceneSteps))
-        throw SceneError(org + ": the run would take more than " + std::to_string(kMaxSceneSteps) + " steps");
+        throw SceneError(org + ": the run would take more than " + std::to_string(kMaxSceneSteps) +
+                         " steps");
     if (scene.stepCount() == 0) throw SceneError(org + ": the run is shorter than one time step");
     if (o.fps) {
         if (!(*o.fps > 0.0) || !std::isfinite(*o.fps)) throw SceneError("--fps: must be positive");
         scene.output.fps = *o.fps;
     }
     if (scene.output.fps * scene.duration > static_cast<double>(kMaxSceneFrames))
-        throw SceneError(org + ": the run would write more than " + std::to_string(kMaxSceneFrames) +
+        throw SceneError(org + ": the run would write more than " +
+                         std::to_string(kMaxSceneFrames) +
                          " frames (lower output.fps or the duration)");
     if (o.width) {
-        if (*o.width < 16 || *o.width > kMaxImageSide) throw SceneError("--width: must be in [16, 8192]");
+        if (*o.width < 16 || *o.width > kMaxImageSide)
+            throw SceneError("--width: must be in [16, 8192]");
         scene.camera.width = *o.width;
     }
     if (o.height) {
-        if (*o.height < 16 || *o.height > kMaxImageSide) throw SceneError("--height: must be in [16, 8192]");
+        if (*o.height < 16 || *o.height > kMaxImageSide)
+            throw SceneError("--height: must be in [16, 8192]");
         scene.camera.height = *o.height;
     }
 }
@@ -141,18 +146,21 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
     RunResult r;
     r.particles = cloth.particleCount();
     r.springs = cloth.topology().springCount();
-    log << "scene    " << scene.name << (scene.description.empty() ? "" : ": " + scene.description) << "\n"
+    log << "scene    " << scene.name << (scene.description.empty() ? "" : ": " + scene.description)
+        << "\n"
         << "cloth    " << r.particles << " particles, " << r.springs << " springs, "
         << cloth.topology().triangleCount() << " triangles; " << sim.worldDescription() << "\n"
         << "pipeline";
-    for (const auto& phase : cloth.pipeline()) log << " " << phase;
+    for (const auto& phase : cloth.pipeline())
+        log << " " << phase;
     log << "\n"
         << "run      " << toString(scene.cloth.integrator) << ", dt " << scene.timeStep << " s, "
         << scene.stepCount() << " steps (" << scene.duration << " s)"
         << ", stable dt limit " << cloth.stableTimeStep() << " s\n";
 
     std::unique_ptr<OffscreenRenderer> renderer;
-    if (render) renderer = std::make_unique<OffscreenRenderer>(scene.camera.width, scene.camera.height);
+    if (render)
+        renderer = std::make_unique<OffscreenRenderer>(scene.camera.width, scene.camera.height);
 
     std::ofstream csv;
     if (scene.output.csv) {
@@ -174,14 +182,17 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
         const FrameStats s = sim.stats();
         r.peakMaxStrain = std::max(r.peakMaxStrain, s.maxStrain);
         if (csv.is_open()) {
-            const double ms = stepsSinceFrame ? 1000.0 * stepWallSinceFrame / static_cast<double>(stepsSinceFrame) : 0.0;
+            const double ms =
+                stepsSinceFrame ? 1000.0 * stepWallSinceFrame / static_cast<double>(stepsSinceFrame)
+                                : 0.0;
             csv << r.frames << ',' << s.time << ',' << s.steps << ',' << s.maxStrain << ','
                 << s.meanStrain << ',' << s.kineticEnergy << ',' << s.lowestPoint << ','
                 << s.contacts << ',' << ms << '\n';
         }
         if (renderer) {
             const auto t0 = Clock::now();
-            const Image img = renderer->render(scene.camera, sim.drawMeshes(), scene.output.background);
+            const Image img =
+                renderer->render(scene.camera, sim.drawMeshes(), scene.output.background);
             char name[32];
             std::snprintf(name, sizeof name, "frame_%05zu.png", r.frames);
             writePng(framesDir / name, img);
@@ -225,11 +236,13 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
             const auto mp4 = options.outDir / "frames.mp4";
             std::ostringstream cmd;
             // Paths are quoted for the shell; scene-controlled text never reaches the command.
-            cmd << "ffmpeg -y -loglevel error -framerate " << std::max(1.0, std::round(scene.output.fps))
-                << " -i '" << (framesDir / "frame_%05d.png").string() << "' -pix_fmt yuv420p "
+            cmd << "ffmpeg -y -loglevel error -framerate "
+                << std::max(1.0, std::round(scene.output.fps)) << " -i '"
+                << (framesDir / "frame_%05d.png").string() << "' -pix_fmt yuv420p "
                 << "-vf 'scale=trunc(iw/2)*2:trunc(ih/2)*2' '" << mp4.string() << "'";
             const int rc = std::system(cmd.str().c_str());
-            r.video = rc == 0 ? mp4.string() : "none (ffmpeg failed with status " + std::to_string(rc) + ")";
+            r.video = rc == 0 ? mp4.string()
+                              : "none (ffmpeg failed with status " + std::to_string(rc) + ")";
         }
     } else {
         r.video = "none (rendering or video off)";
@@ -245,26 +258,35 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
         << "world               " << sim.worldDescription() << "\n"
         << "integrator          " << toString(scene.cloth.integrator) << "\n"
         << "strain limiter      " << toString(scene.cloth.limiter.kind);
-    if (scene.cloth.limiter.kind != LimiterKind::None) sum << " (max strain " << scene.cloth.limiter.maxStrain << ")";
+    if (scene.cloth.limiter.kind != LimiterKind::None)
+        sum << " (max strain " << scene.cloth.limiter.maxStrain << ")";
     sum << "\n"
         << "time step           " << scene.timeStep << " s\n"
         << "steps               " << r.steps << "\n"
         << "simulated time      " << r.simulatedSeconds << " s\n"
         << "wall time           " << r.wallSeconds << " s (stepping " << r.stepWallSeconds
         << " s, rendering " << r.renderWallSeconds << " s)\n"
-        << "mean step           " << 1000.0 * r.stepWallSeconds / static_cast<double>(r.steps) << " ms\n"
-        << "real-time factor    " << r.simulatedSeconds / std::max(r.stepWallSeconds, 1e-12) << "x (stepping only)\n"
+        << "mean step           " << 1000.0 * r.stepWallSeconds / static_cast<double>(r.steps)
+        << " ms\n"
+        << "real-time factor    " << r.simulatedSeconds / std::max(r.stepWallSeconds, 1e-12)
+        << "x (stepping only)\n"
         << "max strain (final)  " << r.finalMaxStrain << "\n"
         << "max strain (peak)   " << r.peakMaxStrain << " (over the frames)\n"
         << "kinetic energy      " << cloth.kineticEnergy() << " J (final)\n"
-        << "frames              " << r.frames << (render ? " PNG in " + framesDir.string() : std::string(" (not rendered)")) << "\n"
+        << "frames              " << r.frames
+        << (render ? " PNG in " + framesDir.string() : std::string(" (not rendered)")) << "\n"
         << "video               " << r.video << "\n";
-    if (writeObj) sum << "final mesh          " << (options.outDir / "cloth_final.obj").string() << "\n";
-    else if (scene.output.obj) sum << "final mesh          none (built without assimp)\n";
-    if (scene.output.csv) sum << "statistics          " << (options.outDir / "stats.csv").string() << "\n";
+    if (writeObj)
+        sum << "final mesh          " << (options.outDir / "cloth_final.obj").string() << "\n";
+    else if (scene.output.obj)
+        sum << "final mesh          none (built without assimp)\n";
+    if (scene.output.csv)
+        sum << "statistics          " << (options.outDir / "stats.csv").string() << "\n";
     sum << "phases (wall time):\n";
     for (const auto& t : cloth.timers().all())
-        if (t.calls) sum << "  " << std::left << std::setw(18) << t.name << std::right << t.calls << " calls, " << t.seconds << " s\n";
+        if (t.calls)
+            sum << "  " << std::left << std::setw(18) << t.name << std::right << t.calls
+                << " calls, " << t.seconds << " s\n";
     std::ofstream sf(options.outDir / "summary.txt");
     sf << sum.str();
     if (!sf) throw SceneError((options.outDir / "summary.txt").string() + ": cannot write");

@@ -59,10 +59,10 @@ ParticleSelector parseSelector(JsonObject& o, bool isSheet) {
         o.failKey("grid", "(row, col) pins need a generated sheet (cloth.sheet)");
     for (std::size_t i = 0; i < grid.size(); ++i) {
         const std::string p = o.pathOf("grid") + "[" + std::to_string(i) + "]";
-        if (!grid[i].is_array() || grid[i].size() != 2)
-            o.fail(p, "expected [row, col]");
-        s.gridCells.push_back({static_cast<Index>(o.toInteger(grid[i][0], p + "[0]", 0, 0xFFFFFFFELL)),
-                               static_cast<Index>(o.toInteger(grid[i][1], p + "[1]", 0, 0xFFFFFFFELL))});
+        if (!grid[i].is_array() || grid[i].size() != 2) o.fail(p, "expected [row, col]");
+        s.gridCells.push_back(
+            {static_cast<Index>(o.toInteger(grid[i][0], p + "[0]", 0, 0xFFFFFFFELL)),
+             static_cast<Index>(o.toInteger(grid[i][1], p + "[1]", 0, 0xFFFFFFFELL))});
     }
     if (auto box = o.optObject("box")) {
         const Vec3 lo = box->requireVec3("min");
@@ -89,17 +89,20 @@ void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDi
     const bool hasSheet = o.has("sheet");
     const bool hasMesh = o.has("mesh");
     if (hasSheet == hasMesh)
-        o.fail(o.path(), "give exactly one of cloth.sheet (a generated sheet) or cloth.mesh (a file)");
+        o.fail(o.path(),
+               "give exactly one of cloth.sheet (a generated sheet) or cloth.mesh (a file)");
     if (hasSheet) {
         JsonObject s = o.object("sheet");
         SheetDesc d;
-        d.spec.rows = static_cast<Index>(s.toInteger(s.require("rows"), s.pathOf("rows"), 2, 1 << 20));
-        d.spec.cols = static_cast<Index>(s.toInteger(s.require("cols"), s.pathOf("cols"), 2, 1 << 20));
+        d.spec.rows =
+            static_cast<Index>(s.toInteger(s.require("rows"), s.pathOf("rows"), 2, 1 << 20));
+        d.spec.cols =
+            static_cast<Index>(s.toInteger(s.require("cols"), s.pathOf("cols"), 2, 1 << 20));
         if (static_cast<std::size_t>(d.spec.rows) * d.spec.cols > kMaxSceneParticles)
-            s.fail(s.path(), "rows x cols = " +
-                                 std::to_string(static_cast<std::size_t>(d.spec.rows) * d.spec.cols) +
-                                 " particles exceeds the limit of " +
-                                 std::to_string(kMaxSceneParticles));
+            s.fail(s.path(),
+                   "rows x cols = " +
+                       std::to_string(static_cast<std::size_t>(d.spec.rows) * d.spec.cols) +
+                       " particles exceeds the limit of " + std::to_string(kMaxSceneParticles));
         d.spec.spacing = s.requireNumber("spacing", Range::Positive);
         d.spec.origin = s.vec3("origin", Vec3::Zero());
         d.spec.uAxis = s.vec3("u_axis", Vec3::UnitX());
@@ -133,8 +136,8 @@ void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDi
     if (!massGiven)
         o.fail(o.path(), "no mass: give particle_mass, total_mass, or material.density and "
                          "material.thickness");
-    const bool stiffnessGiven = c.springStiffness > 0.0 ||
-                                (c.material.youngsModulus > 0.0 && c.material.thickness > 0.0);
+    const bool stiffnessGiven =
+        c.springStiffness > 0.0 || (c.material.youngsModulus > 0.0 && c.material.thickness > 0.0);
     if (!stiffnessGiven)
         o.fail(o.path(), "no stiffness: give stiffness, or material.youngs_modulus and "
                          "material.thickness");
@@ -178,7 +181,8 @@ void parseSimulation(JsonObject o, SceneDesc& sc) {
 
 void parseStrainLimit(JsonObject o, SceneDesc& sc) {
     LimiterSettings& l = sc.cloth.limiter;
-    const std::string method = o.choice("method", "stress_ordered", {"stress_ordered", "provot", "none"});
+    const std::string method =
+        o.choice("method", "stress_ordered", {"stress_ordered", "provot", "none"});
     l.kind = limiterFromString(method);
     l.maxStrain = o.number("max_strain", 0.10, Range::Positive);
     l.maxRounds = static_cast<int>(o.integer("max_rounds", 64, 1, 100000));
@@ -189,7 +193,8 @@ void parseStrainLimit(JsonObject o, SceneDesc& sc) {
 void parsePins(JsonObject& parent, SceneDesc& sc) {
     const Json& arr = parent.array("pins", 100000);
     for (std::size_t i = 0; i < arr.size(); ++i) {
-        JsonObject o(arr[i], parent.pathOf("pins") + "[" + std::to_string(i) + "]", parent.origin());
+        JsonObject o(arr[i], parent.pathOf("pins") + "[" + std::to_string(i) + "]",
+                     parent.origin());
         PinDesc p;
         p.select = parseSelector(o, sc.sheet.has_value());
         p.velocity = o.vec3("velocity", Vec3::Zero());
@@ -269,7 +274,8 @@ void parseRigidBodies(JsonObject& parent, SceneDesc& sc, const std::filesystem::
             o.failKey("mass", "only dynamic bodies have a mass");
         b.linearVelocity = o.vec3("linear_velocity", Vec3::Zero());
         b.angularVelocity = o.vec3("angular_velocity", Vec3::Zero());
-        if ((o.has("linear_velocity") || o.has("angular_velocity")) && b.motion != MotionKind::Dynamic)
+        if ((o.has("linear_velocity") || o.has("angular_velocity")) &&
+            b.motion != MotionKind::Dynamic)
             o.failKey("linear_velocity", "only dynamic bodies start with a velocity (kinematic "
                                          "bodies follow keyframes)");
         b.friction = o.number("friction", 0.5, Range::NonNegative);
@@ -281,7 +287,8 @@ void parseRigidBodies(JsonObject& parent, SceneDesc& sc, const std::filesystem::
         if (!keys.empty() && b.motion != MotionKind::Kinematic)
             o.failKey("keyframes", "only kinematic bodies follow keyframes");
         for (std::size_t k = 0; k < keys.size(); ++k) {
-            JsonObject ko(keys[k], o.pathOf("keyframes") + "[" + std::to_string(k) + "]", o.origin());
+            JsonObject ko(keys[k], o.pathOf("keyframes") + "[" + std::to_string(k) + "]",
+                          o.origin());
             KeyframeDesc kf;
             kf.time = ko.requireNumber("time", Range::NonNegative);
             kf.position = ko.requireVec3("position");
@@ -353,7 +360,8 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
     parseAttachments(top, sc);
     for (const auto& a : sc.attachments) {
         bool found = false;
-        for (const auto& b : sc.rigidBodies) found = found || b.name == a.body;
+        for (const auto& b : sc.rigidBodies)
+            found = found || b.name == a.body;
         if (!found)
             throw SceneError(origin + ": " + a.select.path + ".body: no rigid body named \"" +
                              a.body + "\"");
@@ -374,15 +382,18 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
         if (c->has("thickness") && !(cd.thickness > 0.0)) c->failKey("thickness", "must be > 0");
         cd.frictionScale = c->number("friction_scale", 1.0, Range::NonNegative);
         cd.penaltyForce = c->number("penalty_force", -1.0);
-        if (c->has("penalty_force") && cd.penaltyForce < 0.0) c->failKey("penalty_force", "must be >= 0");
+        if (c->has("penalty_force") && cd.penaltyForce < 0.0)
+            c->failKey("penalty_force", "must be >= 0");
         cd.continuous = c->boolean("continuous", true);
         cd.substeps = static_cast<int>(c->integer("substeps", 1, 1, 1000));
         cd.selfCollision = c->boolean("self_collision", false);
         cd.selfThickness = c->number("self_thickness", -1.0);
-        if (c->has("self_thickness") && !(cd.selfThickness > 0.0)) c->failKey("self_thickness", "must be > 0");
+        if (c->has("self_thickness") && !(cd.selfThickness > 0.0))
+            c->failKey("self_thickness", "must be > 0");
         c->finish();
         if (sc.rigidBodies.empty() && !cd.selfCollision)
-            top.fail("collision", "there are no rigid_bodies to collide with (and self_collision is off)");
+            top.fail("collision",
+                     "there are no rigid_bodies to collide with (and self_collision is off)");
         sc.collision = cd;
     }
     if (auto c = top.optObject("camera")) parseCamera(std::move(*c), sc.camera);

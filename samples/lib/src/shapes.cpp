@@ -23,7 +23,8 @@ void pushTriangle(DrawMesh& m, std::uint32_t a, std::uint32_t b, std::uint32_t c
 
 } // namespace
 
-std::vector<float> computeNormals(const std::vector<float>& p, const std::vector<std::uint32_t>& idx) {
+std::vector<float> computeNormals(const std::vector<float>& p,
+                                  const std::vector<std::uint32_t>& idx) {
     std::vector<float> n(p.size(), 0.0f);
     for (std::size_t t = 0; t + 2 < idx.size(); t += 3) {
         const std::uint32_t a = idx[t], b = idx[t + 1], c = idx[t + 2];
@@ -32,7 +33,8 @@ std::vector<float> computeNormals(const std::vector<float>& p, const std::vector
         const Eigen::Vector3f pc(p[3 * c], p[3 * c + 1], p[3 * c + 2]);
         const Eigen::Vector3f fn = (pb - pa).cross(pc - pa); // length = twice the area
         for (std::uint32_t v : {a, b, c})
-            for (int k = 0; k < 3; ++k) n[3 * v + static_cast<std::uint32_t>(k)] += fn[k];
+            for (int k = 0; k < 3; ++k)
+                n[3 * v + static_cast<std::uint32_t>(k)] += fn[k];
     }
     for (std::size_t v = 0; v + 2 < n.size(); v += 3) {
         const float len = std::sqrt(n[v] * n[v] + n[v + 1] * n[v + 1] + n[v + 2] * n[v + 2]);
@@ -51,9 +53,11 @@ DrawMesh toDrawMesh(const std::vector<Vec3>& vertices, const std::vector<Triangl
                     const Color& front, const Color& back) {
     DrawMesh m;
     m.positions.reserve(vertices.size() * 3);
-    for (const Vec3& v : vertices) pushVertex(m, v.x(), v.y(), v.z());
+    for (const Vec3& v : vertices)
+        pushVertex(m, v.x(), v.y(), v.z());
     m.indices.reserve(triangles.size() * 3);
-    for (const Triangle& t : triangles) pushTriangle(m, t[0], t[1], t[2]);
+    for (const Triangle& t : triangles)
+        pushTriangle(m, t[0], t[1], t[2]);
     m.normals = computeNormals(m.positions, m.indices);
     m.front = front;
     m.back = back;
@@ -75,7 +79,8 @@ DrawMesh makeBoxMesh(const Vec3& h) {
             p[u] = c[0] * h[u];
             p[v] = c[1] * s * h[v]; // mirrored on the negative face keeps the winding outward
             pushVertex(m, p[0], p[1], p[2]);
-            for (int k = 0; k < 3; ++k) m.normals.push_back(k == n ? static_cast<float>(s) : 0.0f);
+            for (int k = 0; k < 3; ++k)
+                m.normals.push_back(k == n ? static_cast<float>(s) : 0.0f);
         }
         pushTriangle(m, base, base + 1, base + 2);
         pushTriangle(m, base, base + 2, base + 3);
@@ -104,7 +109,8 @@ DrawMesh makeRoundMesh(double r, int slices, int stacks) {
     const auto row = static_cast<std::uint32_t>(slices + 1);
     for (int i = 0; i < stacks; ++i)
         for (int j = 0; j < slices; ++j) {
-            const std::uint32_t a = static_cast<std::uint32_t>(i) * row + static_cast<std::uint32_t>(j);
+            const std::uint32_t a =
+                static_cast<std::uint32_t>(i) * row + static_cast<std::uint32_t>(j);
             const std::uint32_t b = a + row;
             pushTriangle(m, a, b, a + 1);
             pushTriangle(m, a + 1, b, b + 1);
@@ -131,13 +137,15 @@ DrawMesh makeCapsuleMesh(double radius, double height, int slices, int stacks) {
         for (int j = 0; j < row; ++j) {
             const std::size_t s = static_cast<std::size_t>(src * row + j) * 3;
             pushVertex(m, top.positions[s], top.positions[s + 1] + dy, top.positions[s + 2]);
-            for (int k = 0; k < 3; ++k) m.normals.push_back(top.normals[s + static_cast<std::size_t>(k)]);
+            for (int k = 0; k < 3; ++k)
+                m.normals.push_back(top.normals[s + static_cast<std::size_t>(k)]);
         }
     }
     const auto r = static_cast<std::uint32_t>(row);
     for (int i = 0; i < stacks + 1; ++i)
         for (int j = 0; j < slices; ++j) {
-            const std::uint32_t a = static_cast<std::uint32_t>(i) * r + static_cast<std::uint32_t>(j);
+            const std::uint32_t a =
+                static_cast<std::uint32_t>(i) * r + static_cast<std::uint32_t>(j);
             const std::uint32_t b = a + r;
             pushTriangle(m, a, b, a + 1);
             pushTriangle(m, a + 1, b, b + 1);
@@ -161,9 +169,11 @@ std::vector<DrawMesh> makePlaneMeshes(const Vec3& normal, double offset, const V
             DrawMesh& m = out[static_cast<std::size_t>((i + j) % 2)];
             const auto base = static_cast<std::uint32_t>(m.positions.size() / 3);
             const Vec3 o = centre + (i * cell - 0.5 * size) * u + (j * cell - 0.5 * size) * v;
-            for (const Vec3& p : {o, Vec3(o + cell * u), Vec3(o + cell * u + cell * v), Vec3(o + cell * v)}) {
+            for (const Vec3& p :
+                 {o, Vec3(o + cell * u), Vec3(o + cell * u + cell * v), Vec3(o + cell * v)}) {
                 pushVertex(m, p.x(), p.y(), p.z());
-                for (int k = 0; k < 3; ++k) m.normals.push_back(static_cast<float>(n[k]));
+                for (int k = 0; k < 3; ++k)
+                    m.normals.push_back(static_cast<float>(n[k]));
             }
             pushTriangle(m, base, base + 1, base + 2);
             pushTriangle(m, base, base + 2, base + 3);

@@ -25,9 +25,15 @@ std::string origin(const SceneDesc& s) {
 std::vector<DrawMesh> shapeMeshes(const RigidBodyDesc& b, const Vec3& around, double planeSize) {
     DrawMesh m;
     switch (b.shape.kind) {
-    case ShapeKind::Box: m = makeBoxMesh(b.shape.halfExtents); break;
-    case ShapeKind::Sphere: m = makeSphereMesh(b.shape.radius); break;
-    case ShapeKind::Capsule: m = makeCapsuleMesh(b.shape.radius, b.shape.height); break;
+    case ShapeKind::Box:
+        m = makeBoxMesh(b.shape.halfExtents);
+        break;
+    case ShapeKind::Sphere:
+        m = makeSphereMesh(b.shape.radius);
+        break;
+    case ShapeKind::Capsule:
+        m = makeCapsuleMesh(b.shape.radius, b.shape.height);
+        break;
     case ShapeKind::Plane:
         // Planes are infinite and static: draw a checkered square under the cloth, in world space.
         return makePlaneMeshes(b.shape.normal, b.shape.offset, around, planeSize, b.color);
@@ -67,7 +73,8 @@ Simulation::Simulation(const SceneDesc& scene) : scene_(scene) {
         if (scene_.mesh) opts.weldTolerance = scene_.mesh->weldTolerance;
         topo = ClothTopology::build(mesh, opts);
     } catch (const drape::Error& e) {
-        fail(scene_.mesh ? "cloth.mesh (" + scene_.mesh->file.string() + ")" : "cloth.sheet", e.what());
+        fail(scene_.mesh ? "cloth.mesh (" + scene_.mesh->file.string() + ")" : "cloth.sheet",
+             e.what());
     }
     try {
         cloth_ = std::make_unique<Cloth>(topo, scene_.cloth);
@@ -94,7 +101,8 @@ Simulation::Simulation(const SceneDesc& scene) : scene_(scene) {
         }
         pinSets_.push_back(std::move(set));
     }
-    for (const AttachmentDesc& a : scene_.attachments) attachSets_.push_back(resolve(a.select, v2p, groups));
+    for (const AttachmentDesc& a : scene_.attachments)
+        attachSets_.push_back(resolve(a.select, v2p, groups));
 
     // Rigid bodies: drawables first (a broken collider mesh is reported before Bullet runs).
     Vec3 lo = cloth_->positions()[0], hi = lo;
@@ -103,8 +111,10 @@ Simulation::Simulation(const SceneDesc& scene) : scene_(scene) {
         hi = hi.cwiseMax(x);
     }
     const Vec3 centre = 0.5 * (lo + hi);
-    const double planeSize = 4.0 * std::max((hi - lo).norm(), (scene_.camera.position - centre).norm());
-    for (const RigidBodyDesc& b : scene_.rigidBodies) bodyMeshes_.push_back(shapeMeshes(b, centre, planeSize));
+    const double planeSize =
+        4.0 * std::max((hi - lo).norm(), (scene_.camera.position - centre).norm());
+    for (const RigidBodyDesc& b : scene_.rigidBodies)
+        bodyMeshes_.push_back(shapeMeshes(b, centre, planeSize));
     if (scene_.needsBullet()) world_ = RigidWorld::create(scene_, *cloth_, attachSets_);
     applyWind();
 }
@@ -115,8 +125,9 @@ void Simulation::fail(const std::string& path, const std::string& what) const {
     throw SceneError(origin(scene_) + ": " + path + ": " + what);
 }
 
-std::vector<Index> Simulation::resolve(const ParticleSelector& sel, const std::vector<Index>& v2p,
-                                       const std::map<std::string, std::vector<Index>>& groups) const {
+std::vector<Index>
+Simulation::resolve(const ParticleSelector& sel, const std::vector<Index>& v2p,
+                    const std::map<std::string, std::vector<Index>>& groups) const {
     const std::size_t n = cloth_->particleCount();
     std::vector<unsigned char> chosen(n, 0);
     for (std::size_t k = 0; k < sel.indices.size(); ++k) {
@@ -141,7 +152,8 @@ std::vector<Index> Simulation::resolve(const ParticleSelector& sel, const std::v
         std::size_t hits = 0;
         for (std::size_t i = 0; i < n; ++i) {
             const Vec3& x = cloth_->positions()[i];
-            if ((x.array() >= (*sel.box)[0].array()).all() && (x.array() <= (*sel.box)[1].array()).all()) {
+            if ((x.array() >= (*sel.box)[0].array()).all() &&
+                (x.array() <= (*sel.box)[1].array()).all()) {
                 chosen[i] = 1;
                 ++hits;
             }
@@ -152,10 +164,12 @@ std::vector<Index> Simulation::resolve(const ParticleSelector& sel, const std::v
         auto it = groups.find(sel.groups[k]);
         if (it == groups.end()) {
             std::string names;
-            for (const auto& [name, idx] : groups) names += (names.empty() ? "" : ", ") + ("\"" + name + "\"");
+            for (const auto& [name, idx] : groups)
+                names += (names.empty() ? "" : ", ") + ("\"" + name + "\"");
             fail(sel.path + ".groups[" + std::to_string(k) + "]",
                  "the mesh has no group \"" + sel.groups[k] + "\"" +
-                     (names.empty() ? std::string(" (it has no named groups)") : " (it has " + names + ")"));
+                     (names.empty() ? std::string(" (it has no named groups)")
+                                    : " (it has " + names + ")"));
         }
         for (Index i : it->second)
             if (i < v2p.size() && v2p[i] < n) chosen[v2p[i]] = 1;
@@ -173,22 +187,28 @@ void Simulation::applyWind() {
     cloth_->setWind(w.velocity + w.gustAmplitude * std::sin(2.0 * kPi * w.gustFrequency * t));
 }
 
-double Simulation::time() const { return static_cast<double>(steps_) * scene_.timeStep; }
+double Simulation::time() const {
+    return static_cast<double>(steps_) * scene_.timeStep;
+}
 
 void Simulation::step() {
     const double dt = scene_.timeStep;
     try {
-        if (world_) world_->step(time(), dt);
-        else cloth_->step(dt);
+        if (world_)
+            world_->step(time(), dt);
+        else
+            cloth_->step(dt);
     } catch (const drape::Error& e) {
-        throw StepError(origin(scene_) + ": step " + std::to_string(steps_ + 1) + " (t = " +
-                         std::to_string(time()) + " s) failed: " + e.what());
+        throw StepError(origin(scene_) + ": step " + std::to_string(steps_ + 1) +
+                        " (t = " + std::to_string(time()) + " s) failed: " + e.what());
     }
     ++steps_;
     applyWind();
 }
 
-std::size_t Simulation::contactCount() const { return world_ ? world_->contactCount() : 0; }
+std::size_t Simulation::contactCount() const {
+    return world_ ? world_->contactCount() : 0;
+}
 
 FrameStats Simulation::stats() const {
     FrameStats s;
@@ -198,7 +218,8 @@ FrameStats Simulation::stats() const {
     s.meanStrain = cloth_->meanStrain();
     s.kineticEnergy = cloth_->kineticEnergy();
     double lowest = std::numeric_limits<double>::infinity();
-    for (const Vec3& x : cloth_->positions()) lowest = std::min(lowest, x.dot(up_));
+    for (const Vec3& x : cloth_->positions())
+        lowest = std::min(lowest, x.dot(up_));
     s.lowestPoint = lowest;
     s.contacts = contactCount();
     return s;

@@ -23,15 +23,16 @@ struct Image {
     std::vector<std::uint8_t> rgb; ///< width * height * 3 bytes
     std::array<std::uint8_t, 3> pixel(int x, int y) const {
         const std::size_t o = (static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +
-                               static_cast<std::size_t>(x)) * 3u;
+                               static_cast<std::size_t>(x)) *
+                              3u;
         return {rgb[o], rgb[o + 1], rgb[o + 2]};
     }
 };
 
 /// A triangle mesh to draw, in world coordinates after `model`.
 struct DrawMesh {
-    std::vector<float> positions;      ///< x y z per vertex
-    std::vector<float> normals;        ///< x y z per vertex; computed when empty
+    std::vector<float> positions;       ///< x y z per vertex
+    std::vector<float> normals;         ///< x y z per vertex; computed when empty
     std::vector<std::uint32_t> indices; ///< three per triangle, counter-clockwise = front
     Color front = {0.8f, 0.8f, 0.8f};
     Color back = {0.6f, 0.6f, 0.6f};
@@ -59,7 +60,7 @@ bool renderingAvailable();
 
 /// A software OpenGL context and its framebuffer. One per thread; not copyable.
 class OffscreenRenderer {
-public:
+  public:
     /// Throws SceneError if OSMesa cannot create a context of this size.
     OffscreenRenderer(int width, int height, int supersample = 2);
     ~OffscreenRenderer();
@@ -74,7 +75,7 @@ public:
     int width() const { return width_; }
     int height() const { return height_; }
 
-private:
+  private:
     struct Impl;
     Impl* impl_ = nullptr;
     int width_ = 0;

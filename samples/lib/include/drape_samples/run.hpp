@@ -16,15 +16,15 @@ namespace drape::samples {
 struct RunOptions {
     std::filesystem::path scene;
     std::filesystem::path outDir;
-    std::optional<std::size_t> steps;   ///< run this many steps instead of the duration
-    std::optional<double> seconds;      ///< run this long [s] instead of the duration
+    std::optional<std::size_t> steps; ///< run this many steps instead of the duration
+    std::optional<double> seconds;    ///< run this long [s] instead of the duration
     std::optional<std::string> integrator;
-    std::optional<double> timeStep;     ///< [s]
-    std::optional<double> fps;          ///< frames per simulated second
-    std::optional<int> width, height;   ///< image size [px]
-    bool render = true;                 ///< PNG frames (and the MP4)
-    bool video = true;                  ///< MP4 through ffmpeg when it is on the PATH
-    bool progress = false;              ///< progress bar on stderr
+    std::optional<double> timeStep;   ///< [s]
+    std::optional<double> fps;        ///< frames per simulated second
+    std::optional<int> width, height; ///< image size [px]
+    bool render = true;               ///< PNG frames (and the MP4)
+    bool video = true;                ///< MP4 through ffmpeg when it is on the PATH
+    bool progress = false;            ///< progress bar on stderr
 };
 
 /// What a run did, for the summary.
@@ -32,14 +32,14 @@ struct RunResult {
     std::size_t steps = 0;
     std::size_t frames = 0;
     double simulatedSeconds = 0.0;
-    double wallSeconds = 0.0;        ///< whole run, rendering included
-    double stepWallSeconds = 0.0;    ///< time spent stepping only
+    double wallSeconds = 0.0;     ///< whole run, rendering included
+    double stepWallSeconds = 0.0; ///< time spent stepping only
     double renderWallSeconds = 0.0;
     double finalMaxStrain = 0.0;
     double peakMaxStrain = 0.0;
     std::size_t particles = 0;
     std::size_t springs = 0;
-    std::string video;               ///< path of the MP4, or why there is none
+    std::string video; ///< path of the MP4, or why there is none
 };
 
 /// Applies the overrides to a loaded scene (throws SceneError on impossible values).

@@ -32,14 +32,14 @@ struct FrameStats {
 struct BodyView {
     std::string name;
     Eigen::Matrix4f transform = Eigen::Matrix4f::Identity(); ///< local -> world
-    const std::vector<DrawMesh>* meshes = nullptr; ///< in the local frame
+    const std::vector<DrawMesh>* meshes = nullptr;           ///< in the local frame
 };
 
 /// Whether this build can run scenes with rigid bodies (drape::bullet was available).
 bool rigidBodiesAvailable();
 
 class Simulation {
-public:
+  public:
     /// Builds everything the scene describes. Throws SceneError naming the scene file and
     /// the field at fault (also for errors the core reports, such as a degenerate triangle).
     explicit Simulation(const SceneDesc& scene);
@@ -86,9 +86,10 @@ public:
 
     struct RigidWorld; ///< implemented with drape::bullet
 
-private:
+  private:
     [[noreturn]] void fail(const std::string& path, const std::string& what) const;
-    std::vector<Index> resolve(const ParticleSelector& sel, const std::vector<Index>& vertexToParticle,
+    std::vector<Index> resolve(const ParticleSelector& sel,
+                               const std::vector<Index>& vertexToParticle,
                                const std::map<std::string, std::vector<Index>>& groups) const;
     void applyWind();
 
