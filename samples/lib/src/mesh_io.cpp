@@ -5,8 +5,10 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <fstream>
 
 #if DRAPE_SAMPLES_HAVE_ASSIMP
 #include <assimp/Exporter.hpp>
@@ -59,6 +61,28 @@ std::string lowerExtension(const std::filesystem::path& file) {
     for (char& ch : ext)
         ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
     return ext;
+}
+
+/// True for a PLY file (it starts with "ply", as assimp's PLY reader demands) whose header
+/// never ends: assimp 5.2's PLY reader then waits for "end_header" forever at the end of file.
+bool isPlyWithoutEndHeader(const std::filesystem::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    char magic[4] = {};
+    if (!in.read(magic, 4) || std::string(magic, 3) != "ply" ||
+        !std::isspace(static_cast<unsigned char>(magic[3])))
+        return false;
+    const std::string token = "end_header";
+    std::string window(magic, 4);
+    std::vector<char> chunk(1u << 16);
+    while (window.find(token) == std::string::npos) {
+        in.read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
+        const auto got = static_cast<std::size_t>(in.gcount());
+        if (got == 0) return true;
+        // Keep the last few bytes so that a token split across two chunks is still found.
+        window = window.substr(window.size() - std::min(window.size(), token.size())) +
+                 std::string(chunk.data(), got);
+    }
+    return false;
 }
 
 struct RawMesh {
@@ -124,6 +148,9 @@ ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance)
     if (ec) meshFail(file, "cannot read: " + ec.message());
     if (size == 0) meshFail(file, "mesh file is empty");
     if (size > 512u * 1024u * 1024u) meshFail(file, "mesh file larger than 512 MiB");
+
+    if (isPlyWithoutEndHeader(file))
+        meshFail(file, "PLY header has no end_header line (the file is truncated or not PLY)");
 
     Assimp::Importer importer;
     // Points and lines stay in their meshes (they are skipped below) so that the order of
