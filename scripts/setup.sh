@@ -16,6 +16,8 @@ packages=(
     catch2                 # tests/
     libbenchmark-dev       # benchmarks
     gnuplot-nox            # samples/reports: plots
+    clang                  # tests/fuzz: libFuzzer targets (scripts/fuzz.sh)
+    libclang-rt-14-dev     # tests/fuzz: the libFuzzer and sanitizer runtimes
 )
 
 missing=()
