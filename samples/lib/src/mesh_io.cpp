@@ -5,7 +5,6 @@
 
 #include <Eigen/Geometry>
 
-#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <fstream>
@@ -64,25 +63,23 @@ std::string lowerExtension(const std::filesystem::path& file) {
 }
 
 /// True for a PLY file (it starts with "ply", as assimp's PLY reader demands) whose header
-/// never ends: assimp 5.2's PLY reader then waits for "end_header" forever at the end of file.
+/// never ends: assimp 5.2's PLY reader then waits forever at the end of the file for a line
+/// that starts with the token "end_header" (leading blanks allowed).
 bool isPlyWithoutEndHeader(const std::filesystem::path& file) {
     std::ifstream in(file, std::ios::binary);
-    char magic[4] = {};
-    if (!in.read(magic, 4) || std::string(magic, 3) != "ply" ||
-        !std::isspace(static_cast<unsigned char>(magic[3])))
+    std::string line;
+    if (!std::getline(in, line) || line.compare(0, 3, "ply") != 0 ||
+        (line.size() > 3 && !std::isspace(static_cast<unsigned char>(line[3]))))
         return false;
     const std::string token = "end_header";
-    std::string window(magic, 4);
-    std::vector<char> chunk(1u << 16);
-    while (window.find(token) == std::string::npos) {
-        in.read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
-        const auto got = static_cast<std::size_t>(in.gcount());
-        if (got == 0) return true;
-        // Keep the last few bytes so that a token split across two chunks is still found.
-        window = window.substr(window.size() - std::min(window.size(), token.size())) +
-                 std::string(chunk.data(), got);
+    while (std::getline(in, line)) {
+        const std::size_t start = line.find_first_not_of(" \t");
+        if (start == std::string::npos || line.compare(start, token.size(), token) != 0) continue;
+        const std::size_t after = start + token.size();
+        if (after == line.size() || std::isspace(static_cast<unsigned char>(line[after])))
+            return false;
     }
-    return false;
+    return true;
 }
 
 struct RawMesh {
