@@ -203,7 +203,9 @@ public:
         info.m_sparsesdf.Reset();
         colliders_.build(world_.get(), sc.colliders, 0.0f);
         body_.reset(makeSoftBody(info, sc));
-        body_->m_cfg.collisions = btSoftBody::fCollision::SDF_RD;
+        // Node (SDF_RD) and face (SDF_RDF) contacts: with node contacts alone the cloth fell
+        // through the desk in our tests.
+        body_->m_cfg.collisions = btSoftBody::fCollision::SDF_RD | btSoftBody::fCollision::SDF_RDF;
         world_->addSoftBody(body_.get());
         // Hooke springs at drape's k [N/m]; its damping acts along the springs (it has no
         // per-particle drag), with drape's C_d as the coefficient.
@@ -383,10 +385,10 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
         add(clothOnSphere(12), 3.0, 1, 3.0);
     } else {
         add(experiment1(), 10.0, 3, 10.0);
-        add(experiment2(), 10.0, 3, 10.0);
+        add(experiment2(), 10.0, 2, 10.0);
         add(hangingSheet(64), 5.0, 1, 5.0);
         add(hangingSheet(128), 3.0, 1, 1.0);
-        add(clothOnSphere(40), 8.0, 3, 8.0);
+        add(clothOnSphere(40), 8.0, 2, 8.0);
     }
     std::vector<Config> configs;
     configs.push_back({"drape", "Velocity-Verlet, stress-ordered limiter 10 %", "drape_vv_so", 0, 1,
@@ -547,6 +549,71 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
            << " / " << r.finalInside << " | "
            << (std::isfinite(r.settleTime) ? fmt(r.settleTime, 3) : "not settled") << " | "
            << fmt(r.finalKinetic, 3) << " | " << (r.blewUp ? "**yes** " + r.note : "no") << " |\n";
+    }
+    // Where each engine wins, computed from the rows (so it stays true when the numbers move).
+    {
+        std::ostringstream soft, drape;
+        for (const SceneRun& sr : scenes) {
+            const CompareRow* dr = nullptr;
+            const CompareRow* fastSoft = nullptr;
+            const CompareRow* stiffSoft = nullptr;
+            const CompareRow* deform = nullptr;
+            for (const CompareRow& r : result.rows) {
+                if (r.scene != sr.scene.name) continue;
+                if (r.engine == "drape" && r.config.find("stress-ordered") != std::string::npos) dr = &r;
+                if (r.engine == "btDeformable") deform = &r;
+                if (r.engine == "btSoftBody" && !r.blewUp) {
+                    if (!fastSoft || r.msPerStep < fastSoft->msPerStep) fastSoft = &r;
+                    if (!stiffSoft || r.peakMaxStrain < stiffSoft->peakMaxStrain) stiffSoft = &r;
+                }
+            }
+            if (!dr || !fastSoft || !stiffSoft) continue;
+            const std::string name = sr.scene.title;
+            if (fastSoft->msPerStep < dr->msPerStep) {
+                soft << "- " << name << ": btSoftBody (" << fastSoft->config << ") steps in "
+                     << fmt(fastSoft->msPerStep, 3) << " ms against drape's " << fmt(dr->msPerStep, 3)
+                     << " ms with the limiter (" << fmt(dr->msPerStep / fastSoft->msPerStep, 2)
+                     << " x faster), with a peak stretch of " << fmt(100 * fastSoft->peakMaxStrain, 3) << " %.\n";
+            } else {
+                drape << "- " << name << ": drape with the limiter steps in " << fmt(dr->msPerStep, 3)
+                      << " ms, faster than the fastest btSoftBody set-up (" << fastSoft->config << ", "
+                      << fmt(fastSoft->msPerStep, 3) << " ms).\n";
+            }
+            if (stiffSoft->peakMaxStrain < dr->peakMaxStrain) {
+                soft << "- " << name << ": btSoftBody (" << stiffSoft->config << ") never stretches more than "
+                     << fmt(100 * stiffSoft->peakMaxStrain, 3) << " % (drape's limiter allows "
+                     << fmt(100 * dr->peakMaxStrain, 3) << " %): an inextensible look, at "
+                     << fmt(stiffSoft->msPerStep, 3) << " ms per step.\n";
+            }
+            if (fastSoft->peakInside < dr->peakInside) {
+                soft << "- " << name << ": fewer particles inside colliders (" << fastSoft->peakInside
+                     << " against drape's " << dr->peakInside << ").\n";
+            } else if (dr->peakInside < fastSoft->peakInside) {
+                drape << "- " << name << ": no deeper contact trouble: " << dr->peakInside
+                      << " particles inside colliders at worst against " << fastSoft->peakInside
+                      << " for btSoftBody (" << fastSoft->config << ", deepest "
+                      << fmt(fastSoft->peakPenetration, 3) << ").\n";
+            }
+            if (deform && (deform->blewUp || deform->peakInside > dr->peakInside)) {
+                drape << "- " << name << ": Bullet's deformable world at the same k: "
+                      << (deform->blewUp ? "blew up (" + deform->note + ")"
+                                         : std::to_string(deform->peakInside) + " particles inside colliders, deepest " +
+                                               fmt(deform->peakPenetration, 3))
+                      << ", at " << fmt(deform->msPerStep, 3) << " ms per step.\n";
+            }
+        }
+        md << "\n## Where btSoftBody wins\n\n" << (soft.str().empty() ? "- nowhere in these runs\n" : soft.str())
+           << "\nbtSoftBody's strength is its position solver: a few iterations of kLST = 1 "
+              "make links nearly inextensible at a low cost, and its stretch falls with every "
+              "extra iteration or sub-step. What it does not offer is a physical stiffness: "
+              "kLST has no unit, and the same cloth stretches differently at another "
+              "piterations or time step, so its 'material' cannot be set from N/m or Young's "
+              "modulus as the paper asks.\n\n"
+           << "## Where drape wins\n\n" << (drape.str().empty() ? "- nowhere in these runs\n" : drape.str())
+           << "\ndrape's springs are physical (N/m, from the fabric's E and thickness); its stretch "
+              "is bounded by the limiter's 10 % whatever the time step, and the strain it "
+              "reports is the strain of the material law; a step that would blow up is refused "
+              "or detected and rolled back.\n";
     }
     md << "\nParticles and links (drape springs / btSoftBody links / deformable links): ";
     std::map<std::string, std::map<std::string, std::size_t>> counts;

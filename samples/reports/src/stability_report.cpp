@@ -166,7 +166,7 @@ StabilityPoint measure(const ClothScene& scene, IntegratorKind kind, double k, i
         if (++guard > 8) break;
     }
     guard = 0;
-    const double cap = guess * (kind == IntegratorKind::ImplicitEuler ? 1000.0 : 64.0);
+    const double cap = guess * (kind == IntegratorKind::ImplicitEuler ? 100.0 : 64.0);
     for (;;) {
         Trial t = trial(scene, kind, k, hi, steps);
         if (!t.stable) break;
@@ -728,7 +728,10 @@ StabilityResult runStabilityReport(const StabilityOptions& options, const Machin
     for (IntegratorKind kind : allIntegrators()) {
         for (double k : ks) {
             progress(std::string("stability: ") + toString(kind) + " k = " + fmt(k));
-            result.sweep.push_back(measure(scene, kind, k, steps));
+            // Implicit Euler has nothing to bisect; a shorter run per dt keeps the (costly,
+            // large-dt) linear solves affordable.
+            result.sweep.push_back(
+                measure(scene, kind, k, kind == IntegratorKind::ImplicitEuler ? steps / 4 : steps));
         }
     }
     progress("stability: extreme cases");
@@ -814,20 +817,35 @@ StabilityResult runStabilityReport(const StabilityOptions& options, const Machin
            << (std::isfinite(p.theoryLimit) && p.theoryLimit > 0 ? fmt(p.measured / p.theoryLimit, 3) : "-")
            << " |\n";
     }
-    // Summary of ratios for the conditionally stable methods.
-    double rmin = kInf, rmax = 0.0;
+    // Summary of ratios for the conditionally stable methods: against drape's bound, and
+    // against the exact omega_max (the larger of rest and final state) with the exact
+    // imaginary-axis limits 2 (symplectic Euler, Velocity-Verlet) and 2 sqrt 2 (RK4).
+    double rmin = kInf, rmax = 0.0, emin = kInf, emax = 0.0;
     for (const auto& p : result.sweep) {
         if (p.integrator == IntegratorKind::ExplicitEuler || p.integrator == IntegratorKind::ImplicitEuler) continue;
         const double r = p.measured / p.theoryLimit;
         rmin = std::min(rmin, r);
         rmax = std::max(rmax, r);
+        const double c = p.integrator == IntegratorKind::RungeKutta4 ? 2.0 * std::sqrt(2.0) : 2.0;
+        const double e = p.measured * std::max(p.omegaRest, p.omegaFinal) / c;
+        emin = std::min(emin, e);
+        emax = std::max(emax, e);
     }
     md << "\nFor symplectic Euler, Velocity-Verlet and RK4 the measured limit is " << fmt(rmin, 3)
-       << " to " << fmt(rmax, 3) << " times the limit drape computes from its bound on omega_max: the "
-       << "bound is safe (the ratio is never below 1) and tight to the factor by which the "
-       << "Laplacian bound exceeds the exact eigenvalue. The measured limits track the exact "
-       << "omega_max of the stretched final state more closely than the one at rest: gravity "
-       << "stretches the soft sheets and their transverse stiffness k (1 - L0 / l) grows with it.\n\n";
+       << " to " << fmt(rmax, 3) << " times the limit drape computes from its bound on omega_max: "
+       << "the bound is safe (never below 1) and its excess is the factor by which the spring "
+       << "Laplacian overestimates the exact eigenvalue (about 1.32 on this triangulated grid). "
+       << "Against the exact omega_max (the larger of rest and final state) and the exact "
+       << "imaginary-axis limits, 2 for symplectic Euler and Velocity-Verlet and 2 sqrt 2 = 2.828 "
+       << "for RK4, the measured limits are " << fmt(emin, 3) << " to " << fmt(emax, 3)
+       << " times the theory. (drape uses 2.785 for RK4, the real-axis extent of its stability "
+       << "region, which is 1.5 % conservative on the imaginary axis.) Soft sheets stretch under "
+       << "gravity, and their transverse stiffness k (1 - L0 / l) raises omega_max above its rest "
+       << "value: that is why the final-state eigenvalue matters at k = 1 and 10. Explicit Euler "
+       << "follows the 'growth within the run' line, orders of magnitude above its asymptotic "
+       << "limit: its instability is real but slow, and a run of " << steps << " steps does not see it "
+       << "below that line. Implicit Euler showed no instability at any dt tried (up to 100 x 2 / "
+       << "omega_max, " << steps / 4 << " steps).\n\n";
     md << "Data: [stability_vs_stiffness.csv](stability_vs_stiffness.csv).\n\n";
 
     md << "## 2. Extreme cases\n\n"
