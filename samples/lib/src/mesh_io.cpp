@@ -152,10 +152,24 @@ ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance)
     Assimp::Importer importer;
     // Points and lines stay in their meshes (they are skipped below) so that the order of
     // first use of every vertex is the file's order.
-    const aiScene* scene =
-        importer.ReadFile(file.string(), aiProcess_Triangulate | aiProcess_ValidateDataStructure);
+    const aiScene* scene = importer.ReadFile(file.string(), aiProcess_ValidateDataStructure);
     if (!scene || !scene->mRootNode)
         meshFail(file, std::string("assimp cannot read it: ") + importer.GetErrorString());
+    // assimp 5.2's triangulation asserts (aborts the process) on a mesh that declares polygons
+    // but has none, which some malformed files produce (a PLY polygon whose indices are out of
+    // range is dropped after the mesh was marked): check before triangulating.
+    for (unsigned i = 0; i < scene->mNumMeshes; ++i) {
+        const aiMesh& m = *scene->mMeshes[i];
+        if (!(m.mPrimitiveTypes & aiPrimitiveType_POLYGON)) continue;
+        bool polygon = false;
+        for (unsigned f = 0; f < m.mNumFaces && !polygon; ++f) polygon = m.mFaces[f].mNumIndices > 3;
+        if (!polygon)
+            meshFail(file, "mesh \"" + std::string(m.mName.C_Str()) +
+                               "\" declares polygons but has none (the file is malformed)");
+    }
+    scene = importer.ApplyPostProcessing(aiProcess_Triangulate);
+    if (!scene || !scene->mRootNode)
+        meshFail(file, std::string("assimp cannot triangulate it: ") + importer.GetErrorString());
     if (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE)
         meshFail(file, "assimp reports the file as incomplete");
 
