@@ -93,10 +93,12 @@ struct ContactStats {
     std::size_t projections = 0;         ///< contacts that moved a particle out of a body
     std::size_t selfContacts = 0;        ///< particle-triangle self contacts resolved
     std::size_t selfPairTests = 0;       ///< particle-triangle pairs tested by self-collision
-    Vec3 impulseOnBodies = Vec3::Zero(); ///< total linear impulse the cloth gave bodies [N s]
-    /// Total linear impulse bodies gave the cloth through contacts (velocity response and the
-    /// eq. (7) force over the step) [N s]; equal and opposite to impulseOnBodies for
-    /// contacts with dynamic bodies.
+    /// Total linear impulse the cloth gave dynamic bodies, through contacts and through
+    /// attachments [N s].
+    Vec3 impulseOnBodies = Vec3::Zero();
+    /// Total linear impulse bodies (static, kinematic and dynamic) gave the cloth through
+    /// contacts: velocity response, friction and contact forces over the step [N s]. With only
+    /// dynamic bodies and no attachments it is exactly -impulseOnBodies.
     Vec3 impulseOnCloth = Vec3::Zero();
     std::uint64_t steps = 0;             ///< cloth steps taken by this handle since it was added
     /// Sub-steps in which the cloth would have swept out of its proxy, so the proxy was moved
