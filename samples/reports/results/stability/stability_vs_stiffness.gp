@@ -1,4 +1,4 @@
-set terminal pngcairo size 960,640 font 'sans,11'
+set terminal pngcairo size 900,760 font 'sans,11'
 set output 'stability_vs_stiffness.png'
 set datafile separator ','
 set logscale xy
@@ -7,9 +7,8 @@ set format y '10^{%L}'
 set xlabel 'spring stiffness k [N/m]'
 set ylabel 'largest stable time step [s]'
 set title 'Largest stable dt against stiffness (hanging sheet, m = 0.5, spacing 10)'
-set key outside right top
+set key below maxcols 2 font ',10'
 set grid
-f(i) = word("explicit_euler symplectic_euler velocity_verlet rk4 implicit_euler", i)
 plot 'stability_vs_stiffness.csv' using 2:(strcol(1) eq 'symplectic_euler' ? $8 : 1/0) w lp pt 5 lc rgb '#1f77b4' t 'symplectic Euler, measured', \
  '' using 2:(strcol(1) eq 'velocity_verlet' ? $8 : 1/0) w lp pt 7 lc rgb '#2ca02c' t 'Velocity-Verlet, measured', \
  '' using 2:(strcol(1) eq 'rk4' ? $8 : 1/0) w lp pt 9 lc rgb '#9467bd' t 'RK4, measured', \
