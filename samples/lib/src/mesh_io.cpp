@@ -62,15 +62,14 @@ std::string lowerExtension(const std::filesystem::path& file) {
     return ext;
 }
 
-/// True for a PLY file (it starts with "ply", as assimp's PLY reader demands) whose header
-/// never ends: assimp 5.2's PLY reader then waits forever at the end of the file for a line
-/// that starts with the token "end_header" (leading blanks allowed).
+/// True for a PLY file (it starts with "ply", as assimp's PLY reader demands; whatever follows,
+/// a NUL byte included) whose header never ends: assimp 5.2's PLY reader then waits forever
+/// at the end of the file for a line that starts with the token "end_header" (leading
+/// blanks allowed).
 bool isPlyWithoutEndHeader(const std::filesystem::path& file) {
     std::ifstream in(file, std::ios::binary);
     std::string line;
-    if (!std::getline(in, line) || line.compare(0, 3, "ply") != 0 ||
-        (line.size() > 3 && !std::isspace(static_cast<unsigned char>(line[3]))))
-        return false;
+    if (!std::getline(in, line) || line.compare(0, 3, "ply") != 0) return false;
     const std::string token = "end_header";
     while (std::getline(in, line)) {
         const std::size_t start = line.find_first_not_of(" \t");
