@@ -26,7 +26,12 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
     try {
-        drape::fuzz::runMeshInput(data, size, workDir);
+        const drape::fuzz::Outcome outcome = drape::fuzz::runMeshInput(data, size, workDir);
+        // DRAPE_FUZZ_VERBOSE=1 says what became of each input (when replaying a few).
+        static const bool verbose = std::getenv("DRAPE_FUZZ_VERBOSE") != nullptr;
+        if (verbose)
+            std::fprintf(stderr, "fuzz_mesh: %s\n",
+                         outcome.accepted ? "accepted" : outcome.message.c_str());
     } catch (const std::exception& e) {
         std::fprintf(stderr, "fuzz_mesh: unexpected exception: %s\n", e.what());
         std::abort();
