@@ -64,6 +64,7 @@ for target in "${targets[@]}"; do
     log=$build/logs/$target.log
     mkdir -p "$corpus" "$artifacts" "$(dirname "$log")"
     echo "fuzz: $target for ${seconds} s (log: $log)"
+    touch "$build/logs/$target.start"
     rc=0
     "$build/fuzz/$target" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
         -print_final_stats=1 -artifact_prefix="$artifacts/" "${extra[@]}" \
@@ -75,7 +76,8 @@ for target in "${targets[@]}"; do
         status=1
         echo "fuzz: $target FAILED; the end of its log:" >&2
         tail -n 40 "$log" >&2
-        echo "fuzz: crashing inputs: $(ls "$artifacts" | tr '\n' ' ')" >&2
+        echo "fuzz: inputs saved by this run:" >&2
+        find "$artifacts" -type f -newer "$build/logs/$target.start" >&2
     fi
 done
 exit $status
