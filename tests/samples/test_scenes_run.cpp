@@ -228,9 +228,12 @@ TEST_CASE("Experiment II: the tablecloth lands on the desk top and rests there",
     SceneDesc scene = loadScene(kScenes / "experiment2_tablecloth.json");
     Simulation sim(scene);
     // Centre particle (row 15, col 30) starts 60 above the desk's centre; the desk top is at
-    // y = 5 and the contact thickness is 1. Falling 60 - 6 = 54 takes sqrt(2 * 54 / 9.8) =
-    // 3.3 s without damping; with the scene's C_d / m = 0.3 1/s, x(t) = (g m / C_d)
-    // (t - (1 - exp(-0.3 t)) / 0.3) reaches 54 at t = 4.0 s. By 5 s it has landed.
+    // y = 5 and the contact thickness is h. Falling 60 - 5 - h (about 52) takes
+    // sqrt(2 * 52 / 9.8) = 3.3 s without damping; with the scene's C_d / m = 0.3 1/s,
+    // x(t) = (g m / C_d) (t - (1 - exp(-0.3 t)) / 0.3) reaches 52 at t = 3.9 s. By 5 s it
+    // has landed and rests within the contact band above the desk.
+    REQUIRE(scene.collision);
+    const double h = scene.collision->thickness;
     const Index centre = sheetIndex(scene.sheet->spec, 15, 30);
     const double x0 = sim.cloth().positions()[centre].x();
     std::size_t maxContacts = 0;
@@ -239,10 +242,10 @@ TEST_CASE("Experiment II: the tablecloth lands on the desk top and rests there",
         maxContacts = std::max(maxContacts, sim.contactCount());
     }
     const Vec3 c = sim.cloth().positions()[centre];
-    CHECK(c.y() > 5.0);                             // on top of the desk, not through it
-    CHECK(c.y() < 5.0 + 3.0);                       // within a few thicknesses of its surface
-    CHECK(std::abs(c.x() - x0) < 20.0);             // it fell straight down, did not slide off
-    CHECK(maxContacts > 100);                       // a good part of the cloth touches the desk
+    CHECK(c.y() > 5.0);                 // on top of the desk, not through it
+    CHECK(c.y() < 5.0 + 2.0 * h);       // resting on it: within the thickness and the penalty band
+    CHECK(std::abs(c.x() - x0) < 20.0); // it fell straight down, did not slide off
+    CHECK(maxContacts > 100);           // a good part of the cloth touches the desk
     CHECK(sim.stats().lowestPoint > -150.0 - 1e-6); // nothing fell through the floor
 }
 
