@@ -34,8 +34,11 @@ TEST_CASE("compare report: rows, links, strain limit, iterations stiffen btSoftB
         CHECK(row.finalKinetic >= 0.0);
         CHECK_FALSE(row.blewUp);
         if (row.engine == "drape" && row.config.find("stress-ordered") != std::string::npos) {
-            // The limiter's promise: 10 % plus its stop tolerance (1e-3).
-            CHECK(row.finalMaxStrain <= 0.10 + 1.5e-3);
+            // The limiter's promise: 10 % plus its stop tolerance (1e-3). In scenes with
+            // colliders the contact stage runs after the limiter in each step (the paper's
+            // order) and its projections may stretch a spring a little more: allow 1 %.
+            const bool contacts = row.scene == "experiment2" || row.scene.rfind("sphere", 0) == 0;
+            CHECK(row.finalMaxStrain <= 0.10 + (contacts ? 1e-2 : 1.5e-3));
         }
     }
     // btSoftBody is a position solver: more iterations (or sub-steps) leave less stretch.

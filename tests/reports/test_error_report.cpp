@@ -47,13 +47,15 @@ TEST_CASE("error report: orders of convergence, references, Table 1") {
         CHECK(q.back() >= 10.0);
         CHECK(q.back() <= 24.0);
     }
-    // The reference is converged: its own error estimate is far below the sweep's errors
-    // without the limiter; with it, at least below (first order, see the report).
+    // The reference is converged: its own error estimate (distance to 2 dt_ref) is far below
+    // the sweep's errors without the limiter. Contact makes Experiment II first order, so
+    // there the estimate is about dt_ref / dt_min = 1/16 of the smallest sweep error; 1/4
+    // leaves room. With the limiter at least below (see the report: it does not converge).
     REQUIRE(r.references.size() == 4);
     for (const ReferenceCheck& c : r.references) {
         INFO(c.scene << (c.limiter ? " limiter" : ""));
         CHECK(std::isfinite(c.selfError));
-        if (!c.limiter) CHECK(c.selfError < 0.1 * c.smallestSweepError);
+        if (!c.limiter) CHECK(c.selfError < 0.25 * c.smallestSweepError);
         else CHECK(c.selfError < c.smallestSweepError);
     }
     REQUIRE(r.table1.size() == 5);
