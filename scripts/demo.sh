@@ -11,5 +11,5 @@ out=${2:-out/experiment2}
 build=${DRAPE_BUILD_DIR:-build}
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release
 cmake --build "$build" -j"$(nproc)" --target drape-run
-"$build"/samples/runner/drape-run "$scene" --out "$out"
+"$build"/bin/drape-run "$scene" -o "$out"
 echo "frames and results in $out/"
