@@ -34,7 +34,7 @@ std::vector<std::uint8_t> bytes(const fs::path& file) {
 
 } // namespace
 
-TEST_CASE("fuzz regressions: saved scene inputs end in a drape error", "[fuzz]") {
+TEST_CASE("saved fuzz_scene inputs end in a drape error", "[fuzz]") {
     const drape::fuzz::ScenePaths paths{fs::path(DRAPE_FUZZ_SAMPLES_DIR) / "scenes",
                                         fs::path(DRAPE_FUZZ_SAMPLES_DIR) / "meshes"};
     for (const fs::path& file : inputs("scene")) {
@@ -48,7 +48,7 @@ TEST_CASE("fuzz regressions: saved scene inputs end in a drape error", "[fuzz]")
     }
 }
 
-TEST_CASE("fuzz regressions: saved mesh inputs end in a drape error", "[fuzz]") {
+TEST_CASE("saved fuzz_mesh inputs end in a drape error", "[fuzz]") {
     const fs::path workDir = drape::fuzz::makeWorkDir();
     const auto files = inputs("mesh");
     CHECK_FALSE(files.empty());
