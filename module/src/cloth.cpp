@@ -299,7 +299,24 @@ void Cloth::stepOnce(double dt) {
             ScopedPhase t(timers_, stageSlots_[s]);
             stages_[s]->run(*this, dt);
         }
-        evaluateForces();
+        if (settings_.integrator == IntegratorKind::VelocityVerlet && forceModel_->hasVelocityTerms()) {
+            // f(t+dt) needs v(t+dt), which the closing kick is about to compute. Evaluating
+            // damping and drag at the half-step velocity would make the method first order;
+            // use a predicted end velocity v* = v(t+dt/2) + dt/2 f(x(t+dt), v(t+dt/2)) / m
+            // instead (its O(dt^2) error enters the kick times dt: second order overall).
+            forceModel_->evaluate(x_, v_, f_, ForceModel::Terms::Position);
+            fScratch_ = f_;
+            forceModel_->evaluate(x_, v_, fScratch_, ForceModel::Terms::Velocity);
+            vScratchPred_.resize(n);
+            const double h = 0.5 * dt;
+            forRange(n, [&](std::size_t b, std::size_t e) {
+                for (std::size_t i = b; i < e; ++i) vScratchPred_[i] = v_[i] + (h * invMass_[i]) * fScratch_[i];
+            });
+            forceModel_->evaluate(x_, vScratchPred_, f_, ForceModel::Terms::Velocity);
+            forcesValid_ = true;
+        } else {
+            evaluateForces();
+        }
         if (settings_.integrator == IntegratorKind::VelocityVerlet) {
             ScopedPhase t(timers_, slotFinish_);
             integrator_->finish(ctx);

@@ -166,7 +166,14 @@ std::size_t ForceModel::passiveTermCount() const {
     return count;
 }
 
-void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
+bool ForceModel::hasVelocityTerms() const {
+    for (const auto& e : pipeline_) {
+        if (e.term == Term::SpringDamping || e.term == Term::Damping || e.term == Term::Aero) return true;
+    }
+    return false;
+}
+
+void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f, Terms terms) {
     const std::size_t n = x.size();
     f.resize(n);
     // Runs a per-particle or per-spring loop on the pool when there is one.
@@ -179,7 +186,7 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
     };
     const bool gravity = settings_.gravity != Vec3::Zero();
     // Start from gravity (eq. (6)) or zero: one pass instead of two.
-    forRange(n, [&](std::size_t b, std::size_t e) {
+    if (terms != Terms::Velocity) forRange(n, [&](std::size_t b, std::size_t e) {
         if (gravity) {
             for (std::size_t i = b; i < e; ++i) f[i] = mass_[i] * settings_.gravity;
         } else {
@@ -187,6 +194,11 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
         }
     });
     for (const Entry& e : pipeline_) {
+        const bool velocityTerm =
+            e.term == Term::SpringDamping || e.term == Term::Damping || e.term == Term::Aero;
+        if ((terms == Terms::Position && velocityTerm) || (terms == Terms::Velocity && !velocityTerm)) {
+            continue;
+        }
         ScopedPhase timer(timers_, e.timerSlot);
         switch (e.term) {
         case Term::Springs: {

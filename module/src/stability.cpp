@@ -61,7 +61,11 @@ double estimateMaxAngularFrequency(const ClothTopology& topology,
         for (std::size_t i = 0; i < n; ++i) y[i] = z[i] * scale;
     }
     const double change = lambda > 0.0 ? std::abs(lambda - previous) / lambda : 1.0;
-    const double padded = std::min(gershgorin, lambda * (1.0 + 10.0 * change));
+    // Pad by ten times the last relative change, and by at least 1e-3: on slowly converging
+    // spectra the Rayleigh quotient was measured 1e-4 below lambda_max after 60 iterations.
+    // A quotient that has stopped changing (small networks) is exact and is not padded.
+    const double pad = change <= 1e-13 ? 0.0 : std::max(10.0 * change, 1e-3);
+    const double padded = std::min(gershgorin, lambda * (1.0 + pad));
     return std::sqrt(std::max(padded, 0.0));
 }
 
@@ -69,7 +73,9 @@ double stableTimeStep(IntegratorKind kind, double omegaMax) {
     if (kind == IntegratorKind::ImplicitEuler || omegaMax <= 0.0) {
         return std::numeric_limits<double>::infinity();
     }
-    // RK4's stability region reaches 2.785 along the imaginary axis.
+    // RK4: 2.785 is the extent of its stability region along the real axis; along the
+    // imaginary axis (undamped springs) it reaches 2 sqrt(2) = 2.83, so 2.785 is 1.5 %
+    // cautious for undamped cloth and right for strongly damped modes.
     const double c = kind == IntegratorKind::RungeKutta4 ? 2.785 : 2.0;
     return c / omegaMax;
 }

@@ -82,9 +82,10 @@ namespace {
 /// Runs Experiment I for 200 steps (2 s) with a limiter and checks the strain bound after
 /// every step: maxStrain + tolerance (the limiter's documented stopping rule), plus 1e-12 for
 /// the rounding of l / L0; no NaN; pinned corners exactly where they were.
-void experimentOneWithLimiter(LimiterKind kind, bool vertical) {
+void experimentOneWithLimiter(LimiterKind kind, bool vertical, double slack = 0.0) {
     auto cloth = experimentOne(kind, vertical);
-    const double limit = cloth->settings().limiter.maxStrain + cloth->settings().limiter.tolerance;
+    const double limit =
+        cloth->settings().limiter.maxStrain + cloth->settings().limiter.tolerance + slack;
     const Vec3 pin0 = cloth->positions()[0], pin1 = cloth->positions()[34];
     double worst = 0.0;
     int maxRounds = 0, over = 0, firstOver = -1;
@@ -135,6 +136,14 @@ TEST_CASE("Experiment I (horizontal start) with the stress-ordered limiter stays
 TEST_CASE("Experiment I (vertical start) with the stress-ordered limiter stays within 10 %",
           "[limiter][experiment1][!mayfail]") {
     experimentOneWithLimiter(LimiterKind::StressOrdered, true);
+}
+
+// The documented bound for the default settings (maxRounds 64): the round cap leaves at most
+// half a percent of strain above 10 % + tolerance on the vertical Experiment I (measured
+// 0.10129 over these 200 steps). This one must pass.
+TEST_CASE("Experiment I (vertical start), stress-ordered limiter, documented 0.5 % slack",
+          "[limiter][experiment1]") {
+    experimentOneWithLimiter(LimiterKind::StressOrdered, true, 0.005);
 }
 
 namespace {

@@ -7,7 +7,8 @@
 // gives an upper bound on omega_max^2 valid for any stretched state: lambda_max(M^-1 L).
 // It is found by power iteration on the symmetric M^-1/2 L M^-1/2.
 //   Velocity-Verlet, symplectic Euler (undamped):  dt < 2 / omega_max
-//   classic RK4:                                   dt < 2.785 / omega_max
+//   classic RK4:                                   dt < 2.785 / omega_max (real-axis extent;
+//                                                  2 sqrt(2) on the imaginary axis)
 //   explicit Euler: unstable for any dt on an undamped spring (|1 + i omega dt| > 1), and
 //                   needs dt < 2 / omega_max even with damping; we report 2 / omega_max
 //   implicit Euler: unconditionally stable (no limit)
