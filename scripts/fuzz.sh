@@ -48,6 +48,9 @@ for f in "$root"/samples/meshes/*; do
     { printf "$byte"; cat "$f"; } >"$mesh_seeds/$(basename "$f")"
 done
 
+# fuzz_mesh's scratch files live in the build folder; a killed run leaves nothing in /tmp.
+export TMPDIR=$build/tmp
+mkdir -p "$TMPDIR"
 # Leaks inside Debian's assimp are not drape's (see tests/fuzz/lsan.supp).
 export LSAN_OPTIONS="suppressions=$root/tests/fuzz/lsan.supp:print_suppressions=0${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
 
