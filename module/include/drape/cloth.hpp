@@ -136,7 +136,7 @@ private:
     std::vector<double> mass_;
     std::vector<double> invMass_;
     Vec3List x_, v_, f_;
-    Vec3List xScratch_, vScratch_, xBeforeLimit_, fScratch_, vScratchPred_;
+    Vec3List xScratch_, vScratch_, xBeforeLimit_;
     std::vector<unsigned char> pinned_;
     std::vector<std::pair<Index, KinematicPath>> kinematic_;
     std::unique_ptr<detail::ThreadPool> poolStorage_;
