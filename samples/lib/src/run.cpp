@@ -1,6 +1,8 @@
 // run.cpp: the headless run loop behind drape-run.
 #include "drape_samples/run.hpp"
 
+#include "drape/snapshot.hpp"
+
 #include "drape_samples/mesh_io.hpp"
 #include "drape_samples/render.hpp"
 #include "drape_samples/simulation.hpp"
@@ -248,6 +250,7 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
         r.video = "none (rendering or video off)";
     }
     r.wallSeconds = seconds(start, Clock::now());
+    r.stateHash = drape::stateHash(cloth);
 
     std::ostringstream sum;
     sum << std::setprecision(6);
@@ -273,6 +276,11 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
         << "max strain (final)  " << r.finalMaxStrain << "\n"
         << "max strain (peak)   " << r.peakMaxStrain << " (over the frames)\n"
         << "kinetic energy      " << cloth.kineticEnergy() << " J (final)\n"
+        << "state hash          " << [&] {
+               char buf[32];
+               std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(r.stateHash));
+               return std::string(buf);
+           }() << " (drape::stateHash of the final state)\n"
         << "frames              " << r.frames
         << (render ? " PNG in " + framesDir.string() : std::string(" (not rendered)")) << "\n"
         << "video               " << r.video << "\n";

@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <iosfwd>
+#include <cstdint>
 #include <optional>
 #include <string>
 
@@ -40,6 +41,9 @@ struct RunResult {
     std::size_t particles = 0;
     std::size_t springs = 0;
     std::string video; ///< path of the MP4, or why there is none
+    /// drape::stateHash of the final cloth state: equal for two runs of the same scene with
+    /// the same build (and any thread count), printed in the summary.
+    std::uint64_t stateHash = 0;
 };
 
 /// Applies the overrides to a loaded scene (throws SceneError on impossible values).
