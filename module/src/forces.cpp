@@ -10,31 +10,26 @@
 
 namespace drape {
 
+namespace {
+/// Eq. (4) for one spring, added to both ends.
+inline void addOneSpring(const Spring& sp, double k, const Vec3List& x, Vec3List& f) {
+    const Vec3 d = x[sp.b] - x[sp.a];
+    const double l = d.norm();
+    if (l == 0.0) return; // coincident ends: no direction, the force is undefined
+    const Vec3 force = (k * (l - sp.restLength) / l) * d;
+    f[sp.a] += force;
+    f[sp.b] -= force;
+}
+} // namespace
+
 void addSpringForces(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
                      const Vec3List& x, Vec3List& f) {
-    const std::size_t m = springs.size();
-    for (std::size_t s = 0; s < m; ++s) {
-        const Spring& sp = springs[s];
-        const Vec3 d = x[sp.b] - x[sp.a];
-        const double l = d.norm();
-        if (l == 0.0) continue; // coincident ends: no direction, the force is undefined
-        const Vec3 force = (stiffness[s] * (l - sp.restLength) / l) * d;
-        f[sp.a] += force;
-        f[sp.b] -= force;
-    }
+    for (std::size_t s = 0; s < springs.size(); ++s) addOneSpring(springs[s], stiffness[s], x, f);
 }
 
 void addSpringForcesSubset(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
                            const std::vector<Index>& subset, const Vec3List& x, Vec3List& f) {
-    for (Index s : subset) {
-        const Spring& sp = springs[s];
-        const Vec3 d = x[sp.b] - x[sp.a];
-        const double l = d.norm();
-        if (l == 0.0) continue;
-        const Vec3 force = (stiffness[s] * (l - sp.restLength) / l) * d;
-        f[sp.a] += force;
-        f[sp.b] -= force;
-    }
+    for (Index s : subset) addOneSpring(springs[s], stiffness[s], x, f);
 }
 
 SpringBlocks makeSpringBlocks(const ClothTopology& topology, std::size_t blocks) {
@@ -166,14 +161,7 @@ std::size_t ForceModel::passiveTermCount() const {
     return count;
 }
 
-bool ForceModel::hasVelocityTerms() const {
-    for (const auto& e : pipeline_) {
-        if (e.term == Term::SpringDamping || e.term == Term::Damping || e.term == Term::Aero) return true;
-    }
-    return false;
-}
-
-void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f, Terms terms) {
+void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
     const std::size_t n = x.size();
     f.resize(n);
     // Runs a per-particle or per-spring loop on the pool when there is one.
@@ -186,7 +174,7 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f, Ter
     };
     const bool gravity = settings_.gravity != Vec3::Zero();
     // Start from gravity (eq. (6)) or zero: one pass instead of two.
-    if (terms != Terms::Velocity) forRange(n, [&](std::size_t b, std::size_t e) {
+    forRange(n, [&](std::size_t b, std::size_t e) {
         if (gravity) {
             for (std::size_t i = b; i < e; ++i) f[i] = mass_[i] * settings_.gravity;
         } else {
@@ -194,11 +182,6 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f, Ter
         }
     });
     for (const Entry& e : pipeline_) {
-        const bool velocityTerm =
-            e.term == Term::SpringDamping || e.term == Term::Damping || e.term == Term::Aero;
-        if ((terms == Terms::Position && velocityTerm) || (terms == Terms::Velocity && !velocityTerm)) {
-            continue;
-        }
         ScopedPhase timer(timers_, e.timerSlot);
         switch (e.term) {
         case Term::Springs: {

@@ -102,7 +102,7 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
         // strain seen during the walk is only a lower bound: measure before stopping.
         if (worst <= stopLimit) {
             stats.maxStrainAfter = maxSpringStrain(topology, x);
-            if (stats.maxStrainAfter + 1.0 <= stopLimit) break;
+            if (stats.maxStrainAfter + 1.0 <= stopLimit) return stats;
         }
     }
     stats.maxStrainAfter = maxSpringStrain(topology, x);

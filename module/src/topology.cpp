@@ -107,15 +107,12 @@ std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& in
     for (std::size_t i = 0; i < n; ++i) topo->adjOffsets_[i + 1] += topo->adjOffsets_[i];
     topo->adjParticles_.resize(topo->adjOffsets_[n]);
     topo->adjSprings_.resize(topo->adjOffsets_[n]);
-    topo->adjSigns_.resize(topo->adjOffsets_[n]);
     std::vector<Index> fill(topo->adjOffsets_.begin(), topo->adjOffsets_.end() - 1);
     for (std::size_t s = 0; s < topo->springs_.size(); ++s) {
         const auto& sp = topo->springs_[s];
         topo->adjParticles_[fill[sp.a]] = sp.b;
-        topo->adjSigns_[fill[sp.a]] = 1.0;
         topo->adjSprings_[fill[sp.a]++] = static_cast<Index>(s);
         topo->adjParticles_[fill[sp.b]] = sp.a;
-        topo->adjSigns_[fill[sp.b]] = -1.0;
         topo->adjSprings_[fill[sp.b]++] = static_cast<Index>(s);
     }
 

@@ -83,17 +83,8 @@ public:
                const ClothSettings& settings, PhaseTimers& timers,
                detail::ThreadPool* pool = nullptr);
 
-    /// Which terms an evaluation covers.
-    enum class Terms {
-        All,      ///< f = every active term
-        Position, ///< f = the terms that do not depend on velocity (springs, gravity, user,
-                  ///< external)
-        Velocity, ///< f += the velocity-dependent terms (damping, spring damping, aero)
-    };
-    /// f = sum of the active terms at state (x, v) (Terms::Velocity adds to f instead).
-    void evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f, Terms terms = Terms::All);
-    /// True when some active term depends on velocity.
-    bool hasVelocityTerms() const;
+    /// f = sum of all active terms at state (x, v).
+    void evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f);
 
     /// Assembles d f / d x and d f / d v (3n x 3n) of the springs, spring damping and linear
     /// damping at state x. Gravity, user forces and aerodynamics are treated explicitly.

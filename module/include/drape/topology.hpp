@@ -57,8 +57,6 @@ public:
     const std::vector<Index>& adjacencyOffsets() const { return adjOffsets_; }
     const std::vector<Index>& adjacentParticles() const { return adjParticles_; }
     const std::vector<Index>& adjacentSprings() const { return adjSprings_; }
-    /// +1 where particle i is end a of adjacentSprings()[k], -1 where it is end b.
-    const std::vector<double>& adjacentSpringSigns() const { return adjSigns_; }
 
     /// Edges used by exactly one triangle (the cloth's border).
     std::size_t boundaryEdgeCount() const { return boundaryEdges_; }
@@ -74,7 +72,6 @@ private:
     std::vector<Index> adjOffsets_;
     std::vector<Index> adjParticles_;
     std::vector<Index> adjSprings_;
-    std::vector<double> adjSigns_;
     std::size_t boundaryEdges_ = 0;
 };
 
