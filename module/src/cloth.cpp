@@ -94,6 +94,11 @@ void validateSettings(const ClothSettings& s) {
     requireFinite(s.aero.wind, "aero.wind");
     requirePositive(s.limiter.maxStrain, "limiter.maxStrain");
     requireNonNegative(s.limiter.tolerance, "limiter.tolerance");
+    requireFinite(s.limiter.overRelaxation, "limiter.overRelaxation");
+    if (s.limiter.overRelaxation < 1.0 || s.limiter.overRelaxation >= 2.0) {
+        throw Error(ErrorCode::InvalidArgument,
+                    "limiter.overRelaxation must be in [1, 2), got " + num(s.limiter.overRelaxation));
+    }
     if (s.limiter.maxRounds < 1) {
         throw Error(ErrorCode::InvalidArgument,
                     "limiter.maxRounds must be >= 1, got " + std::to_string(s.limiter.maxRounds));
@@ -280,19 +285,24 @@ void Cloth::stepOnce(double dt) {
         }
         if (settings_.limiter.kind != LimiterKind::None) {
             ScopedPhase t(timers_, slotLimit_);
-            xBeforeLimit_ = x_;
+            const double invDt = 1.0 / dt;
             if (settings_.limiter.kind != LimiterKind::Provot) {
                 limiterStats_ = limitStrainStressOrdered(
                     *topology_, invMass_, forceModel_->stiffness(), settings_.limiter, x_,
                     limiterScratch_, settings_.limiter.kind == LimiterKind::StressOrderedOneSided);
+                // The limiter lists what it moved: only those particles change velocity.
+                const auto& moved = limiterScratch_.movedIndex;
+                for (std::size_t j = 0; j < moved.size(); ++j) {
+                    v_[moved[j]] += (x_[moved[j]] - limiterScratch_.movedFrom[j]) * invDt;
+                }
             } else {
+                xBeforeLimit_ = x_;
                 limiterStats_ = limitStrainProvot(*topology_, invMass_, settings_.limiter, x_);
-            }
-            if (limiterStats_.corrections > 0) {
-                const double invDt = 1.0 / dt;
-                forRange(n, [&](std::size_t b, std::size_t e) {
-                    for (std::size_t i = b; i < e; ++i) v_[i] += (x_[i] - xBeforeLimit_[i]) * invDt;
-                });
+                if (limiterStats_.corrections > 0) {
+                    forRange(n, [&](std::size_t b, std::size_t e) {
+                        for (std::size_t i = b; i < e; ++i) v_[i] += (x_[i] - xBeforeLimit_[i]) * invDt;
+                    });
+                }
             }
         }
         for (std::size_t s = 0; s < stages_.size(); ++s) {

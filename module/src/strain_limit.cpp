@@ -4,6 +4,7 @@
 #include "drape/settings.hpp"
 
 #include <algorithm>
+#include <cstdint>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -11,11 +12,15 @@
 namespace drape {
 
 double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x) {
-    double m = -std::numeric_limits<double>::infinity();
-    for (const Spring& s : topology.springs()) {
-        m = std::max(m, (x[s.b] - x[s.a]).norm() / s.restLength - 1.0);
+    if (topology.springCount() == 0) return -std::numeric_limits<double>::infinity();
+    // The largest squared length ratio, one square root at the end.
+    const auto& springs = topology.springs();
+    const auto& inv2 = topology.inverseSquaredRestLengths();
+    double worst2 = 0.0;
+    for (std::size_t s = 0; s < springs.size(); ++s) {
+        worst2 = std::max(worst2, (x[springs[s].b] - x[springs[s].a]).squaredNorm() * inv2[s]);
     }
-    return m;
+    return std::sqrt(worst2) - 1.0;
 }
 
 double meanSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x) {
@@ -23,6 +28,35 @@ double meanSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& 
     for (const Spring& s : topology.springs()) sum += (x[s.b] - x[s.a]).norm() / s.restLength - 1.0;
     return topology.springCount() ? sum / static_cast<double>(topology.springCount()) : 0.0;
 }
+
+namespace {
+
+/// Sorts `order` (a permutation of [0, n)) by key descending, ties by index ascending. Starts
+/// from the given permutation: an insertion sort that gives up after a budget of moves (the
+/// previous step's order is usually almost right) and then uses std::sort. Returns whether
+/// it fell back. Either way the result is the unique order the comparison defines.
+bool sortByStress(const std::vector<double>& key, std::vector<Index>& order) {
+    auto before = [&](Index a, Index b) { return key[a] != key[b] ? key[a] > key[b] : a < b; };
+    const std::size_t n = order.size();
+    std::size_t budget = 8 * n + 64;
+    for (std::size_t i = 1; i < n; ++i) {
+        const Index v = order[i];
+        std::size_t j = i;
+        while (j > 0 && before(v, order[j - 1])) {
+            order[j] = order[j - 1];
+            --j;
+            if (--budget == 0) {
+                order[j] = v;
+                std::sort(order.begin(), order.end(), before);
+                return true;
+            }
+        }
+        order[j] = v;
+    }
+    return false;
+}
+
+} // namespace
 
 StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
                                           const std::vector<double>& invMass,
@@ -32,64 +66,105 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
     StrainLimitStats stats;
     const double stretchLimit = 1.0 + s.maxStrain;
     const double stopLimit = 1.0 + s.maxStrain + s.tolerance;
+    const double stretch2 = stretchLimit * stretchLimit;
+    const double stop2 = stopLimit * stopLimit;
+    const double w = oneSided ? 1.0 : s.overRelaxation;
+    const double floorLimit = 1.0 + 0.5 * s.maxStrain;
     const auto& springs = topology.springs();
     const auto& off = topology.adjacencyOffsets();
     const auto& nbr = topology.adjacentParticles();
-    const auto& spr = topology.adjacentSprings();
+    const auto& rest = topology.adjacentRestLengths();
     const std::size_t n = x.size();
+    scratch.movedIndex.clear();
+    scratch.movedFrom.clear();
 
-    // One pass over the springs gives both the stress keys and the largest strain.
+    // The largest strain first, from squared lengths (no square roots): most steps of most
+    // cloths end here.
+    stats.maxStrainBefore = maxSpringStrain(topology, x);
+    stats.maxStrainAfter = stats.maxStrainBefore;
+    if (stats.maxStrainBefore + 1.0 <= stopLimit) return stats;
+
+    // Stress keys: the spring tension each particle receives; pinned particles first.
     auto& key = scratch.key;
     key.assign(n, 0.0);
-    double worst = 0.0;
     for (std::size_t si = 0; si < springs.size(); ++si) {
         const Spring& sp = springs[si];
-        const double l = (x[sp.b] - x[sp.a]).norm();
-        worst = std::max(worst, l / sp.restLength);
-        const double t = stiffness[si] * std::abs(l - sp.restLength);
+        const double t = stiffness[si] * std::abs((x[sp.b] - x[sp.a]).norm() - sp.restLength);
         key[sp.a] += t;
         key[sp.b] += t;
     }
-    stats.maxStrainBefore = worst - 1.0;
-    stats.maxStrainAfter = stats.maxStrainBefore;
-    if (worst <= stopLimit) return stats;
-
     for (std::size_t i = 0; i < n; ++i) {
         if (invMass[i] == 0.0) key[i] = std::numeric_limits<double>::infinity();
     }
     auto& order = scratch.order;
-    order.resize(n);
-    for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<Index>(i);
-    std::sort(order.begin(), order.end(),
-              [&](Index a, Index b) { return key[a] != key[b] ? key[a] > key[b] : a < b; });
+    if (order.size() != n) {
+        order.resize(n);
+        std::iota(order.begin(), order.end(), Index{0});
+    }
+    scratch.sortedFallbacks += sortByStress(key, order) ? 1 : 0;
 
     auto& fixed = scratch.fixed;
+    auto& moved = scratch.moved;
+    fixed.resize(n);
+    moved.assign(n, 0);
+    // Change tracking: a spring found within the limit stays so until one of its ends moves.
+    // movedAt[i] is the clock of particle i's last move, okAt[s] the clock at which spring s
+    // was last found within the limit; such a spring is skipped (it could only repeat the
+    // "no correction" it gave), so late rounds only look where corrections happen. The walk
+    // and its result are exactly those of looking at every spring.
+    const auto& spr = topology.adjacentSprings();
+    auto& movedAt = scratch.movedAt;
+    auto& okAt = scratch.okAt;
+    movedAt.assign(n, 1);
+    okAt.assign(springs.size(), 0);
+    std::uint32_t clock = 1;
+    // Remembers where a particle was before its first move in this call, and when it moved.
+    auto touch = [&](Index i) {
+        movedAt[i] = ++clock;
+        if (moved[i]) return;
+        moved[i] = 1;
+        scratch.movedIndex.push_back(i);
+        scratch.movedFrom.push_back(x[i]);
+    };
     for (int round = 0; round < s.maxRounds; ++round) {
-        fixed.assign(n, 0);
         for (std::size_t i = 0; i < n; ++i) fixed[i] = invMass[i] == 0.0;
-        // Each spring is looked at once per round, from whichever end is visited first. The
-        // largest strain seen decides whether another round is needed.
-        worst = 0.0;
+        // Odd rounds walk the order backwards (a symmetric Gauss-Seidel sweep), which carries
+        // corrections back up toward the anchors and converges faster.
+        const bool backwards = !oneSided && round % 2 == 1;
+        // Each spring is looked at once per round, from whichever end is visited first.
+        // Whether one was seen beyond the stop limit decides whether another round is needed
+        // (skipped springs are within the limit, so they cannot change that decision).
+        bool overStop = false;
         for (std::size_t step = 0; step < n; ++step) {
-            // Odd rounds walk the order backwards (a symmetric Gauss-Seidel sweep), which
-            // carries corrections back up toward the anchors and converges faster.
-            const Index p = order[(round % 2 == 0 || oneSided) ? step : n - 1 - step];
+            const Index p = order[backwards ? n - 1 - step : step];
             for (Index k = off[p]; k < off[p + 1]; ++k) {
                 const Index q = nbr[k];
                 if (fixed[q]) continue;
+                const Index si = spr[k];
+                if (okAt[si] >= movedAt[p] && okAt[si] >= movedAt[q]) continue;
                 const Vec3 d = x[q] - x[p];
-                const double l = d.norm();
-                const double rest = springs[spr[k]].restLength;
-                worst = std::max(worst, l / rest);
-                const double lmax = stretchLimit * rest;
-                if (l <= lmax) continue;
+                const double l2 = d.squaredNorm();
+                const double r = rest[k];
+                const double r2 = r * r; // compare squares: no division, no root
+                if (l2 <= stretch2 * r2) {
+                    okAt[si] = clock;
+                    continue;
+                }
+                overStop = overStop || l2 > stop2 * r2;
+                const double l = std::sqrt(l2);
+                // Over-relaxed length (w = 1: exactly the limit), never below
+                // (1 + maxStrain / 2) L0, so a spring far past the limit is not flipped.
+                const double target = std::max(l - w * (l - stretchLimit * r), floorLimit * r);
                 if (oneSided || invMass[p] == 0.0) {
-                    x[q] = x[p] + (lmax / l) * d; // pull q along the spring toward p
+                    touch(q);
+                    x[q] = x[p] + (target / l) * d; // pull q along the spring toward p
                     fixed[q] = 1;
                 } else {
                     // Provot's rule for two free ends: both move, by inverse-mass share.
                     const double wp = invMass[p], wq = invMass[q];
-                    const Vec3 corr = ((l - lmax) / (l * (wp + wq))) * d;
+                    const Vec3 corr = ((l - target) / (l * (wp + wq))) * d;
+                    if (wp > 0.0) touch(p);
+                    if (wq > 0.0) touch(q);
                     x[p] += wp * corr;
                     x[q] -= wq * corr;
                 }
@@ -100,7 +175,7 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
         stats.rounds = round + 1;
         // Corrections later in a round can re-stretch springs looked at earlier, so the
         // strain seen during the walk is only a lower bound: measure before stopping.
-        if (worst <= stopLimit) {
+        if (!overStop) {
             stats.maxStrainAfter = maxSpringStrain(topology, x);
             if (stats.maxStrainAfter + 1.0 <= stopLimit) return stats;
         }

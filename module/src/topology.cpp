@@ -115,6 +115,14 @@ std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& in
         topo->adjParticles_[fill[sp.b]] = sp.a;
         topo->adjSprings_[fill[sp.b]++] = static_cast<Index>(s);
     }
+    topo->invRest2_.resize(topo->springs_.size());
+    for (std::size_t s = 0; s < topo->springs_.size(); ++s) {
+        topo->invRest2_[s] = 1.0 / (topo->springs_[s].restLength * topo->springs_[s].restLength);
+    }
+    topo->adjRest_.resize(topo->adjSprings_.size());
+    for (std::size_t k = 0; k < topo->adjSprings_.size(); ++k) {
+        topo->adjRest_[k] = topo->springs_[topo->adjSprings_[k]].restLength;
+    }
 
     topo->triangleAreas_.resize(topo->triangles_.size());
     for (std::size_t t = 0; t < topo->triangles_.size(); ++t) {

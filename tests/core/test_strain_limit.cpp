@@ -169,7 +169,8 @@ TEST_CASE("Limiters move only free ends, never pinned particles", "[limiter]") {
     ObtuseCase c;
     const auto x0 = c.stretched();
     REQUIRE(maxSpringStrain(*c.topo, x0) == Approx(0.3).epsilon(1e-12));
-    const LimiterSettings s = limiterSettings();
+    LimiterSettings s = limiterSettings();
+    s.overRelaxation = 1.0; // the plain rule; over-relaxation has its own test below
     const Vec3 target = (1.1 * c.restLength02()) * x0[2].normalized(); // 0-2 at exactly 10 %
 
     const std::vector<double> k(c.topo->springCount(), 1.0);
@@ -219,6 +220,36 @@ TEST_CASE("Limiters move only free ends, never pinned particles", "[limiter]") {
             CHECK((0.5 * (x[0] + x[2]) - 0.5 * (x0[0] + x0[2])).norm() < 1e-12);
             CHECK((x[2] - x[0]).norm() == Approx(1.1 * c.restLength02()).epsilon(1e-12));
         }
+    }
+}
+
+TEST_CASE("Over-relaxation shortens an overstretched spring to l - w (l - lmax), floored",
+          "[limiter]") {
+    // One spring, one end pinned, w = 1.9: a small excess is overshot by 0.9 times itself; a
+    // large one stops at (1 + maxStrain / 2) L0 instead of flipping the spring.
+    TriangleMesh m;
+    m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(10, 0.5, 0)}; // 1-2 only shortens
+    m.triangles = {{0, 1, 2}};
+    const auto topo = ClothTopology::build(m);
+    const std::vector<double> invMass{0.0, 1.0, 0.0};
+    const std::vector<double> k(topo->springCount(), 1.0);
+    LimiterSettings s = limiterSettings();
+    s.overRelaxation = 1.9;
+    for (double strain : {0.105, 0.5, 3.0}) {
+        auto x = topo->restPositions();
+        x[1] = Vec3(1.0 + strain, 0, 0); // spring 0-1 (rest 1) at the given strain
+        StressOrderScratch scratch;
+        const auto st = limitStrainStressOrdered(*topo, invMass, k, s, x, scratch);
+        const double l = 1.0 + strain;
+        const double expected = std::max(l - 1.9 * (l - 1.1), 1.05);
+        INFO("strain " << strain);
+        CHECK((x[1] - x[0]).norm() == Approx(expected).epsilon(1e-12));
+        CHECK(x[1].y() == Approx(0.0).margin(1e-12)); // moved along the spring only
+        CHECK(st.maxStrainAfter <= 0.1);
+        // The limiter reports what it moved and from where.
+        REQUIRE(scratch.movedIndex.size() == 1);
+        CHECK(scratch.movedIndex[0] == 1);
+        CHECK(scratch.movedFrom[0] == Vec3(1.0 + strain, 0, 0));
     }
 }
 

@@ -60,6 +60,11 @@ struct LimiterSettings {
     int maxRounds = 64;       ///< rounds (stress-ordered) or sweeps (Provot) per step
     /// Rounds stop once every spring is within maxStrain + tolerance [-].
     double tolerance = 1e-3;
+    /// Over-relaxation w of the stress-ordered walk's corrections, in [1, 2): an
+    /// overstretched spring of length l is shortened to l - w (l - lmax) instead of lmax.
+    /// 1 is the plain projection; larger values converge in fewer rounds. Provot's limiter
+    /// ignores it.
+    double overRelaxation = 1.0;
 };
 
 /// Implicit Euler settings.

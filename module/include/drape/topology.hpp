@@ -57,6 +57,10 @@ public:
     const std::vector<Index>& adjacencyOffsets() const { return adjOffsets_; }
     const std::vector<Index>& adjacentParticles() const { return adjParticles_; }
     const std::vector<Index>& adjacentSprings() const { return adjSprings_; }
+    /// Rest length of spring adjacentSprings()[k], stored next to it for the limiter's walk.
+    const std::vector<double>& adjacentRestLengths() const { return adjRest_; }
+    /// 1 / L0^2 of each spring, for strain checks on squared lengths without a division.
+    const std::vector<double>& inverseSquaredRestLengths() const { return invRest2_; }
 
     /// Edges used by exactly one triangle (the cloth's border).
     std::size_t boundaryEdgeCount() const { return boundaryEdges_; }
@@ -72,6 +76,8 @@ private:
     std::vector<Index> adjOffsets_;
     std::vector<Index> adjParticles_;
     std::vector<Index> adjSprings_;
+    std::vector<double> adjRest_;
+    std::vector<double> invRest2_;
     std::size_t boundaryEdges_ = 0;
 };
 
