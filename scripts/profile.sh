@@ -21,8 +21,10 @@ usage: scripts/profile.sh [-b BUILD_DIR] [-n TOP] [-o OUT_DIR] [--perf] CASE
   CASE        exact drape-bench case name; list them with
               BUILD_DIR/samples/benchmarks/drape-bench --benchmark_list_tests
   --run       profile drape-run on SCENE.json for STEPS steps (default 100), no rendering
-  --perf      sample with perf (cpu-clock) instead of callgrind; the whole process, setup
-              included, so prefer cases whose steps dominate (benchmark cases only)
+  --perf      sample with perf (cpu-clock, 5 repetitions) instead of callgrind: own time per
+              function over the whole process, setup included (scaling cases build their
+              cloth once, so their steps dominate, but every state restore re-primes the
+              stability estimate, drape::estimateMaxAngularFrequency; benchmark cases only)
   -b DIR      build directory (default: $DRAPE_BUILD_DIR or build)
   -n TOP      number of functions to list (default 25)
   -o DIR      keep the raw profile and logs in DIR (default: a temporary directory)
@@ -81,10 +83,10 @@ annotate() { # callgrind output file
         awk '/^-+$/ {sep++; next} sep >= 3 && NF && !/^ *Ir/' |
         sed -E 's/ \[[^]]*\]$//; s/^( *[0-9,]+ +\( *[0-9.]+%\)) +[^:]*:/\1  /' | cut -c1-180; }
     echo "--- top $top functions by own instructions (exclusive) ---"
-    rows --inclusive=no "$1" | head -n "$top"
+    rows --inclusive=no "$1" | awk -v n="$top" 'NR <= n'
     echo "--- top $top drape functions including callees (inclusive) ---"
     rows --inclusive=yes "$1" | grep -E 'PROGRAM TOTALS|drape::' |
-        grep -vE 'runSteps|runScaling|benchmark::' | head -n "$top"
+        grep -vE 'runSteps|runScaling|benchmark::' | awk -v n="$top" 'NR <= n'
 }
 
 total_ir() { # callgrind output file -> collected instructions
@@ -122,12 +124,12 @@ bench_args=("$filter" --benchmark_repetitions=1 --benchmark_report_aggregates_on
 
 if [[ $mode == perf ]]; then
     echo "profiling $case_name (perf record, cpu-clock) ..." >&2
-    perf record -e cpu-clock -g -o "$out/perf.data" "$bench" "${bench_args[@]}" \
+    perf record -e cpu-clock -o "$out/perf.data" "$bench" "${bench_args[@]}" --benchmark_repetitions=5 \
         >"$out/program.log" 2>"$out/perf.log" ||
         { echo "profile.sh: perf record failed, see $out/perf.log" >&2; exit 1; }
     echo "case: $case_name (whole process, setup included)"
     perf report -i "$out/perf.data" --stdio --no-children --sort symbol 2>/dev/null |
-        grep -E '^ +[0-9.]+%' | head -n "$top"
+        grep -E '^ +[0-9.]+%' | awk -v n="$top" 'NR <= n'
     echo "raw profile: $out/perf.data"
     exit 0
 fi
