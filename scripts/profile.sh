@@ -10,7 +10,8 @@
 # For a benchmark case only its timed steps are counted: drape-bench toggles callgrind's
 # collection around them (no setup, no warm-up step, no state restores), with one repetition.
 # For --run, only Cloth::step is counted (inclusive), divided by the steps asked for; the first
-# step also pays the initial forces and the stability estimate.
+# step also pays the initial forces and the stability estimate. Callgrind collects per thread:
+# with ClothSettings::threads > 1 the pool's worker threads are not counted.
 set -euo pipefail
 
 usage() {
@@ -157,5 +158,9 @@ ir=$(total_ir "$out/callgrind.out")
 echo "case: $case_name, $steps timed steps"
 echo "instructions collected: $ir"
 echo "instructions per step: $(python3 -c "print(f'{$ir / $steps:,.0f}')")"
+if [[ $case_name =~ threads:([0-9]+) ]] && (( BASH_REMATCH[1] > 1 )); then
+    echo "warning: callgrind toggles collection per thread, so this counts only the thread that" \
+        "calls Cloth::step, not the pool's workers; use the threads:1 case for the total work"
+fi
 annotate "$out/callgrind.out"
 echo "raw profile: $out/callgrind.out"
