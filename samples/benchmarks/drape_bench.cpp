@@ -20,13 +20,15 @@
 
 #include <benchmark/benchmark.h>
 
-#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <map>
 #include <memory>
+#include <ostream>
 #include <string>
+#include <utility>
 #include <vector>
 
 // Under valgrind --tool=callgrind --collect-atstart=no (scripts/profile.sh), only the timed
@@ -375,9 +377,14 @@ class MedianReporter : public benchmark::ConsoleReporter {
                 wall.push_back(wallMs(*row->run));
             }
             char line[256];
-            std::snprintf(line, sizeof line, "| %s | %d | %zu | %.3f | %.3f |\n",
-                          kv.first.first.c_str(), kv.first.second, n.size(),
-                          logLogSlope(n, cpu), logLogSlope(n, wall));
+            if (n.size() < 2) {
+                std::snprintf(line, sizeof line, "| %s | %d | %zu | n/a | n/a |\n",
+                              kv.first.first.c_str(), kv.first.second, n.size());
+            } else {
+                std::snprintf(line, sizeof line, "| %s | %d | %zu | %.3f | %.3f |\n",
+                              kv.first.first.c_str(), kv.first.second, n.size(),
+                              logLogSlope(n, cpu), logLogSlope(n, wall));
+            }
             out << line;
         }
 
