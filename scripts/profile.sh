@@ -30,7 +30,7 @@ usage: scripts/profile.sh [-b BUILD_DIR] [-n TOP] [-o OUT_DIR] [--perf] CASE
   -n TOP      number of functions to list (default 25)
   -o DIR      keep the raw profile and logs in DIR (default: a temporary directory)
 EOF
-    exit 2
+    exit "${1:-2}"
 }
 
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -45,7 +45,7 @@ while [[ $# -gt 0 ]]; do
         -o) [[ $# -ge 2 ]] || usage; out=$2; shift 2 ;;
         --run) mode=run; shift ;;
         --perf) mode=perf; shift ;;
-        -h|--help) usage ;;
+        -h|--help) usage 0 ;;
         -*) echo "profile.sh: unknown option $1" >&2; usage ;;
         *) break ;;
     esac
