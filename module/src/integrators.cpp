@@ -9,6 +9,9 @@
 #include <Eigen/IterativeLinearSolvers>
 #include <Eigen/SparseCholesky>
 
+#include <atomic>
+#include <cmath>
+
 namespace drape {
 namespace {
 
@@ -33,28 +36,52 @@ template <class Body> void forParticles(IntegratorContext& c, Body body) {
 class VelocityVerlet final : public Integrator {
 public:
     IntegratorKind kind() const override { return IntegratorKind::VelocityVerlet; }
-    void advance(IntegratorContext& c) override {
+    void advance(IntegratorContext& c) override { advanceFrom(c, c.x, c.v); }
+    bool advanceFrom(IntegratorContext& c, const Vec3List& x0, const Vec3List& v0) override {
         const double h = 0.5 * c.dt;
         forParticles(c, [&](std::size_t i) {
-            c.v[i] += (h * c.invMass[i]) * c.f[i];
-            c.x[i] += c.dt * c.v[i];
+            const Vec3 vh = v0[i] + (h * c.invMass[i]) * c.f[i];
+            c.v[i] = vh;
+            c.x[i] = x0[i] + c.dt * vh;
         });
+        return true;
     }
+    /// The closing half kick, with the finiteness check of the whole state folded in (one
+    /// pass over the particles instead of two): a NaN or infinity anywhere makes a chunk's
+    /// sum non-finite.
     void finish(IntegratorContext& c) override {
         const double h = 0.5 * c.dt;
-        forParticles(c, [&](std::size_t i) { c.v[i] += (h * c.invMass[i]) * c.f[i]; });
+        std::atomic<bool> bad{false};
+        auto range = [&](std::size_t b, std::size_t e) {
+            double sum = 0.0;
+            for (std::size_t i = b; i < e; ++i) {
+                c.v[i] += (h * c.invMass[i]) * c.f[i];
+                sum += c.x[i].sum() + c.v[i].sum() + c.f[i].sum();
+            }
+            if (!std::isfinite(sum)) bad.store(true, std::memory_order_relaxed);
+        };
+        if (c.pool) {
+            c.pool->parallelFor(c.x.size(), range);
+        } else {
+            range(0, c.x.size());
+        }
+        c.nonFiniteSeen = bad.load();
     }
+    bool finishChecksFinite() const override { return true; }
 };
 
 /// x(t+dt) = x + v dt, v(t+dt) = v + a dt: both from the state at t. First order.
 class ExplicitEuler final : public Integrator {
 public:
     IntegratorKind kind() const override { return IntegratorKind::ExplicitEuler; }
-    void advance(IntegratorContext& c) override {
+    void advance(IntegratorContext& c) override { advanceFrom(c, c.x, c.v); }
+    bool advanceFrom(IntegratorContext& c, const Vec3List& x0, const Vec3List& v0) override {
         forParticles(c, [&](std::size_t i) {
-            c.x[i] += c.dt * c.v[i];
-            c.v[i] += (c.dt * c.invMass[i]) * c.f[i];
+            const Vec3 vi = v0[i];
+            c.x[i] = x0[i] + c.dt * vi;
+            c.v[i] = vi + (c.dt * c.invMass[i]) * c.f[i];
         });
+        return true;
     }
 };
 
@@ -62,11 +89,14 @@ public:
 class SymplecticEuler final : public Integrator {
 public:
     IntegratorKind kind() const override { return IntegratorKind::SymplecticEuler; }
-    void advance(IntegratorContext& c) override {
+    void advance(IntegratorContext& c) override { advanceFrom(c, c.x, c.v); }
+    bool advanceFrom(IntegratorContext& c, const Vec3List& x0, const Vec3List& v0) override {
         forParticles(c, [&](std::size_t i) {
-            c.v[i] += (c.dt * c.invMass[i]) * c.f[i];
-            c.x[i] += c.dt * c.v[i];
+            const Vec3 vi = v0[i] + (c.dt * c.invMass[i]) * c.f[i];
+            c.v[i] = vi;
+            c.x[i] = x0[i] + c.dt * vi;
         });
+        return true;
     }
 };
 

@@ -3,22 +3,37 @@
 
 #include "drape/settings.hpp"
 
+#include "parallel.hpp"
+
 #include <algorithm>
 #include <cstdint>
 #include <cmath>
 #include <limits>
+#include <mutex>
 #include <numeric>
 
 namespace drape {
 
-double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x) {
+double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x,
+                       detail::ThreadPool* pool) {
     if (topology.springCount() == 0) return -std::numeric_limits<double>::infinity();
-    // The largest squared length ratio, one square root at the end.
     const auto& springs = topology.springs();
     const auto& inv2 = topology.inverseSquaredRestLengths();
+    // The largest squared length ratio, one square root at the end.
     double worst2 = 0.0;
-    for (std::size_t s = 0; s < springs.size(); ++s) {
-        worst2 = std::max(worst2, (x[springs[s].b] - x[springs[s].a]).squaredNorm() * inv2[s]);
+    std::mutex merge;
+    auto range = [&](std::size_t b, std::size_t e) {
+        double m = 0.0;
+        for (std::size_t s = b; s < e; ++s) {
+            m = std::max(m, (x[springs[s].b] - x[springs[s].a]).squaredNorm() * inv2[s]);
+        }
+        std::lock_guard<std::mutex> lock(merge);
+        worst2 = std::max(worst2, m);
+    };
+    if (pool) {
+        pool->parallelFor(springs.size(), range, 16384);
+    } else {
+        range(0, springs.size());
     }
     return std::sqrt(worst2) - 1.0;
 }
@@ -62,7 +77,8 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
                                           const std::vector<double>& invMass,
                                           const std::vector<double>& stiffness,
                                           const LimiterSettings& s, std::vector<Vec3>& x,
-                                          StressOrderScratch& scratch, bool oneSided) {
+                                          StressOrderScratch& scratch, bool oneSided,
+                                          detail::ThreadPool* pool) {
     StrainLimitStats stats;
     const double stretchLimit = 1.0 + s.maxStrain;
     const double stopLimit = 1.0 + s.maxStrain + s.tolerance;
@@ -80,7 +96,7 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
 
     // The largest strain first, from squared lengths (no square roots): most steps of most
     // cloths end here.
-    stats.maxStrainBefore = maxSpringStrain(topology, x);
+    stats.maxStrainBefore = maxSpringStrain(topology, x, pool);
     stats.maxStrainAfter = stats.maxStrainBefore;
     if (stats.maxStrainBefore + 1.0 <= stopLimit) return stats;
 
@@ -176,11 +192,11 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
         // Corrections later in a round can re-stretch springs looked at earlier, so the
         // strain seen during the walk is only a lower bound: measure before stopping.
         if (!overStop) {
-            stats.maxStrainAfter = maxSpringStrain(topology, x);
+            stats.maxStrainAfter = maxSpringStrain(topology, x, pool);
             if (stats.maxStrainAfter + 1.0 <= stopLimit) return stats;
         }
     }
-    stats.maxStrainAfter = maxSpringStrain(topology, x);
+    stats.maxStrainAfter = maxSpringStrain(topology, x, pool);
     return stats;
 }
 

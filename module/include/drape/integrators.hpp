@@ -26,6 +26,9 @@ struct IntegratorContext {
     double dt;                          ///< time step [s]
     ForceModel& forces;                 ///< for integrators that evaluate forces more than once
     detail::ThreadPool* pool = nullptr; ///< splits particle loops over threads when set
+    /// Set by finish() when it found a non-finite value in x, v or f while it passed over them
+    /// (integrators whose finish() does not look leave it false: the caller checks).
+    bool nonFiniteSeen = false;
 };
 
 /// One time integrator; holds its own scratch buffers, so one instance per cloth.
@@ -34,8 +37,19 @@ public:
     virtual ~Integrator() = default;
     virtual IntegratorKind kind() const = 0;
     virtual void advance(IntegratorContext& ctx) = 0;
+    /// advance() reading the state at t from x0, v0 and writing the new state to ctx.x,
+    /// ctx.v (same sizes), so the caller keeps the old state without copying it. Returns false
+    /// if this integrator only works in place (the caller then copies and calls advance()).
+    virtual bool advanceFrom(IntegratorContext& ctx, const Vec3List& x0, const Vec3List& v0) {
+        (void)ctx;
+        (void)x0;
+        (void)v0;
+        return false;
+    }
     /// Runs after forces are re-evaluated at the end of the step; ctx.f holds f(t+dt).
     virtual void finish(IntegratorContext& ctx) { (void)ctx; }
+    /// Whether finish() checks x, v and f for non-finite values (ctx.nonFiniteSeen).
+    virtual bool finishChecksFinite() const { return false; }
     /// Solver statistics of the last step (CG iterations for implicit Euler, else 0).
     virtual int lastIterations() const { return 0; }
 };

@@ -13,6 +13,9 @@
 namespace drape {
 
 struct LimiterSettings;
+namespace detail {
+class ThreadPool;
+}
 
 /// What a limiter did in one step.
 struct StrainLimitStats {
@@ -76,7 +79,8 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
                                           const std::vector<double>& invMass,
                                           const std::vector<double>& stiffness,
                                           const LimiterSettings& s, std::vector<Vec3>& x,
-                                          StressOrderScratch& scratch, bool oneSided = false);
+                                          StressOrderScratch& scratch, bool oneSided = false,
+                                          detail::ThreadPool* pool = nullptr);
 
 /// Provot (1995): sweeps over the springs in index order; an overstretched spring is
 /// shortened to (1 + maxStrain) L0, moving both ends by their inverse-mass share (only the
@@ -86,8 +90,10 @@ StrainLimitStats limitStrainProvot(const ClothTopology& topology,
                                    const std::vector<double>& invMass, const LimiterSettings& s,
                                    std::vector<Vec3>& x);
 
-/// Largest strain (l - L0) / L0 over all springs (negative if all are compressed).
-double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x);
+/// Largest strain (l - L0) / L0 over all springs (negative if all are compressed). With a
+/// pool, the springs are split over its threads (the maximum does not depend on the split).
+double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x,
+                       detail::ThreadPool* pool = nullptr);
 /// Mean strain over all springs.
 double meanSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x);
 

@@ -187,6 +187,8 @@ void parseStrainLimit(JsonObject o, SceneDesc& sc) {
     l.maxStrain = o.number("max_strain", 0.10, Range::Positive);
     l.maxRounds = static_cast<int>(o.integer("max_rounds", 64, 1, 100000));
     l.tolerance = o.number("tolerance", 1e-4, Range::NonNegative);
+    l.overRelaxation = o.number("over_relaxation", 1.0, Range::Positive);
+    if (l.overRelaxation < 1.0 || l.overRelaxation >= 2.0) o.fail(o.pathOf("over_relaxation"), "must be in [1, 2)");
     o.finish();
 }
 
