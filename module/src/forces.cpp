@@ -5,6 +5,7 @@
 
 #include "parallel.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -31,6 +32,14 @@ void addSpringForcesSubset(const std::vector<Spring>& springs, const std::vector
                            const std::vector<Index>& subset, const Vec3List& x, Vec3List& f) {
     for (Index s : subset) addOneSpring(springs[s], stiffness[s], x, f);
 }
+
+namespace {
+/// addSpringForcesSubset for springs that all have stiffness k.
+void addUniformSpringForcesSubset(const std::vector<Spring>& springs, double k,
+                                  const std::vector<Index>& subset, const Vec3List& x, Vec3List& f) {
+    for (Index s : subset) addOneSpring(springs[s], k, x, f);
+}
+} // namespace
 
 SpringBlocks makeSpringBlocks(const ClothTopology& topology, std::size_t blocks) {
     const std::size_t n = topology.particleCount();
@@ -124,6 +133,10 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
     // A fixed number of blocks (independent of the thread count, so sums do not change with
     // it): one per 16384 particles, at most 64.
     blocks_ = makeSpringBlocks(*topology_, std::min<std::size_t>(64, 1 + topology_->particleCount() / 16384));
+    if (!stiffness_.empty() &&
+        std::all_of(stiffness_.begin(), stiffness_.end(), [&](double k) { return k == stiffness_[0]; })) {
+        uniformStiffness_ = stiffness_[0];
+    }
     rebuildPipeline();
 }
 
@@ -194,17 +207,23 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
         case Term::Springs: {
             const auto& springs = topology_->springs();
             const std::size_t nb = blocks_.inner.size();
-            auto blockRange = [&](std::size_t b, std::size_t end) {
-                for (std::size_t k = b; k < end; ++k) {
-                    addSpringForcesSubset(springs, stiffness_, blocks_.inner[k], x, f);
+            // Same sums either way: a uniform stiffness only saves reading it per spring.
+            auto subset = [&](const std::vector<Index>& list) {
+                if (uniformStiffness_ > 0.0) {
+                    addUniformSpringForcesSubset(springs, uniformStiffness_, list, x, f);
+                } else {
+                    addSpringForcesSubset(springs, stiffness_, list, x, f);
                 }
+            };
+            auto blockRange = [&](std::size_t b, std::size_t end) {
+                for (std::size_t k = b; k < end; ++k) subset(blocks_.inner[k]);
             };
             if (pool_) {
                 pool_->parallelFor(nb, blockRange, 1);
             } else {
                 blockRange(0, nb);
             }
-            addSpringForcesSubset(springs, stiffness_, blocks_.crossing, x, f);
+            subset(blocks_.crossing);
             break;
         }
         case Term::SpringDamping:

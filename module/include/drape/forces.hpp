@@ -128,6 +128,9 @@ private:
     std::vector<Entry> pipeline_;
     detail::ThreadPool* pool_ = nullptr;
     SpringBlocks blocks_;
+    /// The common stiffness when every spring has the same (the step then reads no
+    /// per-spring stiffness), else 0.
+    double uniformStiffness_ = 0.0;
 };
 
 } // namespace drape
