@@ -34,10 +34,14 @@ void addSpringForcesSubset(const std::vector<Spring>& springs, const std::vector
 }
 
 namespace {
-/// addSpringForcesSubset for springs that all have stiffness k.
-void addUniformSpringForcesSubset(const std::vector<Spring>& springs, double k,
-                                  const std::vector<Index>& subset, const Vec3List& x, Vec3List& f) {
-    for (Index s : subset) addOneSpring(springs[s], k, x, f);
+/// Springs [b, e) of a packed list; k is the common stiffness, or 0 to read stiffness[s].
+void addPackedSpringForces(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
+                           double k, std::size_t b, std::size_t e, const Vec3List& x, Vec3List& f) {
+    if (k > 0.0) {
+        for (std::size_t s = b; s < e; ++s) addOneSpring(springs[s], k, x, f);
+    } else {
+        for (std::size_t s = b; s < e; ++s) addOneSpring(springs[s], stiffness[s], x, f);
+    }
 }
 } // namespace
 
@@ -137,6 +141,18 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
         std::all_of(stiffness_.begin(), stiffness_.end(), [&](double k) { return k == stiffness_[0]; })) {
         uniformStiffness_ = stiffness_[0];
     }
+    const auto& springs = topology_->springs();
+    auto pack = [&](const std::vector<Index>& list) {
+        for (Index s : list) {
+            packed_.push_back(springs[s]);
+            if (uniformStiffness_ == 0.0) packedStiffness_.push_back(stiffness_[s]);
+        }
+        packedStart_.push_back(packed_.size());
+    };
+    packed_.reserve(springs.size());
+    packedStart_.push_back(0);
+    for (const auto& inner : blocks_.inner) pack(inner);
+    pack(blocks_.crossing);
     rebuildPipeline();
 }
 
@@ -205,25 +221,22 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
         ScopedPhase timer(timers_, e.timerSlot);
         switch (e.term) {
         case Term::Springs: {
-            const auto& springs = topology_->springs();
             const std::size_t nb = blocks_.inner.size();
-            // Same sums either way: a uniform stiffness only saves reading it per spring.
-            auto subset = [&](const std::vector<Index>& list) {
-                if (uniformStiffness_ > 0.0) {
-                    addUniformSpringForcesSubset(springs, uniformStiffness_, list, x, f);
-                } else {
-                    addSpringForcesSubset(springs, stiffness_, list, x, f);
-                }
+            // Blocks in parallel (each writes only its own particles), then the crossing
+            // springs: the same sums in the same order for any thread count.
+            auto range = [&](std::size_t block) {
+                addPackedSpringForces(packed_, packedStiffness_, uniformStiffness_, packedStart_[block],
+                                      packedStart_[block + 1], x, f);
             };
             auto blockRange = [&](std::size_t b, std::size_t end) {
-                for (std::size_t k = b; k < end; ++k) subset(blocks_.inner[k]);
+                for (std::size_t k = b; k < end; ++k) range(k);
             };
             if (pool_) {
                 pool_->parallelFor(nb, blockRange, 1);
             } else {
                 blockRange(0, nb);
             }
-            subset(blocks_.crossing);
+            range(nb);
             break;
         }
         case Term::SpringDamping:

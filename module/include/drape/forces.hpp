@@ -127,6 +127,13 @@ private:
     std::vector<std::pair<std::string, ExternalForce>> externals_;
     std::vector<Entry> pipeline_;
     detail::ThreadPool* pool_ = nullptr;
+    /// The springs of blocks_ copied out in block order (inner blocks, then the crossing
+    /// springs), with their stiffness, so the step reads them front to back without an
+    /// index list: block b is packed[packedStart[b] .. packedStart[b + 1]), the crossing
+    /// springs the last range.
+    std::vector<Spring> packed_;
+    std::vector<double> packedStiffness_;
+    std::vector<std::size_t> packedStart_;
     SpringBlocks blocks_;
     /// The common stiffness when every spring has the same (the step then reads no
     /// per-spring stiffness), else 0.
