@@ -119,45 +119,105 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
     }
     scratch.sortedFallbacks += sortByStress(key, order) ? 1 : 0;
 
-    auto& fixed = scratch.fixed;
     auto& moved = scratch.moved;
-    fixed.resize(n);
     moved.assign(n, 0);
-    // Change tracking: a spring found within the limit stays so until one of its ends moves.
+    auto& rank = scratch.rank;
+    rank.resize(n);
+    for (std::size_t r = 0; r < n; ++r) rank[order[r]] = static_cast<Index>(r);
+    // Change tracking. A spring found within the limit stays so until one of its ends moves:
     // movedAt[i] is the clock of particle i's last move, okAt[s] the clock at which spring s
-    // was last found within the limit; such a spring is skipped (it could only repeat the
-    // "no correction" it gave), so late rounds only look where corrections happen. The walk
-    // and its result are exactly those of looking at every spring.
+    // was last found within the limit, and such a spring is skipped. A particle none of whose
+    // springs can need a look is not visited at all: `pending` (by rank) holds the particles
+    // still to visit in this round, `next` those for the next round; when a particle moves,
+    // it and its neighbours go into both (into `pending` only if the walk has not passed them
+    // yet). A skipped visit would have found nothing to do, and "regulated" is decided by the
+    // rank (visited earlier in this round) rather than by a flag set on the visit, so the walk
+    // and its result are exactly those of visiting every particle and every spring.
     const auto& spr = topology.adjacentSprings();
     auto& movedAt = scratch.movedAt;
     auto& okAt = scratch.okAt;
+    auto& pulledRound = scratch.pulledRound;
     movedAt.assign(n, 1);
     okAt.assign(springs.size(), 0);
+    pulledRound.assign(n, 0);
     std::uint32_t clock = 1;
-    // Remembers where a particle was before its first move in this call, and when it moved.
+    const std::size_t words = (n + 63) / 64;
+    auto& pending = scratch.pending;
+    auto& next = scratch.next;
+    pending.assign(words, ~std::uint64_t{0});
+    next.assign(words, 0);
+    auto set = [](std::vector<std::uint64_t>& bits, std::size_t r) { bits[r >> 6] |= std::uint64_t{1} << (r & 63); };
+    std::size_t pos = 0;    // rank of the particle being visited
+    bool backwards = false; // direction of the current round
     auto touch = [&](Index i) {
         movedAt[i] = ++clock;
+        auto mark = [&](Index j) {
+            const std::size_t r = rank[j];
+            set(next, r);
+            if (backwards ? r < pos : r > pos) set(pending, r);
+        };
+        mark(i);
+        for (Index k = off[i]; k < off[i + 1]; ++k) mark(nbr[k]);
         if (moved[i]) return;
         moved[i] = 1;
         scratch.movedIndex.push_back(i);
         scratch.movedFrom.push_back(x[i]);
     };
+    // The next set rank at or after `from` (forwards) or at or before it (backwards); n if none.
+    auto nextPending = [&](std::size_t from) -> std::size_t {
+        if (!backwards) {
+            for (std::size_t wd = from >> 6; wd < words; ++wd) {
+                std::uint64_t bits = pending[wd];
+                if (wd == (from >> 6)) bits &= ~std::uint64_t{0} << (from & 63);
+                if (bits) return (wd << 6) + static_cast<std::size_t>(__builtin_ctzll(bits));
+            }
+            return n;
+        }
+        for (std::size_t wd = (from >> 6) + 1; wd-- > 0;) {
+            std::uint64_t bits = pending[wd];
+            if (wd == (from >> 6) && (from & 63) != 63) bits &= (std::uint64_t{1} << ((from & 63) + 1)) - 1;
+            if (bits) return (wd << 6) + 63 - static_cast<std::size_t>(__builtin_clzll(bits));
+        }
+        return n;
+    };
     for (int round = 0; round < s.maxRounds; ++round) {
-        for (std::size_t i = 0; i < n; ++i) fixed[i] = invMass[i] == 0.0;
         // Odd rounds walk the order backwards (a symmetric Gauss-Seidel sweep), which carries
         // corrections back up toward the anchors and converges faster.
-        const bool backwards = !oneSided && round % 2 == 1;
+        backwards = !oneSided && round % 2 == 1;
+        const std::uint32_t roundTag = static_cast<std::uint32_t>(round) + 1;
+        if (round > 0) {
+            pending.swap(next);
+            std::fill(next.begin(), next.end(), 0);
+        }
+        if (n % 64 != 0) pending[words - 1] &= (std::uint64_t{1} << (n % 64)) - 1;
+        // Regulated: pinned, visited earlier in this round, or pulled by a pinned particle.
+        auto regulated = [&](Index q) {
+            return invMass[q] == 0.0 || (backwards ? rank[q] > pos : rank[q] < pos) ||
+                   pulledRound[q] == roundTag;
+        };
         // Each spring is looked at once per round, from whichever end is visited first.
         // Whether one was seen beyond the stop limit decides whether another round is needed
         // (skipped springs are within the limit, so they cannot change that decision).
         bool overStop = false;
-        for (std::size_t step = 0; step < n; ++step) {
-            const Index p = order[backwards ? n - 1 - step : step];
+        for (pos = nextPending(backwards ? n - 1 : 0); pos < n;
+             pos = (backwards ? (pos == 0 ? n : nextPending(pos - 1)) : nextPending(pos + 1))) {
+            pending[pos >> 6] &= ~(std::uint64_t{1} << (pos & 63));
+            const Index p = order[pos];
             for (Index k = off[p]; k < off[p + 1]; ++k) {
                 const Index q = nbr[k];
-                if (fixed[q]) continue;
                 const Index si = spr[k];
-                if (okAt[si] >= movedAt[p] && okAt[si] >= movedAt[q]) continue;
+                const bool clean = okAt[si] >= movedAt[p] && okAt[si] >= movedAt[q];
+                if (regulated(q)) {
+                    // The walk does not look at this spring in this round; if it may need a
+                    // look, both ends are visited again in the next one (unless both are
+                    // pinned: such a spring is never looked at).
+                    if (!clean && (invMass[p] != 0.0 || invMass[q] != 0.0)) {
+                        set(next, pos);
+                        set(next, rank[q]);
+                    }
+                    continue;
+                }
+                if (clean) continue;
                 const Vec3 d = x[q] - x[p];
                 const double l2 = d.squaredNorm();
                 const double r = rest[k];
@@ -174,7 +234,7 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
                 if (oneSided || invMass[p] == 0.0) {
                     touch(q);
                     x[q] = x[p] + (target / l) * d; // pull q along the spring toward p
-                    fixed[q] = 1;
+                    pulledRound[q] = roundTag;
                 } else {
                     // Provot's rule for two free ends: both move, by inverse-mass share.
                     const double wp = invMass[p], wq = invMass[q];
@@ -186,7 +246,6 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
                 }
                 ++stats.corrections;
             }
-            fixed[p] = 1; // regulated: later particles no longer adjust it this round
         }
         stats.rounds = round + 1;
         // Corrections later in a round can re-stretch springs looked at earlier, so the

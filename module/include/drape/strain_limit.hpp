@@ -32,8 +32,10 @@ struct StrainLimitStats {
 struct StressOrderScratch {
     std::vector<Index> order;  ///< stress order of the last limited step (reused as a start)
     std::vector<double> key;
-    std::vector<unsigned char> fixed;
+    std::vector<Index> rank;   ///< position of each particle in `order`
     std::vector<unsigned char> moved;
+    std::vector<std::uint32_t> pulledRound; ///< round in which a pinned particle pulled it
+    std::vector<std::uint64_t> pending, next; ///< particles (by rank) to visit, as bits
     std::vector<std::uint32_t> movedAt; ///< change tracking: clock of a particle's last move
     std::vector<std::uint32_t> okAt;    ///< clock at which a spring was last within the limit
     std::vector<Index> movedIndex;
