@@ -11,6 +11,7 @@
 //    iteration count and sub-steps, not on k = 20 N/m.
 //  - Bullet's deformable world (btDeformableMultiBodyDynamicsWorld, implicit) with
 //    btDeformableMassSpringForce at the same k = 20 N/m and btDeformableGravityForce.
+#include "drape_reports/engines.hpp"
 #include "drape_reports/reports.hpp"
 #include "drape_reports/scenes.hpp"
 
@@ -44,14 +45,7 @@ btVector3 bt(const Vec3& v) {
     return btVector3(btScalar(v.x()), btScalar(v.y()), btScalar(v.z()));
 }
 
-/// One engine running one scene.
-class Engine {
-public:
-    virtual ~Engine() = default;
-    virtual void step() = 0; ///< one frame of the scene's dt (throws on a detected failure)
-    virtual void state(std::vector<Vec3>& x, std::vector<Vec3>& v) const = 0;
-    virtual std::size_t links() const = 0;
-};
+using Engine = ClothEngine;
 
 class DrapeEngine : public Engine {
 public:
@@ -243,6 +237,21 @@ private:
     std::unique_ptr<btDeformableMultiBodyDynamicsWorld> world_;
 };
 
+} // namespace
+
+std::unique_ptr<ClothEngine> makeDrapeEngine(const ClothScene& scene, LimiterKind limiter) {
+    return std::make_unique<DrapeEngine>(scene, limiter);
+}
+std::unique_ptr<ClothEngine> makeSoftBodyEngine(const ClothScene& scene, int piterations,
+                                                int substeps) {
+    return std::make_unique<SoftBodyEngine>(scene, piterations, substeps);
+}
+std::unique_ptr<ClothEngine> makeDeformableEngine(const ClothScene& scene) {
+    return std::make_unique<DeformableEngine>(scene);
+}
+
+namespace {
+
 struct Config {
     std::string engine;
     std::string config;
@@ -253,9 +262,9 @@ struct Config {
 };
 
 std::unique_ptr<Engine> makeEngine(const Config& c, const ClothScene& sc) {
-    if (c.engine == "drape") return std::make_unique<DrapeEngine>(sc, c.limiter);
-    if (c.engine == "btSoftBody") return std::make_unique<SoftBodyEngine>(sc, c.piterations, c.substeps);
-    return std::make_unique<DeformableEngine>(sc);
+    if (c.engine == "drape") return makeDrapeEngine(sc, c.limiter);
+    if (c.engine == "btSoftBody") return makeSoftBodyEngine(sc, c.piterations, c.substeps);
+    return makeDeformableEngine(sc);
 }
 
 struct SceneRun {
