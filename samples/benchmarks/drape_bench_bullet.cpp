@@ -64,13 +64,16 @@ void runDrape(benchmark::State& state, samples::SceneDesc scene) {
     const std::uint64_t before = cloth.stepCount();
     std::vector<double> perStep;
     perStep.reserve(static_cast<std::size_t>(state.max_iterations));
-    std::size_t contacts = 0;
+    std::size_t contacts = 0, rounds = 0, capped = 0;
+    const int maxRounds = cloth.settings().limiter.maxRounds;
     try {
         for (auto _ : state) {
             const auto t0 = Clock::now();
             sim->step();
             perStep.push_back(seconds(t0, Clock::now()));
             contacts += sim->contactCount();
+            rounds += std::size_t(cloth.lastLimiterStats().rounds);
+            capped += cloth.lastLimiterStats().rounds >= maxRounds;
         }
     } catch (const std::exception& e) {
         state.SkipWithError(e.what());
@@ -104,6 +107,11 @@ void runDrape(benchmark::State& state, samples::SceneDesc scene) {
     state.counters["first400_us"] = w ? 1e6 * first / double(w) : 0.0;
     state.counters["last400_us"] = w ? 1e6 * last / double(w) : 0.0;
     state.counters["contacts_per_step"] = double(contacts) / steps;
+    // The cloth's own limiter (before the contact stage): rounds per step, and the share of
+    // steps in which it stopped at its round cap; the contact stage's limiter passes per step.
+    state.counters["limiter_rounds_per_step"] = double(rounds) / steps;
+    state.counters["limiter_capped_share"] = double(capped) / steps;
+    if (stageLimiter) state.counters["stage_limiter_passes_per_step"] = double(stageLimiter->calls) / steps;
     state.counters["max_strain"] = cloth.maxStrain();
     state.counters["kinetic_J"] = cloth.kineticEnergy();
     state.counters["particles"] = double(cloth.particleCount());
