@@ -14,9 +14,13 @@
 //
 // Counters (per step, over the timed window, from the cloth's own phase timers, see
 // drape/timers.hpp): <phase>_us for every phase that ran (integrate, strain_limit,
-// bullet_contacts, springs, damping, contact_penalty, integrate_finish, ...), cloth_us = their
-// sum (the cloth's part of the step), plus the wall time per step of the first and the last
-// 400 steps (falling against resting) and the state at the end of the window.
+// bullet_contacts, springs, damping, contact_penalty, integrate_finish, and bullet_bodies, the
+// handle's work around the cloth step: body snapshot, impulses, proxy), cloth_us = their sum
+// (the cloth's part of the world step); "a/b" phases are parts of phase a and are not summed
+// again (bullet_contacts/limiter: the limiter passes the contact stage runs after its
+// projections; contacts_own_us = bullet_contacts without them). Also the wall time per step of
+// the first and the last 400 steps (falling against resting), the cloth's own limiter rounds
+// per step, and the state at the end of the window.
 #include <drape/cloth.hpp>
 #include <drape/error.hpp>
 #include <drape/strain_limit.hpp>
