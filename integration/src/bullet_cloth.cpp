@@ -296,6 +296,18 @@ struct BulletCloth::Impl {
         double lo[3], hi[3];
     };
     std::vector<ParticleBox> boxes;
+    /// The union of the boxes of kBlock consecutive particles, and how many of them collide.
+    struct Block {
+        Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
+        Vec3 hi = Vec3::Constant(-std::numeric_limits<double>::infinity());
+        std::size_t free = 0;
+        void grow(const ParticleBox& b) {
+            lo = lo.cwiseMin(Vec3(b.lo[0], b.lo[1], b.lo[2]));
+            hi = hi.cwiseMax(Vec3(b.hi[0], b.hi[1], b.hi[2]));
+        }
+    };
+    static constexpr std::size_t kBlock = 16;
+    std::vector<Block> blocks;
     void updateBox(std::size_t i, const Vec3& xi, const Vec3& from, bool fixed);
     /// The cheap test before collideParticle: false when particle i cannot be within the
     /// contact reach of body b in this step, so that collideParticle would return false
@@ -610,35 +622,53 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     touching.assign(n, 0);
     recordOf.assign(n, -1);
     bool anyTouching = false;
-    // Pinned, kinematic and attached particles (zero inverse mass) get empty boxes.
+    // Pinned, kinematic and attached particles (zero inverse mass) get empty boxes. Blocks of
+    // kBlock consecutive particles (neighbours in a sheet, so their boxes are close) get the
+    // union of their boxes: a body a block's box misses is not tested against its particles
+    // one by one. The cloth's box is the union of all of them. Both are grown as contacts move
+    // particles, so they stay supersets of the boxes the particles have when they are tested.
     boxes.resize(n);
-    Vec3 clothLo = Vec3::Constant(std::numeric_limits<double>::infinity());
-    Vec3 clothHi = -clothLo;
-    std::size_t free = 0;
+    const std::size_t nBlocks = (n + kBlock - 1) / kBlock;
+    blocks.assign(nBlocks, Block{});
     for (std::size_t i = 0; i < n; ++i) {
-        free += invMass[i] != 0.0;
-        updateBox(i, x[i], prevX[i], invMass[i] == 0.0);
-        clothLo = clothLo.cwiseMin(Vec3(boxes[i].lo[0], boxes[i].lo[1], boxes[i].lo[2]));
-        clothHi = clothHi.cwiseMax(Vec3(boxes[i].hi[0], boxes[i].hi[1], boxes[i].hi[2]));
+        const bool fixed = invMass[i] == 0.0;
+        updateBox(i, x[i], prevX[i], fixed);
+        Block& bl = blocks[i / kBlock];
+        bl.free += !fixed;
+        bl.grow(boxes[i]);
+    }
+    Block whole;
+    for (const Block& bl : blocks) {
+        whole.free += bl.free;
+        whole.lo = whole.lo.cwiseMin(bl.lo);
+        whole.hi = whole.hi.cwiseMax(bl.hi);
     }
     for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
         const BodySnapshot& b = bodies[bi];
-        // No particle box overlaps the body's AABB: skip its particles (all of them would
-        // fail the box test). clothLo/clothHi bound every box, also after projections.
-        if ((clothHi.array() < b.aabbMin.array()).any() || (clothLo.array() > b.aabbMax.array()).any() ||
-            (b.plane && aboveReach(b, clothLo, clothHi))) {
-            last.particleBoxTests += free;
+        auto misses = [&b, this](const Block& bl) {
+            return (bl.hi.array() < b.aabbMin.array()).any() ||
+                   (bl.lo.array() > b.aabbMax.array()).any() || (b.plane && aboveReach(b, bl.lo, bl.hi));
+        };
+        // Every particle's box would fail the box test: skip them (and count the tests).
+        if (misses(whole)) {
+            last.particleBoxTests += whole.free;
             continue;
         }
-        for (std::size_t i = 0; i < n; ++i) {
-            if (invMass[i] == 0.0 || !mayTouch(b, i, x[i], prevX[i])) continue;
-            const Vec3 before = x[i];
-            collideParticle(c, bi, i, dt, counters);
-            if (x[i] != before) { // projected: the next bodies see where it is now
-                updateBox(i, x[i], prevX[i], false);
-                const ParticleBox& box = boxes[i];
-                clothLo = clothLo.cwiseMin(Vec3(box.lo[0], box.lo[1], box.lo[2]));
-                clothHi = clothHi.cwiseMax(Vec3(box.hi[0], box.hi[1], box.hi[2]));
+        for (std::size_t k = 0; k < nBlocks; ++k) {
+            Block& bl = blocks[k];
+            if (misses(bl)) {
+                last.particleBoxTests += bl.free;
+                continue;
+            }
+            for (std::size_t i = k * kBlock, end = std::min(n, i + kBlock); i < end; ++i) {
+                if (invMass[i] == 0.0 || !mayTouch(b, i, x[i], prevX[i])) continue;
+                const Vec3 before = x[i];
+                collideParticle(c, bi, i, dt, counters);
+                if (x[i] != before) { // projected: the next bodies see where it is now
+                    updateBox(i, x[i], prevX[i], false);
+                    bl.grow(boxes[i]);
+                    whole.grow(boxes[i]);
+                }
             }
         }
     }
