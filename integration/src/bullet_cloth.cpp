@@ -308,6 +308,17 @@ struct BulletCloth::Impl {
     };
     static constexpr std::size_t kBlock = 16;
     std::vector<Block> blocks;
+    /// Moved particles of one block, moved[begin, end), for the re-projection.
+    struct MovedGroup {
+        std::size_t begin = 0, end = 0;
+        Block box;
+    };
+    std::vector<MovedGroup> movedGroups;
+    /// No particle whose box is inside bl can be within the reach of body b.
+    bool blockMisses(const BodySnapshot& b, const Block& bl) const {
+        return (bl.hi.array() < b.aabbMin.array()).any() || (bl.lo.array() > b.aabbMax.array()).any() ||
+               (b.plane && aboveReach(b, bl.lo, bl.hi));
+    }
     void updateBox(std::size_t i, const Vec3& xi, const Vec3& from, bool fixed);
     /// The cheap test before collideParticle: false when particle i cannot be within the
     /// contact reach of body b in this step, so that collideParticle would return false
@@ -645,10 +656,7 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     }
     for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
         const BodySnapshot& b = bodies[bi];
-        auto misses = [&b, this](const Block& bl) {
-            return (bl.hi.array() < b.aabbMin.array()).any() ||
-                   (bl.lo.array() > b.aabbMax.array()).any() || (b.plane && aboveReach(b, bl.lo, bl.hi));
-        };
+        auto misses = [&b, this](const Block& bl) { return blockMisses(b, bl); };
         // Every particle's box would fail the box test: skip them (and count the tests).
         if (misses(whole)) {
             last.particleBoxTests += whole.free;
@@ -702,14 +710,36 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
             v[i] += dx / dt;
             moved.push_back(i);
         }
-        // Re-project what the limiter moved.
-        for (std::size_t i : moved) updateBox(i, x[i], prevX[i], false);
+        // Re-project what the limiter moved, in index order per body as before; the moved
+        // particles of one block are skipped together when their boxes' union misses a body.
+        movedGroups.clear();
+        for (std::size_t m = 0; m < moved.size(); ++m) {
+            const std::size_t i = moved[m];
+            updateBox(i, x[i], prevX[i], false);
+            if (movedGroups.empty() || moved[movedGroups.back().begin] / kBlock != i / kBlock)
+                movedGroups.push_back(MovedGroup{m, m, Block{}});
+            MovedGroup& g = movedGroups.back();
+            g.end = m + 1;
+            ++g.box.free;
+            g.box.grow(boxes[i]);
+        }
         for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
-            for (std::size_t i : moved) {
-                if (!mayTouch(bodies[bi], i, x[i], prevX[i])) continue;
-                const Vec3 before = x[i];
-                collideParticle(c, bi, i, dt, counters);
-                if (x[i] != before) updateBox(i, x[i], prevX[i], false);
+            const BodySnapshot& b = bodies[bi];
+            for (MovedGroup& g : movedGroups) {
+                if (blockMisses(b, g.box)) {
+                    last.particleBoxTests += g.box.free;
+                    continue;
+                }
+                for (std::size_t m = g.begin; m < g.end; ++m) {
+                    const std::size_t i = moved[m];
+                    if (!mayTouch(b, i, x[i], prevX[i])) continue;
+                    const Vec3 before = x[i];
+                    collideParticle(c, bi, i, dt, counters);
+                    if (x[i] != before) {
+                        updateBox(i, x[i], prevX[i], false);
+                        g.box.grow(boxes[i]);
+                    }
+                }
             }
         }
     }
