@@ -639,21 +639,16 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     // one by one. The cloth's box is the union of all of them. Both are grown as contacts move
     // particles, so they stay supersets of the boxes the particles have when they are tested.
     boxes.resize(n);
-    const std::size_t nBlocks = (n + kBlock - 1) / kBlock;
-    blocks.assign(nBlocks, Block{});
+    Block whole;
     for (std::size_t i = 0; i < n; ++i) {
         const bool fixed = invMass[i] == 0.0;
         updateBox(i, x[i], prevX[i], fixed);
-        Block& bl = blocks[i / kBlock];
-        bl.free += !fixed;
-        bl.grow(boxes[i]);
+        whole.free += !fixed;
+        whole.grow(boxes[i]);
     }
-    Block whole;
-    for (const Block& bl : blocks) {
-        whole.free += bl.free;
-        whole.lo = whole.lo.cwiseMin(bl.lo);
-        whole.hi = whole.hi.cwiseMax(bl.hi);
-    }
+    // The blocks are built when a body is near the cloth at all (not while it falls free).
+    const std::size_t nBlocks = (n + kBlock - 1) / kBlock;
+    bool blocksBuilt = false;
     for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
         const BodySnapshot& b = bodies[bi];
         auto misses = [&b, this](const Block& bl) { return blockMisses(b, bl); };
@@ -661,6 +656,15 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
         if (misses(whole)) {
             last.particleBoxTests += whole.free;
             continue;
+        }
+        if (!blocksBuilt) { // before any projection of this step: from the boxes as they are
+            blocks.assign(nBlocks, Block{});
+            for (std::size_t i = 0; i < n; ++i) {
+                Block& bl = blocks[i / kBlock];
+                bl.free += invMass[i] != 0.0;
+                bl.grow(boxes[i]);
+            }
+            blocksBuilt = true;
         }
         for (std::size_t k = 0; k < nBlocks; ++k) {
             Block& bl = blocks[k];
