@@ -52,6 +52,7 @@
 #include <BulletCollision/CollisionShapes/btEmptyShape.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -156,6 +157,13 @@ struct BodySnapshot {
     double invMass = 0.0;
     Eigen::Matrix3d invInertia = Eigen::Matrix3d::Zero(); ///< world frame
     double friction = 0.0;
+    /// A static plane (btStaticPlaneShape): its world normal and offset, nW . x - offset being
+    /// the signed distance, for the cheap rejection of particles far above it (its AABB is
+    /// infinite, so the box test passes every particle).
+    bool plane = false;
+    Vec3 planeNormal = Vec3::UnitY();
+    double planeOffset = 0.0;
+    double planeScale = 0.0; ///< |offset| + |t|: the size of the numbers in the distance [m]
     Vec3 linearImpulse = Vec3::Zero();  ///< accumulated for the body [N s]
     Vec3 angularImpulse = Vec3::Zero(); ///< about the centre of mass [N m s]
 
@@ -260,6 +268,10 @@ struct BulletCloth::Impl {
     Vec3List xBeforeLimit;
     std::vector<std::size_t> moved;
     StressOrderScratch limitScratch;
+    /// Timer slots in the cloth's PhaseTimers: the limiter calls inside the contact stage
+    /// (nested in its "bullet_contacts" phase), and the handle's work around the cloth's
+    /// steps (body snapshot, proxy, impulses on bodies).
+    std::size_t slotStageLimiter = 0, slotBodies = 0;
 
     /// One Bullet sub-step of dt [s] (the action's updateAction).
     void step(double dt);
@@ -276,6 +288,43 @@ struct BulletCloth::Impl {
     /// eq. (7) record). Returns whether it is within the contact reach.
     bool collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, double dt,
                          detail::QueryCounters& counters);
+    /// Per particle: the box collideParticle tests against a body's AABB (the particle, or
+    /// its path since the previous step when that is longer than the thickness). Empty for
+    /// particles that never collide (zero inverse mass). Kept up to date as contacts move
+    /// particles, so every body sees the box of the particle as it is when it is tested.
+    struct ParticleBox {
+        double lo[3], hi[3];
+    };
+    std::vector<ParticleBox> boxes;
+    /// The union of the boxes of kBlock consecutive particles, and how many of them collide.
+    struct Block {
+        Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
+        Vec3 hi = Vec3::Constant(-std::numeric_limits<double>::infinity());
+        std::size_t free = 0;
+        void grow(const ParticleBox& b) {
+            lo = lo.cwiseMin(Vec3(b.lo[0], b.lo[1], b.lo[2]));
+            hi = hi.cwiseMax(Vec3(b.hi[0], b.hi[1], b.hi[2]));
+        }
+    };
+    static constexpr std::size_t kBlock = 16;
+    std::vector<Block> blocks;
+    /// Moved particles of one block, moved[begin, end), for the re-projection.
+    struct MovedGroup {
+        std::size_t begin = 0, end = 0;
+        Block box;
+    };
+    std::vector<MovedGroup> movedGroups;
+    /// No particle whose box is inside bl can be within the reach of body b.
+    bool blockMisses(const BodySnapshot& b, const Block& bl) const {
+        return (bl.hi.array() < b.aabbMin.array()).any() || (bl.lo.array() > b.aabbMax.array()).any() ||
+               (b.plane && aboveReach(b, bl.lo, bl.hi));
+    }
+    void updateBox(std::size_t i, const Vec3& xi, const Vec3& from, bool fixed);
+    /// The cheap test before collideParticle: false when particle i cannot be within the
+    /// contact reach of body b in this step, so that collideParticle would return false
+    /// without doing anything. Counts a box test.
+    bool mayTouch(const BodySnapshot& b, std::size_t i, const Vec3& xi, const Vec3& from);
+    bool aboveReach(const BodySnapshot& b, const Vec3& lo, const Vec3& hi) const;
     Vec3 attachmentPoint(const Attachment& a) const {
         return toPose(a.body->getWorldTransform()).toWorld(a.localPoint);
     }
@@ -356,6 +405,14 @@ void BulletCloth::Impl::gatherBodies(double dt) {
         obj->getCollisionShape()->getAabb(obj->getWorldTransform(), mn, mx);
         b.aabbMin = toVec(mn).array() - reach;
         b.aabbMax = toVec(mx).array() + reach;
+        if (obj->getCollisionShape()->getShapeType() == STATIC_PLANE_PROXYTYPE) {
+            const auto* ps = static_cast<const btStaticPlaneShape*>(obj->getCollisionShape());
+            const Vec3 nLocal = toVec(ps->getPlaneNormal()).normalized(); // as shape_queries does
+            b.plane = true;
+            b.planeNormal = b.pose.R * nLocal;
+            b.planeOffset = b.planeNormal.dot(b.pose.t) + double(ps->getPlaneConstant());
+            b.planeScale = std::abs(b.planeOffset) + b.pose.t.cwiseAbs().sum();
+        }
         if (const btRigidBody* rb = btRigidBody::upcast(obj)) {
             b.v = toVec(rb->getLinearVelocity());
             b.w = toVec(rb->getAngularVelocity());
@@ -370,6 +427,62 @@ void BulletCloth::Impl::gatherBodies(double dt) {
     last.candidateBodies = bodies.size();
 }
 
+inline void BulletCloth::Impl::updateBox(std::size_t i, const Vec3& xi, const Vec3& from,
+                                         bool fixed) {
+    ParticleBox& box = boxes[i];
+    if (fixed) { // never collides: a box no AABB overlaps
+        for (int k = 0; k < 3; ++k) {
+            box.lo[k] = std::numeric_limits<double>::infinity();
+            box.hi[k] = -std::numeric_limits<double>::infinity();
+        }
+        return;
+    }
+    const double h = settings.contact.thickness;
+    const bool sweep = settings.contact.continuous && (xi - from).squaredNorm() > h * h;
+    for (int k = 0; k < 3; ++k) {
+        box.lo[k] = sweep ? std::min(xi[k], from[k]) : xi[k];
+        box.hi[k] = sweep ? std::max(xi[k], from[k]) : xi[k];
+    }
+}
+
+/// Whether the box lo..hi lies entirely above plane b, farther than the contact reach, with
+/// the margin mayTouch uses for swept particles: then no particle whose box is inside it
+/// (both its ends when swept) can touch the plane.
+bool BulletCloth::Impl::aboveReach(const BodySnapshot& b, const Vec3& lo, const Vec3& hi) const {
+    Vec3 corner; // the box's corner deepest along -normal
+    for (int k = 0; k < 3; ++k) corner[k] = b.planeNormal[k] >= 0.0 ? lo[k] : hi[k];
+    if (!corner.allFinite()) return false;
+    const double reach = settings.contact.thickness + band;
+    const double size = b.planeScale + std::max(lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff());
+    return b.planeNormal.dot(corner) - b.planeOffset > reach + 1e-5 * size;
+}
+
+inline bool BulletCloth::Impl::mayTouch(const BodySnapshot& b, std::size_t i, const Vec3& xi,
+                                        const Vec3& from) {
+    ++last.particleBoxTests;
+    // The particle's box against the body's AABB grown by the reach: the comparisons
+    // collideParticle made before.
+    const ParticleBox& box = boxes[i];
+    if ((box.hi[0] < b.aabbMin[0]) | (box.hi[1] < b.aabbMin[1]) | (box.hi[2] < b.aabbMin[2]) |
+        (box.lo[0] > b.aabbMax[0]) | (box.lo[1] > b.aabbMax[1]) | (box.lo[2] > b.aabbMax[2])) {
+        return false;
+    }
+    if (!b.plane) return true;
+    // A plane's AABB is infinite: reject particles clearly above it. The margin covers the
+    // rounding of this distance against the query's (1e-9 relative), and for a swept particle
+    // that of Bullet's single-precision ray test (1e-5 relative): only particles that the
+    // query and the ray test would certainly reject are skipped, so nothing changes.
+    const double h = settings.contact.thickness;
+    const double reach = h + band;
+    const bool sweep = settings.contact.continuous && (xi - from).squaredNorm() > h * h;
+    const double dist = b.planeNormal.dot(xi) - b.planeOffset;
+    const double size = b.planeScale + xi.cwiseAbs().maxCoeff();
+    if (!sweep) return !(dist > reach + 1e-9 * size);
+    const double distFrom = b.planeNormal.dot(from) - b.planeOffset;
+    const double sizeFrom = std::max(size, b.planeScale + from.cwiseAbs().maxCoeff());
+    return !(dist > reach + 1e-5 * sizeFrom && distFrom > reach + 1e-5 * sizeFrom);
+}
+
 bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, double dt,
                                         detail::QueryCounters& counters) {
     BodySnapshot& b = bodies[bi];
@@ -381,10 +494,6 @@ bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t 
     const Vec3 xi = x[i];
     const Vec3 from = prevX[i];
     const bool sweep = cs.continuous && (xi - from).squaredNorm() > h * h;
-    const Vec3 lo = sweep ? Vec3(xi.cwiseMin(from)) : xi;
-    const Vec3 hi = sweep ? Vec3(xi.cwiseMax(from)) : xi;
-    ++last.particleBoxTests;
-    if ((hi.array() < b.aabbMin.array()).any() || (lo.array() > b.aabbMax.array()).any()) return false;
 
     detail::SurfaceHit hit;
     bool crossed = false;
@@ -524,10 +633,55 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     touching.assign(n, 0);
     recordOf.assign(n, -1);
     bool anyTouching = false;
+    // Pinned, kinematic and attached particles (zero inverse mass) get empty boxes. Blocks of
+    // kBlock consecutive particles (neighbours in a sheet, so their boxes are close) get the
+    // union of their boxes: a body a block's box misses is not tested against its particles
+    // one by one. The cloth's box is the union of all of them. Both are grown as contacts move
+    // particles, so they stay supersets of the boxes the particles have when they are tested.
+    boxes.resize(n);
+    Block whole;
+    for (std::size_t i = 0; i < n; ++i) {
+        const bool fixed = invMass[i] == 0.0;
+        updateBox(i, x[i], prevX[i], fixed);
+        whole.free += !fixed;
+        whole.grow(boxes[i]);
+    }
+    // The blocks are built when a body is near the cloth at all (not while it falls free).
+    const std::size_t nBlocks = (n + kBlock - 1) / kBlock;
+    bool blocksBuilt = false;
     for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
-        for (std::size_t i = 0; i < n; ++i) {
-            if (invMass[i] == 0.0) continue; // pinned, kinematic and attached particles
-            collideParticle(c, bi, i, dt, counters);
+        const BodySnapshot& b = bodies[bi];
+        auto misses = [&b, this](const Block& bl) { return blockMisses(b, bl); };
+        // Every particle's box would fail the box test: skip them (and count the tests).
+        if (misses(whole)) {
+            last.particleBoxTests += whole.free;
+            continue;
+        }
+        if (!blocksBuilt) { // before any projection of this step: from the boxes as they are
+            blocks.assign(nBlocks, Block{});
+            for (std::size_t i = 0; i < n; ++i) {
+                Block& bl = blocks[i / kBlock];
+                bl.free += invMass[i] != 0.0;
+                bl.grow(boxes[i]);
+            }
+            blocksBuilt = true;
+        }
+        for (std::size_t k = 0; k < nBlocks; ++k) {
+            Block& bl = blocks[k];
+            if (misses(bl)) {
+                last.particleBoxTests += bl.free;
+                continue;
+            }
+            for (std::size_t i = k * kBlock, end = std::min(n, i + kBlock); i < end; ++i) {
+                if (invMass[i] == 0.0 || !mayTouch(b, i, x[i], prevX[i])) continue;
+                const Vec3 before = x[i];
+                collideParticle(c, bi, i, dt, counters);
+                if (x[i] != before) { // projected: the next bodies see where it is now
+                    updateBox(i, x[i], prevX[i], false);
+                    bl.grow(boxes[i]);
+                    whole.grow(boxes[i]);
+                }
+            }
         }
     }
     for (unsigned char t : touching) anyTouching = anyTouching || t != 0;
@@ -542,11 +696,15 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     for (int pass = 0; anyTouching && lim.kind != LimiterKind::None && pass < kRelimitPasses; ++pass) {
         xBeforeLimit = x;
         StrainLimitStats st;
-        if (lim.kind == LimiterKind::Provot) {
-            st = limitStrainProvot(c.topology(), invMass, lim, x);
-        } else {
-            st = limitStrainStressOrdered(c.topology(), invMass, c.stiffness(), lim, x, limitScratch,
-                                          lim.kind == LimiterKind::StressOrderedOneSided);
+        {
+            ScopedPhase timeLimiter(c.timers(), slotStageLimiter);
+            if (lim.kind == LimiterKind::Provot) {
+                st = limitStrainProvot(c.topology(), invMass, lim, x);
+            } else {
+                st = limitStrainStressOrdered(c.topology(), invMass, c.stiffness(), lim, x,
+                                              limitScratch,
+                                              lim.kind == LimiterKind::StressOrderedOneSided);
+            }
         }
         if (st.corrections == 0) break;
         moved.clear();
@@ -556,9 +714,38 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
             v[i] += dx / dt;
             moved.push_back(i);
         }
-        // Re-project what the limiter moved.
-        for (std::uint32_t bi = 0; bi < bodies.size(); ++bi)
-            for (std::size_t i : moved) collideParticle(c, bi, i, dt, counters);
+        // Re-project what the limiter moved, in index order per body as before; the moved
+        // particles of one block are skipped together when their boxes' union misses a body.
+        movedGroups.clear();
+        for (std::size_t m = 0; m < moved.size(); ++m) {
+            const std::size_t i = moved[m];
+            updateBox(i, x[i], prevX[i], false);
+            if (movedGroups.empty() || moved[movedGroups.back().begin] / kBlock != i / kBlock)
+                movedGroups.push_back(MovedGroup{m, m, Block{}});
+            MovedGroup& g = movedGroups.back();
+            g.end = m + 1;
+            ++g.box.free;
+            g.box.grow(boxes[i]);
+        }
+        for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
+            const BodySnapshot& b = bodies[bi];
+            for (MovedGroup& g : movedGroups) {
+                if (blockMisses(b, g.box)) {
+                    last.particleBoxTests += g.box.free;
+                    continue;
+                }
+                for (std::size_t m = g.begin; m < g.end; ++m) {
+                    const std::size_t i = moved[m];
+                    if (!mayTouch(b, i, x[i], prevX[i])) continue;
+                    const Vec3 before = x[i];
+                    collideParticle(c, bi, i, dt, counters);
+                    if (x[i] != before) {
+                        updateBox(i, x[i], prevX[i], false);
+                        g.box.grow(boxes[i]);
+                    }
+                }
+            }
+        }
     }
 
     // Friction for particles supported by the penalty alone (in the band, not touching).
@@ -595,14 +782,26 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
 
 void BulletCloth::Impl::sweptBounds(double dt, Vec3& lo, Vec3& hi) const {
     const Cloth& c = *cloth;
-    lo = Vec3::Constant(std::numeric_limits<double>::infinity());
-    hi = -lo;
-    for (std::size_t i = 0; i < c.particleCount(); ++i) {
-        const Vec3& x = c.positions()[i];
-        const Vec3 ahead = x + dt * c.velocities()[i];
-        lo = lo.cwiseMin(x).cwiseMin(ahead);
-        hi = hi.cwiseMax(x).cwiseMax(ahead);
+    // x and y as one two-lane Eigen array (one SSE2 register), z on its own: the same values
+    // as Vec3 arithmetic (min and max are exact, x + dt v is computed the same way per lane)
+    // at half the instructions.
+    using Pair = Eigen::Array2d;
+    const double inf = std::numeric_limits<double>::infinity();
+    Pair lo01 = Pair::Constant(inf), hi01 = Pair::Constant(-inf);
+    double lo2 = inf, hi2 = -inf;
+    const Vec3* xs = c.positions().data();
+    const Vec3* vs = c.velocities().data();
+    for (std::size_t i = 0, n = c.particleCount(); i < n; ++i) {
+        const Pair x01 = Eigen::Map<const Pair>(xs[i].data());
+        const Pair a01 = x01 + dt * Eigen::Map<const Pair>(vs[i].data());
+        lo01 = lo01.min(x01).min(a01);
+        hi01 = hi01.max(x01).max(a01);
+        const double x2 = xs[i][2], a2 = x2 + dt * vs[i][2];
+        lo2 = std::min(lo2, std::min(x2, a2));
+        hi2 = std::max(hi2, std::max(x2, a2));
     }
+    lo = Vec3(lo01[0], lo01[1], lo2);
+    hi = Vec3(hi01[0], hi01[1], hi2);
     const double grow = settings.contact.thickness + band;
     lo.array() -= grow;
     hi.array() += grow;
@@ -624,6 +823,8 @@ void BulletCloth::Impl::updateBounds(double dt) {
 }
 
 void BulletCloth::Impl::step(double dt) {
+    using Clock = std::chrono::steady_clock;
+    const auto start = Clock::now();
     last = ContactStats{};
     gatherBodies(dt);
     Cloth& c = *cloth;
@@ -645,8 +846,10 @@ void BulletCloth::Impl::step(double dt) {
         InStep(const InStep&) = delete;
         InStep& operator=(const InStep&) = delete;
     } guard(inStep);
+    double bodySeconds = std::chrono::duration<double>(Clock::now() - start).count();
     for (int s = 0; s < settings.substeps; ++s) {
         c.step(h);
+        const auto afterStep = Clock::now();
         ++last.steps;
         // The eq. (7) force the particles got at the end of this step acts for h; the body
         // gets the opposite. It also bounds the friction of the next step.
@@ -681,7 +884,9 @@ void BulletCloth::Impl::step(double dt) {
                 body->activate();
             }
         }
+        bodySeconds += std::chrono::duration<double>(Clock::now() - afterStep).count();
     }
+    const auto afterSteps = Clock::now();
     for (auto& b : bodies) {
         if (!b.dynamicBody) continue;
         if (b.linearImpulse.squaredNorm() == 0.0 && b.angularImpulse.squaredNorm() == 0.0) continue;
@@ -694,6 +899,8 @@ void BulletCloth::Impl::step(double dt) {
         rb->activate();
     }
     updateBounds(dt);
+    bodySeconds += std::chrono::duration<double>(Clock::now() - afterSteps).count();
+    c.timers().add(slotBodies, bodySeconds);
     total.candidateBodies += last.candidateBodies;
     total.particleBoxTests += last.particleBoxTests;
     total.narrowphaseQueries += last.narrowphaseQueries;
@@ -735,6 +942,8 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
     }
     if (settings.useWorldGravity) m.cloth->setGravity(toVec(world->getGravity()));
 
+    m.slotStageLimiter = m.cloth->timers().slot("bullet_contacts/limiter");
+    m.slotBodies = m.cloth->timers().slot("bullet_bodies");
     m.penalty = std::make_shared<PenaltyState>();
     m.penalty->thickness = h;
     m.penalty->band = m.band;

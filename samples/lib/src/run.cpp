@@ -293,7 +293,7 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
     sum << "phases (wall time):\n";
     for (const auto& t : cloth.timers().all())
         if (t.calls)
-            sum << "  " << std::left << std::setw(18) << t.name << std::right << t.calls
+            sum << "  " << std::left << std::setw(24) << t.name << " " << std::right << t.calls
                 << " calls, " << t.seconds << " s\n";
     std::ofstream sf(options.outDir / "summary.txt");
     sf << sum.str();

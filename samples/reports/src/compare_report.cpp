@@ -11,6 +11,7 @@
 //    iteration count and sub-steps, not on k = 20 N/m.
 //  - Bullet's deformable world (btDeformableMultiBodyDynamicsWorld, implicit) with
 //    btDeformableMassSpringForce at the same k = 20 N/m and btDeformableGravityForce.
+#include "drape_reports/engines.hpp"
 #include "drape_reports/reports.hpp"
 #include "drape_reports/scenes.hpp"
 
@@ -44,14 +45,7 @@ btVector3 bt(const Vec3& v) {
     return btVector3(btScalar(v.x()), btScalar(v.y()), btScalar(v.z()));
 }
 
-/// One engine running one scene.
-class Engine {
-public:
-    virtual ~Engine() = default;
-    virtual void step() = 0; ///< one frame of the scene's dt (throws on a detected failure)
-    virtual void state(std::vector<Vec3>& x, std::vector<Vec3>& v) const = 0;
-    virtual std::size_t links() const = 0;
-};
+using Engine = ClothEngine;
 
 class DrapeEngine : public Engine {
 public:
@@ -243,6 +237,21 @@ private:
     std::unique_ptr<btDeformableMultiBodyDynamicsWorld> world_;
 };
 
+} // namespace
+
+std::unique_ptr<ClothEngine> makeDrapeEngine(const ClothScene& scene, LimiterKind limiter) {
+    return std::make_unique<DrapeEngine>(scene, limiter);
+}
+std::unique_ptr<ClothEngine> makeSoftBodyEngine(const ClothScene& scene, int piterations,
+                                                int substeps) {
+    return std::make_unique<SoftBodyEngine>(scene, piterations, substeps);
+}
+std::unique_ptr<ClothEngine> makeDeformableEngine(const ClothScene& scene) {
+    return std::make_unique<DeformableEngine>(scene);
+}
+
+namespace {
+
 struct Config {
     std::string engine;
     std::string config;
@@ -253,9 +262,9 @@ struct Config {
 };
 
 std::unique_ptr<Engine> makeEngine(const Config& c, const ClothScene& sc) {
-    if (c.engine == "drape") return std::make_unique<DrapeEngine>(sc, c.limiter);
-    if (c.engine == "btSoftBody") return std::make_unique<SoftBodyEngine>(sc, c.piterations, c.substeps);
-    return std::make_unique<DeformableEngine>(sc);
+    if (c.engine == "drape") return makeDrapeEngine(sc, c.limiter);
+    if (c.engine == "btSoftBody") return makeSoftBodyEngine(sc, c.piterations, c.substeps);
+    return makeDeformableEngine(sc);
 }
 
 struct SceneRun {
@@ -552,6 +561,43 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
            << (std::isfinite(r.settleTime) ? fmt(r.settleTime, 3) : "not settled") << " | "
            << fmt(r.finalKinetic, 3) << " | " << (r.blewUp ? "**yes** " + r.note : "no") << " |\n";
     }
+    // The speed ratio per scene: drape with the limiter against every btSoftBody set-up, with
+    // both peak strains, so "faster at equal or smaller stretch" can be read off directly.
+    {
+        Table ratios({"scene", "btSoftBody_config", "btSoftBody_ms_per_step", "drape_ms_per_step",
+                      "speed_ratio_btSoftBody_over_drape", "btSoftBody_peak_max_strain",
+                      "drape_peak_max_strain", "drape_strain_le_btSoftBody", "btSoftBody_blew_up"});
+        md << "\n## Speed ratio, drape against btSoftBody\n\n"
+           << "drape = Velocity-Verlet with the stress-ordered limiter (10 %). Ratio = btSoftBody's "
+              "time per step / drape's (above 1: drape is faster), both medians of the runs above, "
+              "measured in this run. Peak max strain = the largest spring strain seen in the run.\n\n"
+           << "| scene | btSoftBody config | btSoftBody ms/step | drape ms/step | ratio (x faster) | "
+              "peak max strain btSoftBody / drape | drape's strain <= btSoftBody's |\n"
+           << "|---|---|---|---|---|---|---|\n";
+        for (const SceneRun& sr : scenes) {
+            const CompareRow* dr = nullptr;
+            for (const CompareRow& r : result.rows) {
+                if (r.scene == sr.scene.name && r.engine == "drape" &&
+                    r.config.find("stress-ordered") != std::string::npos) {
+                    dr = &r;
+                }
+            }
+            if (!dr) continue;
+            for (const CompareRow& r : result.rows) {
+                if (r.scene != sr.scene.name || r.engine != "btSoftBody") continue;
+                const double ratio = dr->msPerStep > 0.0 ? r.msPerStep / dr->msPerStep : kInf;
+                const bool lower = dr->peakMaxStrain <= r.peakMaxStrain;
+                md << "| " << r.scene << " | " << r.config << (r.blewUp ? " (blew up)" : "") << " | "
+                   << fmt(r.msPerStep, 3) << " | " << fmt(dr->msPerStep, 3) << " | " << fmt(ratio, 3)
+                   << " | " << fmt(r.peakMaxStrain, 3) << " / " << fmt(dr->peakMaxStrain, 3) << " | "
+                   << yesNo(lower) << " |\n";
+                ratios.add({r.scene, r.config, fmt(r.msPerStep, 5), fmt(dr->msPerStep, 5), fmt(ratio, 5),
+                            fmt(r.peakMaxStrain, 5), fmt(dr->peakMaxStrain, 5), yesNo(lower),
+                            yesNo(r.blewUp)});
+            }
+        }
+        ratios.writeCsv(dir / "speed_ratio.csv");
+    }
     // Where each engine wins, computed from the rows (so it stays true when the numbers move).
     {
         std::ostringstream soft, drape;
@@ -640,7 +686,8 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
         md << scene << " " << particles[scene] << " particles, " << c["drape"] << " / " << c["btSoftBody"]
            << " / " << c["btDeformable"] << "; ";
     }
-    md << "\n\nData: [compare.csv](compare.csv), [ms_per_step.csv](ms_per_step.csv).\n\n"
+    md << "\n\nData: [compare.csv](compare.csv), [ms_per_step.csv](ms_per_step.csv), "
+          "[speed_ratio.csv](speed_ratio.csv).\n\n"
        << "## Final states\n\n" << sections.str();
     writeText(dir / "report.md", md.str());
     return result;

@@ -133,6 +133,56 @@ ClothScene clothOnSphere(Index n) {
     return s;
 }
 
+ClothScene fromSceneFile(const samples::SceneDesc& d) {
+    const std::string origin = d.sourceFile.empty() ? d.name : d.sourceFile.string();
+    auto refuse = [&origin](const std::string& what) {
+        throw samples::SceneError(origin + ": cannot be run by every engine: " + what);
+    };
+    if (!d.sheet) refuse("the cloth is not a generated sheet");
+    if (!d.pins.empty() || !d.attachments.empty()) refuse("pins and attachments are not supported");
+    if (d.wind) refuse("wind is not supported");
+    ClothScene s;
+    s.name = d.name;
+    s.title = d.name;
+    s.sheet = d.sheet->spec;
+    s.mesh = makeSheet(s.sheet);
+    s.particleMass = d.cloth.particleMass;
+    s.stiffness = d.cloth.springStiffness;
+    s.damping = d.cloth.damping;
+    s.gravity = d.cloth.gravity;
+    s.timeStep = d.timeStep;
+    s.duration = d.duration;
+    s.camera = d.camera;
+    if (d.collision && d.collision->thickness > 0.0) s.thickness = d.collision->thickness;
+    for (const samples::RigidBodyDesc& b : d.rigidBodies) {
+        if (b.motion != samples::MotionKind::Static) refuse("body " + b.name + " is not static");
+        if (b.rotationDeg != Vec3::Zero()) refuse("body " + b.name + " is rotated");
+        Collider c;
+        c.friction = b.friction;
+        c.center = b.position;
+        switch (b.shape.kind) {
+        case samples::ShapeKind::Box:
+            c.kind = Collider::Kind::Box;
+            c.halfExtents = b.shape.halfExtents;
+            break;
+        case samples::ShapeKind::Sphere:
+            c.kind = Collider::Kind::Sphere;
+            c.radius = b.shape.radius;
+            break;
+        case samples::ShapeKind::Plane:
+            if (b.position != Vec3::Zero()) refuse("plane " + b.name + " is translated");
+            c.kind = Collider::Kind::Plane;
+            c.normal = b.shape.normal;
+            c.offset = b.shape.offset;
+            break;
+        default:
+            refuse("body " + b.name + " is neither a box, a sphere nor a plane");
+        }
+        s.colliders.push_back(c);
+    }
+    return s;
+}
+
 ClothSettings clothSettings(const ClothScene& scene, IntegratorKind integrator,
                             LimiterKind limiter) {
     ClothSettings s;

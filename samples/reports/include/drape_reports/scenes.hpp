@@ -59,6 +59,13 @@ ClothScene hangingSheet(Index n);
 /// An n x n horizontal sheet dropped onto a sphere of radius 0.28 of the sheet's side.
 ClothScene clothOnSphere(Index n);
 
+/// A scene file's scene (samples/scenes/*.json) as a ClothScene, for the engines that do not
+/// read scene files (btSoftBody, the deformable world): its sheet, particle mass, stiffness,
+/// particle damping, gravity, time step, duration, thickness, and its static boxes, spheres and
+/// planes (unrotated). Throws samples::SceneError for what a ClothScene cannot hold (mesh
+/// cloths, pins, attachments, wind, non-static or rotated bodies, capsules, meshes).
+ClothScene fromSceneFile(const samples::SceneDesc& scene);
+
 /// ClothSettings for the scene (mass, stiffness, damping, gravity) with an integrator and a
 /// limiter; rejectUnstableTimeStep off (the reports step beyond the limit on purpose).
 ClothSettings clothSettings(const ClothScene& scene, IntegratorKind integrator,
