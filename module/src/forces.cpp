@@ -43,6 +43,26 @@ void addPackedSpringForces(const std::vector<Spring>& springs, const std::vector
         for (std::size_t s = b; s < e; ++s) addOneSpring(springs[s], stiffness[s], x, f);
     }
 }
+
+/// addPackedSpringForces that also returns the largest (l / L0)^2 = |d|^2 / L0^2 of the springs
+/// (the same product maxSpringStrain forms, so the same value). The forces are the same.
+double addPackedSpringForcesMax(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
+                                const std::vector<double>& invRest2, double k, std::size_t b,
+                                std::size_t e, const Vec3List& x, Vec3List& f) {
+    double worst2 = 0.0;
+    for (std::size_t s = b; s < e; ++s) {
+        const Spring& sp = springs[s];
+        const Vec3 d = x[sp.b] - x[sp.a];
+        const double l2 = d.squaredNorm();
+        worst2 = std::max(worst2, l2 * invRest2[s]);
+        const double l = std::sqrt(l2);
+        if (l == 0.0) continue; // coincident ends: no direction, the force is undefined
+        const Vec3 force = ((k > 0.0 ? k : stiffness[s]) * (l - sp.restLength) / l) * d;
+        f[sp.a] += force;
+        f[sp.b] -= force;
+    }
+    return worst2;
+}
 } // namespace
 
 SpringBlocks makeSpringBlocks(const ClothTopology& topology, std::size_t blocks) {
@@ -145,6 +165,7 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
     auto pack = [&](const std::vector<Index>& list) {
         for (Index s : list) {
             packed_.push_back(springs[s]);
+            packedInvRest2_.push_back(topology_->inverseSquaredRestLengths()[s]);
             if (uniformStiffness_ == 0.0) packedStiffness_.push_back(stiffness_[s]);
         }
         packedStart_.push_back(packed_.size());
@@ -191,6 +212,15 @@ std::size_t ForceModel::passiveTermCount() const {
 }
 
 void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
+    evaluateImpl(x, v, f, nullptr);
+}
+
+void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f, double& maxRatio2) {
+    maxRatio2 = 0.0;
+    evaluateImpl(x, v, f, &maxRatio2);
+}
+
+void ForceModel::evaluateImpl(const Vec3List& x, const Vec3List& v, Vec3List& f, double* maxRatio2) {
     const std::size_t n = x.size();
     f.resize(n);
     // Runs a per-particle or per-spring loop on the pool when there is one.
@@ -224,9 +254,16 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
             const std::size_t nb = blocks_.inner.size();
             // Blocks in parallel (each writes only its own particles), then the crossing
             // springs: the same sums in the same order for any thread count.
+            blockMax_.assign(nb + 1, 0.0);
             auto range = [&](std::size_t block) {
-                addPackedSpringForces(packed_, packedStiffness_, uniformStiffness_, packedStart_[block],
-                                      packedStart_[block + 1], x, f);
+                if (maxRatio2) {
+                    blockMax_[block] = addPackedSpringForcesMax(packed_, packedStiffness_, packedInvRest2_,
+                                                                uniformStiffness_, packedStart_[block],
+                                                                packedStart_[block + 1], x, f);
+                } else {
+                    addPackedSpringForces(packed_, packedStiffness_, uniformStiffness_, packedStart_[block],
+                                          packedStart_[block + 1], x, f);
+                }
             };
             auto blockRange = [&](std::size_t b, std::size_t end) {
                 for (std::size_t k = b; k < end; ++k) range(k);
@@ -237,6 +274,9 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
                 blockRange(0, nb);
             }
             range(nb);
+            if (maxRatio2) {
+                for (double m : blockMax_) *maxRatio2 = std::max(*maxRatio2, m);
+            }
             break;
         }
         case Term::SpringDamping:

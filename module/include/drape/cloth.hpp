@@ -149,6 +149,7 @@ private:
     PhaseTimers timers_;
     std::size_t slotIntegrate_, slotKinematic_, slotLimit_, slotFinish_, slotForcesStale_;
     bool forcesValid_ = false;
+    bool limiterIdle_ = false; ///< the limiter found nothing to correct in the last step
     mutable double omegaMax_ = -1.0;
     double time_ = 0.0;
     std::uint64_t steps_ = 0;

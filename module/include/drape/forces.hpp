@@ -85,6 +85,9 @@ public:
 
     /// f = sum of all active terms at state (x, v).
     void evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f);
+    /// evaluate(), and the largest (l / L0)^2 over the springs, found in the same pass over
+    /// them (the strain limiter's check, computed exactly as maxSpringStrain computes it).
+    void evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f, double& maxRatio2);
 
     /// Assembles d f / d x and d f / d v (3n x 3n) of the springs, spring damping and linear
     /// damping at state x. Gravity, user forces and aerodynamics are treated explicitly.
@@ -133,6 +136,9 @@ private:
     /// springs the last range.
     std::vector<Spring> packed_;
     std::vector<double> packedStiffness_;
+    std::vector<double> packedInvRest2_; ///< 1 / L0^2 of the packed springs
+    std::vector<double> blockMax_;       ///< per block largest (l / L0)^2 of the last pass
+    void evaluateImpl(const Vec3List& x, const Vec3List& v, Vec3List& f, double* maxRatio2);
     std::vector<std::size_t> packedStart_;
     SpringBlocks blocks_;
     /// The common stiffness when every spring has the same (the step then reads no
