@@ -149,15 +149,21 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
     auto set = [](std::vector<std::uint64_t>& bits, std::size_t r) { bits[r >> 6] |= std::uint64_t{1} << (r & 63); };
     std::size_t pos = 0;    // rank of the particle being visited
     bool backwards = false; // direction of the current round
+    // Tracking pays off when few particles move per round; while many do (more than n / 8 in
+    // the last round), its bookkeeping costs more than it saves, and a plain round looks at
+    // every particle and every spring instead: the same walk.
+    bool tracking = true;
     auto touch = [&](Index i) {
-        movedAt[i] = ++clock;
-        auto mark = [&](Index j) {
-            const std::size_t r = rank[j];
-            set(next, r);
-            if (backwards ? r < pos : r > pos) set(pending, r);
-        };
-        mark(i);
-        for (Index k = off[i]; k < off[i + 1]; ++k) mark(nbr[k]);
+        if (tracking) {
+            movedAt[i] = ++clock;
+            auto mark = [&](Index j) {
+                const std::size_t r = rank[j];
+                set(next, r);
+                if (backwards ? r < pos : r > pos) set(pending, r);
+            };
+            mark(i);
+            for (Index k = off[i]; k < off[i + 1]; ++k) mark(nbr[k]);
+        }
         if (moved[i]) return;
         moved[i] = 1;
         scratch.movedIndex.push_back(i);
@@ -180,14 +186,78 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
         }
         return n;
     };
+    // One overstretched spring p-q (q not yet regulated): Provot's rule, over-relaxed.
+    auto correct = [&](Index p, Index q, const Vec3& d, double l2, double r, std::uint32_t roundTag) {
+        const double l = std::sqrt(l2);
+        // Over-relaxed length (w = 1: exactly the limit), never below (1 + maxStrain / 2) L0,
+        // so a spring far past the limit is not flipped.
+        const double target = std::max(l - w * (l - stretchLimit * r), floorLimit * r);
+        if (oneSided || invMass[p] == 0.0) {
+            touch(q);
+            x[q] = x[p] + (target / l) * d; // pull q along the spring toward p
+            pulledRound[q] = roundTag;
+        } else {
+            // Provot's rule for two free ends: both move, by inverse-mass share.
+            const double wp = invMass[p], wq = invMass[q];
+            const Vec3 corr = ((l - target) / (l * (wp + wq))) * d;
+            if (wp > 0.0) touch(p);
+            if (wq > 0.0) touch(q);
+            x[p] += wp * corr;
+            x[q] -= wq * corr;
+        }
+        ++stats.corrections;
+    };
+    auto& fixed = scratch.fixed;
+    std::size_t correctionsLastRound = 0;
     for (int round = 0; round < s.maxRounds; ++round) {
         // Odd rounds walk the order backwards (a symmetric Gauss-Seidel sweep), which carries
         // corrections back up toward the anchors and converges faster.
         backwards = !oneSided && round % 2 == 1;
         const std::uint32_t roundTag = static_cast<std::uint32_t>(round) + 1;
+        const std::size_t correctionsBefore = stats.corrections;
         if (round > 0) {
-            pending.swap(next);
+            const bool wasTracking = tracking;
+            tracking = correctionsLastRound * 8 < n;
+            if (tracking && wasTracking) {
+                pending.swap(next);
+            } else if (tracking) {
+                // Back to tracking: everything counts as unchecked, every particle is visited.
+                std::fill(pending.begin(), pending.end(), ~std::uint64_t{0});
+                std::fill(movedAt.begin(), movedAt.end(), 1u);
+                std::fill(okAt.begin(), okAt.end(), 0u);
+                clock = 1;
+            }
             std::fill(next.begin(), next.end(), 0);
+        }
+        if (!tracking) {
+            // A plain round: one flag per particle, every spring looked at once.
+            bool overStop = false;
+            fixed.resize(n);
+            for (std::size_t i = 0; i < n; ++i) fixed[i] = invMass[i] == 0.0;
+            for (std::size_t step = 0; step < n; ++step) {
+                pos = backwards ? n - 1 - step : step;
+                const Index p = order[pos];
+                for (Index k = off[p]; k < off[p + 1]; ++k) {
+                    const Index q = nbr[k];
+                    if (fixed[q]) continue;
+                    const Vec3 d = x[q] - x[p];
+                    const double l2 = d.squaredNorm();
+                    const double r = rest[k];
+                    const double r2 = r * r;
+                    if (l2 <= stretch2 * r2) continue;
+                    overStop = overStop || l2 > stop2 * r2;
+                    correct(p, q, d, l2, r, roundTag);
+                    if (oneSided || invMass[p] == 0.0) fixed[q] = 1;
+                }
+                fixed[p] = 1;
+            }
+            correctionsLastRound = stats.corrections - correctionsBefore;
+            stats.rounds = round + 1;
+            if (!overStop) {
+                stats.maxStrainAfter = maxSpringStrain(topology, x, pool);
+                if (stats.maxStrainAfter + 1.0 <= stopLimit) return stats;
+            }
+            continue;
         }
         if (n % 64 != 0) pending[words - 1] &= (std::uint64_t{1} << (n % 64)) - 1;
         // Regulated: pinned, visited earlier in this round, or pulled by a pinned particle.
@@ -227,26 +297,10 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
                     continue;
                 }
                 overStop = overStop || l2 > stop2 * r2;
-                const double l = std::sqrt(l2);
-                // Over-relaxed length (w = 1: exactly the limit), never below
-                // (1 + maxStrain / 2) L0, so a spring far past the limit is not flipped.
-                const double target = std::max(l - w * (l - stretchLimit * r), floorLimit * r);
-                if (oneSided || invMass[p] == 0.0) {
-                    touch(q);
-                    x[q] = x[p] + (target / l) * d; // pull q along the spring toward p
-                    pulledRound[q] = roundTag;
-                } else {
-                    // Provot's rule for two free ends: both move, by inverse-mass share.
-                    const double wp = invMass[p], wq = invMass[q];
-                    const Vec3 corr = ((l - target) / (l * (wp + wq))) * d;
-                    if (wp > 0.0) touch(p);
-                    if (wq > 0.0) touch(q);
-                    x[p] += wp * corr;
-                    x[q] -= wq * corr;
-                }
-                ++stats.corrections;
+                correct(p, q, d, l2, r, roundTag);
             }
         }
+        correctionsLastRound = stats.corrections - correctionsBefore;
         stats.rounds = round + 1;
         // Corrections later in a round can re-stretch springs looked at earlier, so the
         // strain seen during the walk is only a lower bound: measure before stopping.

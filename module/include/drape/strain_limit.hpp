@@ -33,6 +33,7 @@ struct StressOrderScratch {
     std::vector<Index> order;  ///< stress order of the last limited step (reused as a start)
     std::vector<double> key;
     std::vector<Index> rank;   ///< position of each particle in `order`
+    std::vector<unsigned char> fixed; ///< regulated in this round (plain rounds)
     std::vector<unsigned char> moved;
     std::vector<std::uint32_t> pulledRound; ///< round in which a pinned particle pulled it
     std::vector<std::uint64_t> pending, next; ///< particles (by rank) to visit, as bits
