@@ -28,33 +28,20 @@ void addSpringForces(const std::vector<Spring>& springs, const std::vector<doubl
     for (std::size_t s = 0; s < springs.size(); ++s) addOneSpring(springs[s], stiffness[s], x, f);
 }
 
-void addSpringForcesSubset(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
-                           const std::vector<Index>& subset, const Vec3List& x, Vec3List& f) {
-    for (Index s : subset) addOneSpring(springs[s], stiffness[s], x, f);
-}
-
 namespace {
-/// Springs [b, e) of a packed list; k is the common stiffness, or 0 to read stiffness[s].
-void addPackedSpringForces(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
-                           double k, std::size_t b, std::size_t e, const Vec3List& x, Vec3List& f) {
-    if (k > 0.0) {
-        for (std::size_t s = b; s < e; ++s) addOneSpring(springs[s], k, x, f);
-    } else {
-        for (std::size_t s = b; s < e; ++s) addOneSpring(springs[s], stiffness[s], x, f);
-    }
-}
-
-/// addPackedSpringForces that also returns the largest (l / L0)^2 = |d|^2 / L0^2 of the springs
-/// (the same product maxSpringStrain forms, so the same value). The forces are the same.
-double addPackedSpringForcesMax(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
-                                const std::vector<double>& invRest2, double k, std::size_t b,
-                                std::size_t e, const Vec3List& x, Vec3List& f) {
+/// Springs [b, e) of a packed list; k is the common stiffness, or 0 to read stiffness[s]. With
+/// TrackMax it also returns the largest (l / L0)^2 = |d|^2 / L0^2 of the springs (the product
+/// maxSpringStrain forms, so the same value); the forces are the same either way.
+template <bool TrackMax>
+double addPackedSpringForces(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
+                             const std::vector<double>& invRest2, double k, std::size_t b,
+                             std::size_t e, const Vec3List& x, Vec3List& f) {
     double worst2 = 0.0;
     for (std::size_t s = b; s < e; ++s) {
         const Spring& sp = springs[s];
         const Vec3 d = x[sp.b] - x[sp.a];
         const double l2 = d.squaredNorm();
-        worst2 = std::max(worst2, l2 * invRest2[s]);
+        if (TrackMax) worst2 = std::max(worst2, l2 * invRest2[s]);
         const double l = std::sqrt(l2);
         if (l == 0.0) continue; // coincident ends: no direction, the force is undefined
         const Vec3 force = ((k > 0.0 ? k : stiffness[s]) * (l - sp.restLength) / l) * d;
@@ -156,7 +143,8 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
       settings_(settings), timers_(timers), pool_(pool) {
     // A fixed number of blocks (independent of the thread count, so sums do not change with
     // it): one per 16384 particles, at most 64.
-    blocks_ = makeSpringBlocks(*topology_, std::min<std::size_t>(64, 1 + topology_->particleCount() / 16384));
+    const SpringBlocks blocks =
+        makeSpringBlocks(*topology_, std::min<std::size_t>(64, 1 + topology_->particleCount() / 16384));
     if (!stiffness_.empty() &&
         std::all_of(stiffness_.begin(), stiffness_.end(), [&](double k) { return k == stiffness_[0]; })) {
         uniformStiffness_ = stiffness_[0];
@@ -172,8 +160,8 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
     };
     packed_.reserve(springs.size());
     packedStart_.push_back(0);
-    for (const auto& inner : blocks_.inner) pack(inner);
-    pack(blocks_.crossing);
+    for (const auto& inner : blocks.inner) pack(inner);
+    pack(blocks.crossing);
     rebuildPipeline();
 }
 
@@ -251,18 +239,19 @@ void ForceModel::evaluateImpl(const Vec3List& x, const Vec3List& v, Vec3List& f,
         ScopedPhase timer(timers_, e.timerSlot);
         switch (e.term) {
         case Term::Springs: {
-            const std::size_t nb = blocks_.inner.size();
+            const std::size_t nb = packedStart_.size() - 2; // inner blocks; the last range crosses
             // Blocks in parallel (each writes only its own particles), then the crossing
             // springs: the same sums in the same order for any thread count.
             blockMax_.assign(nb + 1, 0.0);
             auto range = [&](std::size_t block) {
                 if (maxRatio2) {
-                    blockMax_[block] = addPackedSpringForcesMax(packed_, packedStiffness_, packedInvRest2_,
-                                                                uniformStiffness_, packedStart_[block],
-                                                                packedStart_[block + 1], x, f);
+                    blockMax_[block] = addPackedSpringForces<true>(packed_, packedStiffness_, packedInvRest2_,
+                                                                   uniformStiffness_, packedStart_[block],
+                                                                   packedStart_[block + 1], x, f);
                 } else {
-                    addPackedSpringForces(packed_, packedStiffness_, uniformStiffness_, packedStart_[block],
-                                          packedStart_[block + 1], x, f);
+                    addPackedSpringForces<false>(packed_, packedStiffness_, packedInvRest2_,
+                                                 uniformStiffness_, packedStart_[block],
+                                                 packedStart_[block + 1], x, f);
                 }
             };
             auto blockRange = [&](std::size_t b, std::size_t end) {

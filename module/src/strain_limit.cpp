@@ -48,9 +48,9 @@ namespace {
 
 /// Sorts `order` (a permutation of [0, n)) by key descending, ties by index ascending. Starts
 /// from the given permutation: an insertion sort that gives up after a budget of moves (the
-/// previous step's order is usually almost right) and then uses std::sort. Returns whether
-/// it fell back. Either way the result is the unique order the comparison defines.
-bool sortByStress(const std::vector<double>& key, std::vector<Index>& order) {
+/// previous step's order is usually almost right) and then uses std::sort. Either way the
+/// result is the unique order the comparison defines.
+void sortByStress(const std::vector<double>& key, std::vector<Index>& order) {
     auto before = [&](Index a, Index b) { return key[a] != key[b] ? key[a] > key[b] : a < b; };
     const std::size_t n = order.size();
     std::size_t budget = 8 * n + 64;
@@ -63,12 +63,11 @@ bool sortByStress(const std::vector<double>& key, std::vector<Index>& order) {
             if (--budget == 0) {
                 order[j] = v;
                 std::sort(order.begin(), order.end(), before);
-                return true;
+                return;
             }
         }
         order[j] = v;
     }
-    return false;
 }
 
 } // namespace
@@ -117,7 +116,7 @@ StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
         order.resize(n);
         std::iota(order.begin(), order.end(), Index{0});
     }
-    scratch.sortedFallbacks += sortByStress(key, order) ? 1 : 0;
+    sortByStress(key, order);
 
     auto& moved = scratch.moved;
     moved.assign(n, 0);

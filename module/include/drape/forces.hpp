@@ -26,10 +26,6 @@ using Vec3List = std::vector<Vec3>;
 void addSpringForces(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
                      const Vec3List& x, Vec3List& f);
 
-/// addSpringForces over the springs listed in `subset` (spring indices, in order).
-void addSpringForcesSubset(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
-                           const std::vector<Index>& subset, const Vec3List& x, Vec3List& f);
-
 /// A fixed split of the springs for parallel accumulation. Particles are cut into `blocks`
 /// contiguous index ranges; inner[b] lists (in index order) the springs with both ends in
 /// block b, crossing the springs joining two blocks. Every particle then receives its inner
@@ -130,8 +126,8 @@ private:
     std::vector<std::pair<std::string, ExternalForce>> externals_;
     std::vector<Entry> pipeline_;
     detail::ThreadPool* pool_ = nullptr;
-    /// The springs of blocks_ copied out in block order (inner blocks, then the crossing
-    /// springs), with their stiffness, so the step reads them front to back without an
+    /// The springs of makeSpringBlocks' split, copied out in block order (inner blocks, then
+    /// the crossing springs), with their stiffness, so the step reads them front to back without an
     /// index list: block b is packed[packedStart[b] .. packedStart[b + 1]), the crossing
     /// springs the last range.
     std::vector<Spring> packed_;
@@ -140,7 +136,6 @@ private:
     std::vector<double> blockMax_;       ///< per block largest (l / L0)^2 of the last pass
     void evaluateImpl(const Vec3List& x, const Vec3List& v, Vec3List& f, double* maxRatio2);
     std::vector<std::size_t> packedStart_;
-    SpringBlocks blocks_;
     /// The common stiffness when every spring has the same (the step then reads no
     /// per-spring stiffness), else 0.
     double uniformStiffness_ = 0.0;

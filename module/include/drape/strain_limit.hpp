@@ -41,7 +41,6 @@ struct StressOrderScratch {
     std::vector<std::uint32_t> okAt;    ///< clock at which a spring was last within the limit
     std::vector<Index> movedIndex;
     std::vector<Vec3> movedFrom;
-    std::size_t sortedFallbacks = 0; ///< steps where the adaptive sort fell back to std::sort
 };
 
 /// The paper's stress-ordered limiter (section 3.2): "apply Provot's method and sequentially
