@@ -20,6 +20,8 @@
 
 #include <benchmark/benchmark.h>
 
+#include "bench_common.hpp"
+
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -225,24 +227,8 @@ void runScaling(benchmark::State& state, std::string key, ScalingCase c) {
     }
 }
 
-std::string cpuModel() {
-    std::ifstream in("/proc/cpuinfo");
-    std::string line;
-    while (std::getline(in, line)) {
-        if (line.rfind("model name", 0) == 0) {
-            const auto colon = line.find(':');
-            if (colon != std::string::npos) return line.substr(colon + 2);
-        }
-    }
-    return "unknown";
-}
-
-std::string loadAverage() {
-    std::ifstream in("/proc/loadavg");
-    std::string one, five, fifteen;
-    in >> one >> five >> fifteen;
-    return one + " " + five + " " + fifteen;
-}
+using bench::cpuModel;
+using bench::loadAverage;
 
 /// Least-squares slope of log(y) against log(x).
 double logLogSlope(const std::vector<double>& x, const std::vector<double>& y) {
@@ -274,12 +260,7 @@ class MedianReporter : public benchmark::ConsoleReporter {
     explicit MedianReporter(std::map<std::string, ScalingCase> scaling)
         : ConsoleReporter(OO_Tabular), scaling_(std::move(scaling)) {}
     void ReportRuns(const std::vector<Run>& runs) override {
-        std::vector<Run> keep;
-        for (const Run& r : runs) {
-            const bool single = r.run_type == Run::RT_Iteration && r.repetitions <= 1;
-            const bool median = r.run_type == Run::RT_Aggregate && r.aggregate_name == "median";
-            if (single || median || r.error_occurred) keep.push_back(r);
-        }
+        const std::vector<Run> keep = bench::keepMedians(runs);
         if (keep.empty()) return;
         ConsoleReporter::ReportRuns(keep);
         for (const Run& r : keep)

@@ -33,6 +33,8 @@
 
 #include <benchmark/benchmark.h>
 
+#include "bench_common.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -147,24 +149,8 @@ void runSoftBody(benchmark::State& state, reports::ClothScene scene, int piterat
 }
 #endif
 
-std::string cpuModel() {
-    std::ifstream in("/proc/cpuinfo");
-    std::string line;
-    while (std::getline(in, line)) {
-        if (line.rfind("model name", 0) == 0) {
-            const auto colon = line.find(':');
-            if (colon != std::string::npos) return line.substr(colon + 2);
-        }
-    }
-    return "unknown";
-}
-
-std::string loadAverage() {
-    std::ifstream in("/proc/loadavg");
-    std::string line;
-    std::getline(in, line);
-    return line;
-}
+using bench::cpuModel;
+using bench::loadAverage;
 
 /// Shows only the median of the repetitions of each case, then all medians as one Markdown
 /// table with the per-phase times in microseconds.
@@ -172,12 +158,7 @@ class MedianReporter : public benchmark::ConsoleReporter {
   public:
     MedianReporter() : ConsoleReporter(OO_None) {}
     void ReportRuns(const std::vector<Run>& runs) override {
-        std::vector<Run> keep;
-        for (const Run& r : runs) {
-            const bool single = r.run_type == Run::RT_Iteration && r.repetitions <= 1;
-            const bool median = r.run_type == Run::RT_Aggregate && r.aggregate_name == "median";
-            if (single || median || r.error_occurred) keep.push_back(r);
-        }
+        const std::vector<Run> keep = bench::keepMedians(runs);
         if (keep.empty()) return;
         ConsoleReporter::ReportRuns(keep);
         for (const Run& r : keep)
