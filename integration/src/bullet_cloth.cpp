@@ -38,7 +38,9 @@
 //
 // Fast particles: a particle that moved more than h in a step is also ray-tested along its
 // path (btCollisionWorld::rayTestSingle), so it cannot pass through a thin body.
-// After the projection, limiter and re-projection alternate kRelimitPasses times.
+// After the projection, the particles it moved go into the limiter's worklist
+// (Cloth::relimit); what the limiter then moves is projected again, until nothing moves or
+// kRelimitPasses rounds have run.
 #include "drape/bullet/bullet_cloth.hpp"
 
 #include "self_collision.hpp"
@@ -209,7 +211,7 @@ struct PenaltyState {
 
 constexpr double kE = 2.718281828459045;
 /// Limiter and re-projection passes after the contact projection.
-constexpr int kRelimitPasses = 2;
+constexpr int kRelimitPasses = 8;
 
 /// Eq. (7) regularised. The paper's C_p exp(1 / |PP0|) grows without bound as the particle
 /// reaches the surface and is dimensionally inconsistent; we keep its shape (an exponential
@@ -265,9 +267,8 @@ struct BulletCloth::Impl {
     std::vector<unsigned char> touching;  ///< particle touched a body this step
     std::vector<std::int64_t> recordOf;   ///< per particle: its latest PenaltyContact, or -1
     std::vector<double> lastSupport;      ///< per particle: contact normal force, last step [N]
-    Vec3List xBeforeLimit;
+    std::vector<Index> projected; ///< particles the last contact pass moved
     std::vector<std::size_t> moved;
-    StressOrderScratch limitScratch;
     /// Timer slots in the cloth's PhaseTimers: the limiter calls inside the contact stage
     /// (nested in its "bullet_contacts" phase), and the handle's work around the cloth's
     /// steps (body snapshot, proxy, impulses on bodies).
@@ -632,6 +633,7 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     detail::QueryCounters counters;
     touching.assign(n, 0);
     recordOf.assign(n, -1);
+    projected.clear();
     bool anyTouching = false;
     // Pinned, kinematic and attached particles (zero inverse mass) get empty boxes. Blocks of
     // kBlock consecutive particles (neighbours in a sheet, so their boxes are close) get the
@@ -677,6 +679,7 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
                 const Vec3 before = x[i];
                 collideParticle(c, bi, i, dt, counters);
                 if (x[i] != before) { // projected: the next bodies see where it is now
+                    projected.push_back(static_cast<Index>(i));
                     updateBox(i, x[i], prevX[i], false);
                     bl.grow(boxes[i]);
                     whole.grow(boxes[i]);
@@ -688,32 +691,21 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
 
     // The projection may have overstretched springs the limiter had just fixed (a cloth
     // pressed onto a sphere by its hanging sides: projecting along diverging normals lengthens
-    // the springs between touching particles). Alternate limiter and re-projection a few
-    // times; what is left is bounded by what the last projection adds (tested: < 0.5 %
-    // strain on a sphere and on Experiment II's desk). Holding the touching particles fixed
-    // instead does not work: springs between two of them could never be shortened.
+    // the springs between touching particles). The particles it moved go into the limiter's
+    // worklist; what the limiter then moves is projected again, and so on. Holding the
+    // touching particles fixed instead does not work: springs between two of them could
+    // never be shortened.
     const auto& lim = c.settings().limiter;
     for (int pass = 0; anyTouching && lim.kind != LimiterKind::None && pass < kRelimitPasses; ++pass) {
-        xBeforeLimit = x;
         StrainLimitStats st;
         {
             ScopedPhase timeLimiter(c.timers(), slotStageLimiter);
-            if (lim.kind == LimiterKind::Provot) {
-                st = limitStrainProvot(c.topology(), invMass, lim, x);
-            } else {
-                st = limitStrainStressOrdered(c.topology(), invMass, c.stiffness(), lim, x,
-                                              limitScratch,
-                                              lim.kind == LimiterKind::StressOrderedOneSided);
-            }
+            st = c.relimit(projected, dt);
         }
         if (st.corrections == 0) break;
-        moved.clear();
-        for (std::size_t i = 0; i < n; ++i) {
-            const Vec3 dx = x[i] - xBeforeLimit[i];
-            if (dx.squaredNorm() == 0.0) continue;
-            v[i] += dx / dt;
-            moved.push_back(i);
-        }
+        moved.assign(c.relimitMoved().begin(), c.relimitMoved().end());
+        std::sort(moved.begin(), moved.end());
+        projected.clear();
         // Re-project what the limiter moved, in index order per body as before; the moved
         // particles of one block are skipped together when their boxes' union misses a body.
         movedGroups.clear();
@@ -740,6 +732,7 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
                     const Vec3 before = x[i];
                     collideParticle(c, bi, i, dt, counters);
                     if (x[i] != before) {
+                        projected.push_back(static_cast<Index>(i));
                         updateBox(i, x[i], prevX[i], false);
                         g.box.grow(boxes[i]);
                     }

@@ -94,10 +94,15 @@ void validateSettings(const ClothSettings& s) {
     requireFinite(s.aero.wind, "aero.wind");
     requirePositive(s.limiter.maxStrain, "limiter.maxStrain");
     requireNonNegative(s.limiter.tolerance, "limiter.tolerance");
-    requireFinite(s.limiter.overRelaxation, "limiter.overRelaxation");
-    if (s.limiter.overRelaxation < 1.0 || s.limiter.overRelaxation >= 2.0) {
+    requireFinite(s.limiter.warmStart, "limiter.warmStart");
+    if (s.limiter.warmStart < 0.0 || s.limiter.warmStart >= 1.0) {
         throw Error(ErrorCode::InvalidArgument,
-                    "limiter.overRelaxation must be in [1, 2), got " + num(s.limiter.overRelaxation));
+                    "limiter.warmStart must be in [0, 1), got " + num(s.limiter.warmStart));
+    }
+    requireFinite(s.limiter.longRangeSlack, "limiter.longRangeSlack");
+    if (s.limiter.longRangeSlack < 1.0) {
+        throw Error(ErrorCode::InvalidArgument,
+                    "limiter.longRangeSlack must be >= 1, got " + num(s.limiter.longRangeSlack));
     }
     if (s.limiter.maxRounds < 1) {
         throw Error(ErrorCode::InvalidArgument,
@@ -137,11 +142,7 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     forceModel_ = std::make_unique<ForceModel>(topology_, buildStiffness(*topology_, settings_),
                                                mass_, settings_, timers_, poolStorage_.get());
     integrator_ = makeIntegrator(settings_.integrator, settings_.implicit);
-    slotForcesStale_ = timers_.slot("forces_refresh");
-    slotIntegrate_ = timers_.slot("integrate");
-    slotKinematic_ = timers_.slot("kinematic");
-    slotLimit_ = timers_.slot("strain_limit");
-    slotFinish_ = timers_.slot("integrate_finish");
+    for (const Stage& st : kStages) stageSlots_.push_back(timers_.slot(st.name));
 }
 
 Cloth::~Cloth() = default;
@@ -212,6 +213,42 @@ double Cloth::energyScale() const {
     return kineticEnergy() + springEnergy() + totalMass * settings_.gravity.norm() * meanRest;
 }
 
+// --- the step driver --------------------------------------------------------------------------
+//
+// A step is the table below, run in order. Each stage says whether this cloth needs it (a
+// stage it does not need is neither run nor timed nor listed by pipeline()) and what it does.
+// The order is the paper's loop (section 5) in Velocity-Verlet's kick-drift-kick form:
+//   forces_refresh  f(t), only when the cached forces are stale (first step, after edits)
+//   integrate       the integrator's advance(): for Velocity-Verlet v += f dt / 2m, x += v dt
+//   kinematic       pinned particles held, kinematic particles put on their paths
+//   strain_limit    the limiter; what it moved gets v += dx / dt
+//   <stages>        the caller's stages (contacts, self-collision), in order
+//   forces          f(t + dt) at the corrected state (one timer per force term)
+//   integrate_finish Velocity-Verlet's closing half kick
+//   verify          finiteness, the strain cap, the energy check (always)
+// A failure anywhere restores the state from before the step (see step()).
+
+struct Cloth::StepContext {
+    double dt = 0.0;
+    bool checkEnergy = false;
+    double energyBefore = 0.0, scaleBefore = 0.0;
+    IntegratorContext integrator;
+};
+
+const Cloth::Stage Cloth::kStages[] = {
+    {"forces_refresh", true, [](const Cloth& c) { return !c.forcesValid_; }, &Cloth::stageForcesRefresh},
+    {"integrate", true, [](const Cloth&) { return true; }, &Cloth::stageIntegrate},
+    {"kinematic", true, [](const Cloth& c) { return !c.kinematic_.empty(); }, &Cloth::stageKinematic},
+    {"strain_limit", true, [](const Cloth& c) { return c.settings_.limiter.kind != LimiterKind::None; },
+     &Cloth::stageLimit},
+    {"<stages>", false, [](const Cloth& c) { return !c.stages_.empty(); }, &Cloth::stageCallerStages},
+    {"forces", false, [](const Cloth&) { return true; }, &Cloth::stageForces},
+    {"integrate_finish", true,
+     [](const Cloth& c) { return c.settings_.integrator == IntegratorKind::VelocityVerlet; },
+     &Cloth::stageFinish},
+    {"verify", true, [](const Cloth&) { return true; }, &Cloth::stageVerify},
+};
+
 void Cloth::stepOnce(double dt) {
     if (!std::isfinite(dt)) throw Error(ErrorCode::NonFinite, "time step is not finite");
     if (!(dt > 0.0)) throw Error(ErrorCode::InvalidArgument, "time step must be positive, got " + num(dt));
@@ -227,175 +264,204 @@ void Cloth::stepOnce(double dt) {
                             " sub-steps, or implicit_euler");
         }
     }
-    // Runs body over [0, n) on the pool when the cloth has one.
-    auto forRange = [&](std::size_t n, const std::function<void(std::size_t, std::size_t)>& body) {
-        if (poolStorage_) {
-            poolStorage_->parallelFor(n, body);
-        } else {
-            body(0, n);
-        }
-    };
+    StepContext ctx{dt, false, 0.0, 0.0,
+                    IntegratorContext{x_, v_, f_, invMass_, dt, *forceModel_, poolStorage_.get()}};
     // Energy can only grow through wind, user forces, kinematic particles and stages
     // (contacts with moving bodies): check it only without those sources.
-    const bool checkEnergy = settings_.failure.maxEnergyGrowth > 0.0 && kinematic_.empty() &&
-                             stages_.empty() && forceModel_->activeTerms().size() ==
-                                 forceModel_->passiveTermCount();
-    double energyBefore = 0.0, scaleBefore = 0.0;
-    if (checkEnergy) {
-        energyBefore = kineticEnergy() + springEnergy() + gravityEnergy();
-        scaleBefore = energyScale();
+    ctx.checkEnergy = settings_.failure.maxEnergyGrowth > 0.0 && kinematic_.empty() &&
+                      stages_.empty() &&
+                      forceModel_->activeTerms().size() == forceModel_->passiveTermCount();
+    if (ctx.checkEnergy) {
+        ctx.energyBefore = kineticEnergy() + springEnergy() + gravityEnergy();
+        ctx.scaleBefore = energyScale();
     }
-    // Keep the state from before the step so a failure leaves the cloth as it was. The
-    // integrators that can write the new state to other buffers get the old one swapped out
-    // of x_, v_ (no copy); the others work in place on a copy.
-    const std::size_t n = x_.size();
-    xScratch_.resize(n);
-    vScratch_.resize(n);
-    if (!forcesValid_) {
-        try {
-            ScopedPhase t(timers_, slotForcesStale_);
-            evaluateForces();
-        } catch (...) {
-            forcesValid_ = false;
-            throw;
-        }
-    }
-    std::vector<Vec3> kinematicStart;
-    if (!kinematic_.empty()) {
-        kinematicStart.reserve(kinematic_.size());
-        for (const auto& k : kinematic_) kinematicStart.push_back(x_[k.first]);
-    }
-    IntegratorContext ctx{x_, v_, f_, invMass_, dt, *forceModel_, poolStorage_.get()};
-    x_.swap(xScratch_);
-    v_.swap(vScratch_);
+    // The state from before the step is kept (x_, v_ swapped into the scratch buffers by
+    // stageIntegrate) so that a failure leaves the cloth as it was.
+    limiterStats_ = StrainLimitStats{};
+    const std::vector<double> lambdaBefore = settings_.limiter.kind == LimiterKind::StressOrdered
+                                                 ? limiter_.warmStartState()
+                                                 : std::vector<double>{};
+    bool swapped = false;
     try {
-        {
-            ScopedPhase t(timers_, slotIntegrate_);
-            if (!integrator_->advanceFrom(ctx, xScratch_, vScratch_)) {
-                forRange(n, [&](std::size_t b, std::size_t e) {
-                    std::copy(xScratch_.begin() + static_cast<std::ptrdiff_t>(b),
-                              xScratch_.begin() + static_cast<std::ptrdiff_t>(e),
-                              x_.begin() + static_cast<std::ptrdiff_t>(b));
-                    std::copy(vScratch_.begin() + static_cast<std::ptrdiff_t>(b),
-                              vScratch_.begin() + static_cast<std::ptrdiff_t>(e),
-                              v_.begin() + static_cast<std::ptrdiff_t>(b));
-                });
-                integrator_->advance(ctx);
+        for (std::size_t k = 0; k < std::size(kStages); ++k) {
+            const Stage& st = kStages[k];
+            if (!st.active(*this)) continue;
+            if (st.timed) {
+                ScopedPhase t(timers_, stageSlots_[k]);
+                (this->*st.run)(ctx);
+            } else { // timed inside, one timer per caller stage or force term
+                (this->*st.run)(ctx);
             }
-        }
-        if (!kinematic_.empty()) {
-            ScopedPhase t(timers_, slotKinematic_);
-            for (std::size_t k = 0; k < kinematic_.size(); ++k) {
-                const Index i = kinematic_[k].first;
-                const Vec3 target = kinematic_[k].second(time_ + dt);
-                if (!target.allFinite()) {
-                    throw Error(ErrorCode::NonFinite, "kinematic path of particle " +
-                                                          std::to_string(i) + " returned a non-finite position");
-                }
-                x_[i] = target;
-                v_[i] = (target - kinematicStart[k]) / dt;
-            }
-        }
-        // When the limiter had nothing to do in the last step and no stage moves particles
-        // after it, its strain check rides along with the force evaluation (one pass over the
-        // springs instead of two); if the check finds a spring beyond the limit, the forces are
-        // thrown away and the limiter runs as usual. Either way the result is the same.
-        bool forcesDone = false;
-        const auto& lim = settings_.limiter;
-        if (lim.kind != LimiterKind::None && limiterIdle_ && stages_.empty()) {
-            double ratio2 = 0.0;
-            forceModel_->evaluate(x_, v_, f_, ratio2);
-            forcesValid_ = true;
-            ScopedPhase t(timers_, slotLimit_); // the limiter's phase: its check was in the springs'
-            const double strain = std::sqrt(ratio2) - 1.0;
-            if (strain + 1.0 <= 1.0 + lim.maxStrain + lim.tolerance) { // the limiters' own test
-                limiterStats_ = StrainLimitStats{};
-                limiterStats_.maxStrainBefore = limiterStats_.maxStrainAfter = strain;
-                forcesDone = true;
-            }
-        }
-        if (lim.kind != LimiterKind::None && !forcesDone) {
-            ScopedPhase t(timers_, slotLimit_);
-            const double invDt = 1.0 / dt;
-            if (settings_.limiter.kind != LimiterKind::Provot) {
-                limiterStats_ = limitStrainStressOrdered(
-                    *topology_, invMass_, forceModel_->stiffness(), settings_.limiter, x_,
-                    limiterScratch_, settings_.limiter.kind == LimiterKind::StressOrderedOneSided,
-                    poolStorage_.get());
-                // The limiter lists what it moved: only those particles change velocity.
-                const auto& moved = limiterScratch_.movedIndex;
-                for (std::size_t j = 0; j < moved.size(); ++j) {
-                    v_[moved[j]] += (x_[moved[j]] - limiterScratch_.movedFrom[j]) * invDt;
-                }
-            } else {
-                xBeforeLimit_ = x_;
-                limiterStats_ = limitStrainProvot(*topology_, invMass_, settings_.limiter, x_);
-                if (limiterStats_.corrections > 0) {
-                    forRange(n, [&](std::size_t b, std::size_t e) {
-                        for (std::size_t i = b; i < e; ++i) v_[i] += (x_[i] - xBeforeLimit_[i]) * invDt;
-                    });
-                }
-            }
-        }
-        for (std::size_t s = 0; s < stages_.size(); ++s) {
-            ScopedPhase t(timers_, stageSlots_[s]);
-            stages_[s]->run(*this, dt);
-        }
-        // Velocity-dependent terms (damping, drag) are evaluated at the half-step velocity
-        // here, which makes Velocity-Verlet first order when they are on. Evaluating them at a
-        // predicted end velocity restores order 2 on a damped oscillator, but changed how the
-        // Experiment II tablecloth settles on the desk (kinetic energy at 11.58 s 6.7 J
-        // instead of 0.19 J) and was not kept; see the issue notes.
-        if (!forcesDone) evaluateForces();
-        if (lim.kind != LimiterKind::None) limiterIdle_ = limiterStats_.rounds == 0;
-        if (settings_.integrator == IntegratorKind::VelocityVerlet) {
-            ScopedPhase t(timers_, slotFinish_);
-            integrator_->finish(ctx);
-        }
-        // Velocity-Verlet's finish() looked at every value on its way; a full pass is only
-        // needed to find the culprit, or for integrators whose finish() did not look.
-        if (!integrator_->finishChecksFinite() || ctx.nonFiniteSeen) checkFinite("the step");
-        if (settings_.failure.maxStrain > 0.0) {
-            const double strain = maxStrain();
-            if (strain > settings_.failure.maxStrain) {
-                throw Error(ErrorCode::SimulationFailure,
-                            "strain " + num(strain) + " exceeds the hard cap failure.maxStrain = " +
-                                num(settings_.failure.maxStrain) + " in step " +
-                                std::to_string(steps_ + 1) + " (t = " + num(time_) +
-                                " s); the cloth keeps its state from before the step");
-            }
-        }
-        if (checkEnergy) {
-            const double after = kineticEnergy() + springEnergy() + gravityEnergy();
-            if (after - energyBefore > settings_.failure.maxEnergyGrowth * scaleBefore) {
-                throw Error(ErrorCode::SimulationFailure,
-                            "mechanical energy grew by " + num(after - energyBefore) +
-                                " J in step " + std::to_string(steps_ + 1) + " (t = " +
-                                num(time_) + " s), more than failure.maxEnergyGrowth = " +
-                                num(settings_.failure.maxEnergyGrowth) + " times the energy scale " +
-                                num(scaleBefore) + " J, with no energy source; the cloth keeps "
-                                "its state from before the step");
-            }
+            if (st.run == &Cloth::stageIntegrate) swapped = true;
         }
     } catch (...) {
-        x_.swap(xScratch_);
-        v_.swap(vScratch_);
+        if (swapped) {
+            x_.swap(xScratch_);
+            v_.swap(vScratch_);
+        }
+        if (!lambdaBefore.empty()) limiter_.setWarmStartState(lambdaBefore);
         forcesValid_ = false;
         throw;
     }
+    if (limiterStats_.capHit) ++limiterCapHits_;
     time_ += dt;
     ++steps_;
 }
 
+void Cloth::stageForcesRefresh(StepContext&) {
+    try {
+        evaluateForces();
+    } catch (...) {
+        forcesValid_ = false;
+        throw;
+    }
+}
+
+void Cloth::stageIntegrate(StepContext& ctx) {
+    const std::size_t n = x_.size();
+    xScratch_.resize(n);
+    vScratch_.resize(n);
+    if (!kinematic_.empty()) {
+        kinematicStart_.clear();
+        for (const auto& k : kinematic_) kinematicStart_.push_back(x_[k.first]);
+    }
+    // Integrators that can write the new state to other buffers get the old one swapped out
+    // of x_, v_ (no copy); the others work in place on a copy.
+    x_.swap(xScratch_);
+    v_.swap(vScratch_);
+    if (!integrator_->advanceFrom(ctx.integrator, xScratch_, vScratch_)) {
+        std::copy(xScratch_.begin(), xScratch_.end(), x_.begin());
+        std::copy(vScratch_.begin(), vScratch_.end(), v_.begin());
+        integrator_->advance(ctx.integrator);
+    }
+}
+
+void Cloth::stageKinematic(StepContext& ctx) {
+    for (std::size_t k = 0; k < kinematic_.size(); ++k) {
+        const Index i = kinematic_[k].first;
+        const Vec3 target = kinematic_[k].second(time_ + ctx.dt);
+        if (!target.allFinite()) {
+            throw Error(ErrorCode::NonFinite, "kinematic path of particle " + std::to_string(i) +
+                                                  " returned a non-finite position");
+        }
+        x_[i] = target;
+        v_[i] = (target - kinematicStart_[k]) / ctx.dt;
+    }
+}
+
+void Cloth::applyLimiterMoves(double dt) {
+    const double invDt = 1.0 / dt;
+    const auto& moved = limiter_.movedIndex();
+    const auto& from = limiter_.movedFrom();
+    for (std::size_t j = 0; j < moved.size(); ++j) v_[moved[j]] += (x_[moved[j]] - from[j]) * invDt;
+}
+
+void Cloth::stageLimit(StepContext& ctx) {
+    const auto& lim = settings_.limiter;
+    if (lim.kind == LimiterKind::StressOrdered) {
+        limiter_.clearMoved();
+        limiterStats_ = limiter_.limit(*topology_, invMass_, forceModel_->stiffness(), lim, x_);
+        applyLimiterMoves(ctx.dt);
+        return;
+    }
+    // The comparison limiters: displacements from a copy.
+    xBeforeLimit_ = x_;
+    limiterStats_ = lim.kind == LimiterKind::Provot
+                        ? limitStrainProvot(*topology_, invMass_, lim, x_)
+                        : limitStrainOneSided(*topology_, invMass_, forceModel_->stiffness(), lim, x_);
+    if (limiterStats_.corrections == 0) return;
+    const double invDt = 1.0 / ctx.dt;
+    for (std::size_t i = 0; i < x_.size(); ++i) v_[i] += (x_[i] - xBeforeLimit_[i]) * invDt;
+}
+
+void Cloth::stageCallerStages(StepContext& ctx) {
+    for (std::size_t s = 0; s < stages_.size(); ++s) {
+        ScopedPhase t(timers_, callerStageSlots_[s]);
+        stages_[s]->run(*this, ctx.dt);
+    }
+}
+
+// Velocity-dependent terms (damping, drag) are evaluated at the half-step velocity here.
+void Cloth::stageForces(StepContext&) { evaluateForces(); }
+
+void Cloth::stageFinish(StepContext& ctx) { integrator_->finish(ctx.integrator); }
+
+void Cloth::stageVerify(StepContext& ctx) {
+    // Velocity-Verlet's finish() looked at every value on its way; a full pass is only needed
+    // to find the culprit, or for integrators whose finish() did not look.
+    if (!integrator_->finishChecksFinite() || ctx.integrator.nonFiniteSeen) checkFinite("the step");
+    if (settings_.failure.maxStrain > 0.0) {
+        const double strain = maxStrain();
+        if (strain > settings_.failure.maxStrain) {
+            throw Error(ErrorCode::SimulationFailure,
+                        "strain " + num(strain) + " exceeds the hard cap failure.maxStrain = " +
+                            num(settings_.failure.maxStrain) + " in step " +
+                            std::to_string(steps_ + 1) + " (t = " + num(time_) +
+                            " s); the cloth keeps its state from before the step");
+        }
+    }
+    if (ctx.checkEnergy) {
+        const double after = kineticEnergy() + springEnergy() + gravityEnergy();
+        if (after - ctx.energyBefore > settings_.failure.maxEnergyGrowth * ctx.scaleBefore) {
+            throw Error(ErrorCode::SimulationFailure,
+                        "mechanical energy grew by " + num(after - ctx.energyBefore) + " J in step " +
+                            std::to_string(steps_ + 1) + " (t = " + num(time_) +
+                            " s), more than failure.maxEnergyGrowth = " +
+                            num(settings_.failure.maxEnergyGrowth) + " times the energy scale " +
+                            num(ctx.scaleBefore) + " J, with no energy source; the cloth keeps "
+                            "its state from before the step");
+        }
+    }
+}
+
+StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt) {
+    StrainLimitStats st;
+    limiter_.clearMoved();
+    if (settings_.limiter.kind == LimiterKind::None || touched.empty()) return st;
+    if (settings_.limiter.kind == LimiterKind::StressOrdered) {
+        st = limiter_.relimit(*topology_, invMass_, forceModel_->stiffness(), settings_.limiter,
+                              touched, x_);
+        applyLimiterMoves(dt);
+    } else {
+        // The comparison limiters have no worklist: they run whole, and report what moved.
+        xBeforeLimit_ = x_;
+        st = settings_.limiter.kind == LimiterKind::Provot
+                 ? limitStrainProvot(*topology_, invMass_, settings_.limiter, x_)
+                 : limitStrainOneSided(*topology_, invMass_, forceModel_->stiffness(),
+                                       settings_.limiter, x_);
+        relimitMoved_.clear();
+        const double invDt = 1.0 / dt;
+        for (std::size_t i = 0; i < x_.size(); ++i) {
+            if (x_[i] == xBeforeLimit_[i]) continue;
+            v_[i] += (x_[i] - xBeforeLimit_[i]) * invDt;
+            relimitMoved_.push_back(static_cast<Index>(i));
+        }
+    }
+    limiterStats_.rounds += st.rounds;
+    limiterStats_.corrections += st.corrections;
+    limiterStats_.work += st.work;
+    limiterStats_.capHit = limiterStats_.capHit || st.capHit;
+    limiterStats_.maxStrainAfter = st.corrections ? st.maxStrainAfter : limiterStats_.maxStrainAfter;
+    forcesValid_ = false;
+    return st;
+}
+
+const std::vector<Index>& Cloth::relimitMoved() const {
+    return settings_.limiter.kind == LimiterKind::StressOrdered ? limiter_.movedIndex() : relimitMoved_;
+}
+
 std::vector<std::string> Cloth::pipeline() const {
     std::vector<std::string> p;
-    if (!forcesValid_) p.push_back("forces_refresh");
-    p.push_back("integrate");
-    if (!kinematic_.empty()) p.push_back("kinematic");
-    if (settings_.limiter.kind != LimiterKind::None) p.push_back("strain_limit");
-    for (const auto& s : stages_) p.push_back(s->name());
-    for (auto& t : forceModel_->activeTerms()) p.push_back(t);
-    if (settings_.integrator == IntegratorKind::VelocityVerlet) p.push_back("integrate_finish");
+    for (const Stage& st : kStages) {
+        if (!st.active(*this)) continue;
+        if (st.run == &Cloth::stageCallerStages) {
+            for (const auto& s : stages_) p.push_back(s->name());
+        } else if (st.run == &Cloth::stageForces) {
+            for (const auto& t : forceModel_->activeTerms()) p.push_back(t);
+        } else {
+            p.push_back(st.name);
+        }
+    }
     return p;
 }
 
@@ -483,7 +549,7 @@ void Cloth::addExternalForce(std::string name, ForceModel::ExternalForce force) 
 
 void Cloth::addStage(std::shared_ptr<ClothStage> stage) {
     if (!stage) throw Error(ErrorCode::InvalidArgument, "addStage: stage is null");
-    stageSlots_.push_back(timers_.slot(stage->name()));
+    callerStageSlots_.push_back(timers_.slot(stage->name()));
     stages_.push_back(std::move(stage));
 }
 
@@ -491,7 +557,7 @@ void Cloth::removeStage(const ClothStage* stage) {
     for (std::size_t s = 0; s < stages_.size(); ++s) {
         if (stages_[s].get() == stage) {
             stages_.erase(stages_.begin() + static_cast<std::ptrdiff_t>(s));
-            stageSlots_.erase(stageSlots_.begin() + static_cast<std::ptrdiff_t>(s));
+            callerStageSlots_.erase(callerStageSlots_.begin() + static_cast<std::ptrdiff_t>(s));
             return;
         }
     }

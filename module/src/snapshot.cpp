@@ -12,7 +12,7 @@ namespace drape {
 namespace {
 
 constexpr char kMagic[8] = {'D', 'R', 'A', 'P', 'E', 'S', 'N', 'P'};
-constexpr std::uint32_t kVersion = 1;
+constexpr std::uint32_t kVersion = 2; // 2: the limiter's warm start per spring
 
 struct Fnv {
     std::uint64_t h = 1469598103934665603ull;
@@ -85,6 +85,9 @@ std::vector<unsigned char> saveSnapshot(const Cloth& cloth) {
             for (int c = 0; c < 3; ++c) w.pod((*v)[c]);
         w.pod(static_cast<std::uint8_t>(cloth.pinned_[i]));
     }
+    // The limiter's warm start: one value per spring (0 where it has none yet).
+    const auto& lambda = cloth.limiter_.warmStartState();
+    for (std::size_t s = 0; s < cloth.topology().springCount(); ++s) w.pod(s < lambda.size() ? lambda[s] : 0.0);
     Fnv sum;
     sum.bytes(w.out.data(), w.out.size());
     w.pod(sum.h);
@@ -117,7 +120,8 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
                                                     " particles but the cloth has " +
                                                     std::to_string(cloth.particleCount()));
     }
-    const std::size_t expected = sizeof(kMagic) + 4 + 8 + 8 + 8 + 8 + 1 + n * (9 * 8 + 1) + 8;
+    const std::size_t ns = cloth.topology().springCount();
+    const std::size_t expected = sizeof(kMagic) + 4 + 8 + 8 + 8 + 8 + 1 + n * (9 * 8 + 1) + ns * 8 + 8;
     if (bytes.size() != expected) {
         throw Error(ErrorCode::InvalidArgument,
                     "snapshot is " + std::to_string(bytes.size()) + " bytes, expected " +
@@ -144,6 +148,14 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
                         "snapshot holds a non-finite state at particle " + std::to_string(i));
         }
     }
+    std::vector<double> lambda(ns);
+    for (std::size_t s = 0; s < ns; ++s) {
+        lambda[s] = r.pod<double>("the limiter's warm start");
+        if (!std::isfinite(lambda[s]) || lambda[s] < 0.0) {
+            throw Error(ErrorCode::NonFinite, "snapshot holds an invalid limiter warm start at spring " +
+                                                  std::to_string(s));
+        }
+    }
     if (!std::isfinite(time)) throw Error(ErrorCode::NonFinite, "snapshot time is not finite");
     // Commit: nothing above modified the cloth.
     cloth.x_ = std::move(x);
@@ -152,6 +164,7 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
     cloth.time_ = time;
     cloth.steps_ = steps;
     cloth.forcesValid_ = valid != 0;
+    cloth.limiter_.setWarmStartState(std::move(lambda));
     for (std::size_t i = 0; i < n; ++i) {
         cloth.pinned_[i] = pinned[i];
         cloth.invMass_[i] = pinned[i] ? 0.0 : 1.0 / cloth.mass_[i];

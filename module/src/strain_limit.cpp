@@ -1,39 +1,26 @@
-// Strain limiters: the paper's stress-ordered walk and Provot's iterative fix.
+// Strain limiters: the stress-ordered worklist (the default), Provot's sweeps and the literal
+// one-sided walk (both for comparison), and the geodesic anchors of long-range attachments.
 #include "drape/strain_limit.hpp"
 
 #include "drape/settings.hpp"
 
-#include "parallel.hpp"
-
 #include <algorithm>
-#include <cstdint>
 #include <cmath>
+#include <functional>
 #include <limits>
-#include <mutex>
 #include <numeric>
+#include <queue>
+#include <utility>
 
 namespace drape {
 
-double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x,
-                       detail::ThreadPool* pool) {
+double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x) {
     if (topology.springCount() == 0) return -std::numeric_limits<double>::infinity();
     const auto& springs = topology.springs();
     const auto& inv2 = topology.inverseSquaredRestLengths();
-    // The largest squared length ratio, one square root at the end.
-    double worst2 = 0.0;
-    std::mutex merge;
-    auto range = [&](std::size_t b, std::size_t e) {
-        double m = 0.0;
-        for (std::size_t s = b; s < e; ++s) {
-            m = std::max(m, (x[springs[s].b] - x[springs[s].a]).squaredNorm() * inv2[s]);
-        }
-        std::lock_guard<std::mutex> lock(merge);
-        worst2 = std::max(worst2, m);
-    };
-    if (pool) {
-        pool->parallelFor(springs.size(), range, 16384);
-    } else {
-        range(0, springs.size());
+    double worst2 = 0.0; // the largest squared length ratio, one square root at the end
+    for (std::size_t s = 0; s < springs.size(); ++s) {
+        worst2 = std::max(worst2, (x[springs[s].b] - x[springs[s].a]).squaredNorm() * inv2[s]);
     }
     return std::sqrt(worst2) - 1.0;
 }
@@ -44,273 +31,317 @@ double meanSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& 
     return topology.springCount() ? sum / static_cast<double>(topology.springCount()) : 0.0;
 }
 
-namespace {
+// --- geodesic anchors ------------------------------------------------------------------------
 
-/// Sorts `order` (a permutation of [0, n)) by key descending, ties by index ascending. Starts
-/// from the given permutation: an insertion sort that gives up after a budget of moves (the
-/// previous step's order is usually almost right) and then uses std::sort. Either way the
-/// result is the unique order the comparison defines.
-void sortByStress(const std::vector<double>& key, std::vector<Index>& order) {
-    auto before = [&](Index a, Index b) { return key[a] != key[b] ? key[a] > key[b] : a < b; };
-    const std::size_t n = order.size();
-    std::size_t budget = 8 * n + 64;
-    for (std::size_t i = 1; i < n; ++i) {
-        const Index v = order[i];
-        std::size_t j = i;
-        while (j > 0 && before(v, order[j - 1])) {
-            order[j] = order[j - 1];
-            --j;
-            if (--budget == 0) {
-                order[j] = v;
-                std::sort(order.begin(), order.end(), before);
-                return;
-            }
-        }
-        order[j] = v;
-    }
-}
-
-} // namespace
-
-StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
-                                          const std::vector<double>& invMass,
-                                          const std::vector<double>& stiffness,
-                                          const LimiterSettings& s, std::vector<Vec3>& x,
-                                          StressOrderScratch& scratch, bool oneSided,
-                                          detail::ThreadPool* pool) {
-    StrainLimitStats stats;
-    const double stretchLimit = 1.0 + s.maxStrain;
-    const double stopLimit = 1.0 + s.maxStrain + s.tolerance;
-    const double stretch2 = stretchLimit * stretchLimit;
-    const double stop2 = stopLimit * stopLimit;
-    const double w = oneSided ? 1.0 : s.overRelaxation;
-    const double floorLimit = 1.0 + 0.5 * s.maxStrain;
-    const auto& springs = topology.springs();
+AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Index>& anchors,
+                            double slack) {
+    const std::size_t n = topology.particleCount();
+    const auto& X = topology.restPositions();
     const auto& off = topology.adjacencyOffsets();
     const auto& nbr = topology.adjacentParticles();
     const auto& rest = topology.adjacentRestLengths();
-    const std::size_t n = x.size();
-    scratch.movedIndex.clear();
-    scratch.movedFrom.clear();
-
-    // The largest strain first, from squared lengths (no square roots): most steps of most
-    // cloths end here.
-    stats.maxStrainBefore = maxSpringStrain(topology, x, pool);
-    stats.maxStrainAfter = stats.maxStrainBefore;
-    if (stats.maxStrainBefore + 1.0 <= stopLimit) return stats;
-
-    // Stress keys: the spring tension each particle receives; pinned particles first.
-    auto& key = scratch.key;
-    key.assign(n, 0.0);
-    for (std::size_t si = 0; si < springs.size(); ++si) {
-        const Spring& sp = springs[si];
-        const double t = stiffness[si] * std::abs((x[sp.b] - x[sp.a]).norm() - sp.restLength);
-        key[sp.a] += t;
-        key[sp.b] += t;
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    std::vector<double> geo(n, inf), path(n, inf);
+    std::vector<Index> src(n, kNoParticle);
+    std::vector<unsigned char> done(n, 0);
+    // Triangles around each particle, for the unfolding update.
+    std::vector<Index> triOff(n + 1, 0), triOf;
+    const auto& tris = topology.triangles();
+    for (const Triangle& t : tris)
+        for (Index v : t) ++triOff[v + 1];
+    for (std::size_t i = 0; i < n; ++i) triOff[i + 1] += triOff[i];
+    triOf.resize(triOff[n]);
+    {
+        std::vector<Index> fill(triOff.begin(), triOff.end() - 1);
+        for (std::size_t t = 0; t < tris.size(); ++t)
+            for (Index v : tris[t]) triOf[fill[v]++] = static_cast<Index>(t);
     }
+    using Item = std::pair<double, Index>;
+    std::priority_queue<Item, std::vector<Item>, std::greater<Item>> front;
+    for (Index a : anchors) {
+        if (a >= n || geo[a] == 0.0) continue;
+        geo[a] = path[a] = 0.0;
+        src[a] = a;
+        front.push({0.0, a});
+    }
+    auto offer = [&](Index c, double g, double p, Index s) {
+        // Never below the straight rest distance to the anchor: a lower bound of any geodesic.
+        g = std::max(g, (X[c] - X[s]).norm());
+        if (g < geo[c]) {
+            geo[c] = g;
+            path[c] = p;
+            src[c] = s;
+            front.push({g, c});
+        }
+    };
+    while (!front.empty()) {
+        const auto [g, a] = front.top();
+        front.pop();
+        if (done[a] || g > geo[a]) continue;
+        done[a] = 1;
+        for (Index k = off[a]; k < off[a + 1]; ++k) {
+            const Index c = nbr[k];
+            if (!done[c]) offer(c, geo[a] + rest[k], path[a] + rest[k], src[a]);
+        }
+        // Across each triangle (a, b, c) with b already final and from the same anchor:
+        // unfold a, b, c into the triangle's plane, a = (0, 0), b = (e, 0), c above the edge;
+        // the virtual source S below the edge at distances geo[a], geo[b]; geo[c] = |c - S|
+        // when the segment S-c crosses the edge a-b.
+        for (Index k = triOff[a]; k < triOff[a + 1]; ++k) {
+            const Triangle& t = tris[triOf[k]];
+            Index other[2];
+            int m = 0;
+            for (Index v : t)
+                if (v != a && m < 2) other[m++] = v;
+            if (m < 2) continue;
+            for (int j = 0; j < 2; ++j) {
+                const Index b = other[j], c = other[1 - j];
+                if (b == c || !done[b] || done[c] || src[b] != src[a]) continue;
+                const Vec3 ab = X[b] - X[a], ac = X[c] - X[a];
+                const double e = ab.norm();
+                if (!(e > 0.0)) continue;
+                const Vec3 u = ab / e;
+                const double cx = ac.dot(u), cy = (ac - cx * u).norm();
+                if (!(cy > 0.0)) continue;
+                const double da = geo[a], db = geo[b];
+                const double sx = (da * da - db * db + e * e) / (2.0 * e);
+                const double sy2 = da * da - sx * sx;
+                if (sy2 < 0.0) continue;
+                const double sy = -std::sqrt(sy2);
+                const double cross = sx + (cx - sx) * (-sy) / (cy - sy); // where S-c meets y = 0
+                if (cross < 0.0 || cross > e) continue;
+                const double gc = std::hypot(cx - sx, cy - sy);
+                const double pc = std::min(path[a] + (X[c] - X[a]).norm(), path[b] + (X[c] - X[b]).norm());
+                offer(c, gc, pc, src[a]);
+            }
+        }
+    }
+    AnchorField field;
+    field.anchor = src;
+    field.restDistance.assign(n, 0.0);
     for (std::size_t i = 0; i < n; ++i) {
-        if (invMass[i] == 0.0) key[i] = std::numeric_limits<double>::infinity();
+        if (src[i] != kNoParticle) field.restDistance[i] = std::min(path[i], slack * geo[i]);
     }
-    auto& order = scratch.order;
-    if (order.size() != n) {
-        order.resize(n);
-        std::iota(order.begin(), order.end(), Index{0});
-    }
-    sortByStress(key, order);
-
-    auto& moved = scratch.moved;
-    moved.assign(n, 0);
-    auto& rank = scratch.rank;
-    rank.resize(n);
-    for (std::size_t r = 0; r < n; ++r) rank[order[r]] = static_cast<Index>(r);
-    // Change tracking. A spring found within the limit stays so until one of its ends moves:
-    // movedAt[i] is the clock of particle i's last move, okAt[s] the clock at which spring s
-    // was last found within the limit, and such a spring is skipped. A particle none of whose
-    // springs can need a look is not visited at all: `pending` (by rank) holds the particles
-    // still to visit in this round, `next` those for the next round; when a particle moves,
-    // it and its neighbours go into both (into `pending` only if the walk has not passed them
-    // yet). A skipped visit would have found nothing to do, and "regulated" is decided by the
-    // rank (visited earlier in this round) rather than by a flag set on the visit, so the walk
-    // and its result are exactly those of visiting every particle and every spring.
-    const auto& spr = topology.adjacentSprings();
-    auto& movedAt = scratch.movedAt;
-    auto& okAt = scratch.okAt;
-    auto& pulledRound = scratch.pulledRound;
-    movedAt.assign(n, 1);
-    okAt.assign(springs.size(), 0);
-    pulledRound.assign(n, 0);
-    std::uint32_t clock = 1;
-    const std::size_t words = (n + 63) / 64;
-    auto& pending = scratch.pending;
-    auto& next = scratch.next;
-    pending.assign(words, ~std::uint64_t{0});
-    next.assign(words, 0);
-    auto set = [](std::vector<std::uint64_t>& bits, std::size_t r) { bits[r >> 6] |= std::uint64_t{1} << (r & 63); };
-    std::size_t pos = 0;    // rank of the particle being visited
-    bool backwards = false; // direction of the current round
-    // Tracking pays off when few particles move per round; while many do (more than n / 8 in
-    // the last round), its bookkeeping costs more than it saves, and a plain round looks at
-    // every particle and every spring instead: the same walk.
-    bool tracking = true;
-    auto touch = [&](Index i) {
-        if (tracking) {
-            movedAt[i] = ++clock;
-            auto mark = [&](Index j) {
-                const std::size_t r = rank[j];
-                set(next, r);
-                if (backwards ? r < pos : r > pos) set(pending, r);
-            };
-            mark(i);
-            for (Index k = off[i]; k < off[i + 1]; ++k) mark(nbr[k]);
-        }
-        if (moved[i]) return;
-        moved[i] = 1;
-        scratch.movedIndex.push_back(i);
-        scratch.movedFrom.push_back(x[i]);
-    };
-    // The next set rank at or after `from` (forwards) or at or before it (backwards); n if none.
-    auto nextPending = [&](std::size_t from) -> std::size_t {
-        if (!backwards) {
-            for (std::size_t wd = from >> 6; wd < words; ++wd) {
-                std::uint64_t bits = pending[wd];
-                if (wd == (from >> 6)) bits &= ~std::uint64_t{0} << (from & 63);
-                if (bits) return (wd << 6) + static_cast<std::size_t>(__builtin_ctzll(bits));
-            }
-            return n;
-        }
-        for (std::size_t wd = (from >> 6) + 1; wd-- > 0;) {
-            std::uint64_t bits = pending[wd];
-            if (wd == (from >> 6) && (from & 63) != 63) bits &= (std::uint64_t{1} << ((from & 63) + 1)) - 1;
-            if (bits) return (wd << 6) + 63 - static_cast<std::size_t>(__builtin_clzll(bits));
-        }
-        return n;
-    };
-    // One overstretched spring p-q (q not yet regulated): Provot's rule, over-relaxed.
-    auto correct = [&](Index p, Index q, const Vec3& d, double l2, double r, std::uint32_t roundTag) {
-        const double l = std::sqrt(l2);
-        // Over-relaxed length (w = 1: exactly the limit), never below (1 + maxStrain / 2) L0,
-        // so a spring far past the limit is not flipped.
-        const double target = std::max(l - w * (l - stretchLimit * r), floorLimit * r);
-        if (oneSided || invMass[p] == 0.0) {
-            touch(q);
-            x[q] = x[p] + (target / l) * d; // pull q along the spring toward p
-            pulledRound[q] = roundTag;
-        } else {
-            // Provot's rule for two free ends: both move, by inverse-mass share.
-            const double wp = invMass[p], wq = invMass[q];
-            const Vec3 corr = ((l - target) / (l * (wp + wq))) * d;
-            if (wp > 0.0) touch(p);
-            if (wq > 0.0) touch(q);
-            x[p] += wp * corr;
-            x[q] -= wq * corr;
-        }
-        ++stats.corrections;
-    };
-    auto& fixed = scratch.fixed;
-    std::size_t correctionsLastRound = 0;
-    for (int round = 0; round < s.maxRounds; ++round) {
-        // Odd rounds walk the order backwards (a symmetric Gauss-Seidel sweep), which carries
-        // corrections back up toward the anchors and converges faster.
-        backwards = !oneSided && round % 2 == 1;
-        const std::uint32_t roundTag = static_cast<std::uint32_t>(round) + 1;
-        const std::size_t correctionsBefore = stats.corrections;
-        if (round > 0) {
-            const bool wasTracking = tracking;
-            tracking = correctionsLastRound * 8 < n;
-            if (tracking && wasTracking) {
-                pending.swap(next);
-            } else if (tracking) {
-                // Back to tracking: everything counts as unchecked, every particle is visited.
-                std::fill(pending.begin(), pending.end(), ~std::uint64_t{0});
-                std::fill(movedAt.begin(), movedAt.end(), 1u);
-                std::fill(okAt.begin(), okAt.end(), 0u);
-                clock = 1;
-            }
-            std::fill(next.begin(), next.end(), 0);
-        }
-        if (!tracking) {
-            // A plain round: one flag per particle, every spring looked at once.
-            bool overStop = false;
-            fixed.resize(n);
-            for (std::size_t i = 0; i < n; ++i) fixed[i] = invMass[i] == 0.0;
-            for (std::size_t step = 0; step < n; ++step) {
-                pos = backwards ? n - 1 - step : step;
-                const Index p = order[pos];
-                for (Index k = off[p]; k < off[p + 1]; ++k) {
-                    const Index q = nbr[k];
-                    if (fixed[q]) continue;
-                    const Vec3 d = x[q] - x[p];
-                    const double l2 = d.squaredNorm();
-                    const double r = rest[k];
-                    const double r2 = r * r;
-                    if (l2 <= stretch2 * r2) continue;
-                    overStop = overStop || l2 > stop2 * r2;
-                    correct(p, q, d, l2, r, roundTag);
-                    if (oneSided || invMass[p] == 0.0) fixed[q] = 1;
-                }
-                fixed[p] = 1;
-            }
-            correctionsLastRound = stats.corrections - correctionsBefore;
-            stats.rounds = round + 1;
-            if (!overStop) {
-                stats.maxStrainAfter = maxSpringStrain(topology, x, pool);
-                if (stats.maxStrainAfter + 1.0 <= stopLimit) return stats;
-            }
-            continue;
-        }
-        if (n % 64 != 0) pending[words - 1] &= (std::uint64_t{1} << (n % 64)) - 1;
-        // Regulated: pinned, visited earlier in this round, or pulled by a pinned particle.
-        auto regulated = [&](Index q) {
-            return invMass[q] == 0.0 || (backwards ? rank[q] > pos : rank[q] < pos) ||
-                   pulledRound[q] == roundTag;
-        };
-        // Each spring is looked at once per round, from whichever end is visited first.
-        // Whether one was seen beyond the stop limit decides whether another round is needed
-        // (skipped springs are within the limit, so they cannot change that decision).
-        bool overStop = false;
-        for (pos = nextPending(backwards ? n - 1 : 0); pos < n;
-             pos = (backwards ? (pos == 0 ? n : nextPending(pos - 1)) : nextPending(pos + 1))) {
-            pending[pos >> 6] &= ~(std::uint64_t{1} << (pos & 63));
-            const Index p = order[pos];
-            for (Index k = off[p]; k < off[p + 1]; ++k) {
-                const Index q = nbr[k];
-                const Index si = spr[k];
-                const bool clean = okAt[si] >= movedAt[p] && okAt[si] >= movedAt[q];
-                if (regulated(q)) {
-                    // The walk does not look at this spring in this round; if it may need a
-                    // look, both ends are visited again in the next one (unless both are
-                    // pinned: such a spring is never looked at).
-                    if (!clean && (invMass[p] != 0.0 || invMass[q] != 0.0)) {
-                        set(next, pos);
-                        set(next, rank[q]);
-                    }
-                    continue;
-                }
-                if (clean) continue;
-                const Vec3 d = x[q] - x[p];
-                const double l2 = d.squaredNorm();
-                const double r = rest[k];
-                const double r2 = r * r; // compare squares: no division, no root
-                if (l2 <= stretch2 * r2) {
-                    okAt[si] = clock;
-                    continue;
-                }
-                overStop = overStop || l2 > stop2 * r2;
-                correct(p, q, d, l2, r, roundTag);
-            }
-        }
-        correctionsLastRound = stats.corrections - correctionsBefore;
-        stats.rounds = round + 1;
-        // Corrections later in a round can re-stretch springs looked at earlier, so the
-        // strain seen during the walk is only a lower bound: measure before stopping.
-        if (!overStop) {
-            stats.maxStrainAfter = maxSpringStrain(topology, x, pool);
-            if (stats.maxStrainAfter + 1.0 <= stopLimit) return stats;
-        }
-    }
-    stats.maxStrainAfter = maxSpringStrain(topology, x, pool);
-    return stats;
+    return field;
 }
+
+// --- the worklist limiter -------------------------------------------------------------------
+
+void StrainLimiter::clearMoved() {
+    for (Index i : movedIndex_) moved_[i] = 0;
+    movedIndex_.clear();
+    movedFrom_.clear();
+}
+
+void StrainLimiter::move(Index i, const Vec3& dx, std::vector<Vec3>& x) {
+    if (!moved_[i]) {
+        moved_[i] = 1;
+        movedIndex_.push_back(i);
+        movedFrom_.push_back(x[i]);
+    }
+    x[i] += dx;
+}
+
+void StrainLimiter::dirty(Index i, const Vec3& dx, std::vector<Vec3>& x) {
+    move(i, dx, x);
+    if (dirtyAt_[i] == stamp_) return;
+    dirtyAt_[i] = stamp_;
+    dirty_.push_back(i);
+}
+
+void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<double>& invMass,
+                            const LimiterSettings& s) {
+    const std::size_t n = topology.particleCount(), ns = topology.springCount();
+    if (lambda_.size() != ns) lambda_.assign(ns, 0.0);
+    queued_.resize(ns, 0);
+    warmLeft_.resize(ns, 0.0);
+    key_.resize(ns, 0.0);
+    checkedAt_.resize(ns, 0u);
+    dirtyAt_.resize(n, 0u);
+    moved_.resize(n, 0);
+    const double upper = 1.0 + s.maxStrain + s.tolerance;
+    const double lower = std::max(0.0, 1.0 + s.maxStrain - s.tolerance);
+    upper2_ = upper * upper;
+    lower2_ = lower * lower;
+    limit_ = 1.0 + s.maxStrain;
+    if (!s.longRangeAttachments) return;
+    // The anchors are the particles that never move in the limiter.
+    std::vector<Index> list;
+    for (std::size_t i = 0; i < n; ++i)
+        if (invMass[i] == 0.0) list.push_back(static_cast<Index>(i));
+    if (!anchorsValid_ || list != anchorList_ || anchorSlack_ != s.longRangeSlack) {
+        anchorList_ = std::move(list);
+        anchorSlack_ = s.longRangeSlack;
+        anchors_ = geodesicAnchors(topology, anchorList_, anchorSlack_);
+        anchorsValid_ = true;
+    }
+}
+
+void StrainLimiter::check(std::size_t si, const ClothTopology& topology,
+                          const std::vector<double>& invMass,
+                          const std::vector<double>& stiffness, const std::vector<Vec3>& x,
+                          StrainLimitStats& st) {
+    if (queued_[si]) return;
+    const Spring& sp = topology.springs()[si];
+    ++st.work;
+    const double ratio2 = (x[sp.b] - x[sp.a]).squaredNorm() * topology.inverseSquaredRestLengths()[si];
+    const bool over = ratio2 > upper2_;
+    const bool letOut = warmLeft_[si] > 0.0 && ratio2 < lower2_;
+    if (!(over || letOut) || invMass[sp.a] + invMass[sp.b] == 0.0) return;
+    key_[si] = stiffness[si] * sp.restLength * (std::sqrt(ratio2) - 1.0);
+    queued_[si] = 1;
+    next_.push_back(static_cast<std::uint32_t>(si));
+}
+
+StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
+                                      const std::vector<double>& invMass,
+                                      const std::vector<double>& stiffness,
+                                      const LimiterSettings& s, std::vector<Vec3>& x) {
+    StrainLimitStats st;
+    prepare(topology, invMass, s);
+    const auto& springs = topology.springs();
+    const std::size_t ns = springs.size();
+    // 1. Long-range attachments.
+    if (s.longRangeAttachments && !anchorList_.empty()) {
+        const double f = limit_;
+        for (std::size_t i = 0; i < x.size(); ++i) {
+            const Index a = anchors_.anchor[i];
+            if (a == kNoParticle || invMass[i] == 0.0) continue;
+            ++st.work;
+            const Vec3 d = x[i] - x[a];
+            const double l2 = d.squaredNorm(), r = f * anchors_.restDistance[i];
+            if (l2 > r * r) move(static_cast<Index>(i), (r / std::sqrt(l2) - 1.0) * d, x);
+        }
+    }
+    // 2. Warm start: last step's corrections, scaled, along the springs as they are now;
+    // never more than would shorten a spring to half its rest length (a correction so large
+    // that the spring turned since must not flip it). warmLeft_ is what a let-out may undo.
+    for (std::size_t si = 0; si < ns; ++si) {
+        double& lam = lambda_[si];
+        warmLeft_[si] = 0.0;
+        if (lam == 0.0) continue;
+        const Spring& sp = springs[si];
+        const double wsum = invMass[sp.a] + invMass[sp.b];
+        ++st.work;
+        const Vec3 d = x[sp.b] - x[sp.a];
+        const double l = d.norm();
+        lam = wsum > 0.0 ? std::min(lam * s.warmStart, std::max(0.0, l - 0.5 * sp.restLength) / wsum) : 0.0;
+        warmLeft_[si] = lam;
+        if (lam == 0.0) continue;
+        const Vec3 c = (lam / l) * d;
+        if (invMass[sp.a] > 0.0) move(sp.a, invMass[sp.a] * c, x);
+        if (invMass[sp.b] > 0.0) move(sp.b, -invMass[sp.b] * c, x);
+    }
+    // 3. One scan of every spring.
+    next_.clear();
+    double worst2 = 0.0;
+    const auto& inv2 = topology.inverseSquaredRestLengths();
+    for (std::size_t si = 0; si < ns; ++si) {
+        const Spring& sp = springs[si];
+        const double ratio2 = (x[sp.b] - x[sp.a]).squaredNorm() * inv2[si];
+        worst2 = std::max(worst2, ratio2);
+        const bool over = ratio2 > upper2_;
+        const bool letOut = warmLeft_[si] > 0.0 && ratio2 < lower2_;
+        if ((over || letOut) && invMass[sp.a] + invMass[sp.b] != 0.0) {
+            key_[si] = stiffness[si] * sp.restLength * (std::sqrt(ratio2) - 1.0);
+            queued_[si] = 1;
+            next_.push_back(static_cast<std::uint32_t>(si));
+        }
+    }
+    st.work += ns;
+    st.maxStrainBefore = ns ? std::sqrt(worst2) - 1.0 : 0.0;
+    // 4. The waves.
+    runWaves(topology, invMass, stiffness, s, x, st);
+    if (st.corrections == 0) {
+        st.maxStrainAfter = st.maxStrainBefore;
+    } else {
+        st.maxStrainAfter = maxSpringStrain(topology, x);
+    }
+    return st;
+}
+
+StrainLimitStats StrainLimiter::relimit(const ClothTopology& topology,
+                                        const std::vector<double>& invMass,
+                                        const std::vector<double>& stiffness,
+                                        const LimiterSettings& s,
+                                        const std::vector<Index>& touched, std::vector<Vec3>& x) {
+    StrainLimitStats st;
+    prepare(topology, invMass, s);
+    next_.clear();
+    const auto& off = topology.adjacencyOffsets();
+    const auto& spr = topology.adjacentSprings();
+    for (Index i : touched) {
+        if (i >= x.size()) continue;
+        for (Index k = off[i]; k < off[i + 1]; ++k) check(spr[k], topology, invMass, stiffness, x, st);
+    }
+    runWaves(topology, invMass, stiffness, s, x, st);
+    st.maxStrainAfter = st.corrections ? maxSpringStrain(topology, x) : st.maxStrainBefore;
+    return st;
+}
+
+void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<double>& invMass,
+                             const std::vector<double>& stiffness, const LimiterSettings& s,
+                             std::vector<Vec3>& x, StrainLimitStats& st) {
+    const auto& springs = topology.springs();
+    const auto& off = topology.adjacencyOffsets();
+    const auto& spr = topology.adjacentSprings();
+    const std::size_t cap = static_cast<std::size_t>(s.maxRounds) * std::max<std::size_t>(springs.size(), 1);
+    while (!next_.empty()) {
+        if (st.work > cap) {
+            st.capHit = true;
+            break;
+        }
+        wave_.swap(next_);
+        next_.clear();
+        ++st.rounds;
+        if (++stamp_ == 0) { // the stamp wrapped: forget every old one
+            std::fill(checkedAt_.begin(), checkedAt_.end(), 0u);
+            std::fill(dirtyAt_.begin(), dirtyAt_.end(), 0u);
+            stamp_ = 1;
+        }
+        // Most stressed first: spring tension k (l - L0) when queued, ties by index.
+        for (std::uint32_t si : wave_) queued_[si] = 0;
+        std::sort(wave_.begin(), wave_.end(), [this](std::uint32_t a, std::uint32_t b) {
+            return key_[a] != key_[b] ? key_[a] > key_[b] : a < b;
+        });
+        for (std::uint32_t si : wave_) {
+            const Spring& sp = springs[si];
+            const Index a = sp.a, b = sp.b;
+            ++st.work;
+            const Vec3 d = x[b] - x[a];
+            const double l = d.norm();
+            const double wa = invMass[a], wb = invMass[b];
+            if (!(l > 0.0) || wa + wb == 0.0) continue;
+            // Provot's rule: to exactly the limit, by inverse-mass shares. A pull adds to the
+            // spring's lambda; a spring the warm start pulled in too far is let out to the
+            // limit, by at most what the warm start applied (never a push).
+            const double want = (l - limit_ * sp.restLength) / (wa + wb);
+            const double dl = want >= 0.0 ? want : std::max(want, -warmLeft_[si]);
+            if (dl == 0.0) continue;
+            lambda_[si] += dl;
+            if (dl < 0.0) warmLeft_[si] += dl;
+            const Vec3 c = (dl / l) * d;
+            ++st.corrections;
+            if (wa > 0.0) dirty(a, wa * c, x);
+            if (wb > 0.0) dirty(b, -wb * c, x);
+        }
+        // After the wave, the springs of every particle it moved are checked once (a particle
+        // moved by several corrections is looked at once, from where it ended).
+        for (Index e : dirty_) {
+            for (Index k = off[e]; k < off[e + 1]; ++k) {
+                const Index si = spr[k];
+                if (checkedAt_[si] == stamp_) continue;
+                checkedAt_[si] = stamp_;
+                check(si, topology, invMass, stiffness, x, st);
+            }
+        }
+        dirty_.clear();
+    }
+    for (std::uint32_t si : next_) queued_[si] = 0;
+    next_.clear();
+}
+
+// --- comparison limiters ----------------------------------------------------------------------
 
 StrainLimitStats limitStrainProvot(const ClothTopology& topology,
                                    const std::vector<double>& invMass, const LimiterSettings& s,
@@ -320,6 +351,7 @@ StrainLimitStats limitStrainProvot(const ClothTopology& topology,
     const double stopLimit = 1.0 + s.maxStrain + s.tolerance;
     stats.maxStrainBefore = maxSpringStrain(topology, x);
     stats.maxStrainAfter = stats.maxStrainBefore;
+    stats.work = topology.springCount();
     if (stats.maxStrainBefore + 1.0 <= stopLimit) return stats;
     for (int sweep = 0; sweep < s.maxRounds; ++sweep) {
         for (const Spring& sp : topology.springs()) {
@@ -335,8 +367,66 @@ StrainLimitStats limitStrainProvot(const ClothTopology& topology,
         }
         stats.rounds = sweep + 1;
         stats.maxStrainAfter = maxSpringStrain(topology, x);
-        if (stats.maxStrainAfter + 1.0 <= stopLimit) break;
+        stats.work += 2 * topology.springCount();
+        if (stats.maxStrainAfter + 1.0 <= stopLimit) return stats;
     }
+    stats.capHit = true;
+    return stats;
+}
+
+StrainLimitStats limitStrainOneSided(const ClothTopology& topology,
+                                     const std::vector<double>& invMass,
+                                     const std::vector<double>& stiffness,
+                                     const LimiterSettings& s, std::vector<Vec3>& x) {
+    StrainLimitStats stats;
+    const double stretchLimit = 1.0 + s.maxStrain;
+    const double stopLimit = 1.0 + s.maxStrain + s.tolerance;
+    const auto& springs = topology.springs();
+    const auto& off = topology.adjacencyOffsets();
+    const auto& nbr = topology.adjacentParticles();
+    const auto& rest = topology.adjacentRestLengths();
+    const std::size_t n = x.size();
+    stats.maxStrainBefore = maxSpringStrain(topology, x);
+    stats.maxStrainAfter = stats.maxStrainBefore;
+    stats.work = springs.size();
+    if (stats.maxStrainBefore + 1.0 <= stopLimit) return stats;
+    // Stress: the spring tension a particle receives; pinned particles first; ties by index.
+    std::vector<double> key(n, 0.0);
+    for (std::size_t si = 0; si < springs.size(); ++si) {
+        const Spring& sp = springs[si];
+        const double t = stiffness[si] * std::abs((x[sp.b] - x[sp.a]).norm() - sp.restLength);
+        key[sp.a] += t;
+        key[sp.b] += t;
+    }
+    for (std::size_t i = 0; i < n; ++i)
+        if (invMass[i] == 0.0) key[i] = std::numeric_limits<double>::infinity();
+    std::vector<Index> order(n);
+    std::iota(order.begin(), order.end(), Index{0});
+    std::sort(order.begin(), order.end(),
+              [&](Index a, Index b) { return key[a] != key[b] ? key[a] > key[b] : a < b; });
+    std::vector<unsigned char> fixed(n);
+    for (int round = 0; round < s.maxRounds; ++round) {
+        for (std::size_t i = 0; i < n; ++i) fixed[i] = invMass[i] == 0.0;
+        for (Index p : order) {
+            for (Index k = off[p]; k < off[p + 1]; ++k) {
+                const Index q = nbr[k];
+                if (fixed[q]) continue;
+                ++stats.work;
+                const Vec3 d = x[q] - x[p];
+                const double l = d.norm(), lmax = stretchLimit * rest[k];
+                if (l <= lmax) continue;
+                x[q] = x[p] + (lmax / l) * d; // pull q the whole way toward p
+                fixed[q] = 1;
+                ++stats.corrections;
+            }
+            fixed[p] = 1;
+        }
+        stats.rounds = round + 1;
+        stats.maxStrainAfter = maxSpringStrain(topology, x);
+        stats.work += springs.size();
+        if (stats.maxStrainAfter + 1.0 <= stopLimit) return stats;
+    }
+    stats.capHit = true;
     return stats;
 }
 

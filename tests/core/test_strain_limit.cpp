@@ -129,21 +129,55 @@ TEST_CASE("Experiment I (horizontal start) with the stress-ordered limiter stays
     experimentOneWithLimiter(LimiterKind::StressOrdered, false);
 }
 
-// Known gap (see the test report): on the vertical sheet the stress-ordered limiter needs up
-// to ~800 rounds per step after t = 1.8 s; with the default maxRounds = 64 it stops early and
-// leaves strains up to 0.1076. The bar stays strict here; [!mayfail] keeps the suite green
-// while the failure is still printed.
 TEST_CASE("Experiment I (vertical start) with the stress-ordered limiter stays within 10 %",
-          "[limiter][experiment1][!mayfail]") {
+          "[limiter][experiment1]") {
     experimentOneWithLimiter(LimiterKind::StressOrdered, true);
 }
 
-// The documented bound for the default settings (maxRounds 64): the round cap leaves at most
-// half a percent of strain above 10 % + tolerance on the vertical Experiment I (measured
-// 0.10129 over these 200 steps). This one must pass.
-TEST_CASE("Experiment I (vertical start), stress-ordered limiter, documented 0.5 % slack",
-          "[limiter][experiment1]") {
-    experimentOneWithLimiter(LimiterKind::StressOrdered, true, 0.005);
+// The shipped scene (samples/scenes/experiment1_suspended_sheet.json): vertical start, damping
+// C_d = 0.05 N s/m, 10 s. The bound is a promise after every step (no safety-cap hit), and the
+// limiter, an inelastic projection apart from the warm start's bounded overshoot, must not be
+// an energy source: the rises of kinetic + gravitational + spring energy from one step to the
+// next add up to at most 0.1 % of what the run dissipates, none above 50 J (the issue's bars;
+// the sheet's weight times one tolerance band of the 35 rows, 6 kN * 0.35 m = 2 kJ, is the
+// scale an unbounded overshoot would reach).
+TEST_CASE("Experiment I, 10 s with damping: bound every step, no energy source",
+          "[limiter][experiment1][energy]") {
+    SheetSpec spec;
+    spec.rows = 35;
+    spec.cols = 35;
+    spec.spacing = 10.0;
+    spec.vAxis = -Vec3::UnitY();
+    ClothSettings s;
+    s.particleMass = 0.5;
+    s.springStiffness = 20.0;
+    s.damping = 0.05;
+    s.gravity = Vec3(0.0, -9.8, 0.0);
+    Cloth cloth(ClothTopology::build(makeSheet(spec)), s);
+    cloth.pin(sheetIndex(spec, 0, 0));
+    cloth.pin(sheetIndex(spec, 0, 34));
+    auto energy = [&] { return cloth.kineticEnergy() + cloth.gravityEnergy() + cloth.springEnergy(); };
+    double e = energy(), rise = 0.0, maxRise = 0.0, dissipated = 0.0, worst = 0.0;
+    for (int n = 0; n < 1000; ++n) {
+        cloth.step(0.01);
+        worst = std::max(worst, cloth.maxStrain());
+        const double e2 = energy();
+        if (e2 > e) {
+            rise += e2 - e;
+            maxRise = std::max(maxRise, e2 - e);
+        } else {
+            dissipated += e - e2;
+        }
+        e = e2;
+    }
+    std::printf("[measured] Experiment I 10 s, C_d 0.05: peak strain %.6f, energy rise %.2f J "
+                "(largest step %.2f J), dissipated %.4g J, cap hits %llu\n",
+                worst, rise, maxRise, dissipated, static_cast<unsigned long long>(cloth.limiterCapHits()));
+    CHECK(worst <= 0.1 + s.limiter.tolerance + 1e-12);
+    CHECK(cloth.limiterCapHits() == 0);
+    CHECK(dissipated > 1e5); // the sheet falls ~200 m under 6 kN: most of it is dissipated
+    CHECK(rise <= 1e-3 * dissipated);
+    CHECK(maxRise <= 50.0);
 }
 
 namespace {
@@ -170,7 +204,6 @@ TEST_CASE("Limiters move only free ends, never pinned particles", "[limiter]") {
     const auto x0 = c.stretched();
     REQUIRE(maxSpringStrain(*c.topo, x0) == Approx(0.3).epsilon(1e-12));
     LimiterSettings s = limiterSettings();
-    s.overRelaxation = 1.0; // the plain rule; over-relaxation has its own test below
     const Vec3 target = (1.1 * c.restLength02()) * x0[2].normalized(); // 0-2 at exactly 10 %
 
     const std::vector<double> k(c.topo->springCount(), 1.0);
@@ -180,8 +213,8 @@ TEST_CASE("Limiters move only free ends, never pinned particles", "[limiter]") {
             auto x = x0;
             StrainLimitStats st;
             if (which == 0) {
-                StressOrderScratch scratch;
-                st = limitStrainStressOrdered(*c.topo, invMass, k, s, x, scratch);
+                StrainLimiter limiter;
+                st = limiter.limit(*c.topo, invMass, k, s, x);
             } else {
                 st = limitStrainProvot(*c.topo, invMass, s, x);
             }
@@ -189,15 +222,16 @@ TEST_CASE("Limiters move only free ends, never pinned particles", "[limiter]") {
             CHECK(x[0] == x0[0]);
             CHECK(x[1] == x0[1]);
             CHECK((x[2] - target).norm() < 1e-12); // a few operations on O(1) numbers
-            CHECK(st.maxStrainBefore == Approx(0.3).epsilon(1e-12));
+            // (the stress-ordered scan runs after its long-range attachment moved particle 2)
+            if (which == 1) CHECK(st.maxStrainBefore == Approx(0.3).epsilon(1e-12));
             CHECK(st.maxStrainAfter <= 0.1 + s.tolerance);
         }
     }
     SECTION("both ends pinned: nothing moves") {
         const std::vector<double> invMass{0.0, 1.0, 0.0};
         auto x = x0;
-        StressOrderScratch scratch;
-        limitStrainStressOrdered(*c.topo, invMass, k, s, x, scratch);
+        StrainLimiter limiter;
+        limiter.limit(*c.topo, invMass, k, s, x);
         CHECK(x == x0);
         x = x0;
         limitStrainProvot(*c.topo, invMass, s, x);
@@ -210,8 +244,8 @@ TEST_CASE("Limiters move only free ends, never pinned particles", "[limiter]") {
         for (int which = 0; which < 2; ++which) {
             auto x = x0;
             if (which == 0) {
-                StressOrderScratch scratch;
-                limitStrainStressOrdered(*c.topo, invMass, k, s, x, scratch);
+                StrainLimiter limiter;
+                limiter.limit(*c.topo, invMass, k, s, x);
             } else {
                 limitStrainProvot(*c.topo, invMass, s, x);
             }
@@ -223,33 +257,58 @@ TEST_CASE("Limiters move only free ends, never pinned particles", "[limiter]") {
     }
 }
 
-TEST_CASE("Over-relaxation shortens an overstretched spring to l - w (l - lmax), floored",
+TEST_CASE("The worklist sets a spring to exactly the limit and warm-starts the next step",
           "[limiter]") {
-    // One spring, one end pinned, w = 1.9: a small excess is overshot by 0.9 times itself; a
-    // large one stops at (1 + maxStrain / 2) L0 instead of flipping the spring.
+    // One spring 0-1 (rest 1), particle 0 pinned; 1-2 only shortens when 1 moves. Attachments
+    // off, so only the spring rule acts.
     TriangleMesh m;
-    m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(10, 0.5, 0)}; // 1-2 only shortens
+    m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(10, 0.5, 0)};
     m.triangles = {{0, 1, 2}};
     const auto topo = ClothTopology::build(m);
-    const std::vector<double> invMass{0.0, 1.0, 0.0};
+    const std::vector<double> invMass{0.0, 2.0, 0.0};
     const std::vector<double> k(topo->springCount(), 1.0);
     LimiterSettings s = limiterSettings();
-    s.overRelaxation = 1.9;
-    for (double strain : {0.105, 0.5, 3.0}) {
+    s.longRangeAttachments = false;
+    s.warmStart = 0.5;
+    StrainLimiter limiter;
+    for (double strain : {0.1005, 0.105, 0.5, 3.0}) {
+        limiter.resetWarmStart();
         auto x = topo->restPositions();
-        x[1] = Vec3(1.0 + strain, 0, 0); // spring 0-1 (rest 1) at the given strain
-        StressOrderScratch scratch;
-        const auto st = limitStrainStressOrdered(*topo, invMass, k, s, x, scratch);
-        const double l = 1.0 + strain;
-        const double expected = std::max(l - 1.9 * (l - 1.1), 1.05);
+        x[1] = Vec3(1.0 + strain, 0, 0);
+        limiter.clearMoved();
+        const auto st = limiter.limit(*topo, invMass, k, s, x);
         INFO("strain " << strain);
-        CHECK((x[1] - x[0]).norm() == Approx(expected).epsilon(1e-12));
-        CHECK(x[1].y() == Approx(0.0).margin(1e-12)); // moved along the spring only
-        CHECK(st.maxStrainAfter <= 0.1);
+        if (strain <= 0.1 + s.tolerance) { // inside the band: left alone
+            CHECK(st.corrections == 0);
+            CHECK(x[1] == Vec3(1.0 + strain, 0, 0));
+            continue;
+        }
+        CHECK((x[1] - x[0]).norm() == Approx(1.1).epsilon(1e-12));
+        CHECK(x[1].y() == Approx(0.0).margin(1e-12)); // along the spring only
         // The limiter reports what it moved and from where.
-        REQUIRE(scratch.movedIndex.size() == 1);
-        CHECK(scratch.movedIndex[0] == 1);
-        CHECK(scratch.movedFrom[0] == Vec3(1.0 + strain, 0, 0));
+        REQUIRE(limiter.movedIndex().size() == 1);
+        CHECK(limiter.movedIndex()[0] == 1);
+        CHECK(limiter.movedFrom()[0] == Vec3(1.0 + strain, 0, 0));
+        // lambda: the end moved by w lambda = strain - 0.1.
+        double lambda = 0.0;
+        for (double l : limiter.warmStartState()) lambda = std::max(lambda, l);
+        CHECK(2.0 * lambda == Approx(strain - 0.1).epsilon(1e-9));
+        // Next step from the same stretched state: the warm start moves particle 1 by half of
+        // the last correction first; the walk then finishes at exactly the limit, and lambda
+        // still measures the whole correction.
+        x[1] = Vec3(1.0 + strain, 0, 0);
+        limiter.limit(*topo, invMass, k, s, x);
+        CHECK((x[1] - x[0]).norm() == Approx(1.1).epsilon(1e-12));
+        double lambda2 = 0.0;
+        for (double l : limiter.warmStartState()) lambda2 = std::max(lambda2, l);
+        CHECK(2.0 * lambda2 == Approx(strain - 0.1).epsilon(1e-9));
+        // A warm start larger than needed is let out, never turned into a push: the spring,
+        // now at its rest length, is pulled in by the warm start (at most to half its rest
+        // length) and let out again to where it was.
+        x[1] = Vec3(1.0, 0, 0);
+        limiter.limit(*topo, invMass, k, s, x);
+        CHECK((x[1] - x[0]).norm() == Approx(1.0).epsilon(1e-12));
+        for (double l : limiter.warmStartState()) CHECK(l >= 0.0);
     }
 }
 
@@ -287,8 +346,8 @@ TEST_CASE("Limiters without pins keep the centre of mass (inverse-mass shares)",
         if (which == 0) {
             st = limitStrainProvot(*topo, invMass, s, y);
         } else {
-            StressOrderScratch scratch;
-            st = limitStrainStressOrdered(*topo, invMass, k, s, y, scratch);
+            StrainLimiter limiter;
+            st = limiter.limit(*topo, invMass, k, s, y);
         }
         INFO((which == 0 ? "provot" : "stress-ordered") << " rounds " << st.rounds);
         CHECK(st.maxStrainBefore > 0.2);
@@ -336,7 +395,7 @@ TEST_CASE("Velocities stay consistent with the limiter's corrections", "[limiter
             REQUIRE(cloth.lastLimiterStats().corrections > 0);
             // The documented contract: within the limit, or out of rounds.
             const bool within = cloth.maxStrain() <= 0.1 + s.limiter.tolerance + 1e-12;
-            CHECK((within || cloth.lastLimiterStats().rounds == s.limiter.maxRounds));
+            CHECK((within || cloth.lastLimiterStats().capHit));
             for (Index i = 0; i < cloth.particleCount(); ++i) {
                 const Vec3 expected = (cloth.positions()[i] - before[i]) / dt;
                 // Displacements ~5 m divided by 0.01 s: rounding 1e-16 * 500 m/s relative.

@@ -1,15 +1,11 @@
 // drape/cloth.hpp: one simulated cloth: shared topology, per-instance settings and state,
-// and the step pipeline.
+// and the step driver.
 //
-// A step runs named phases in a fixed order, built from what the cloth uses:
-//   [forces]         only when the cached f(t) is stale (first step, after edits)
-//   integrate        the integrator's advance()
-//   kinematic        pinned particles held, kinematic particles moved along their paths
-//   strain_limit     only with a limiter
-//   <stages>         stages added by the caller, in order (collisions, self-collision...)
-//   forces           f(t+dt) at the corrected state: one timed phase per active force term
-//   integrate_finish only for Velocity-Verlet
-// PhaseTimers reports each phase's calls and seconds.
+// A step runs a fixed table of stages (Cloth::kStages in cloth.cpp), each only when this
+// cloth needs it: forces_refresh (stale cached forces), integrate, kinematic, strain_limit,
+// the caller's stages (collisions...), forces (one timer per active force term),
+// integrate_finish (Velocity-Verlet) and verify. pipeline() lists what a step runs, from the
+// same table; timers() reports each stage's calls and seconds.
 #pragma once
 
 #include "drape/forces.hpp"
@@ -115,7 +111,21 @@ public:
     double maxAngularFrequency() const;
     /// Largest stable time step of the cloth's integrator [s].
     double stableTimeStep() const;
+    /// What the limiter did in the last step (relimit() calls of stages included).
     const StrainLimitStats& lastLimiterStats() const { return limiterStats_; }
+    /// Steps whose limiter stopped at its safety cap (LimiterSettings::maxRounds): steps in
+    /// which the strain bound was not promised.
+    std::uint64_t limiterCapHits() const { return limiterCapHits_; }
+    /// The stress-ordered limiter (its warm start and long-range attachments).
+    const StrainLimiter& limiter() const { return limiter_; }
+
+    // --- for stages ------------------------------------------------------------------------
+    /// A stage moved the particles `touched` (a contact projection): their springs go into
+    /// the limiter's worklist and the walk runs again from there; the particles it moves get
+    /// v += dx / dt. relimitMoved() lists them (so the stage can re-check them). The
+    /// comparison limiters run whole.
+    StrainLimitStats relimit(const std::vector<Index>& touched, double dt);
+    const std::vector<Index>& relimitMoved() const;
     const PhaseTimers& timers() const { return timers_; }
     PhaseTimers& timers() { return timers_; }
     /// Names of the phases a step runs, in order (what the pipeline holds for this cloth).
@@ -125,7 +135,26 @@ public:
 private:
     friend std::vector<unsigned char> saveSnapshot(const Cloth&);
     friend void loadSnapshot(Cloth&, const std::vector<unsigned char>&);
+    struct StepContext;
+    /// One entry of the step table (see cloth.cpp): name, whether this cloth runs it,
+    /// whether the driver times it (stages timed inside have their own timers), the stage.
+    struct Stage {
+        const char* name;
+        bool timed;
+        bool (*active)(const Cloth&);
+        void (Cloth::*run)(StepContext&);
+    };
+    static const Stage kStages[8];
     void stepOnce(double dt);
+    void stageForcesRefresh(StepContext& ctx);
+    void stageIntegrate(StepContext& ctx);
+    void stageKinematic(StepContext& ctx);
+    void stageLimit(StepContext& ctx);
+    void stageCallerStages(StepContext& ctx);
+    void stageForces(StepContext& ctx);
+    void stageFinish(StepContext& ctx);
+    void stageVerify(StepContext& ctx);
+    void applyLimiterMoves(double dt);
     double energyScale() const;
     void evaluateForces();
     void checkFinite(const char* where);
@@ -137,19 +166,21 @@ private:
     std::vector<double> invMass_;
     Vec3List x_, v_, f_;
     Vec3List xScratch_, vScratch_, xBeforeLimit_;
+    std::vector<Vec3> kinematicStart_;
     std::vector<unsigned char> pinned_;
     std::vector<std::pair<Index, KinematicPath>> kinematic_;
     std::unique_ptr<detail::ThreadPool> poolStorage_;
     std::unique_ptr<ForceModel> forceModel_;
     std::unique_ptr<Integrator> integrator_;
     std::vector<std::shared_ptr<ClothStage>> stages_;
-    std::vector<std::size_t> stageSlots_;
-    StressOrderScratch limiterScratch_;
+    std::vector<std::size_t> stageSlots_;       ///< timer slot of each kStages entry
+    std::vector<std::size_t> callerStageSlots_; ///< timer slot of each caller stage
+    StrainLimiter limiter_;
     StrainLimitStats limiterStats_;
+    std::vector<Index> relimitMoved_;
+    std::uint64_t limiterCapHits_ = 0;
     PhaseTimers timers_;
-    std::size_t slotIntegrate_, slotKinematic_, slotLimit_, slotFinish_, slotForcesStale_;
     bool forcesValid_ = false;
-    bool limiterIdle_ = false; ///< the limiter found nothing to correct in the last step
     mutable double omegaMax_ = -1.0;
     double time_ = 0.0;
     std::uint64_t steps_ = 0;

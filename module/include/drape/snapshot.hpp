@@ -10,7 +10,8 @@
 //
 // File layout (little-endian): "DRAPESNP", u32 version, u64 topology fingerprint,
 // u64 particle count, f64 time, u64 steps, u8 forces-valid, then per particle
-// x, v, f (9 f64) and u8 pinned, and finally a u64 FNV-1a checksum of everything before it.
+// x, v, f (9 f64) and u8 pinned, then per spring the limiter's warm start (f64; version 2),
+// and finally a u64 FNV-1a checksum of everything before it.
 #pragma once
 
 #include "drape/cloth.hpp"

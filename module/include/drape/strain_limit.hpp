@@ -1,8 +1,9 @@
 // drape/strain_limit.hpp: strain limiters against "hyper elasticity" (paper section 3).
 //
-// Both limiters shorten springs longer than (1 + maxStrain) L0 by moving particles; a
-// particle with zero inverse mass never moves. They only touch positions: the caller turns
-// the displacement into a velocity change (v += dx / dt) so that velocities stay consistent.
+// Every limiter shortens springs longer than (1 + maxStrain) L0 by moving particles; a
+// particle with zero inverse mass never moves. Limiters only touch positions and list what
+// they moved: the step turns each displacement into a velocity change (v += dx / dt) so that
+// velocities stay consistent with the corrected positions.
 #pragma once
 
 #include "drape/topology.hpp"
@@ -13,89 +14,158 @@
 namespace drape {
 
 struct LimiterSettings;
-namespace detail {
-class ThreadPool;
-}
 
-/// What a limiter did in one step.
+/// What a limiter did in one step (or in one call of StrainLimiter::relimit).
 struct StrainLimitStats {
-    int rounds = 0;               ///< rounds or sweeps run
-    std::size_t corrections = 0;  ///< particle moves (stress-ordered) or spring fixes (Provot)
-    double maxStrainBefore = 0.0; ///< largest (l - L0) / L0 before limiting [-]
-    double maxStrainAfter = 0.0;  ///< largest (l - L0) / L0 after limiting [-]
+    int rounds = 0;               ///< worklist waves (stress-ordered) or sweeps (Provot)
+    std::size_t corrections = 0;  ///< spring corrections applied
+    std::size_t work = 0;         ///< spring (and attachment) length evaluations
+    bool capHit = false;          ///< stopped by LimiterSettings::maxRounds: bound not promised
+    /// Largest (l - L0) / L0 the first scan saw (stress-ordered: after the attachments and
+    /// the warm start) [-].
+    double maxStrainBefore = 0.0;
+    double maxStrainAfter = 0.0;  ///< largest (l - L0) / L0 when it ended [-]
 };
 
-/// Reusable buffers for the stress-ordered limiter (no allocation per step), and a record of
-/// which particles the last call moved: movedIndex[j] moved from movedFrom[j] to where it is
-/// now, so a caller can turn displacements into velocity changes without copying every
-/// position before the call.
-struct StressOrderScratch {
-    std::vector<Index> order;  ///< stress order of the last limited step (reused as a start)
-    std::vector<double> key;
-    std::vector<Index> rank;   ///< position of each particle in `order`
-    std::vector<unsigned char> fixed; ///< regulated in this round (plain rounds)
-    std::vector<unsigned char> moved;
-    std::vector<std::uint32_t> pulledRound; ///< round in which a pinned particle pulled it
-    std::vector<std::uint64_t> pending, next; ///< particles (by rank) to visit, as bits
-    std::vector<std::uint32_t> movedAt; ///< change tracking: clock of a particle's last move
-    std::vector<std::uint32_t> okAt;    ///< clock at which a spring was last within the limit
-    std::vector<Index> movedIndex;
-    std::vector<Vec3> movedFrom;
+/// Where each particle's long-range attachment goes: its nearest anchor over the cloth
+/// (kNoParticle if no anchor reaches it) and the rest distance of the attachment [m].
+struct AnchorField {
+    std::vector<Index> anchor;
+    std::vector<double> restDistance;
 };
 
-/// The paper's stress-ordered limiter (section 3.2): "apply Provot's method and sequentially
-/// update P_k1 ... P_kn" in stress order, a regulated particle not being adjusted again in the
-/// same round. A round visits the particles in stress order; for the current particle p,
-/// every overstretched spring to a neighbour q not yet regulated this round is shortened by
-/// Provot's rule: only q moves when p is pinned (and q is then regulated), only p when q is
-/// pinned, otherwise both ends move by their inverse-mass share. Then p counts as regulated.
-/// Rounds repeat (same order, alternately forwards and backwards) until every spring is
-/// within (1 + maxStrain + tolerance) L0, or maxRounds is reached.
+/// Geodesic rest distances from a set of anchor particles, computed once per anchor set.
+/// Each particle gets the anchor with the shortest geodesic (a Dijkstra front over the
+/// springs, refined across triangles by unfolding the pair (a, b) of a triangle (a, b, c)
+/// into its plane and measuring from the virtual source that lies at distances d_a, d_b:
+/// exact on a flat mesh, the usual first-order approximation on a curved one).
+/// restDistance = min(P, slack * G), P the rest length of the spring path the front followed
+/// (a spring path: the strain limit on its springs implies |x_i - x_a| <= (1 + maxStrain) P)
+/// and G the geodesic. slack > 1 leaves room for the shear a spring lattice allows (a straight
+/// line across a triangulated sheet can stretch more than its springs do when the lattice
+/// shears); slack = 1 is the plain geodesic of Kim, Chentanez and Mueller (2012).
+AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Index>& anchors,
+                            double slack);
+
+/// The default limiter: the paper's stress-ordered Provot corrections (section 3.2), run as a
+/// worklist so that a step costs a few sweeps over the springs and the bound is a promise.
 ///
-/// A correction shortens a spring of length l > lmax = (1 + maxStrain) L0 to
-/// max(l - w (l - lmax), (1 + maxStrain / 2) L0), w = LimiterSettings::overRelaxation in
-/// [1, 2). The default w = 1 is Provot's rule (exactly lmax). Over-relaxing leaves springs
-/// slightly below the limit and cuts the rounds (Experiment I, 10 s: 54 -> 38 per step on
-/// average with w = 1.9), at a price: the walk then amplifies rounding differences
-/// (Experiment I at 1e-6 scale departs from the unit-scale run by 0.1 spacing after 200
-/// steps with w = 1.9, by 1e-12 with w = 1), so it is an option, not the default.
+/// A step (limit()):
+///   1. long-range attachments (optional, LimiterSettings::longRangeAttachments): a particle
+///      farther than (1 + maxStrain) r_i from its anchor (AnchorField) is moved onto that
+///      sphere. An anchor has infinite mass, so this is the exact projection of one
+///      particle: it carries a hanging cloth's load from its pins in one pass instead of the
+///      O(N^2) Gauss-Seidel sweeps a chain of N springs needs.
+///   2. warm start (LimiterSettings::warmStart = w): every spring that the last step had to
+///      pull in is pulled in again by w times last step's correction, along its current
+///      direction (the limiter's share of a lasting load, such as a hanging sheet's weight).
+///   3. one scan of the springs queues every spring longer than (1 + maxStrain + tolerance) L0
+///      and every warm-started spring shorter than (1 + maxStrain - tolerance) L0.
+///   4. waves: the queued springs are sorted by stress k (l - L0), most stressed first (the
+///      paper's load order; ties by index, so the walk is a pure function of the state),
+///      and each is set to exactly (1 + maxStrain) L0 by Provot's rule: both ends move by
+///      their inverse-mass shares (only the free end if the other is pinned). The correction
+///      lambda of a spring accumulates over the step and never turns into a push (lambda >= 0:
+///      a warm-started spring is let out to the limit, not beyond). The springs of every
+///      particle a correction moved are checked at once and queued for the next wave if they
+///      need it ("regulated once unless needed again").
+///   The walk stops when the queue is empty: every spring is then within
+///   (1 + maxStrain + tolerance) L0, the promised bound. A safety cap of maxRounds
+///   sweep-equivalents of spring evaluations stops a walk that cannot converge (it is
+///   counted in the stats: capHit).
 ///
-/// Stress: the magnitude of the spring forces a particle receives, sum_s k_s |l_s - L0_s|,
-/// in the configuration being limited; pinned particles come first; ties by index, so the
-/// order is a pure function of the state. We sort by the spring forces rather than by the
-/// net force |f_i|: in a hanging or resting cloth the net force is near zero everywhere
-/// (springs balance gravity) and sorting by it sorts noise, while the spring tension is
-/// largest at the suspension points and falls off away from them, the walk of figure 5.
-/// The order is found by an insertion sort that starts from the previous step's order (the
-/// stress order changes little from one step to the next, so this is linear in practice);
-/// when it would need more than a few moves per particle it falls back to std::sort. Both
-/// give the same order, the unique one the comparison defines.
+/// Energy: corrections aim exactly at the limit, never below, and the band of width
+/// `tolerance` is never used to shorten a spring it holds, so the limiter only removes
+/// kinetic energy (an inelastic projection) except for the warm start's overshoot, which the
+/// let-out in step 4 bounds by the band. Measured on Experiment I: samples/benchmarks/LIMITER.md.
 ///
-/// With oneSided = true, q is always pulled the whole way toward p and then fixed for the
-/// round (the most literal reading of the paper's figure 5, even when p is free).
-/// That variant does not conserve momentum: a particle drags its neighbours without being
-/// pulled back, and on Experiment I (35 x 35, k 20) it pumps energy into the sheet until it
-/// blows up, whatever the order. It is kept for comparison
-/// (LimiterKind::StressOrderedOneSided), not as a default.
-StrainLimitStats limitStrainStressOrdered(const ClothTopology& topology,
-                                          const std::vector<double>& invMass,
-                                          const std::vector<double>& stiffness,
-                                          const LimiterSettings& s, std::vector<Vec3>& x,
-                                          StressOrderScratch& scratch, bool oneSided = false,
-                                          detail::ThreadPool* pool = nullptr);
+/// Contacts and other stages that move particles call relimit() with the particles they
+/// moved: their springs go into the same worklist, and the walk runs again from there.
+class StrainLimiter {
+public:
+    /// Runs one step's limiter on x. anchorsChanged: the set of zero-inverse-mass particles
+    /// changed since the last call (the long-range attachments are recomputed).
+    StrainLimitStats limit(const ClothTopology& topology, const std::vector<double>& invMass,
+                           const std::vector<double>& stiffness, const LimiterSettings& s,
+                           std::vector<Vec3>& x);
+    /// Queues the springs of `touched` (particles a stage moved) and runs the waves again.
+    StrainLimitStats relimit(const ClothTopology& topology, const std::vector<double>& invMass,
+                             const std::vector<double>& stiffness, const LimiterSettings& s,
+                             const std::vector<Index>& touched, std::vector<Vec3>& x);
+    /// The anchor set changed (pin, unpin, kinematic): recompute the attachments next step.
+    void anchorsChanged() { anchorsValid_ = false; }
+    /// Forgets the warm start (after the state was edited from outside).
+    void resetWarmStart() {
+        lambda_.assign(lambda_.size(), 0.0);
+        warmLeft_.assign(warmLeft_.size(), 0.0);
+    }
+
+    /// Particles moved since the last clearMoved(), each with where it was before its first
+    /// move: the caller adds (x - from) / dt to their velocities.
+    const std::vector<Index>& movedIndex() const { return movedIndex_; }
+    const std::vector<Vec3>& movedFrom() const { return movedFrom_; }
+    void clearMoved();
+
+    /// Accumulated correction of each spring in the last step [m kg^-1 ... as lambda: the
+    /// displacement of an end is its inverse mass times lambda]; the warm start's memory, part
+    /// of a snapshot.
+    const std::vector<double>& warmStartState() const { return lambda_; }
+    void setWarmStartState(std::vector<double> lambda) { lambda_ = std::move(lambda); }
+    // (warmLeft_ needs no saving: it is rebuilt at the start of every step.)
+    const AnchorField& anchors() const { return anchors_; }
+
+private:
+    void prepare(const ClothTopology& topology, const std::vector<double>& invMass,
+                 const LimiterSettings& s);
+    void move(Index i, const Vec3& dx, std::vector<Vec3>& x);
+    /// move() inside a wave: the particle's springs are checked when the wave ends.
+    void dirty(Index i, const Vec3& dx, std::vector<Vec3>& x);
+    void runWaves(const ClothTopology& topology, const std::vector<double>& invMass,
+                  const std::vector<double>& stiffness, const LimiterSettings& s,
+                  std::vector<Vec3>& x, StrainLimitStats& st);
+    /// Queues spring si if it needs a correction at the current x.
+    void check(std::size_t si, const ClothTopology& topology, const std::vector<double>& invMass,
+               const std::vector<double>& stiffness, const std::vector<Vec3>& x,
+               StrainLimitStats& st);
+
+    std::vector<double> lambda_;        ///< accumulated correction per spring
+    std::vector<double> warmLeft_;      ///< warm start a let-out may still undo this step
+    std::vector<unsigned char> queued_; ///< spring is in the next wave
+    std::vector<std::uint32_t> wave_, next_;
+    std::vector<double> key_;           ///< stress of each queued spring
+    std::vector<std::uint32_t> checkedAt_, dirtyAt_; ///< wave stamp of a spring's check / a move
+    std::vector<Index> dirty_;          ///< particles the current wave moved
+    std::uint32_t stamp_ = 0;
+    std::vector<unsigned char> moved_;
+    std::vector<Index> movedIndex_;
+    std::vector<Vec3> movedFrom_;
+    AnchorField anchors_;
+    std::vector<Index> anchorList_;
+    bool anchorsValid_ = false;
+    double anchorSlack_ = 0.0;
+    double upper2_ = 0.0, lower2_ = 0.0, limit_ = 0.0; ///< band edges (squared) and the limit
+};
 
 /// Provot (1995): sweeps over the springs in index order; an overstretched spring is
 /// shortened to (1 + maxStrain) L0, moving both ends by their inverse-mass share (only the
 /// free end if one is fixed, nothing if both are). Sweeps until every spring is within
-/// maxStrain + tolerance or maxRounds sweeps have run.
+/// maxStrain + tolerance or maxRounds sweeps have run. Kept for comparison.
 StrainLimitStats limitStrainProvot(const ClothTopology& topology,
                                    const std::vector<double>& invMass, const LimiterSettings& s,
                                    std::vector<Vec3>& x);
 
-/// Largest strain (l - L0) / L0 over all springs (negative if all are compressed). With a
-/// pool, the springs are split over its threads (the maximum does not depend on the split).
-double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x,
-                       detail::ThreadPool* pool = nullptr);
+/// The paper's figure 5 read literally (LimiterKind::StressOrderedOneSided, for comparison
+/// only): particles in decreasing spring tension (pinned first); each pulls every
+/// overstretched, not yet regulated neighbour the whole way to the limit and regulates it;
+/// rounds repeat until within maxStrain + tolerance or maxRounds. One-sided pulls create
+/// momentum: on Experiment I the sheet blows up whatever the order.
+StrainLimitStats limitStrainOneSided(const ClothTopology& topology,
+                                     const std::vector<double>& invMass,
+                                     const std::vector<double>& stiffness,
+                                     const LimiterSettings& s, std::vector<Vec3>& x);
+
+/// Largest strain (l - L0) / L0 over all springs (negative if all are compressed).
+double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x);
 /// Mean strain over all springs.
 double meanSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x);
 

@@ -186,9 +186,12 @@ void parseStrainLimit(JsonObject o, SceneDesc& sc) {
     l.kind = limiterFromString(method);
     l.maxStrain = o.number("max_strain", 0.10, Range::Positive);
     l.maxRounds = static_cast<int>(o.integer("max_rounds", 64, 1, 100000));
-    l.tolerance = o.number("tolerance", 1e-4, Range::NonNegative);
-    l.overRelaxation = o.number("over_relaxation", 1.0, Range::Positive);
-    if (l.overRelaxation < 1.0 || l.overRelaxation >= 2.0) o.fail(o.pathOf("over_relaxation"), "must be in [1, 2)");
+    l.tolerance = o.number("tolerance", l.tolerance, Range::NonNegative);
+    l.warmStart = o.number("warm_start", l.warmStart, Range::NonNegative);
+    if (l.warmStart >= 1.0) o.fail(o.pathOf("warm_start"), "must be in [0, 1)");
+    l.longRangeAttachments = o.boolean("long_range_attachments", l.longRangeAttachments);
+    l.longRangeSlack = o.number("long_range_slack", l.longRangeSlack, Range::Positive);
+    if (l.longRangeSlack < 1.0) o.fail(o.pathOf("long_range_slack"), "must be >= 1");
     o.finish();
 }
 
