@@ -137,6 +137,7 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     forceModel_ = std::make_unique<ForceModel>(topology_, buildStiffness(*topology_, settings_),
                                                mass_, settings_, timers_, poolStorage_.get());
     integrator_ = makeIntegrator(settings_.integrator, settings_.implicit);
+    integrator_->bind(*forceModel_);
     slotForcesStale_ = timers_.slot("forces_refresh");
     slotIntegrate_ = timers_.slot("integrate");
     slotKinematic_ = timers_.slot("kinematic");

@@ -33,41 +33,97 @@ template <class Body> void forParticles(IntegratorContext& c, Body body) {
 /// written as kick (v += f(t) dt/2m), drift (x += v dt), [limit, collide, f(t+dt)],
 /// kick (v += f(t+dt) dt/2m). Algebraically identical to eq. (14); one force evaluation per
 /// step, and f(t+dt) is evaluated at the corrected positions.
+///
+/// Damping. f(t+dt) is evaluated before the closing kick has made v(t+dt), so a damping force
+/// in it would act with the half-step velocity and make the method first order. The linear
+/// particle damping (eq. (8)) and the spring damping are therefore not in f (bind() tells the
+/// force model) but run as their own flow D at frozen positions, dt/2 on each side of the
+/// conservative kick-drift-kick:
+///   v <- L(dt/2) S(dt/2) v;  kick, drift, [limit, collide, f], kick;  v <- S(dt/2) L(dt/2) v
+/// (Strang splitting; the whole step is symmetric, so second order). L is eq. (8) alone,
+/// m v' = -C_d v, solved exactly: v *= exp(-C_d dt / (2m)), any dt, nothing to be stable
+/// about; particles with zero inverse mass get the factor exp(0) = 1 and keep their velocity.
+/// S is the spring damping (ForceModel::applySpringDampingFlow, derivation there).
 class VelocityVerlet final : public Integrator {
 public:
     IntegratorKind kind() const override { return IntegratorKind::VelocityVerlet; }
+    void bind(ForceModel& forces) override { forces.setDampingInIntegrator(true); }
     void advance(IntegratorContext& c) override { advanceFrom(c, c.x, c.v); }
     bool advanceFrom(IntegratorContext& c, const Vec3List& x0, const Vec3List& v0) override {
         const double h = 0.5 * c.dt;
+        const bool linear = c.forces.dampingInIntegrator() && c.forces.linearDamping() > 0.0;
+        const bool springs = c.forces.dampingInIntegrator() && c.forces.springDamping() > 0.0;
+        const double cdh = c.forces.linearDamping() * h;
+        if (springs) {
+            // L(dt/2) then S(dt/2) at x(t), into the output velocities (v0 stays as it was).
+            forParticles(c, [&](std::size_t i) { c.v[i] = linear ? dampedBy(cdh, c.invMass[i]) * v0[i] : v0[i]; });
+            c.forces.applySpringDampingFlow(x0, c.v, c.invMass, h);
+            forParticles(c, [&](std::size_t i) {
+                const Vec3 vh = c.v[i] + (h * c.invMass[i]) * c.f[i];
+                c.v[i] = vh;
+                c.x[i] = x0[i] + c.dt * vh;
+            });
+            return true;
+        }
         forParticles(c, [&](std::size_t i) {
-            const Vec3 vh = v0[i] + (h * c.invMass[i]) * c.f[i];
+            const Vec3 vi = linear ? dampedBy(cdh, c.invMass[i]) * v0[i] : v0[i];
+            const Vec3 vh = vi + (h * c.invMass[i]) * c.f[i];
             c.v[i] = vh;
             c.x[i] = x0[i] + c.dt * vh;
         });
         return true;
     }
-    /// The closing half kick, with the finiteness check of the whole state folded in (one
-    /// pass over the particles instead of two): a NaN or infinity anywhere makes a chunk's
-    /// sum non-finite.
+    /// The closing half kick, then S(dt/2) and L(dt/2), with the finiteness check of the whole
+    /// state folded into the last pass over the particles (one pass instead of two when there
+    /// is no spring damping): a NaN or infinity anywhere makes a chunk's sum non-finite.
     void finish(IntegratorContext& c) override {
         const double h = 0.5 * c.dt;
+        const bool linear = c.forces.dampingInIntegrator() && c.forces.linearDamping() > 0.0;
+        const bool springs = c.forces.dampingInIntegrator() && c.forces.springDamping() > 0.0;
+        const double cdh = c.forces.linearDamping() * h;
         std::atomic<bool> bad{false};
-        auto range = [&](std::size_t b, std::size_t e) {
-            double sum = 0.0;
-            for (std::size_t i = b; i < e; ++i) {
-                c.v[i] += (h * c.invMass[i]) * c.f[i];
-                sum += c.x[i].sum() + c.v[i].sum() + c.f[i].sum();
+        auto passes = [&](auto body) {
+            auto range = [&](std::size_t b, std::size_t e) {
+                double sum = 0.0;
+                for (std::size_t i = b; i < e; ++i) {
+                    body(i);
+                    sum += c.x[i].sum() + c.v[i].sum() + c.f[i].sum();
+                }
+                if (!std::isfinite(sum)) bad.store(true, std::memory_order_relaxed);
+            };
+            if (c.pool) {
+                c.pool->parallelFor(c.x.size(), range);
+            } else {
+                range(0, c.x.size());
             }
-            if (!std::isfinite(sum)) bad.store(true, std::memory_order_relaxed);
         };
-        if (c.pool) {
-            c.pool->parallelFor(c.x.size(), range);
+        if (springs) {
+            forParticles(c, [&](std::size_t i) { c.v[i] += (h * c.invMass[i]) * c.f[i]; });
+            c.forces.applySpringDampingFlow(c.x, c.v, c.invMass, h);
+            passes([&](std::size_t i) {
+                if (linear) c.v[i] *= dampedBy(cdh, c.invMass[i]);
+            });
+        } else if (linear) {
+            passes([&](std::size_t i) { c.v[i] = dampedBy(cdh, c.invMass[i]) * (c.v[i] + (h * c.invMass[i]) * c.f[i]); });
         } else {
-            range(0, c.x.size());
+            passes([&](std::size_t i) { c.v[i] += (h * c.invMass[i]) * c.f[i]; });
         }
         c.nonFiniteSeen = bad.load();
     }
     bool finishChecksFinite() const override { return true; }
+
+private:
+    /// exp(-C_d tau / m) for cdTau = C_d tau: the exact decay of m v' = -C_d v over tau. The
+    /// last value is kept per thread (most cloths have one mass, so one exp per pass).
+    static double dampedBy(double cdTau, double invMass) {
+        thread_local double lastArg = 0.0, lastFactor = 1.0;
+        const double arg = cdTau * invMass;
+        if (arg != lastArg) {
+            lastArg = arg;
+            lastFactor = std::exp(-arg);
+        }
+        return lastFactor;
+    }
 };
 
 /// x(t+dt) = x + v dt, v(t+dt) = v + a dt: both from the state at t. First order.

@@ -85,6 +85,25 @@ public:
     /// them (the strain limiter's check, computed exactly as maxSpringStrain computes it).
     void evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f, double& maxRatio2);
 
+    /// Hands the linear particle damping (eq. (8)) and the spring damping over to the
+    /// integrator: with `on`, evaluate() leaves both out and the integrator applies them as
+    /// velocity updates of its own (Velocity-Verlet's exact split, see applySpringDampingFlow
+    /// and integrators.cpp). They stay in activeTerms() and keep their timer names. Off by
+    /// default: every other integrator, and the Jacobians, treat them as forces.
+    void setDampingInIntegrator(bool on) { dampingInIntegrator_ = on; }
+    bool dampingInIntegrator() const { return dampingInIntegrator_; }
+    /// C_d of eq. (8) and c of the spring damping [N s/m] (0 when off).
+    double linearDamping() const { return settings_.damping; }
+    double springDamping() const { return settings_.springDamping; }
+
+    /// Spring damping alone acting on v for a time tau with the positions frozen at x:
+    /// dv_i/dt = invMass_i * (sum of the spring damping forces on i), in a second-order,
+    /// unconditionally stable form (each spring's own flow exactly, composed in a symmetric
+    /// sweep; the derivation is next to the code). Particles with zero inverse mass keep their
+    /// velocity. Timed as the "spring_damping" phase.
+    void applySpringDampingFlow(const Vec3List& x, Vec3List& v, const std::vector<double>& invMass,
+                                double tau);
+
     /// Assembles d f / d x and d f / d v (3n x 3n) of the springs, spring damping and linear
     /// damping at state x. Gravity, user forces and aerodynamics are treated explicitly.
     void assembleJacobians(const Vec3List& x, bool clampCompression,
@@ -139,6 +158,7 @@ private:
     /// The common stiffness when every spring has the same (the step then reads no
     /// per-spring stiffness), else 0.
     double uniformStiffness_ = 0.0;
+    bool dampingInIntegrator_ = false;
 };
 
 } // namespace drape

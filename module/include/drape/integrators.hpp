@@ -8,6 +8,10 @@
 //   the caller evaluates f(t+dt) at the corrected state;
 //   finish()   Velocity-Verlet's closing half kick v += f(t+dt) dt / (2m); no-op for others.
 // Particles with zero inverse mass (pinned, kinematic) get no acceleration.
+// Velocity-Verlet applies the linear particle damping and the spring damping itself, as exact
+// or symmetric velocity flows dt/2 before the opening kick (in advance) and dt/2 after the
+// closing one (in finish), so that it stays second order with damping; bind() takes them out of
+// the force model's sum for it (the cached f then holds the other terms only).
 #pragma once
 
 #include "drape/forces.hpp"
@@ -36,6 +40,9 @@ class Integrator {
 public:
     virtual ~Integrator() = default;
     virtual IntegratorKind kind() const = 0;
+    /// Called once with the cloth's force model before any force is evaluated, so an
+    /// integrator that applies some force terms itself can take them out of the model's sum.
+    virtual void bind(ForceModel& forces) { (void)forces; }
     virtual void advance(IntegratorContext& ctx) = 0;
     /// advance() reading the state at t from x0, v0 and writing the new state to ctx.x,
     /// ctx.v (same sizes), so the caller keeps the old state without copying it. Returns false
