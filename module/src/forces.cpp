@@ -89,11 +89,13 @@ namespace {
 ///   m_a v_a' = c u n,  m_b v_b' = -c u n   =>   u' = -c (w_a + w_b) u   (w = 1/m),
 /// so u(tau) = u e^{-c (w_a + w_b) tau} exactly, reached by the momentum-conserving impulse
 /// J n with J = u (1 - e^{-c (w_a + w_b) tau}) / (w_a + w_b): v_a += w_a J n, v_b -= w_b J n.
-/// A held end (w = 0) keeps its velocity; a spring with both ends held or of zero length is
-/// skipped (no direction, as in addSpringDamping).
+/// A held end (w = 0) keeps its velocity, and the impulse it takes is added to held[] when
+/// given; a spring with both ends held or of zero length is skipped (no direction, as in
+/// addSpringDamping).
 template <bool Forward>
 void sweepSpringDamping(const std::vector<Spring>& springs, std::size_t b, std::size_t e, double c,
-                        double tau, const Vec3List& x, Vec3List& v, const std::vector<double>& invMass) {
+                        double tau, const Vec3List& x, Vec3List& v, const std::vector<double>& invMass,
+                        Vec3List* held) {
     // 1 - e^{-c (w_a + w_b) tau} depends only on w_a + w_b, which is the same for most springs
     // (uniform masses): keep the last one instead of calling expm1 per spring.
     double lastW = -1.0, lastLoss = 0.0;
@@ -113,6 +115,10 @@ void sweepSpringDamping(const std::vector<Spring>& springs, std::size_t b, std::
         const Vec3 j = ((v[sp.b] - v[sp.a]).dot(d) * lastLoss / (w * l2)) * d;
         v[sp.a] += wa * j;
         v[sp.b] -= wb * j;
+        if (held) {
+            if (wa == 0.0) (*held)[sp.a] += j;
+            if (wb == 0.0) (*held)[sp.b] -= j;
+        }
     }
 }
 } // namespace
@@ -350,7 +356,8 @@ void ForceModel::evaluateImpl(const Vec3List& x, const Vec3List& v, Vec3List& f,
 // (front to back), then the crossing springs; backward = the exact reverse. The result is the
 // same for any thread count.
 void ForceModel::applySpringDampingFlow(const Vec3List& x, Vec3List& v,
-                                        const std::vector<double>& invMass, double tau) {
+                                        const std::vector<double>& invMass, double tau,
+                                        Vec3List* heldImpulse) {
     const double c = settings_.springDamping;
     if (!(c > 0.0)) return;
     std::size_t slot = 0;
@@ -364,9 +371,9 @@ void ForceModel::applySpringDampingFlow(const Vec3List& x, Vec3List& v,
         auto body = [&](std::size_t b, std::size_t end) {
             for (std::size_t k = b; k < end; ++k) {
                 if (forward) {
-                    sweepSpringDamping<true>(packed_, packedStart_[k], packedStart_[k + 1], c, half, x, v, invMass);
+                    sweepSpringDamping<true>(packed_, packedStart_[k], packedStart_[k + 1], c, half, x, v, invMass, heldImpulse);
                 } else {
-                    sweepSpringDamping<false>(packed_, packedStart_[k], packedStart_[k + 1], c, half, x, v, invMass);
+                    sweepSpringDamping<false>(packed_, packedStart_[k], packedStart_[k + 1], c, half, x, v, invMass, heldImpulse);
                 }
             }
         };
@@ -377,8 +384,8 @@ void ForceModel::applySpringDampingFlow(const Vec3List& x, Vec3List& v,
         }
     };
     blocks(true);
-    sweepSpringDamping<true>(packed_, packedStart_[nb], packedStart_[nb + 1], c, half, x, v, invMass);
-    sweepSpringDamping<false>(packed_, packedStart_[nb], packedStart_[nb + 1], c, half, x, v, invMass);
+    sweepSpringDamping<true>(packed_, packedStart_[nb], packedStart_[nb + 1], c, half, x, v, invMass, heldImpulse);
+    sweepSpringDamping<false>(packed_, packedStart_[nb], packedStart_[nb + 1], c, half, x, v, invMass, heldImpulse);
     blocks(false);
 }
 

@@ -54,10 +54,14 @@ public:
         const bool linear = c.forces.dampingInIntegrator() && c.forces.linearDamping() > 0.0;
         const bool springs = c.forces.dampingInIntegrator() && c.forces.springDamping() > 0.0;
         const double cdh = c.forces.linearDamping() * h;
+        held_.resize(c.x.size());
         if (springs) {
             // L(dt/2) then S(dt/2) at x(t), into the output velocities (v0 stays as it was).
-            forParticles(c, [&](std::size_t i) { c.v[i] = linear ? dampedBy(cdh, c.invMass[i]) * v0[i] : v0[i]; });
-            c.forces.applySpringDampingFlow(x0, c.v, c.invMass, h);
+            forParticles(c, [&](std::size_t i) {
+                c.v[i] = linear ? dampedBy(cdh, c.invMass[i]) * v0[i] : v0[i];
+                held_[i].setZero();
+            });
+            c.forces.applySpringDampingFlow(x0, c.v, c.invMass, h, &held_);
             forParticles(c, [&](std::size_t i) {
                 const Vec3 vh = c.v[i] + (h * c.invMass[i]) * c.f[i];
                 c.v[i] = vh;
@@ -97,14 +101,30 @@ public:
                 range(0, c.x.size());
             }
         };
+        // A held particle (zero inverse mass) does not move by the damping, so for it nothing
+        // is split: its f carries the damping as forces, the linear term at its velocity and
+        // the spring damping as the impulse the sweeps of this step put on it over dt, which
+        // is what it passes on to whatever holds it (an attachment to a rigid body reads f).
+        // Its own kicks ignore f (inverse mass 0).
+        const double cd = c.forces.linearDamping(), invDt = 1.0 / c.dt;
         if (springs) {
             forParticles(c, [&](std::size_t i) { c.v[i] += (h * c.invMass[i]) * c.f[i]; });
-            c.forces.applySpringDampingFlow(c.x, c.v, c.invMass, h);
+            c.forces.applySpringDampingFlow(c.x, c.v, c.invMass, h, &held_);
             passes([&](std::size_t i) {
-                if (linear) c.v[i] *= dampedBy(cdh, c.invMass[i]);
+                if (c.invMass[i] == 0.0) {
+                    c.f[i] += invDt * held_[i] - (linear ? cd : 0.0) * c.v[i];
+                } else if (linear) {
+                    c.v[i] *= dampedBy(cdh, c.invMass[i]);
+                }
             });
         } else if (linear) {
-            passes([&](std::size_t i) { c.v[i] = dampedBy(cdh, c.invMass[i]) * (c.v[i] + (h * c.invMass[i]) * c.f[i]); });
+            passes([&](std::size_t i) {
+                if (c.invMass[i] == 0.0) {
+                    c.f[i] -= cd * c.v[i];
+                } else {
+                    c.v[i] = dampedBy(cdh, c.invMass[i]) * (c.v[i] + (h * c.invMass[i]) * c.f[i]);
+                }
+            });
         } else {
             passes([&](std::size_t i) { c.v[i] += (h * c.invMass[i]) * c.f[i]; });
         }
@@ -113,6 +133,9 @@ public:
     bool finishChecksFinite() const override { return true; }
 
 private:
+    /// Impulse the spring damping put on each held particle in this step [N s] (zeroed at the
+    /// start of every step: nothing is carried from one step to the next).
+    Vec3List held_;
     /// exp(-C_d tau / m) for cdTau = C_d tau: the exact decay of m v' = -C_d v over tau. The
     /// last value is kept per thread (most cloths have one mass, so one exp per pass).
     static double dampedBy(double cdTau, double invMass) {

@@ -100,9 +100,11 @@ public:
     /// dv_i/dt = invMass_i * (sum of the spring damping forces on i), in a second-order,
     /// unconditionally stable form (each spring's own flow exactly, composed in a symmetric
     /// sweep; the derivation is next to the code). Particles with zero inverse mass keep their
-    /// velocity. Timed as the "spring_damping" phase.
+    /// velocity; the impulse [N s] the springs' damping puts on them is added to heldImpulse
+    /// when given (what a pinned or attached particle passes on to whatever holds it). Timed as
+    /// the "spring_damping" phase.
     void applySpringDampingFlow(const Vec3List& x, Vec3List& v, const std::vector<double>& invMass,
-                                double tau);
+                                double tau, Vec3List* heldImpulse = nullptr);
 
     /// Assembles d f / d x and d f / d v (3n x 3n) of the springs, spring damping and linear
     /// damping at state x. Gravity, user forces and aerodynamics are treated explicitly.

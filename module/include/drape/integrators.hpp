@@ -11,7 +11,8 @@
 // Velocity-Verlet applies the linear particle damping and the spring damping itself, as exact
 // or symmetric velocity flows dt/2 before the opening kick (in advance) and dt/2 after the
 // closing one (in finish), so that it stays second order with damping; bind() takes them out of
-// the force model's sum for it (the cached f then holds the other terms only).
+// the force model's sum for it (the cached f then holds the other terms only, except for held
+// particles, which get the damping they pass on added to f in finish()).
 #pragma once
 
 #include "drape/forces.hpp"
@@ -25,7 +26,9 @@ namespace drape {
 struct IntegratorContext {
     Vec3List& x;                        ///< positions [m], updated in place
     Vec3List& v;                        ///< velocities [m/s], updated in place
-    const Vec3List& f;                  ///< forces at the start of the step [N]
+    /// Forces at the start of the step [N]; read only, except that Velocity-Verlet's finish()
+    /// adds the damping of held particles to f(t+dt) (see integrators.cpp).
+    Vec3List& f;
     const std::vector<double>& invMass; ///< 1/m, 0 for pinned and kinematic particles [1/kg]
     double dt;                          ///< time step [s]
     ForceModel& forces;                 ///< for integrators that evaluate forces more than once
