@@ -261,7 +261,7 @@ void ForceModel::evaluateImpl(const Vec3List& x, const Vec3List& v, Vec3List& f,
         }
     };
     const bool gravity = settings_.gravity != Vec3::Zero();
-    const double cd = dampingInIntegrator_ ? 0.0 : settings_.damping;
+    const double cd = velocityTermsInIntegrator_ ? 0.0 : settings_.damping;
     // Start from gravity (eq. (6)) and particle damping (eq. (8)), or zero: one pass over the
     // particles instead of three. (The sum is then formed in another order than term by term:
     // results agree to rounding.)
@@ -277,8 +277,11 @@ void ForceModel::evaluateImpl(const Vec3List& x, const Vec3List& v, Vec3List& f,
         }
     });
     for (const Entry& e : pipeline_) {
-        // Applied by the integrator instead (setDampingInIntegrator), and timed there.
-        if (dampingInIntegrator_ && (e.term == Term::SpringDamping || e.term == Term::Damping)) continue;
+        // Applied by the integrator instead (setVelocityTermsInIntegrator), and timed there.
+        if (velocityTermsInIntegrator_ &&
+            (e.term == Term::SpringDamping || e.term == Term::Damping || e.term == Term::Aero)) {
+            continue;
+        }
         ScopedPhase timer(timers_, e.timerSlot);
         switch (e.term) {
         case Term::Springs: {
@@ -387,6 +390,22 @@ void ForceModel::applySpringDampingFlow(const Vec3List& x, Vec3List& v,
     sweepSpringDamping<true>(packed_, packedStart_[nb], packedStart_[nb + 1], c, half, x, v, invMass, heldImpulse);
     sweepSpringDamping<false>(packed_, packedStart_[nb], packedStart_[nb + 1], c, half, x, v, invMass, heldImpulse);
     blocks(false);
+}
+
+bool ForceModel::hasAero() const {
+    for (const Entry& e : pipeline_) {
+        if (e.term == Term::Aero) return true;
+    }
+    return false;
+}
+
+void ForceModel::aeroForces(const Vec3List& x, const Vec3List& v, Vec3List& f) {
+    f.assign(x.size(), Vec3::Zero());
+    for (const Entry& e : pipeline_) {
+        if (e.term != Term::Aero) continue;
+        ScopedPhase timer(timers_, e.timerSlot);
+        addAeroForces(topology_->triangles(), settings_.aero, x, v, f);
+    }
 }
 
 void ForceModel::assembleJacobians(const Vec3List& x, bool clampCompression,

@@ -85,13 +85,13 @@ public:
     /// them (the strain limiter's check, computed exactly as maxSpringStrain computes it).
     void evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f, double& maxRatio2);
 
-    /// Hands the linear particle damping (eq. (8)) and the spring damping over to the
-    /// integrator: with `on`, evaluate() leaves both out and the integrator applies them as
-    /// velocity updates of its own (Velocity-Verlet's exact split, see applySpringDampingFlow
-    /// and integrators.cpp). They stay in activeTerms() and keep their timer names. Off by
-    /// default: every other integrator, and the Jacobians, treat them as forces.
-    void setDampingInIntegrator(bool on) { dampingInIntegrator_ = on; }
-    bool dampingInIntegrator() const { return dampingInIntegrator_; }
+    /// Hands the velocity-dependent terms (linear particle damping of eq. (8), spring damping,
+    /// aerodynamics) over to the integrator: with `on`, evaluate() leaves them out and the
+    /// integrator applies them itself (Velocity-Verlet, see integrators.cpp, so that it stays
+    /// second order). They stay in activeTerms() and keep their timer names. Off by default:
+    /// every other integrator, and the Jacobians, treat them as forces.
+    void setVelocityTermsInIntegrator(bool on) { velocityTermsInIntegrator_ = on; }
+    bool velocityTermsInIntegrator() const { return velocityTermsInIntegrator_; }
     /// C_d of eq. (8) and c of the spring damping [N s/m] (0 when off).
     double linearDamping() const { return settings_.damping; }
     double springDamping() const { return settings_.springDamping; }
@@ -105,6 +105,12 @@ public:
     /// the "spring_damping" phase.
     void applySpringDampingFlow(const Vec3List& x, Vec3List& v, const std::vector<double>& invMass,
                                 double tau, Vec3List* heldImpulse = nullptr);
+
+    /// Whether the aerodynamic term is active (air density and a coefficient set).
+    bool hasAero() const;
+    /// f = the aerodynamic forces alone at (x, v) (addAeroForces with the current wind), timed
+    /// as the "aero" phase.
+    void aeroForces(const Vec3List& x, const Vec3List& v, Vec3List& f);
 
     /// Assembles d f / d x and d f / d v (3n x 3n) of the springs, spring damping and linear
     /// damping at state x. Gravity, user forces and aerodynamics are treated explicitly.
@@ -160,7 +166,7 @@ private:
     /// The common stiffness when every spring has the same (the step then reads no
     /// per-spring stiffness), else 0.
     double uniformStiffness_ = 0.0;
-    bool dampingInIntegrator_ = false;
+    bool velocityTermsInIntegrator_ = false;
 };
 
 } // namespace drape

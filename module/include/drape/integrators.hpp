@@ -8,11 +8,12 @@
 //   the caller evaluates f(t+dt) at the corrected state;
 //   finish()   Velocity-Verlet's closing half kick v += f(t+dt) dt / (2m); no-op for others.
 // Particles with zero inverse mass (pinned, kinematic) get no acceleration.
-// Velocity-Verlet applies the linear particle damping and the spring damping itself, as exact
-// or symmetric velocity flows dt/2 before the opening kick (in advance) and dt/2 after the
-// closing one (in finish), so that it stays second order with damping; bind() takes them out of
-// the force model's sum for it (the cached f then holds the other terms only, except for held
-// particles, which get the damping they pass on added to f in finish()).
+// Velocity-Verlet applies the velocity-dependent terms itself so that it stays second order:
+// the linear particle damping and the spring damping as exact or symmetric velocity flows dt/2
+// before the opening kick (in advance) and dt/2 after the closing one (in finish), and the
+// aerodynamics inside the kicks, the closing one at a predicted end velocity. bind() takes them
+// out of the force model's sum for it (the cached f then holds the other terms only, except for
+// held particles, which get these terms added to f in finish()).
 #pragma once
 
 #include "drape/forces.hpp"
