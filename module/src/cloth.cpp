@@ -342,11 +342,9 @@ void Cloth::stepOnce(double dt) {
             ScopedPhase t(timers_, stageSlots_[s]);
             stages_[s]->run(*this, dt);
         }
-        // Velocity-dependent terms (damping, drag) are evaluated at the half-step velocity
-        // here, which makes Velocity-Verlet first order when they are on. Evaluating them at a
-        // predicted end velocity restores order 2 on a damped oscillator, but changed how the
-        // Experiment II tablecloth settles on the desk (kinetic energy at 11.58 s 6.7 J
-        // instead of 0.19 J) and was not kept; see the issue notes.
+        // For Velocity-Verlet this evaluation leaves out the velocity-dependent terms (damping,
+        // aerodynamics): its advance() and finish() apply them at the right velocities, so it
+        // stays second order (integrators.cpp). Other integrators get them here.
         if (!forcesDone) evaluateForces();
         if (lim.kind != LimiterKind::None) limiterIdle_ = limiterStats_.rounds == 0;
         if (settings_.integrator == IntegratorKind::VelocityVerlet) {
