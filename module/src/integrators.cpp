@@ -40,20 +40,21 @@ template <class Body> void forParticles(IntegratorContext& c, Body body) {
 /// 1.008 on the damped breathing triangle). bind() takes these terms out of the force model's
 /// sum, and the step applies them itself:
 ///
-/// Linear particle damping L (eq. (8)) and spring damping S run as their own flow at frozen
-/// positions, dt/2 on each side of the kick-drift-kick (Strang splitting):
-///   v <- L(dt/2) S(dt/2) v;  kick, drift, [limit, collide, f], kick;  v <- S(dt/2) L(dt/2) v
-/// The step is a symmetric composition of second-order pieces, so it is second order (local
-/// error O(dt^3)). L is m v' = -C_d v alone, solved exactly: v *= exp(-C_d dt / (2m)) at any
-/// dt, with nothing to be stable about; particles with zero inverse mass get exp(0) = 1. S is
-/// the spring damping (ForceModel::applySpringDampingFlow, derivation there). Both vanish at
-/// rest and leave states with no spring extending alone, so statics are not touched.
+/// Linear particle damping L (eq. (8)) and spring damping S run as their own flows at frozen
+/// positions, dt/2 on each side of the kick-drift-kick:
+///   v <- S_fwd(dt/2) L(dt/2) v;  kick, drift, [limit, collide, f], kick;  v <- L(dt/2) S_bwd(dt/2) v
+/// The step is symmetric (its own adjoint), so it is second order (local error O(dt^3)). L is
+/// m v' = -C_d v alone, solved exactly: v *= exp(-C_d dt / (2m)) at any dt, with nothing to be
+/// stable about; particles with zero inverse mass get exp(0) = 1. S is the spring damping, a
+/// sweep of exact per-spring flows, forward before the kicks and backward after them
+/// (ForceModel::applySpringDampingFlow, derivation there). Both vanish at rest and leave
+/// states with no spring extending alone, so statics are not touched.
 ///
 /// Aerodynamics A (drag and lift) stays inside the kicks, as forces: it is not zero at rest
 /// (wind on a held flag), and a split would move such equilibria and terminal velocities by
 /// O(dt^2), while in the kicks a state whose forces balance stays exactly where it is. It is
 /// nonlinear, with no exact flow. The opening kick takes A at (x(t), v) with v the velocity
-/// after L S; the closing kick takes A at x(t+dt) and the predicted end velocity
+/// after the opening damping; the closing kick takes A at x(t+dt) and the predicted end velocity
 ///   v* = v(t+dt/2) + dt/2 (f(t+dt) + A_open) / m,
 /// which is v(t+dt) up to O(dt^2) (A_open is A at the start of the step, O(dt) from the end):
 /// the kick's error is then dt/2 O(dt^2), and the step stays second order. Forces in balance
@@ -71,13 +72,14 @@ public:
         const Terms t(c);
         const double h = 0.5 * c.dt;
         if (t.springs || t.aero) {
-            // L(dt/2) then S(dt/2) at x(t), into the output velocities (v0 stays as it was).
+            // L(dt/2) then the forward sweep S(dt/2) at x(t), into the output velocities (v0
+            // stays as it was).
             held_.resize(c.x.size());
             forParticles(c, [&](std::size_t i) {
                 c.v[i] = t.linear ? dampedBy(t.cdh, c.invMass[i]) * v0[i] : v0[i];
                 held_[i].setZero();
             });
-            if (t.springs) c.forces.applySpringDampingFlow(x0, c.v, c.invMass, h, &held_);
+            if (t.springs) c.forces.applySpringDampingFlow(x0, c.v, c.invMass, h, true, &held_);
             if (t.aero) c.forces.aeroForces(x0, c.v, aeroOpen_);
             forParticles(c, [&](std::size_t i) {
                 const Vec3 fi = t.aero ? Vec3(c.f[i] + aeroOpen_[i]) : c.f[i];
@@ -95,10 +97,10 @@ public:
         });
         return true;
     }
-    /// The closing half kick, then S(dt/2) and L(dt/2), with the finiteness check of the whole
-    /// state folded into the last pass over the particles (one pass instead of two without
-    /// spring damping and aerodynamics): a NaN or infinity anywhere makes a chunk's sum
-    /// non-finite.
+    /// The closing half kick, then the backward sweep S(dt/2) and L(dt/2), with the finiteness
+    /// check of the whole state folded into the last pass over the particles (one pass instead
+    /// of two without spring damping and aerodynamics): a NaN or infinity anywhere makes a
+    /// chunk's sum non-finite.
     void finish(IntegratorContext& c) override {
         const Terms t(c);
         const double h = 0.5 * c.dt;
@@ -136,7 +138,7 @@ public:
                 const Vec3 fi = t.aero ? Vec3(c.f[i] + aeroClose_[i]) : c.f[i];
                 c.v[i] += (h * c.invMass[i]) * fi;
             });
-            if (t.springs) c.forces.applySpringDampingFlow(c.x, c.v, c.invMass, h, &held_);
+            if (t.springs) c.forces.applySpringDampingFlow(c.x, c.v, c.invMass, h, false, &held_);
             passes([&](std::size_t i) {
                 if (c.invMass[i] == 0.0) {
                     if (t.springs) c.f[i] += invDt * held_[i];

@@ -96,15 +96,17 @@ public:
     double linearDamping() const { return settings_.damping; }
     double springDamping() const { return settings_.springDamping; }
 
-    /// Spring damping alone acting on v for a time tau with the positions frozen at x:
-    /// dv_i/dt = invMass_i * (sum of the spring damping forces on i), in a second-order,
-    /// unconditionally stable form (each spring's own flow exactly, composed in a symmetric
-    /// sweep; the derivation is next to the code). Particles with zero inverse mass keep their
-    /// velocity; the impulse [N s] the springs' damping puts on them is added to heldImpulse
-    /// when given (what a pinned or attached particle passes on to whatever holds it). Timed as
-    /// the "spring_damping" phase.
+    /// Spring damping alone acting on v for a time tau with the positions frozen at x,
+    /// dv_i/dt = invMass_i * (sum of the spring damping forces on i), as one sweep over the
+    /// springs, each spring's own flow solved exactly, front to back (forward) or back to
+    /// front. A forward sweep on one side of Velocity-Verlet's kicks and a backward one on the
+    /// other make a symmetric, second-order step (derivation next to the code); a sweep never
+    /// adds kinetic energy, at any tau. Particles with zero inverse mass keep their velocity;
+    /// the impulse [N s] the springs' damping puts on them is added to heldImpulse when given
+    /// (what a pinned or attached particle passes on to whatever holds it). Timed as the
+    /// "spring_damping" phase.
     void applySpringDampingFlow(const Vec3List& x, Vec3List& v, const std::vector<double>& invMass,
-                                double tau, Vec3List* heldImpulse = nullptr);
+                                double tau, bool forward, Vec3List* heldImpulse = nullptr);
 
     /// Whether the aerodynamic term is active (air density and a coefficient set).
     bool hasAero() const;
@@ -158,6 +160,10 @@ private:
     /// index list: block b is packed[packedStart[b] .. packedStart[b + 1]), the crossing
     /// springs the last range.
     std::vector<Spring> packed_;
+    /// packed_ with each range reordered for the damping sweep (orderDampingSweep); empty
+    /// without spring damping.
+    std::vector<Spring> dampPacked_;
+    void orderDampingSweep();
     std::vector<double> packedStiffness_;
     std::vector<double> packedInvRest2_; ///< 1 / L0^2 of the packed springs
     std::vector<double> blockMax_;       ///< per block largest (l / L0)^2 of the last pass
