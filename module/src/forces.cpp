@@ -382,7 +382,8 @@ void ForceModel::evaluateImpl(const Vec3List& x, const Vec3List& v, Vec3List& f,
 // its own adjoint: with B_s(-tau)^-1 = B_s(tau) (exact flows), F(-h)^-1 = R(h), R(-h)^-1 = F(h),
 // and V and L time-symmetric, step(-dt)^-1 = step(dt). A consistent self-adjoint one-step
 // method has even order, so the step is second order (local error O(dt^3)); measured 2.000 on
-// the damped breathing triangle. It costs one pass over the springs on each side, two per step
+// the damped breathing triangle. (With aerodynamics V is symmetric only up to O(dt^3), its
+// predicted end velocity, which leaves the order at 2: measured 1.97 on an irregular sheet.) It costs one pass over the springs on each side, two per step
 // (a symmetric forward-and-back sweep on each side would be four).
 //
 // Every B_s only shrinks the rate of extension of its spring and conserves momentum, so a sweep
