@@ -142,6 +142,7 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     forceModel_ = std::make_unique<ForceModel>(topology_, buildStiffness(*topology_, settings_),
                                                mass_, settings_, timers_, poolStorage_.get());
     integrator_ = makeIntegrator(settings_.integrator, settings_.implicit);
+    integrator_->bind(*forceModel_);
     for (const Stage& st : kStages) stageSlots_.push_back(timers_.slot(st.name));
 }
 
@@ -381,7 +382,9 @@ void Cloth::stageCallerStages(StepContext& ctx) {
     }
 }
 
-// Velocity-dependent terms (damping, drag) are evaluated at the half-step velocity here.
+// For Velocity-Verlet this evaluation leaves out the velocity-dependent terms (damping,
+// aerodynamics): its advance() and finish() apply them at the right velocities, so it stays
+// second order (integrators.cpp). Other integrators get them here.
 void Cloth::stageForces(StepContext&) { evaluateForces(); }
 
 void Cloth::stageFinish(StepContext& ctx) { integrator_->finish(ctx.integrator); }

@@ -88,7 +88,10 @@ public:
     std::size_t particleCount() const { return x_.size(); }
     const Vec3List& positions() const { return x_; }      ///< [m]
     const Vec3List& velocities() const { return v_; }     ///< [m/s]
-    const Vec3List& forces() const { return f_; }         ///< last evaluated forces [N]
+    /// Last evaluated forces [N]. With Velocity-Verlet the velocity-dependent terms (linear and
+    /// spring damping, aerodynamics) of free particles are not in it (the integrator applies
+    /// them itself, see integrators.hpp); held particles' entries include them.
+    const Vec3List& forces() const { return f_; }
     /// Mutable access for stages and users; marks the cached forces stale. Moving a pinned
     /// particle re-pins it where it is put.
     Vec3List& mutablePositions();

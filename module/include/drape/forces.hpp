@@ -85,6 +85,35 @@ public:
     /// them (the strain limiter's check, computed exactly as maxSpringStrain computes it).
     void evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f, double& maxRatio2);
 
+    /// Hands the velocity-dependent terms (linear particle damping of eq. (8), spring damping,
+    /// aerodynamics) over to the integrator: with `on`, evaluate() leaves them out and the
+    /// integrator applies them itself (Velocity-Verlet, see integrators.cpp, so that it stays
+    /// second order). They stay in activeTerms() and keep their timer names. Off by default:
+    /// every other integrator, and the Jacobians, treat them as forces.
+    void setVelocityTermsInIntegrator(bool on) { velocityTermsInIntegrator_ = on; }
+    bool velocityTermsInIntegrator() const { return velocityTermsInIntegrator_; }
+    /// C_d of eq. (8) and c of the spring damping [N s/m] (0 when off).
+    double linearDamping() const { return settings_.damping; }
+    double springDamping() const { return settings_.springDamping; }
+
+    /// Spring damping alone acting on v for a time tau with the positions frozen at x,
+    /// dv_i/dt = invMass_i * (sum of the spring damping forces on i), as one sweep over the
+    /// springs, each spring's own flow solved exactly, front to back (forward) or back to
+    /// front. A forward sweep on one side of Velocity-Verlet's kicks and a backward one on the
+    /// other make a symmetric, second-order step (derivation next to the code); a sweep never
+    /// adds kinetic energy, at any tau. Particles with zero inverse mass keep their velocity;
+    /// the impulse [N s] the springs' damping puts on them is added to heldImpulse when given
+    /// (what a pinned or attached particle passes on to whatever holds it). Timed as the
+    /// "spring_damping" phase.
+    void applySpringDampingFlow(const Vec3List& x, Vec3List& v, const std::vector<double>& invMass,
+                                double tau, bool forward, Vec3List* heldImpulse = nullptr);
+
+    /// Whether the aerodynamic term is active (air density and a coefficient set).
+    bool hasAero() const;
+    /// f = the aerodynamic forces alone at (x, v) (addAeroForces with the current wind), timed
+    /// as the "aero" phase.
+    void aeroForces(const Vec3List& x, const Vec3List& v, Vec3List& f);
+
     /// Assembles d f / d x and d f / d v (3n x 3n) of the springs, spring damping and linear
     /// damping at state x. Gravity, user forces and aerodynamics are treated explicitly.
     void assembleJacobians(const Vec3List& x, bool clampCompression,
@@ -131,6 +160,10 @@ private:
     /// index list: block b is packed[packedStart[b] .. packedStart[b + 1]), the crossing
     /// springs the last range.
     std::vector<Spring> packed_;
+    /// packed_ with each range reordered for the damping sweep (orderDampingSweep); empty
+    /// without spring damping.
+    std::vector<Spring> dampPacked_;
+    void orderDampingSweep();
     std::vector<double> packedStiffness_;
     std::vector<double> packedInvRest2_; ///< 1 / L0^2 of the packed springs
     std::vector<double> blockMax_;       ///< per block largest (l / L0)^2 of the last pass
@@ -139,6 +172,7 @@ private:
     /// The common stiffness when every spring has the same (the step then reads no
     /// per-spring stiffness), else 0.
     double uniformStiffness_ = 0.0;
+    bool velocityTermsInIntegrator_ = false;
 };
 
 } // namespace drape

@@ -8,6 +8,12 @@
 //   the caller evaluates f(t+dt) at the corrected state;
 //   finish()   Velocity-Verlet's closing half kick v += f(t+dt) dt / (2m); no-op for others.
 // Particles with zero inverse mass (pinned, kinematic) get no acceleration.
+// Velocity-Verlet applies the velocity-dependent terms itself so that it stays second order:
+// the linear particle damping and the spring damping as exact or symmetric velocity flows dt/2
+// before the opening kick (in advance) and dt/2 after the closing one (in finish), and the
+// aerodynamics inside the kicks, the closing one at a predicted end velocity. bind() takes them
+// out of the force model's sum for it (the cached f then holds the other terms only, except for
+// held particles, which get these terms added to f in finish()).
 #pragma once
 
 #include "drape/forces.hpp"
@@ -21,7 +27,9 @@ namespace drape {
 struct IntegratorContext {
     Vec3List& x;                        ///< positions [m], updated in place
     Vec3List& v;                        ///< velocities [m/s], updated in place
-    const Vec3List& f;                  ///< forces at the start of the step [N]
+    /// Forces at the start of the step [N]; read only, except that Velocity-Verlet's finish()
+    /// adds the damping of held particles to f(t+dt) (see integrators.cpp).
+    Vec3List& f;
     const std::vector<double>& invMass; ///< 1/m, 0 for pinned and kinematic particles [1/kg]
     double dt;                          ///< time step [s]
     ForceModel& forces;                 ///< for integrators that evaluate forces more than once
@@ -36,6 +44,9 @@ class Integrator {
 public:
     virtual ~Integrator() = default;
     virtual IntegratorKind kind() const = 0;
+    /// Called once with the cloth's force model before any force is evaluated, so an
+    /// integrator that applies some force terms itself can take them out of the model's sum.
+    virtual void bind(ForceModel& forces) { (void)forces; }
     virtual void advance(IntegratorContext& ctx) = 0;
     /// advance() reading the state at t from x0, v0 and writing the new state to ctx.x,
     /// ctx.v (same sizes), so the caller keeps the old state without copying it. Returns false

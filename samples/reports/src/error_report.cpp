@@ -175,9 +175,9 @@ ErrorResult runErrorReport(const ErrorOptions& options, const Machine& machine) 
        << "2 dt_ref, and between the reference and the other of the two methods at dt_ref: both "
        << "must sit well below the smallest error of the sweep.\n\n"
        << "Expected orders: 1 for explicit, symplectic and implicit Euler, 4 for RK4, 2 for "
-       << "Velocity-Verlet on an undamped system; with particle damping drape's Velocity-Verlet "
-       << "evaluates the damping force at the half-step velocity, which leaves an O(C_d dt / m) "
-       << "term: the curves show first order with a small constant.\n\n";
+       << "Velocity-Verlet, with damping too (it applies the particle and spring damping as "
+       << "velocity flows dt/2 on each side of its kick-drift-kick, and the aerodynamics at the "
+       << "right velocities, instead of forces at the half-step velocity).\n\n";
 
     for (bool limiter : {false, true}) {
         for (std::size_t si = 0; si < setups.size(); ++si) {
