@@ -136,7 +136,9 @@ int main(int argc, char** argv) {
     const LimiterSettings shipped = scene.cloth.limiter;
     std::vector<Variant> variants;
     {
-        Variant d{"stress-ordered worklist, default (attachments + warm start 0.7)", shipped};
+        Variant d{"stress-ordered worklist, default (attachments + warm start " +
+                      fmt("%.1f", shipped.warmStart) + ")",
+                  shipped};
         d.limiter.kind = LimiterKind::StressOrdered;
         if (warm >= 0.0) d.limiter.warmStart = warm;
         if (slack >= 0.0) d.limiter.longRangeSlack = slack;
@@ -145,13 +147,15 @@ int main(int argc, char** argv) {
                      ", slack " + fmt("%.3f", d.limiter.longRangeSlack);
         }
         variants.push_back(d);
-        if (onlyDefault) goto done;
+    }
+    if (!onlyDefault) {
+        const Variant d = variants.front();
         Variant a = d;
         a.name = "worklist + attachments, no warm start";
         a.limiter.warmStart = 0.0;
         variants.push_back(a);
         Variant w = d;
-        w.name = "worklist + warm start 0.7, no attachments";
+        w.name = "worklist + warm start " + fmt("%.1f", d.limiter.warmStart) + ", no attachments";
         w.limiter.longRangeAttachments = false;
         variants.push_back(w);
         Variant p = d;
@@ -160,12 +164,13 @@ int main(int argc, char** argv) {
         p.limiter.longRangeAttachments = false;
         variants.push_back(p);
         Variant s = d;
-        s.name = "attachments at the plain geodesic (slack 1), warm start 0.7";
+        s.name = "attachments at the plain geodesic (slack 1), warm start " + fmt("%.1f", d.limiter.warmStart);
         s.limiter.longRangeSlack = 1.0;
         variants.push_back(s);
         Variant pv = d;
         pv.name = "Provot sweeps, cap 64";
         pv.limiter.kind = LimiterKind::Provot;
+        pv.limiter.maxRounds = 64;
         variants.push_back(pv);
         if (reference) {
             Variant ref = pv;
@@ -175,7 +180,6 @@ int main(int argc, char** argv) {
             variants.push_back(ref);
         }
     }
-done:
     std::vector<Row> rows;
     for (const Variant& v : variants) {
         std::fprintf(stderr, "running: %s\n", v.name.c_str());

@@ -275,6 +275,13 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
         << "x (stepping only)\n"
         << "max strain (final)  " << r.finalMaxStrain << "\n"
         << "max strain (peak)   " << r.peakMaxStrain << " (over the frames)\n"
+        << "limiter cap hits    " << cloth.limiterCapHits()
+        << (cloth.limiterCapHits() == 0
+                ? std::string(" (the strain bound held in every step)")
+                : " steps stopped at the safety cap (limiter.maxRounds = " +
+                      std::to_string(cloth.settings().limiter.maxRounds) +
+                      "): the strain bound was not promised in them")
+        << "\n"
         << "kinetic energy      " << cloth.kineticEnergy() << " J (final)\n"
         << "state hash          " << [&] {
                char buf[32];

@@ -185,7 +185,7 @@ void parseStrainLimit(JsonObject o, SceneDesc& sc) {
         o.choice("method", "stress_ordered", {"stress_ordered", "provot", "none"});
     l.kind = limiterFromString(method);
     l.maxStrain = o.number("max_strain", 0.10, Range::Positive);
-    l.maxRounds = static_cast<int>(o.integer("max_rounds", 64, 1, 100000));
+    l.maxRounds = static_cast<int>(o.integer("max_rounds", l.maxRounds, 1, 100000));
     l.tolerance = o.number("tolerance", l.tolerance, Range::NonNegative);
     l.warmStart = o.number("warm_start", l.warmStart, Range::NonNegative);
     if (l.warmStart >= 1.0) o.fail(o.pathOf("warm_start"), "must be in [0, 1)");
