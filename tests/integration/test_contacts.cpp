@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdint>
 #include <functional>
 #include <limits>
 
@@ -253,4 +254,62 @@ TEST_CASE("a fast cloth does not tunnel through a thin static box", "[contacts][
     CHECK(firstLeak <= 4.1);
     // And at 20 m/s it does leak: the swept test is what prevents it.
     CHECK(particlesThroughThinBox(20.0, false) > 0);
+}
+
+namespace {
+struct DrapeOverBox {
+    double peakStrain = 0.0, deepest = 0.0;
+    std::uint64_t capHits = 0;
+};
+/// A 25 x 25 sheet (0.6 m) falls onto a 0.3 m box and hangs over its edges, 2 s at 240 Hz: the
+/// contact projection pushes the particles on the box out along diverging normals while the
+/// hanging sides pull them over the edges. Records the peak strain after any step and how far
+/// any particle came closer to the box than the contact thickness.
+DrapeOverBox drapeOverBox(double tolerance) {
+    TestWorld w;
+    w.body(w.shape<btBoxShape>(btVector3(0.15f, 0.15f, 0.15f)), 0.0, Vec3(0, 0.15, 0));
+    ClothSettings s;
+    s.particleMass = 0.4 / 625.0;
+    s.springStiffness = 5.0; // omega_max ~ 3 sqrt(k/m) = 240 rad/s: stable at 240 Hz
+    s.damping = 0.001;
+    s.limiter.tolerance = tolerance;
+    auto cloth = std::make_shared<Cloth>(ClothTopology::build(horizontalSheet(25, 25, 0.025, 0.45)), s);
+    bullet::BulletClothSettings bs;
+    bs.contact.thickness = 0.005;
+    w.add(cloth, bs);
+    DrapeOverBox r;
+    for (int k = 0; k < 480; ++k) {
+        w.world.stepSimulation(btScalar(1.0 / 240.0), 1, btScalar(1.0 / 240.0));
+        r.peakStrain = std::max(r.peakStrain, cloth->maxStrain());
+        for (const Vec3& x : cloth->positions()) {
+            // Distance to the box (half extents 0.15 around (0, 0.15, 0)).
+            const Vec3 q = (x - Vec3(0, 0.15, 0)).cwiseAbs() - Vec3(0.15, 0.15, 0.15);
+            const double outside = q.cwiseMax(0.0).norm() + std::min(q.maxCoeff(), 0.0);
+            r.deepest = std::max(r.deepest, bs.contact.thickness - outside);
+        }
+    }
+    r.capHits = cloth->limiterCapHits();
+    std::printf("[measured] sheet over a box: peak strain %.6f, deepest %.3g m past the "
+                "thickness, limiter cap hits %llu\n",
+                r.peakStrain, r.deepest, static_cast<unsigned long long>(r.capHits));
+    return r;
+}
+} // namespace
+
+TEST_CASE("a sheet draped over a box stays outside the box in every step", "[contacts][limiter]") {
+    const DrapeOverBox r = drapeOverBox(1e-3);
+    CHECK(r.deepest <= 1e-9); // rounding of the projection onto P + h n
+    CHECK(r.capHits == 0);
+}
+
+// Known gap (issue 16): where the projection and the limiter's walk push the same edge
+// particles in opposite directions, their alternation (8 passes) has not settled and the last
+// projection leaves springs beyond the bound (measured peak 0.199 with 8 passes, 0.1055 with
+// 64; more passes cost the light-box test 2 % of the weight the box feels, see
+// samples/benchmarks/LIMITER.md). The bar stays strict; [!mayfail] keeps the suite green and
+// prints the value.
+TEST_CASE("a sheet draped over a box keeps the strain bound in every step",
+          "[contacts][limiter][!mayfail]") {
+    const DrapeOverBox r = drapeOverBox(1e-3);
+    CHECK(r.peakStrain <= 0.1 + 1e-3 + 1e-12);
 }
