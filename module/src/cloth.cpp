@@ -279,9 +279,11 @@ void Cloth::stepOnce(double dt) {
     // The state from before the step is kept (x_, v_ swapped into the scratch buffers by
     // stageIntegrate) so that a failure leaves the cloth as it was.
     limiterStats_ = StrainLimitStats{};
-    const std::vector<double> lambdaBefore = settings_.limiter.kind == LimiterKind::StressOrdered
-                                                 ? limiter_.warmStartState()
-                                                 : std::vector<double>{};
+    const bool keepWarmStart = settings_.limiter.kind == LimiterKind::StressOrdered;
+    if (keepWarmStart) {
+        const auto& lambda = limiter_.warmStartState();
+        lambdaBefore_.assign(lambda.begin(), lambda.end()); // no allocation after the first step
+    }
     bool swapped = false;
     try {
         for (std::size_t k = 0; k < std::size(kStages); ++k) {
@@ -300,7 +302,7 @@ void Cloth::stepOnce(double dt) {
             x_.swap(xScratch_);
             v_.swap(vScratch_);
         }
-        if (!lambdaBefore.empty()) limiter_.setWarmStartState(lambdaBefore);
+        if (keepWarmStart) limiter_.setWarmStartState(lambdaBefore_);
         forcesValid_ = false;
         throw;
     }

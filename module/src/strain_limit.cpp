@@ -166,11 +166,12 @@ void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<dou
     limit_ = 1.0 + s.maxStrain;
     if (!s.longRangeAttachments) return;
     // The anchors are the particles that never move in the limiter.
-    std::vector<Index> list;
+    auto& list = anchorScratch_;
+    list.clear();
     for (std::size_t i = 0; i < n; ++i)
         if (invMass[i] == 0.0) list.push_back(static_cast<Index>(i));
     if (!anchorsValid_ || list != anchorList_ || anchorSlack_ != s.longRangeSlack) {
-        anchorList_ = std::move(list);
+        anchorList_ = list;
         anchorSlack_ = s.longRangeSlack;
         anchors_ = geodesicAnchors(topology, anchorList_, anchorSlack_);
         anchorsValid_ = true;

@@ -179,6 +179,7 @@ private:
     std::vector<std::size_t> stageSlots_;       ///< timer slot of each kStages entry
     std::vector<std::size_t> callerStageSlots_; ///< timer slot of each caller stage
     StrainLimiter limiter_;
+    std::vector<double> lambdaBefore_; ///< the limiter's warm start before the step (restore)
     StrainLimitStats limiterStats_;
     std::vector<Index> relimitMoved_;
     std::uint64_t limiterCapHits_ = 0;

@@ -83,8 +83,8 @@ AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Ind
 /// moved: their springs go into the same worklist, and the walk runs again from there.
 class StrainLimiter {
 public:
-    /// Runs one step's limiter on x. anchorsChanged: the set of zero-inverse-mass particles
-    /// changed since the last call (the long-range attachments are recomputed).
+    /// Runs one step's limiter on x. The long-range attachments are recomputed whenever the
+    /// set of zero-inverse-mass particles differs from the last call's.
     StrainLimitStats limit(const ClothTopology& topology, const std::vector<double>& invMass,
                            const std::vector<double>& stiffness, const LimiterSettings& s,
                            std::vector<Vec3>& x);
@@ -92,8 +92,6 @@ public:
     StrainLimitStats relimit(const ClothTopology& topology, const std::vector<double>& invMass,
                              const std::vector<double>& stiffness, const LimiterSettings& s,
                              const std::vector<Index>& touched, std::vector<Vec3>& x);
-    /// The anchor set changed (pin, unpin, kinematic): recompute the attachments next step.
-    void anchorsChanged() { anchorsValid_ = false; }
     /// Forgets the warm start (after the state was edited from outside).
     void resetWarmStart() {
         lambda_.assign(lambda_.size(), 0.0);
@@ -140,7 +138,7 @@ private:
     std::vector<Index> movedIndex_;
     std::vector<Vec3> movedFrom_;
     AnchorField anchors_;
-    std::vector<Index> anchorList_;
+    std::vector<Index> anchorList_, anchorScratch_;
     bool anchorsValid_ = false;
     double anchorSlack_ = 0.0;
     double upper2_ = 0.0, lower2_ = 0.0, limit_ = 0.0; ///< band edges (squared) and the limit
