@@ -30,26 +30,18 @@ void addSpringForces(const std::vector<Spring>& springs, const std::vector<doubl
 }
 
 namespace {
-/// Springs [b, e) of a packed list; k is the common stiffness, or 0 to read stiffness[s]. With
-/// TrackMax it also returns the largest (l / L0)^2 = |d|^2 / L0^2 of the springs (the product
-/// maxSpringStrain forms, so the same value); the forces are the same either way.
-template <bool TrackMax>
-double addPackedSpringForces(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
-                             const std::vector<double>& invRest2, double k, std::size_t b,
-                             std::size_t e, const Vec3List& x, Vec3List& f) {
-    double worst2 = 0.0;
+/// Springs [b, e) of a packed list; k is the common stiffness, or 0 to read stiffness[s].
+void addPackedSpringForces(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
+                           double k, std::size_t b, std::size_t e, const Vec3List& x, Vec3List& f) {
     for (std::size_t s = b; s < e; ++s) {
         const Spring& sp = springs[s];
         const Vec3 d = x[sp.b] - x[sp.a];
-        const double l2 = d.squaredNorm();
-        if (TrackMax) worst2 = std::max(worst2, l2 * invRest2[s]);
-        const double l = std::sqrt(l2);
+        const double l = d.norm();
         if (l == 0.0) continue; // coincident ends: no direction, the force is undefined
         const Vec3 force = ((k > 0.0 ? k : stiffness[s]) * (l - sp.restLength) / l) * d;
         f[sp.a] += force;
         f[sp.b] -= force;
     }
-    return worst2;
 }
 } // namespace
 
@@ -195,7 +187,6 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
     auto pack = [&](const std::vector<Index>& list) {
         for (Index s : list) {
             packed_.push_back(springs[s]);
-            packedInvRest2_.push_back(topology_->inverseSquaredRestLengths()[s]);
             if (uniformStiffness_ == 0.0) packedStiffness_.push_back(stiffness_[s]);
         }
         packedStart_.push_back(packed_.size());
@@ -277,15 +268,6 @@ std::size_t ForceModel::passiveTermCount() const {
 }
 
 void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
-    evaluateImpl(x, v, f, nullptr);
-}
-
-void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f, double& maxRatio2) {
-    maxRatio2 = 0.0;
-    evaluateImpl(x, v, f, &maxRatio2);
-}
-
-void ForceModel::evaluateImpl(const Vec3List& x, const Vec3List& v, Vec3List& f, double* maxRatio2) {
     const std::size_t n = x.size();
     f.resize(n);
     // Runs a per-particle or per-spring loop on the pool when there is one.
@@ -324,17 +306,9 @@ void ForceModel::evaluateImpl(const Vec3List& x, const Vec3List& v, Vec3List& f,
             const std::size_t nb = packedStart_.size() - 2; // inner blocks; the last range crosses
             // Blocks in parallel (each writes only its own particles), then the crossing
             // springs: the same sums in the same order for any thread count.
-            blockMax_.assign(nb + 1, 0.0);
             auto range = [&](std::size_t block) {
-                if (maxRatio2) {
-                    blockMax_[block] = addPackedSpringForces<true>(packed_, packedStiffness_, packedInvRest2_,
-                                                                   uniformStiffness_, packedStart_[block],
-                                                                   packedStart_[block + 1], x, f);
-                } else {
-                    addPackedSpringForces<false>(packed_, packedStiffness_, packedInvRest2_,
-                                                 uniformStiffness_, packedStart_[block],
-                                                 packedStart_[block + 1], x, f);
-                }
+                addPackedSpringForces(packed_, packedStiffness_, uniformStiffness_,
+                                      packedStart_[block], packedStart_[block + 1], x, f);
             };
             auto blockRange = [&](std::size_t b, std::size_t end) {
                 for (std::size_t k = b; k < end; ++k) range(k);
@@ -345,9 +319,6 @@ void ForceModel::evaluateImpl(const Vec3List& x, const Vec3List& v, Vec3List& f,
                 blockRange(0, nb);
             }
             range(nb);
-            if (maxRatio2) {
-                for (double m : blockMax_) *maxRatio2 = std::max(*maxRatio2, m);
-            }
             break;
         }
         case Term::SpringDamping:

@@ -178,20 +178,21 @@ void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<dou
     }
 }
 
-void StrainLimiter::check(std::size_t si, const ClothTopology& topology,
-                          const std::vector<double>& invMass,
-                          const std::vector<double>& stiffness, const std::vector<Vec3>& x,
-                          StrainLimitStats& st) {
-    if (queued_[si]) return;
+double StrainLimiter::check(std::size_t si, const ClothTopology& topology,
+                            const std::vector<double>& invMass,
+                            const std::vector<double>& stiffness, const std::vector<Vec3>& x,
+                            StrainLimitStats& st) {
+    if (queued_[si]) return 0.0;
     const Spring& sp = topology.springs()[si];
     ++st.work;
     const double ratio2 = (x[sp.b] - x[sp.a]).squaredNorm() * topology.inverseSquaredRestLengths()[si];
     const bool over = ratio2 > upper2_;
     const bool letOut = warmLeft_[si] > 0.0 && ratio2 < lower2_;
-    if (!(over || letOut) || invMass[sp.a] + invMass[sp.b] == 0.0) return;
+    if (!(over || letOut) || invMass[sp.a] + invMass[sp.b] == 0.0) return ratio2;
     key_[si] = stiffness[si] * sp.restLength * (std::sqrt(ratio2) - 1.0);
     queued_[si] = 1;
     next_.push_back(static_cast<std::uint32_t>(si));
+    return ratio2;
 }
 
 StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
@@ -236,20 +237,9 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
     // 3. One scan of every spring.
     next_.clear();
     double worst2 = 0.0;
-    const auto& inv2 = topology.inverseSquaredRestLengths();
     for (std::size_t si = 0; si < ns; ++si) {
-        const Spring& sp = springs[si];
-        const double ratio2 = (x[sp.b] - x[sp.a]).squaredNorm() * inv2[si];
-        worst2 = std::max(worst2, ratio2);
-        const bool over = ratio2 > upper2_;
-        const bool letOut = warmLeft_[si] > 0.0 && ratio2 < lower2_;
-        if ((over || letOut) && invMass[sp.a] + invMass[sp.b] != 0.0) {
-            key_[si] = stiffness[si] * sp.restLength * (std::sqrt(ratio2) - 1.0);
-            queued_[si] = 1;
-            next_.push_back(static_cast<std::uint32_t>(si));
-        }
+        worst2 = std::max(worst2, check(si, topology, invMass, stiffness, x, st));
     }
-    st.work += ns;
     st.maxStrainBefore = ns ? std::sqrt(worst2) - 1.0 : 0.0;
     // 4. The waves.
     runWaves(topology, invMass, stiffness, s, x, st);

@@ -265,13 +265,16 @@ TEST_CASE("Velocity-Verlet: spring damping passes its reaction on to a held part
 
 }
 
-TEST_CASE("A falling plate reaches the terminal velocity of its drag", "[aero]") {
-    // One triangle held horizontal (normal along gravity), drag only: by symmetry each corner
-    // carries a third of the weight and of the drag, the springs stay at rest and the plate
-    // falls flat. Terminal speed: rho/2 C_d A v^2 = M g.
+namespace {
+/// One triangle in the x-z plane (area 0.5), held horizontal: the falling plate of the drag
+/// tests. Three particles of 0.01 kg, drag only (no limiter).
+TriangleMesh fallingPlateMesh() {
     TriangleMesh m;
-    m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 0, -1)}; // in the x-z plane, area 0.5
+    m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 0, -1)};
     m.triangles = {{0, 1, 2}};
+    return m;
+}
+ClothSettings fallingPlateSettings() {
     ClothSettings s;
     s.particleMass = 0.01;
     s.springStiffness = 10.0;
@@ -279,6 +282,16 @@ TEST_CASE("A falling plate reaches the terminal velocity of its drag", "[aero]")
     s.aero.airDensity = 1.2;
     s.aero.dragCoefficient = 1.0;
     s.limiter.kind = LimiterKind::None;
+    return s;
+}
+} // namespace
+
+TEST_CASE("A falling plate reaches the terminal velocity of its drag", "[aero]") {
+    // One triangle held horizontal (normal along gravity), drag only: by symmetry each corner
+    // carries a third of the weight and of the drag, the springs stay at rest and the plate
+    // falls flat. Terminal speed: rho/2 C_d A v^2 = M g.
+    const TriangleMesh m = fallingPlateMesh();
+    ClothSettings s = fallingPlateSettings();
     Cloth cloth(ClothTopology::build(m), s);
     const double M = 0.03, A = 0.5;
     const double vt = std::sqrt(2.0 * M * 9.81 / (1.2 * 1.0 * A));
@@ -309,16 +322,8 @@ TEST_CASE("Velocity-Verlet stays second order with aerodynamic drag", "[aero][co
     // the drop y(t) = vt tau ln cosh(t / tau), released from rest. Velocity-Verlet takes the
     // drag in its kicks, the closing one at a predicted end velocity (integrators.cpp); with
     // the drag at the half-step velocity it would be first order.
-    TriangleMesh m;
-    m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 0, -1)};
-    m.triangles = {{0, 1, 2}};
-    ClothSettings s;
-    s.particleMass = 0.01;
-    s.springStiffness = 10.0;
-    s.gravity = Vec3(0, -9.81, 0);
-    s.aero.airDensity = 1.2;
-    s.aero.dragCoefficient = 1.0;
-    s.limiter.kind = LimiterKind::None;
+    const TriangleMesh m = fallingPlateMesh();
+    ClothSettings s = fallingPlateSettings();
     const double vt = std::sqrt(2.0 * 0.03 * 9.81 / (1.2 * 1.0 * 0.5)), tau = vt / 9.81;
     const double T = 1.5 * tau;
     const double vExact = vt * std::tanh(T / tau), dropExact = vt * tau * std::log(std::cosh(T / tau));

@@ -204,11 +204,10 @@ public:
 };
 } // namespace
 
-TEST_CASE("The strain check folded into the force pass gives the same states", "[pipeline][limiter]") {
-    // Experiment I material on a 12 x 12 sheet: idle limiter at first (the check rides in the
-    // force pass), then the sheet stretches onto the limit (limiter active, separate pass),
-    // with the switch between the two paths on the way. A cloth with an idle stage always
-    // takes the separate path; both must end in the same state, bit for bit.
+TEST_CASE("A caller stage that does nothing changes nothing in the step", "[pipeline][limiter]") {
+    // Experiment I material on a 12 x 12 sheet: idle limiter at first, then the sheet
+    // stretches onto the limit (limiter active). A cloth with an idle caller stage runs the
+    // same stages plus that one; both must end in the same state, bit for bit.
     SheetSpec spec;
     spec.rows = 12;
     spec.cols = 12;

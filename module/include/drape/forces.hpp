@@ -81,9 +81,6 @@ public:
 
     /// f = sum of all active terms at state (x, v).
     void evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f);
-    /// evaluate(), and the largest (l / L0)^2 over the springs, found in the same pass over
-    /// them (the strain limiter's check, computed exactly as maxSpringStrain computes it).
-    void evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f, double& maxRatio2);
 
     /// Hands the velocity-dependent terms (linear particle damping of eq. (8), spring damping,
     /// aerodynamics) over to the integrator: with `on`, evaluate() leaves them out and the
@@ -165,9 +162,6 @@ private:
     std::vector<Spring> dampPacked_;
     void orderDampingSweep();
     std::vector<double> packedStiffness_;
-    std::vector<double> packedInvRest2_; ///< 1 / L0^2 of the packed springs
-    std::vector<double> blockMax_;       ///< per block largest (l / L0)^2 of the last pass
-    void evaluateImpl(const Vec3List& x, const Vec3List& v, Vec3List& f, double* maxRatio2);
     std::vector<std::size_t> packedStart_;
     /// The common stiffness when every spring has the same (the step then reads no
     /// per-spring stiffness), else 0.

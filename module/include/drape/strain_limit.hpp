@@ -121,8 +121,9 @@ private:
     void runWaves(const ClothTopology& topology, const std::vector<double>& invMass,
                   const std::vector<double>& stiffness, const LimiterSettings& s,
                   std::vector<Vec3>& x, StrainLimitStats& st);
-    /// Queues spring si if it needs a correction at the current x.
-    void check(std::size_t si, const ClothTopology& topology, const std::vector<double>& invMass,
+    /// Queues spring si if it needs a correction at the current x; returns its (l / L0)^2
+    /// (0 if it was queued already).
+    double check(std::size_t si, const ClothTopology& topology, const std::vector<double>& invMass,
                const std::vector<double>& stiffness, const std::vector<Vec3>& x,
                StrainLimitStats& st);
 
