@@ -39,8 +39,11 @@
 // Fast particles: a particle that moved more than h in a step is also ray-tested along its
 // path (btCollisionWorld::rayTestSingle), so it cannot pass through a thin body.
 // After the projection, the particles it moved go into the limiter's worklist
-// (Cloth::relimit); what the limiter then moves is projected again, until nothing moves or
-// kRelimitPasses rounds have run.
+// (Cloth::relimit), and every particle within reach of a static or kinematic body keeps that
+// contact's tangent plane in the walk (ContactPlanes: the limiter slides it along the plane,
+// so the strain bound and the contact hold together; the plane's push reaches the body as an
+// impulse). What the limiter then moves is projected again (curved bodies, other bodies,
+// dynamic bodies, which get no plane), until nothing moves or kRelimitPasses rounds have run.
 #include "drape/bullet/bullet_cloth.hpp"
 
 #include "self_collision.hpp"
@@ -268,6 +271,12 @@ struct BulletCloth::Impl {
     std::vector<std::int64_t> recordOf;   ///< per particle: its latest PenaltyContact, or -1
     std::vector<double> lastSupport;      ///< per particle: contact normal force, last step [N]
     std::vector<Index> projected; ///< particles the last contact pass moved
+    /// The tangent plane of each particle's contact this step (n . x >= n . P + h), which the
+    /// limiter's walk keeps, with the body and the point it belongs to.
+    ContactPlanes planes;
+    std::vector<std::uint32_t> planeBody;
+    std::vector<Vec3> planePoint;
+    std::vector<double> planeSupport; ///< per particle: the force its planes held [N]
     std::vector<std::size_t> moved;
     /// Timer slots in the cloth's PhaseTimers: the limiter calls inside the contact stage
     /// (nested in its "bullet_contacts" phase), and the handle's work around the cloth's
@@ -285,6 +294,19 @@ struct BulletCloth::Impl {
     void updateBounds(double dt);
     /// The contact stage: self-collision, particle-body contacts, re-limiting, friction.
     void resolveContacts(Cloth& c, double dt);
+    /// Gives the body of contact plane k the opposite of what the plane pushed its particle
+    /// by in the limiter's walk (m push / dt), and clears the push.
+    void flushPlane(const Cloth& c, std::size_t k, double dt) {
+        const Vec3 push = planes.push[k];
+        if (push == Vec3::Zero()) return;
+        const Vec3 j = (c.masses()[planes.particle(k)] / dt) * push;
+        BodySnapshot& b = bodies[planeBody[k]];
+        b.applyImpulse(-j, planePoint[k]);
+        last.impulseOnCloth += j;
+        if (b.dynamicBody) last.impulseOnBodies -= j;
+        planeSupport[planes.particle(k)] += j.norm() / dt;
+        planes.push[k] = Vec3::Zero();
+    }
     /// Contact of particle i with body bi (projection, velocity response, friction, and its
     /// eq. (7) record). Returns whether it is within the contact reach.
     bool collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, double dt,
@@ -528,6 +550,24 @@ bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t 
         hit = detail::closestSurface(b.object->getCollisionShape(), b.pose, xi, from, h + band, counters);
         if (!hit.valid || hit.distance >= h + band) return false;
     }
+    // The limiter's walk keeps the particle above the tangent plane of a contact with a static
+    // or kinematic body. (Against a dynamic body the plane's push, applied after the walk as
+    // an impulse, feeds back into the body's motion: a body much lighter than the cloth on it
+    // goes unstable. There the projection and the walk alternate instead.) A plane of another
+    // body this particle had gives that body what it held first.
+    if (!b.dynamicBody) {
+        if (const std::int32_t was = planes.of[i]; was >= 0 && planeBody[std::size_t(was)] != bi)
+            flushPlane(c, std::size_t(was), dt);
+        const std::size_t plane =
+            std::size_t(planes.set(static_cast<Index>(i), hit.normal, hit.normal.dot(hit.point) + h));
+        if (plane == planeBody.size()) {
+            planeBody.push_back(bi);
+            planePoint.push_back(hit.point);
+        } else {
+            planeBody[plane] = bi;
+            planePoint[plane] = hit.point;
+        }
+    }
 
     // Eq. (7) penalty band (also for particles below the thickness: they end at its bottom
     // after the projection).
@@ -607,6 +647,10 @@ bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t 
 
 void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     const std::size_t n = c.particleCount();
+    planes.reset(n);
+    planeSupport.resize(n, 0.0);
+    planeBody.clear();
+    planePoint.clear();
     if (!inStep) { // the cloth was stepped outside the world: no snapshot to collide with
         prevX = c.positions();
         return;
@@ -700,7 +744,7 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
         StrainLimitStats st;
         {
             ScopedPhase timeLimiter(c.timers(), slotStageLimiter);
-            st = c.relimit(projected, dt);
+            st = c.relimit(projected, dt, &planes);
         }
         if (st.corrections == 0) break;
         moved.assign(c.relimitMoved().begin(), c.relimitMoved().end());
@@ -740,6 +784,10 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
             }
         }
     }
+
+    // What the contact planes held in the limiter's walk: the particle got m push / dt (its
+    // velocity follows its position), the body gets the opposite.
+    for (std::size_t k = 0; k < planes.size(); ++k) flushPlane(c, k, dt);
 
     // Friction for particles supported by the penalty alone (in the band, not touching).
     const double h = settings.contact.thickness;
@@ -848,6 +896,11 @@ void BulletCloth::Impl::step(double dt) {
         // gets the opposite. It also bounds the friction of the next step.
         lastSupport.assign(c.particleCount(), 0.0);
         for (const auto& pc : penalty->contacts) lastSupport[pc.particle] += pc.force;
+        for (std::size_t k = 0; k < planes.size(); ++k) { // what the contact planes held [N]
+            const Index i = planes.particle(k);
+            lastSupport[i] += planeSupport[i];
+            planeSupport[i] = 0.0;
+        }
         for (const auto& pc : penalty->contacts) {
             if (pc.force == 0.0) continue;
             const Vec3 j = (pc.force * pc.normal + pc.friction) * h;

@@ -419,13 +419,13 @@ void Cloth::stageVerify(StepContext& ctx) {
     }
 }
 
-StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt) {
+StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt, ContactPlanes* planes) {
     StrainLimitStats st;
     limiter_.clearMoved();
     if (settings_.limiter.kind == LimiterKind::None || touched.empty()) return st;
     if (settings_.limiter.kind == LimiterKind::StressOrdered) {
         st = limiter_.relimit(*topology_, invMass_, forceModel_->stiffness(), settings_.limiter,
-                              touched, x_);
+                              touched, x_, planes);
         applyLimiterMoves(dt);
     } else {
         // The comparison limiters have no worklist: they run whole, and report what moved.

@@ -142,6 +142,28 @@ void StrainLimiter::move(Index i, const Vec3& dx, std::vector<Vec3>& x) {
     x[i] += dx;
 }
 
+double StrainLimiter::slidingWeight(Index i, double w, const Vec3& dir,
+                                    const std::vector<Vec3>& x, double eps) const {
+    const std::int32_t k = planes_->of[i];
+    if (k < 0 || w == 0.0) return w;
+    const Vec3& n = planes_->normal[std::size_t(k)];
+    const double dn = dir.dot(n);
+    if (dn >= 0.0) return w; // away from the plane
+    if (n.dot(x[i]) - planes_->offset[std::size_t(k)] > eps) return w; // above it: free
+    return w * std::max(0.0, 1.0 - dn * dn);
+}
+
+Vec3 StrainLimiter::keepAbove(Index i, const Vec3& dx, const std::vector<Vec3>& x) const {
+    const std::int32_t k = planes_->of[i];
+    if (k < 0) return dx;
+    const std::size_t kk = std::size_t(k);
+    const Vec3& n = planes_->normal[kk];
+    const double below = planes_->offset[kk] - n.dot(x[i] + dx);
+    if (!(below > 0.0)) return dx;
+    planes_->push[kk] += below * n;
+    return dx + below * n;
+}
+
 void StrainLimiter::dirty(Index i, const Vec3& dx, std::vector<Vec3>& x) {
     move(i, dx, x);
     if (dirtyAt_[i] == stamp_) return;
@@ -255,9 +277,11 @@ StrainLimitStats StrainLimiter::relimit(const ClothTopology& topology,
                                         const std::vector<double>& invMass,
                                         const std::vector<double>& stiffness,
                                         const LimiterSettings& s,
-                                        const std::vector<Index>& touched, std::vector<Vec3>& x) {
+                                        const std::vector<Index>& touched, std::vector<Vec3>& x,
+                                        ContactPlanes* planes) {
     StrainLimitStats st;
     prepare(topology, invMass, s);
+    planes_ = planes != nullptr && planes->size() > 0 && planes->of.size() == x.size() ? planes : nullptr;
     next_.clear();
     const auto& off = topology.adjacencyOffsets();
     const auto& spr = topology.adjacentSprings();
@@ -266,6 +290,7 @@ StrainLimitStats StrainLimiter::relimit(const ClothTopology& topology,
         for (Index k = off[i]; k < off[i + 1]; ++k) check(spr[k], topology, invMass, stiffness, x, st);
     }
     runWaves(topology, invMass, stiffness, s, x, st);
+    planes_ = nullptr;
     st.maxStrainAfter = st.corrections ? maxSpringStrain(topology, x) : st.maxStrainBefore;
     return st;
 }
@@ -303,18 +328,34 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
             const double l = d.norm();
             const double wa = invMass[a], wb = invMass[b];
             if (!(l > 0.0) || wa + wb == 0.0) continue;
+            const double excess = l - limit_ * sp.restLength;
+            // A contact plane the particle lies on takes the normal part of its move: it
+            // counts with w (1 - (u . n)^2) (first order). Shortening moves a along +u.
+            double wsum = wa + wb;
+            if (planes_) {
+                const Vec3 u = d / l;
+                const double eps = 1e-6 * sp.restLength;
+                const double sgn = excess > 0.0 ? 1.0 : -1.0;
+                wsum = slidingWeight(a, wa, sgn * u, x, eps) + slidingWeight(b, wb, -sgn * u, x, eps);
+                if (!(wsum > 0.0)) continue; // both ends held by their planes
+            }
             // Provot's rule: to exactly the limit, by inverse-mass shares. A pull adds to the
             // spring's lambda; a spring the warm start pulled in too far is let out to the
             // limit, by at most what the warm start applied (never a push).
-            const double want = (l - limit_ * sp.restLength) / (wa + wb);
+            const double want = excess / wsum;
             const double dl = want >= 0.0 ? want : std::max(want, -warmLeft_[si]);
             if (dl == 0.0) continue;
             lambda_[si] += dl;
             if (dl < 0.0) warmLeft_[si] += dl;
             const Vec3 c = (dl / l) * d;
             ++st.corrections;
-            if (wa > 0.0) dirty(a, wa * c, x);
-            if (wb > 0.0) dirty(b, -wb * c, x);
+            if (planes_) {
+                if (wa > 0.0) dirty(a, keepAbove(a, wa * c, x), x);
+                if (wb > 0.0) dirty(b, keepAbove(b, -wb * c, x), x);
+            } else {
+                if (wa > 0.0) dirty(a, wa * c, x);
+                if (wb > 0.0) dirty(b, -wb * c, x);
+            }
         }
         // After the wave, the springs of every particle it moved are checked once (a particle
         // moved by several corrections is looked at once, from where it ended).

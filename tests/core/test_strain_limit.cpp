@@ -357,6 +357,63 @@ TEST_CASE("Limiters without pins keep the centre of mass (inverse-mass shares)",
     }
 }
 
+TEST_CASE("relimit keeps particles above their contact planes and reaches the bound",
+          "[limiter][contact]") {
+    // An irregular unpinned sheet, unequal masses: the particles of its left half lie on a
+    // table (plane y >= 0, tilted planes too), the right half is pulled far down and sideways
+    // (an overhang that fell for one step). relimit with the planes must end with every spring
+    // within the bound, every planed particle on or above its plane, and the momentum the
+    // planes added (m push, the only outside impulse) equal to the change of sum m x.
+    const auto topo = ClothTopology::build(irregularMesh(8, 6, 5));
+    const std::size_t n = topo->particleCount();
+    std::vector<double> mass(n), invMass(n);
+    Rng rng(3);
+    for (std::size_t i = 0; i < n; ++i) {
+        mass[i] = rng.uniform(0.5, 2.0);
+        invMass[i] = 1.0 / mass[i];
+    }
+    const std::vector<double> k(topo->springCount(), 1.0);
+    LimiterSettings s = limiterSettings();
+    s.longRangeAttachments = false;
+    double xMid = 0.0;
+    for (const Vec3& p : topo->restPositions()) xMid += p.x() / double(n);
+    for (const Vec3& normal : {Vec3(0, 1, 0), Vec3(Vec3(0.3, 1, 0.2).normalized())}) {
+        std::vector<Vec3> x = topo->restPositions();
+        ContactPlanes planes;
+        planes.reset(n);
+        std::vector<Index> all;
+        for (std::size_t i = 0; i < n; ++i) {
+            all.push_back(static_cast<Index>(i));
+            if (x[i].x() < xMid) {
+                x[i] -= normal.dot(x[i]) * normal; // on the plane through the origin
+                planes.set(static_cast<Index>(i), normal, 0.0);
+            } else {
+                x[i] += Vec3(0.3 * (x[i].x() - xMid), -2.0 * (x[i].x() - xMid), 0.0);
+            }
+        }
+        const std::vector<Vec3> before = x;
+        StrainLimiter limiter;
+        limiter.clearMoved();
+        const auto st = limiter.relimit(*topo, invMass, k, s, all, x, &planes);
+        INFO("normal " << normal.transpose() << ", waves " << st.rounds << ", work " << st.work);
+        CHECK(maxSpringStrain(*topo, before) > 0.5);
+        CHECK_FALSE(st.capHit);
+        CHECK(maxSpringStrain(*topo, x) <= s.maxStrain + s.tolerance + 1e-12);
+        Vec3 dp = Vec3::Zero(), pushed = Vec3::Zero();
+        double totalPush = 0.0;
+        for (std::size_t i = 0; i < n; ++i) dp += mass[i] * (x[i] - before[i]);
+        for (std::size_t p = 0; p < planes.size(); ++p) {
+            const Index i = planes.particle(p);
+            CHECK(normal.dot(x[i]) >= -1e-12);
+            pushed += mass[i] * planes.push[p];
+            totalPush += planes.push[p].norm();
+            CHECK(planes.push[p].cross(normal).norm() <= 1e-12); // pushes go along n only
+        }
+        CHECK(totalPush > 0.1); // the overhang pulled the table half into its plane
+        CHECK((dp - pushed).norm() <= 1e-10);
+    }
+}
+
 TEST_CASE("maxSpringStrain and meanSpringStrain of a uniform stretch", "[limiter]") {
     const auto topo = ClothTopology::build(irregularMesh(4, 3, 8));
     std::vector<Vec3> x;

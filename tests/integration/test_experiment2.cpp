@@ -75,15 +75,15 @@ TEST_CASE("Experiment II: a 30 x 60 cloth drops onto a desk and settles", "[expe
                 deepest, kThickness, worstStrain, settleTime, cloth->kineticEnergy());
     INFO("closest approach to the desk " << deepest << ", worst strain " << worstStrain
                                          << ", settled from t = " << settleTime << " s");
-    // No particle ever inside the desk deeper than the cloth thickness.
-    CHECK(deepest > -kThickness);
+    // No particle ever closer to the desk than the cloth thickness (to rounding: the
+    // projection puts a particle at P + h n, coordinates of size 300).
+    CHECK(deepest >= kThickness - 1e-9 * 300.0);
     // Settled within the paper's 11.58 s and stayed settled.
     CHECK(settleTime > 0.0);
     CHECK(settleTime <= 11.58);
-    // Strain within the 10 % limit. The contact projection runs after the limiter (the paper's
-    // order: limit, then collide); the contact stage re-limits, and 0.5 % strain (0.05 on a
-    // spring of 10) is the tolerance for what the last projection may add.
-    CHECK(worstStrain <= s.limiter.maxStrain + 0.005);
+    // Strain within the 10 % limit plus the limiter's tolerance after every step: the contact
+    // stage re-limits with the particles on the desk kept above its faces (ContactPlanes).
+    CHECK(worstStrain <= s.limiter.maxStrain + s.limiter.tolerance + 1e-12);
     // Hangs over the edges: the middle of every border row and column, and the corners, are
     // well below the desk top (the overhang is 20; at least half of it hangs down).
     for (Index idx : {at(0, kCols / 2), at(kRows - 1, kCols / 2),

@@ -125,9 +125,11 @@ public:
     // --- for stages ------------------------------------------------------------------------
     /// A stage moved the particles `touched` (a contact projection): their springs go into
     /// the limiter's worklist and the walk runs again from there; the particles it moves get
-    /// v += dx / dt. relimitMoved() lists them (so the stage can re-check them). The
-    /// comparison limiters run whole.
-    StrainLimitStats relimit(const std::vector<Index>& touched, double dt);
+    /// v += dx / dt. relimitMoved() lists them (so the stage can re-check them). With
+    /// `planes`, the stress-ordered walk keeps those particles above their contact planes
+    /// (see StrainLimiter). The comparison limiters run whole and ignore the planes.
+    StrainLimitStats relimit(const std::vector<Index>& touched, double dt,
+                             ContactPlanes* planes = nullptr);
     const std::vector<Index>& relimitMoved() const;
     const PhaseTimers& timers() const { return timers_; }
     PhaseTimers& timers() { return timers_; }

@@ -27,6 +27,53 @@ struct StrainLimitStats {
     double maxStrainAfter = 0.0;  ///< largest (l - L0) / L0 when it ended [-]
 };
 
+/// One-sided constraints n . x >= offset on some particles: the tangent planes of their
+/// contacts. StrainLimiter::relimit keeps them while it corrects springs, so a contact stage
+/// gets the strain bound and non-penetration from one walk instead of alternating the two.
+/// For a convex body the tangent plane lies outside the body, so staying above it is staying
+/// outside the body.
+struct ContactPlanes {
+    std::vector<std::int32_t> of; ///< per particle: its plane, or -1 (empty: no planes)
+    std::vector<Vec3> normal;     ///< per plane: unit outward normal
+    std::vector<double> offset;   ///< per plane: the particle stays where n . x >= offset [m]
+    /// Per plane, filled by relimit: the sum of the displacements by which the plane pushed
+    /// its particle back out [m] (the contact's share of the constraint: an impulse
+    /// m push / dt on the particle, and its opposite on the body). A vector, so that a plane
+    /// replaced by set() keeps what its earlier normals pushed.
+    std::vector<Vec3> push;
+
+    /// Forgets every plane; `of` gets one entry per particle.
+    void reset(std::size_t particles) {
+        if (of.size() != particles) of.assign(particles, -1);
+        for (std::size_t k = 0; k < normal.size(); ++k) of[particle_[k]] = -1;
+        normal.clear();
+        offset.clear();
+        push.clear();
+        particle_.clear();
+    }
+    /// Gives particle i the plane n . x >= offset (replacing one it had); returns its index.
+    std::int32_t set(Index i, const Vec3& n, double off) {
+        std::int32_t k = of[i];
+        if (k < 0) {
+            k = static_cast<std::int32_t>(normal.size());
+            of[i] = k;
+            normal.push_back(n);
+            offset.push_back(off);
+            push.push_back(Vec3::Zero());
+            particle_.push_back(i);
+        } else {
+            normal[std::size_t(k)] = n;
+            offset[std::size_t(k)] = off;
+        }
+        return k;
+    }
+    Index particle(std::size_t k) const { return particle_[k]; }
+    std::size_t size() const { return normal.size(); }
+
+private:
+    std::vector<Index> particle_;
+};
+
 /// Where each particle's long-range attachment goes: its nearest anchor over the cloth
 /// (kNoParticle if no anchor reaches it) and the rest distance of the attachment [m].
 struct AnchorField {
@@ -80,7 +127,13 @@ AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Ind
 /// let-out in step 4 bounds by the band. Measured on Experiment I: samples/benchmarks/LIMITER.md.
 ///
 /// Contacts and other stages that move particles call relimit() with the particles they
-/// moved: their springs go into the same worklist, and the walk runs again from there.
+/// moved: their springs go into the same worklist, and the walk runs again from there. With
+/// contact planes, a correction never takes a particle below its plane: a particle lying on
+/// its plane counts with the inverse mass w (1 - (u . n)^2) for a correction along u into the
+/// plane (it can only slide), so the correction still reaches the limit to first order, and
+/// what is left below the plane is pushed back out along n (recorded in ContactPlanes::push).
+/// Both sets are convex (|x_a - x_b| <= l and n . x >= c), so the projections converge to a
+/// point of both when there is one.
 class StrainLimiter {
 public:
     /// Runs one step's limiter on x. The long-range attachments are recomputed whenever the
@@ -91,7 +144,8 @@ public:
     /// Queues the springs of `touched` (particles a stage moved) and runs the waves again.
     StrainLimitStats relimit(const ClothTopology& topology, const std::vector<double>& invMass,
                              const std::vector<double>& stiffness, const LimiterSettings& s,
-                             const std::vector<Index>& touched, std::vector<Vec3>& x);
+                             const std::vector<Index>& touched, std::vector<Vec3>& x,
+                             ContactPlanes* planes = nullptr);
     /// Forgets the warm start (after the state was edited from outside).
     void resetWarmStart() {
         lambda_.assign(lambda_.size(), 0.0);
@@ -118,6 +172,12 @@ private:
     void move(Index i, const Vec3& dx, std::vector<Vec3>& x);
     /// move() inside a wave: the particle's springs are checked when the wave ends.
     void dirty(Index i, const Vec3& dx, std::vector<Vec3>& x);
+    /// Inverse mass of particle i for a move along unit dir: w, or w (1 - (dir . n)^2) when it
+    /// lies on its contact plane (within eps) and dir goes into it.
+    double slidingWeight(Index i, double w, const Vec3& dir, const std::vector<Vec3>& x,
+                         double eps) const;
+    /// The move dx of particle i in a correction, kept above its contact plane (if any).
+    Vec3 keepAbove(Index i, const Vec3& dx, const std::vector<Vec3>& x) const;
     void runWaves(const ClothTopology& topology, const std::vector<double>& invMass,
                   const std::vector<double>& stiffness, const LimiterSettings& s,
                   std::vector<Vec3>& x, StrainLimitStats& st);
@@ -139,6 +199,7 @@ private:
     std::vector<Index> movedIndex_;
     std::vector<Vec3> movedFrom_;
     AnchorField anchors_;
+    ContactPlanes* planes_ = nullptr; ///< during relimit() only
     std::vector<Index> anchorList_, anchorScratch_;
     bool anchorsValid_ = false;
     double anchorSlack_ = 0.0;
