@@ -208,12 +208,7 @@ double StrainLimiter::check(std::size_t si, const ClothTopology& topology,
     const Spring& sp = topology.springs()[si];
     ++st.work;
     const double ratio2 = (x[sp.b] - x[sp.a]).squaredNorm() * topology.inverseSquaredRestLengths()[si];
-    const bool over = ratio2 > upper2_;
-    const bool letOut = warmLeft_[si] > 0.0 && ratio2 < lower2_;
-    if (!(over || letOut) || invMass[sp.a] + invMass[sp.b] == 0.0) return ratio2;
-    key_[si] = stiffness[si] * sp.restLength * (std::sqrt(ratio2) - 1.0);
-    queued_[si] = 1;
-    next_.push_back(static_cast<std::uint32_t>(si));
+    if (needs(si, ratio2) && invMass[sp.a] + invMass[sp.b] != 0.0) queue(si, ratio2, sp.restLength, stiffness);
     return ratio2;
 }
 
@@ -265,11 +260,7 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
     st.maxStrainBefore = ns ? std::sqrt(worst2) - 1.0 : 0.0;
     // 4. The waves.
     runWaves(topology, invMass, stiffness, s, x, st);
-    if (st.corrections == 0) {
-        st.maxStrainAfter = st.maxStrainBefore;
-    } else {
-        st.maxStrainAfter = maxSpringStrain(topology, x);
-    }
+    finish(topology, x, st);
     return st;
 }
 
@@ -291,8 +282,19 @@ StrainLimitStats StrainLimiter::relimit(const ClothTopology& topology,
     }
     runWaves(topology, invMass, stiffness, s, x, st);
     planes_ = nullptr;
-    st.maxStrainAfter = st.corrections ? maxSpringStrain(topology, x) : st.maxStrainBefore;
+    finish(topology, x, st);
     return st;
+}
+
+void StrainLimiter::finish(const ClothTopology& topology, const std::vector<Vec3>& x,
+                           StrainLimitStats& st) const {
+    if (st.capHit) {
+        st.maxStrainAfter = maxSpringStrain(topology, x); // what the cap left: measured
+    } else if (st.corrections > 0) {
+        st.maxStrainAfter = std::sqrt(upper2_) - 1.0; // every spring passed a check after its last move
+    } else {
+        st.maxStrainAfter = st.maxStrainBefore;
+    }
 }
 
 void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<double>& invMass,
@@ -301,6 +303,9 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
     const auto& springs = topology.springs();
     const auto& off = topology.adjacencyOffsets();
     const auto& spr = topology.adjacentSprings();
+    const auto& nbr = topology.adjacentParticles();
+    const auto& inv2 = topology.adjacentInverseSquaredRestLengths();
+    const auto& rest = topology.adjacentRestLengths();
     const std::size_t cap = static_cast<std::size_t>(s.maxRounds) * std::max<std::size_t>(springs.size(), 1);
     while (!next_.empty()) {
         if (st.work > cap) {
@@ -315,12 +320,18 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
             std::fill(dirtyAt_.begin(), dirtyAt_.end(), 0u);
             stamp_ = 1;
         }
-        // Most stressed first: spring tension k (l - L0) when queued, ties by index.
-        for (std::uint32_t si : wave_) queued_[si] = 0;
-        std::sort(wave_.begin(), wave_.end(), [this](std::uint32_t a, std::uint32_t b) {
-            return key_[a] != key_[b] ? key_[a] > key_[b] : a < b;
-        });
+        // Most stressed first: spring tension k (l - L0) when queued, ties by index. (Sorted
+        // as (key, index) pairs: the comparisons read no other array.)
+        order_.clear();
         for (std::uint32_t si : wave_) {
+            queued_[si] = 0;
+            order_.push_back({key_[si], si});
+        }
+        std::sort(order_.begin(), order_.end(), [](const Queued& p, const Queued& q) {
+            return p.key != q.key ? p.key > q.key : p.spring < q.spring;
+        });
+        for (const Queued& item : order_) {
+            const std::uint32_t si = item.spring;
             const Spring& sp = springs[si];
             const Index a = sp.a, b = sp.b;
             ++st.work;
@@ -358,13 +369,19 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
             }
         }
         // After the wave, the springs of every particle it moved are checked once (a particle
-        // moved by several corrections is looked at once, from where it ended).
+        // moved by several corrections is looked at once, from where it ended). The check
+        // reads the spring from the particle's adjacency (neighbour, 1 / L0^2 side by side).
         for (Index e : dirty_) {
+            const Vec3 xe = x[e];
             for (Index k = off[e]; k < off[e + 1]; ++k) {
                 const Index si = spr[k];
                 if (checkedAt_[si] == stamp_) continue;
                 checkedAt_[si] = stamp_;
-                check(si, topology, invMass, stiffness, x, st);
+                if (queued_[si]) continue;
+                ++st.work;
+                const Index o = nbr[k];
+                const double ratio2 = (x[o] - xe).squaredNorm() * inv2[k];
+                if (needs(si, ratio2) && invMass[e] + invMass[o] != 0.0) queue(si, ratio2, rest[k], stiffness);
             }
         }
         dirty_.clear();

@@ -123,6 +123,9 @@ std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& in
     for (std::size_t k = 0; k < topo->adjSprings_.size(); ++k) {
         topo->adjRest_[k] = topo->springs_[topo->adjSprings_[k]].restLength;
     }
+    topo->adjInvRest2_.resize(topo->adjSprings_.size());
+    for (std::size_t k = 0; k < topo->adjSprings_.size(); ++k)
+        topo->adjInvRest2_[k] = topo->invRest2_[topo->adjSprings_[k]];
 
     topo->triangleAreas_.resize(topo->triangles_.size());
     for (std::size_t t = 0; t < topo->triangles_.size(); ++t) {

@@ -352,7 +352,9 @@ TEST_CASE("Limiters without pins keep the centre of mass (inverse-mass shares)",
         INFO((which == 0 ? "provot" : "stress-ordered") << " rounds " << st.rounds);
         CHECK(st.maxStrainBefore > 0.2);
         CHECK(st.maxStrainAfter <= 0.1 + s.tolerance);
-        CHECK(maxSpringStrain(*topo, y) == Approx(st.maxStrainAfter).margin(1e-15));
+        // Provot measures the strain it left; the walk reports its band's top, a bound.
+        if (which == 0) CHECK(maxSpringStrain(*topo, y) == Approx(st.maxStrainAfter).margin(1e-15));
+        CHECK(maxSpringStrain(*topo, y) <= st.maxStrainAfter + 1e-15);
         CHECK((centre(y) - c0).norm() < 1e-12); // sums of O(1) numbers over a few thousand fixes
     }
 }

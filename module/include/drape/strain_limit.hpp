@@ -8,6 +8,7 @@
 
 #include "drape/topology.hpp"
 
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -24,7 +25,11 @@ struct StrainLimitStats {
     /// Largest (l - L0) / L0 the first scan saw (stress-ordered: after the attachments and
     /// the warm start) [-].
     double maxStrainBefore = 0.0;
-    double maxStrainAfter = 0.0;  ///< largest (l - L0) / L0 when it ended [-]
+    /// Largest (l - L0) / L0 when it ended [-]: measured when the walk stopped at the safety
+    /// cap (or a comparison limiter ran); when the stress-ordered walk finished, every spring
+    /// passed a check after its last move and this is the band's top, maxStrain + tolerance
+    /// (a bound, not a measurement; Cloth::maxStrain() measures).
+    double maxStrainAfter = 0.0;
 };
 
 /// One-sided constraints n . x >= offset on some particles: the tangent planes of their
@@ -187,6 +192,24 @@ private:
                const std::vector<double>& stiffness, const std::vector<Vec3>& x,
                StrainLimitStats& st);
 
+    /// Spring si at (l / L0)^2 = ratio2 is beyond the band, or a warm-started spring below it.
+    bool needs(std::size_t si, double ratio2) const {
+        return ratio2 > upper2_ || (warmLeft_[si] > 0.0 && ratio2 < lower2_);
+    }
+    /// Puts spring si into the next wave, keyed by its tension k (l - L0).
+    void queue(std::size_t si, double ratio2, double restLength, const std::vector<double>& stiffness) {
+        key_[si] = stiffness[si] * restLength * (std::sqrt(ratio2) - 1.0);
+        queued_[si] = 1;
+        next_.push_back(static_cast<std::uint32_t>(si));
+    }
+    /// Fills maxStrainAfter (see StrainLimitStats).
+    void finish(const ClothTopology& topology, const std::vector<Vec3>& x, StrainLimitStats& st) const;
+
+    struct Queued {
+        double key;
+        std::uint32_t spring;
+    };
+    std::vector<Queued> order_;         ///< the wave being walked, most stressed first
     std::vector<double> lambda_;        ///< accumulated correction per spring
     std::vector<double> warmLeft_;      ///< warm start a let-out may still undo this step
     std::vector<unsigned char> queued_; ///< spring is in the next wave

@@ -59,6 +59,8 @@ public:
     const std::vector<Index>& adjacentSprings() const { return adjSprings_; }
     /// Rest length of spring adjacentSprings()[k], stored next to it for the limiter's walk.
     const std::vector<double>& adjacentRestLengths() const { return adjRest_; }
+    /// 1 / L0^2 of spring adjacentSprings()[k], next to it (the walk's strain checks).
+    const std::vector<double>& adjacentInverseSquaredRestLengths() const { return adjInvRest2_; }
     /// 1 / L0^2 of each spring, for strain checks on squared lengths without a division.
     const std::vector<double>& inverseSquaredRestLengths() const { return invRest2_; }
 
@@ -77,6 +79,7 @@ private:
     std::vector<Index> adjParticles_;
     std::vector<Index> adjSprings_;
     std::vector<double> adjRest_;
+    std::vector<double> adjInvRest2_;
     std::vector<double> invRest2_;
     std::size_t boundaryEdges_ = 0;
 };
