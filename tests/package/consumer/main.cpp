@@ -24,7 +24,8 @@ void expect(bool ok, const char* what, double value) {
 
 double meanHeight(const std::vector<drape::Vec3>& x) {
     double sum = 0.0;
-    for (const drape::Vec3& p : x) sum += p.y();
+    for (const drape::Vec3& p : x)
+        sum += p.y();
     return sum / static_cast<double>(x.size());
 }
 
@@ -49,14 +50,17 @@ int main() {
 
     // The pole: a kinematic capsule along x at the curtain's top edge.
     btCapsuleShapeX poleShape(0.02f, 1.0f);
-    btDefaultMotionState poleMotion(btTransform(btQuaternion::getIdentity(), btVector3(0.0f, 1.5f, 0.0f)));
+    btDefaultMotionState poleMotion(
+        btTransform(btQuaternion::getIdentity(), btVector3(0.0f, 1.5f, 0.0f)));
     btRigidBody poleBody(btRigidBody::btRigidBodyConstructionInfo(0.0f, &poleMotion, &poleShape));
-    poleBody.setCollisionFlags(poleBody.getCollisionFlags() | btCollisionObject::CF_KINEMATIC_OBJECT);
+    poleBody.setCollisionFlags(poleBody.getCollisionFlags() |
+                               btCollisionObject::CF_KINEMATIC_OBJECT);
     poleBody.setActivationState(DISABLE_DEACTIVATION);
     world->addRigidBody(&poleBody);
     btRigidBody* pole = &poleBody;
 
     // --- README: "Putting a cloth into a Bullet world" ------------------------------------
+    // clang-format off
     drape::SheetSpec sheet;              // a 1 m x 1 m curtain in the x-y plane
     sheet.rows = 21;
     sheet.cols = 21;
@@ -73,6 +77,7 @@ int main() {
     options.substeps = 2;                // cloth steps per Bullet sub-step
     auto handle = drape::bullet::addCloth(world, cloth, options);              // one call in
     for (drape::Index c = 0; c < sheet.cols; ++c) handle->attachHere(c, pole); // hang it
+    // clang-format on
     // ---------------------------------------------------------------------------------------
 
     // A second sheet, attached to nothing, 3 m to the side: it falls freely.
@@ -95,7 +100,7 @@ int main() {
             return 1;
         }
     }
-    drape::bullet::removeCloth(*handle);                        // one call out
+    drape::bullet::removeCloth(*handle); // one call out
     drape::bullet::removeCloth(*fallingHandle);
 
     const std::vector<drape::Vec3>& x = cloth->positions();
