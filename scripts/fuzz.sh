@@ -34,7 +34,7 @@ CC=clang CXX=clang++ cmake -S "$source_dir" -B "$build" -DDRAPE_BUILD_FUZZERS=ON
     -DDRAPE_BUILD_TESTS=OFF -DDRAPE_BUILD_BENCHMARKS=OFF -DDRAPE_BUILD_REPORTS=OFF \
     -DDRAPE_WITH_RENDERING=OFF -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g" >/dev/null
-cmake --build "$build" --target "${targets[@]}" -j "${DRAPE_FUZZ_BUILD_JOBS:-2}"
+cmake --build "$build" --target "${targets[@]/#/drape_}" -j "${DRAPE_FUZZ_BUILD_JOBS:-2}"
 
 # Mesh seeds: each shipped mesh behind the byte that selects its extension.
 mesh_seeds=$build/seeds/fuzz_mesh
