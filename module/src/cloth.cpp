@@ -119,6 +119,8 @@ void validateSettings(const ClothSettings& s) {
         throw Error(ErrorCode::InvalidArgument,
                     "threads must be between 1 and 256, got " + std::to_string(s.threads));
     }
+    requirePositive(s.sleep.distance, "sleep.distance");
+    requireNonNegative(s.sleep.time, "sleep.time");
     if (s.implicit.cgMaxIterations < 1) {
         throw Error(ErrorCode::InvalidArgument, "implicit.cgMaxIterations must be >= 1, got " +
                                                     std::to_string(s.implicit.cgMaxIterations));
@@ -174,6 +176,16 @@ void Cloth::checkFinite(const char* where) {
 }
 
 void Cloth::step(double dt) {
+    if (asleep_) {
+        checkTimeStep(dt);
+        if (!kinematicTargetsMove(dt)) { // frozen: only the clock runs
+            time_ += dt;
+            ++steps_;
+            ++sleptSteps_;
+            return;
+        }
+        wake();
+    }
     if (settings_.failure.retrySubsteps < 2) {
         stepOnce(dt);
         return;
@@ -250,7 +262,7 @@ const Cloth::Stage Cloth::kStages[] = {
     {"verify", true, [](const Cloth&) { return true; }, &Cloth::stageVerify},
 };
 
-void Cloth::stepOnce(double dt) {
+void Cloth::checkTimeStep(double dt) const {
     if (!std::isfinite(dt)) throw Error(ErrorCode::NonFinite, "time step is not finite");
     if (!(dt > 0.0)) throw Error(ErrorCode::InvalidArgument, "time step must be positive, got " + num(dt));
     if (settings_.rejectUnstableTimeStep) {
@@ -265,6 +277,10 @@ void Cloth::stepOnce(double dt) {
                             " sub-steps, or implicit_euler");
         }
     }
+}
+
+void Cloth::stepOnce(double dt) {
+    checkTimeStep(dt);
     StepContext ctx{dt, false, 0.0, 0.0,
                     IntegratorContext{x_, v_, f_, invMass_, dt, *forceModel_, poolStorage_.get()}};
     // Energy can only grow through wind, user forces, kinematic particles and stages
@@ -285,6 +301,7 @@ void Cloth::stepOnce(double dt) {
         lambdaBefore_.assign(lambda.begin(), lambda.end()); // no allocation after the first step
     }
     bool swapped = false;
+    inStep_ = true; // edits by stages do not count as wake-ups
     try {
         for (std::size_t k = 0; k < std::size(kStages); ++k) {
             const Stage& st = kStages[k];
@@ -298,6 +315,8 @@ void Cloth::stepOnce(double dt) {
             if (st.run == &Cloth::stageIntegrate) swapped = true;
         }
     } catch (...) {
+        inStep_ = false;
+        quietTime_ = 0.0;
         if (swapped) {
             x_.swap(xScratch_);
             v_.swap(vScratch_);
@@ -306,9 +325,50 @@ void Cloth::stepOnce(double dt) {
         forcesValid_ = false;
         throw;
     }
+    inStep_ = false;
     if (limiterStats_.capHit) ++limiterCapHits_;
+    updateSleep(dt);
     time_ += dt;
     ++steps_;
+}
+
+// --- sleeping ---------------------------------------------------------------------------------
+
+void Cloth::wake() {
+    asleep_ = false;
+    quietTime_ = 0.0;
+    anchor_.clear();
+}
+
+void Cloth::setSleep(const SleepSettings& sleep) {
+    requirePositive(sleep.distance, "sleep.distance");
+    requireNonNegative(sleep.time, "sleep.time");
+    settings_.sleep = sleep;
+    wake();
+}
+
+bool Cloth::kinematicTargetsMove(double dt) const {
+    for (const auto& k : kinematic_) {
+        if (k.second(time_ + dt) != x_[k.first]) return true; // NaN too: the real step reports it
+    }
+    return false;
+}
+
+// After a successful step. The quiet time starts with the positions of its first step
+// (anchor_); a particle farther than sleep.distance from its anchor restarts it from here.
+void Cloth::updateSleep(double dt) {
+    const auto& sl = settings_.sleep;
+    if (!sl.enabled) return;
+    const double d2 = sl.distance * sl.distance;
+    bool quiet = !limiterStats_.capHit && anchor_.size() == x_.size();
+    for (std::size_t i = 0; quiet && i < x_.size(); ++i) quiet = (x_[i] - anchor_[i]).squaredNorm() <= d2;
+    if (!quiet) {
+        anchor_ = x_;
+        quietTime_ = 0.0;
+        return;
+    }
+    quietTime_ += dt;
+    if (quietTime_ >= sl.time) asleep_ = true;
 }
 
 void Cloth::stageForcesRefresh(StepContext&) {
@@ -448,6 +508,7 @@ StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt, Co
     limiterStats_.capHit = limiterStats_.capHit || st.capHit;
     limiterStats_.maxStrainAfter = st.corrections ? st.maxStrainAfter : limiterStats_.maxStrainAfter;
     forcesValid_ = false;
+    edited();
     return st;
 }
 
@@ -492,6 +553,7 @@ void Cloth::pin(Index i) {
                      kinematic_.end());
     forcesValid_ = false;
     invalidateOmega();
+    edited();
 }
 
 void Cloth::pin(Index i, const Vec3& position) {
@@ -499,6 +561,7 @@ void Cloth::pin(Index i, const Vec3& position) {
     requireFinite(position, "pin position of particle " + std::to_string(i));
     pin(i);
     x_[i] = position;
+    edited();
 }
 
 void Cloth::setKinematic(Index i, KinematicPath path) {
@@ -509,6 +572,7 @@ void Cloth::setKinematic(Index i, KinematicPath path) {
     pin(i);
     x_[i] = start;
     kinematic_.emplace_back(i, std::move(path));
+    edited();
 }
 
 void Cloth::unpin(Index i) {
@@ -520,6 +584,7 @@ void Cloth::unpin(Index i) {
                      kinematic_.end());
     forcesValid_ = false;
     invalidateOmega();
+    edited();
 }
 
 bool Cloth::isPinned(Index i) const {
@@ -532,30 +597,36 @@ bool Cloth::isPinned(Index i) const {
 void Cloth::setUserForce(Index i, const Vec3& force) {
     forceModel_->setUserForce(i, force);
     forcesValid_ = false;
+    edited();
 }
 void Cloth::clearUserForces() {
     forceModel_->clearUserForces();
     forcesValid_ = false;
+    edited();
 }
 void Cloth::setWind(const Vec3& wind) {
     forceModel_->setWind(wind);
     settings_.aero.wind = wind;
     forcesValid_ = false;
+    edited();
 }
 void Cloth::setGravity(const Vec3& g) {
     forceModel_->setGravity(g);
     settings_.gravity = g;
     forcesValid_ = false;
+    edited();
 }
 void Cloth::addExternalForce(std::string name, ForceModel::ExternalForce force) {
     forceModel_->addExternalForce(std::move(name), std::move(force));
     forcesValid_ = false;
+    edited();
 }
 
 void Cloth::addStage(std::shared_ptr<ClothStage> stage) {
     if (!stage) throw Error(ErrorCode::InvalidArgument, "addStage: stage is null");
     callerStageSlots_.push_back(timers_.slot(stage->name()));
     stages_.push_back(std::move(stage));
+    edited();
 }
 
 void Cloth::removeStage(const ClothStage* stage) {
@@ -563,6 +634,7 @@ void Cloth::removeStage(const ClothStage* stage) {
         if (stages_[s].get() == stage) {
             stages_.erase(stages_.begin() + static_cast<std::ptrdiff_t>(s));
             callerStageSlots_.erase(callerStageSlots_.begin() + static_cast<std::ptrdiff_t>(s));
+            edited();
             return;
         }
     }
@@ -572,10 +644,12 @@ void Cloth::removeStage(const ClothStage* stage) {
 
 Vec3List& Cloth::mutablePositions() {
     forcesValid_ = false;
+    edited();
     return x_;
 }
 Vec3List& Cloth::mutableVelocities() {
     forcesValid_ = false;
+    edited();
     return v_;
 }
 void Cloth::setPosition(Index i, const Vec3& x) {
@@ -583,6 +657,7 @@ void Cloth::setPosition(Index i, const Vec3& x) {
     requireFinite(x, "position of particle " + std::to_string(i));
     x_[i] = x;
     forcesValid_ = false;
+    edited();
 }
 void Cloth::setVelocity(Index i, const Vec3& v) {
     checkIndex(i, x_.size(), "setVelocity");
@@ -590,6 +665,7 @@ void Cloth::setVelocity(Index i, const Vec3& v) {
     if (pinned_[i]) return; // pinned and kinematic particles keep their prescribed motion
     v_[i] = v;
     forcesValid_ = false;
+    edited();
 }
 
 // --- diagnostics ----------------------------------------------------------------------------

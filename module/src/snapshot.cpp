@@ -170,6 +170,7 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
         cloth.invMass_[i] = pinned[i] ? 0.0 : 1.0 / cloth.mass_[i];
     }
     cloth.invalidateOmega();
+    cloth.wake(); // sleep is not stored: a loaded cloth is awake (see cloth.hpp)
 }
 
 void saveSnapshotFile(const Cloth& cloth, const std::string& path) {

@@ -6,6 +6,20 @@
 // the caller's stages (collisions...), forces (one timer per active force term),
 // integrate_finish (Velocity-Verlet) and verify. pipeline() lists what a step runs, from the
 // same table; timers() reports each stage's calls and seconds.
+//
+// Sleeping (settings.sleep, off by default): after settings.sleep.time seconds in which no
+// particle strayed farther than settings.sleep.distance (see SleepSettings) the cloth falls asleep with its state frozen exactly; a step of
+// a sleeping cloth only checks dt, evaluates the kinematic paths and advances time() and
+// stepCount(). Anything that could change the motion wakes it before the next step: the
+// state edits below (setPosition, setVelocity, mutablePositions/Velocities, pin, unpin,
+// setKinematic), forces (setUserForce, clearUserForces, setWind, setGravity,
+// addExternalForce), stages (addStage, removeStage), setSleep, loadSnapshot, wake(), and a
+// kinematic path whose target for the step differs from where its particle is. Waking
+// restarts the quiet count and continues from the frozen state: the trajectory after waking
+// is that of a cloth (sleeping or not) restored from a snapshot of the frozen state. An
+// external force term or a caller stage that would act on a sleeping cloth must have its
+// owner call wake() (drape::bullet does, for moving bodies). Snapshots do not store sleep:
+// a loaded cloth is awake and counts its quiet time from zero.
 #pragma once
 
 #include "drape/forces.hpp"
@@ -58,6 +72,17 @@ public:
     void step(double dt);
     /// Steps that failed and succeeded when retried as sub-steps.
     std::uint64_t retriedSteps() const { return retries_; }
+
+    // --- sleeping (see the top of this file and SleepSettings) -----------------------------
+    bool isAsleep() const { return asleep_; }
+    /// Wakes the cloth (if asleep) and restarts its quiet time.
+    void wake();
+    /// Changes the sleep settings (validated; throws drape::Error) and wakes the cloth.
+    void setSleep(const SleepSettings& sleep);
+    /// Steps taken asleep (each cost O(number of kinematic particles)).
+    std::uint64_t sleptSteps() const { return sleptSteps_; }
+    /// Consecutive quiet simulated time so far while awake [s].
+    double quietTime() const { return quietTime_; }
 
     // --- pins -----------------------------------------------------------------------------
     /// Fixes particle i where it is now (or at `position`); it never moves until unpinned.
@@ -164,6 +189,13 @@ private:
     void evaluateForces();
     void checkFinite(const char* where);
     void invalidateOmega() { omegaMax_ = -1.0; }
+    void checkTimeStep(double dt) const;
+    /// A state or force edit: wakes the cloth, unless a stage makes it inside a step.
+    void edited() {
+        if (!inStep_) wake();
+    }
+    bool kinematicTargetsMove(double dt) const;
+    void updateSleep(double dt);
 
     TopologyPtr topology_;
     ClothSettings settings_;
@@ -191,6 +223,11 @@ private:
     double time_ = 0.0;
     std::uint64_t steps_ = 0;
     std::uint64_t retries_ = 0;
+    bool inStep_ = false;
+    bool asleep_ = false;
+    double quietTime_ = 0.0;
+    Vec3List anchor_; ///< positions at the start of the quiet time (empty: none yet)
+    std::uint64_t sleptSteps_ = 0;
 };
 
 } // namespace drape

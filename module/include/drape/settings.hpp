@@ -105,6 +105,31 @@ struct FailureSettings {
     int retrySubsteps = 0;
 };
 
+/// Sleeping: a cloth at rest stops computing until something wakes it (Cloth::isAsleep()).
+/// The cloth is at rest when, for `time` seconds of consecutive steps, no particle strays
+/// farther than `distance` from where it was when that time began (the limiter, kinematic
+/// particles and the caller's stages included), and the limiter never stopped at its cap.
+/// Positions, not velocities, are watched: a cloth whose weight the limiter carries keeps
+/// a stored Velocity-Verlet velocity (the half kick the limiter cancels every step, ~0.2 m/s
+/// for a small sheet at rest) and jitters inside the limiter's tolerance band (~0.1 mm)
+/// without going anywhere. Asleep, the state is frozen exactly as it is: positions,
+/// velocities, cached forces and the limiter's warm start are kept, and a step only
+/// advances the time and the step count (O(number of kinematic particles)). Waking resumes
+/// from that frozen state.
+/// Off by default in the core (its experiments measure decay and convergence, which sleeping
+/// would cut short); drape::bullet turns it on when a cloth is added (BulletClothSettings).
+struct SleepSettings {
+    bool enabled = false;
+    /// Largest excursion of a particle during the quiet time [m]. 1 mm: below what a viewer
+    /// sees at cloth scale, ten times the limiter's jitter at rest (its default tolerance
+    /// 1e-3 times a 0.1 m spring) and, over the default time, a mean speed of 1 mm/s.
+    double distance = 1e-3;
+    /// Quiet simulated time before the cloth falls asleep [s]. Like Bullet's rigid bodies
+    /// (2 s before deactivation): long enough that the turning point of a slow swing is not
+    /// mistaken for rest (a swing of period below ~2 s leaves the 1 mm ball within it).
+    double time = 1.0;
+};
+
 /// Everything a Cloth needs besides its topology.
 struct ClothSettings {
     IntegratorKind integrator = IntegratorKind::VelocityVerlet;
@@ -124,6 +149,7 @@ struct ClothSettings {
     LimiterSettings limiter;    ///< strain limiting; stress-ordered 10 % by default
     ImplicitSettings implicit;  ///< used by ImplicitEuler only
     FailureSettings failure;    ///< blow-up detection and retry
+    SleepSettings sleep;        ///< sleeping at rest; off by default
 
     /// Threads a step may use (>= 1, the caller's included). Springs, gravity, damping and
     /// the explicit integrators' particle loops are split over them; results are

@@ -1,0 +1,183 @@
+// Sleeping: a cloth at rest falls asleep with its state frozen, a sleeping step does no
+// work, edits and moving kinematic particles wake it, and waking continues exactly as a
+// cloth restored from the frozen state.
+#include "drape/cloth.hpp"
+#include "drape/error.hpp"
+#include "drape/snapshot.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+using namespace drape;
+
+namespace {
+
+constexpr double kDt = 1.0 / 240.0;
+
+SheetSpec hangingSpec() {
+    SheetSpec spec;
+    spec.rows = 8;
+    spec.cols = 8;
+    spec.spacing = 0.1;
+    return spec;
+}
+
+/// An 8 x 8 sheet hanging from two corners, damped so that it settles in a few seconds.
+std::unique_ptr<Cloth> hangingCloth(bool sleep) {
+    static const TopologyPtr topo = ClothTopology::build(makeSheet(hangingSpec()));
+    ClothSettings s;
+    s.particleMass = 0.01;
+    s.springStiffness = 50.0;
+    s.damping = 0.03; // C_d / m = 3 /s
+    s.sleep.enabled = sleep;
+    auto c = std::make_unique<Cloth>(topo, s);
+    c->pin(sheetIndex(hangingSpec(), 0, 0));
+    c->pin(sheetIndex(hangingSpec(), 0, 7));
+    return c;
+}
+
+/// Steps until the cloth falls asleep (at most 30 s); returns the steps taken.
+int stepUntilAsleep(Cloth& c, Cloth* twin = nullptr) {
+    int steps = 0;
+    while (!c.isAsleep() && steps < 30 * 240) {
+        c.step(kDt);
+        if (twin) twin->step(kDt);
+        ++steps;
+    }
+    return steps;
+}
+
+std::uint64_t calls(const Cloth& c, const char* phase) {
+    const PhaseTimer* t = c.timers().find(phase);
+    return t ? t->calls : 0;
+}
+
+} // namespace
+
+TEST_CASE("a cloth at rest falls asleep frozen, and a sleeping step does no work", "[sleep]") {
+    auto a = hangingCloth(true);
+    auto b = hangingCloth(false); // the same cloth that never sleeps
+    const int steps = stepUntilAsleep(*a, b.get());
+    REQUIRE(a->isAsleep());
+    // Asleep only after sleep.time of quiet steps; until then the physics is untouched.
+    CHECK(steps * kDt >= a->settings().sleep.time);
+    CHECK(stateHash(*a) == stateHash(*b));
+    CHECK_FALSE(b->isAsleep());
+    // At rest: over the last second the sheet (never sleeping) stays within sleep.distance.
+    const Vec3List rest = b->positions();
+    for (int k = 0; k < 240; ++k) b->step(kDt);
+    for (std::size_t i = 0; i < rest.size(); ++i) {
+        CHECK((b->positions()[i] - rest[i]).norm() <= a->settings().sleep.distance);
+    }
+
+    const auto frozen = stateHash(*a);
+    const std::uint64_t integrations = calls(*a, "integrate"), stepsBefore = a->stepCount();
+    const double timeBefore = a->time();
+    for (int k = 0; k < 1000; ++k) a->step(kDt);
+    CHECK(a->isAsleep());
+    CHECK(stateHash(*a) == frozen);
+    CHECK(calls(*a, "integrate") == integrations); // no stage ran
+    CHECK(calls(*a, "strain_limit") + 240 == calls(*b, "strain_limit"));
+    CHECK(a->sleptSteps() == 1000);
+    CHECK(a->stepCount() == stepsBefore + 1000);
+    CHECK(a->time() == Approx(timeBefore + 1000 * kDt));
+    // A sleeping cloth still rejects a bad time step.
+    CHECK_THROWS_AS(a->step(-kDt), Error);
+}
+
+TEST_CASE("waking continues exactly as a cloth restored from the frozen state", "[sleep]") {
+    struct Edit {
+        const char* name;
+        std::function<void(Cloth&)> apply;
+    };
+    const std::vector<Edit> edits = {
+        {"wake()", [](Cloth& c) { c.wake(); }},
+        {"setVelocity", [](Cloth& c) { c.setVelocity(60, Vec3(0.0, 0.0, 0.5)); }},
+        {"setPosition", [](Cloth& c) { c.setPosition(61, c.positions()[61] + Vec3(0.0, 0.0, 0.05)); }},
+        {"setUserForce", [](Cloth& c) { c.setUserForce(63, Vec3(0.05, 0.0, 0.0)); }},
+        {"setGravity", [](Cloth& c) { c.setGravity(Vec3(1.0, -9.81, 0.0)); }},
+        {"setWind", [](Cloth& c) { c.setWind(Vec3(0.0, 0.0, 3.0)); }},
+        {"unpin", [](Cloth& c) { c.unpin(sheetIndex(hangingSpec(), 0, 7)); }},
+        {"pin", [](Cloth& c) { c.pin(63); }},
+        {"mutableVelocities", [](Cloth& c) { c.mutableVelocities()[62].x() = 0.2; }},
+    };
+    for (const auto& edit : edits) {
+        INFO(edit.name);
+        auto a = hangingCloth(true);
+        stepUntilAsleep(*a);
+        REQUIRE(a->isAsleep());
+        const auto frozen = saveSnapshot(*a);
+        auto b = hangingCloth(false);
+        loadSnapshot(*b, frozen);
+        for (int k = 0; k < 500; ++k) a->step(kDt); // asleep all along
+        REQUIRE(a->isAsleep());
+
+        edit.apply(*a);
+        edit.apply(*b);
+        CHECK_FALSE(a->isAsleep());
+        // Fewer steps than sleep.time: a small edit lets `a` fall asleep again after that.
+        for (int k = 0; k < 200; ++k) {
+            a->step(kDt);
+            b->step(kDt);
+        }
+        CHECK_FALSE(a->isAsleep());
+        CHECK(stateHash(*a) == stateHash(*b));
+        CHECK(a->positions() == b->positions());
+    }
+}
+
+TEST_CASE("a kinematic particle that starts moving wakes the sleeping cloth", "[sleep]") {
+    auto c = hangingCloth(true);
+    const Index corner = sheetIndex(hangingSpec(), 0, 7);
+    const Vec3 p0 = c->positions()[corner];
+    const double start = 12.0; // [s], well after the cloth fell asleep
+    c->setKinematic(corner, [p0, start](double t) {
+        return t <= start ? p0 : Vec3(p0 + (t - start) * Vec3(0.3, 0.0, 0.0));
+    });
+    stepUntilAsleep(*c);
+    REQUIRE(c->isAsleep());
+    REQUIRE(c->time() < start - 1.0);
+    const Vec3List frozen = c->positions();
+    while (c->time() + kDt <= start) c->step(kDt);
+    CHECK(c->isAsleep());
+    CHECK(c->positions() == frozen);
+
+    c->step(kDt); // the path leaves p0 in this step
+    CHECK_FALSE(c->isAsleep());
+    for (int k = 0; k < 120; ++k) c->step(kDt);
+    CHECK_FALSE(c->isAsleep());
+    CHECK((c->positions()[corner] - (p0 + (c->time() - start) * Vec3(0.3, 0.0, 0.0))).norm() < 1e-9);
+    // The rest of the cloth follows the pin.
+    const Index free = sheetIndex(hangingSpec(), 7, 7);
+    CHECK(c->positions()[free].x() - frozen[free].x() > 0.02);
+}
+
+TEST_CASE("sleeping is off by default, validated, and not stored in snapshots", "[sleep]") {
+    auto off = hangingCloth(false);
+    for (int k = 0; k < 20 * 240; ++k) off->step(kDt);
+    CHECK_FALSE(off->isAsleep());
+    CHECK(off->sleptSteps() == 0);
+    CHECK_FALSE(ClothSettings{}.sleep.enabled);
+
+    SleepSettings bad;
+    bad.distance = 0.0;
+    CHECK_THROWS_AS(off->setSleep(bad), Error);
+    bad = {};
+    bad.time = -1.0;
+    CHECK_THROWS_WITH(off->setSleep(bad), Catch::Contains("sleep.time"));
+
+    // setSleep turns it on for an existing cloth; a snapshot loads awake.
+    SleepSettings on;
+    on.enabled = true;
+    off->setSleep(on);
+    stepUntilAsleep(*off);
+    REQUIRE(off->isAsleep());
+    const auto bytes = saveSnapshot(*off);
+    loadSnapshot(*off, bytes);
+    CHECK_FALSE(off->isAsleep());
+    CHECK(off->quietTime() == 0.0);
+}
