@@ -16,6 +16,10 @@
 //               eq. (7) penalty is one of the cloth's force terms;
 //   4. impulses: the impulses accumulated on dynamic bodies are applied;
 //   5. proxy:   the ghost's AABB becomes the cloth's bounding box plus margin.
+// A sleeping cloth (Cloth::isAsleep) is first woken if a candidate body is new, gone or
+// moving (wakeForBodies); if it stays asleep, step 3 only advances its clock and steps 4 and
+// 5 have nothing to do. After an awake sub-step in which it pushed an active dynamic body,
+// its quiet time restarts.
 //
 // Contact of particle i (inverse mass w_i) with a body at surface point P, outward normal n,
 // signed distance d, thickness h, penalty band w:
@@ -265,6 +269,8 @@ struct BulletCloth::Impl {
     double band = 0.0;   ///< eq. (7) band width [m]
     std::vector<const btCollisionObject*> candidates;
     Vec3 proxyMin = Vec3::Zero(), proxyMax = Vec3::Zero(); ///< the proxy's AABB [m]
+    /// The candidate bodies and their poses at the previous sub-step (for waking).
+    std::vector<std::pair<const btCollisionObject*, Pose>> lastPoses;
 
     // Scratch of the contact stage, reused every step.
     std::vector<unsigned char> touching;  ///< particle touched a body this step
@@ -288,6 +294,8 @@ struct BulletCloth::Impl {
     /// Snapshots the bodies among the proxy's overlaps (and the broadphase's answer for a
     /// larger box when the cloth would sweep out of the proxy in this step).
     void gatherBodies(double dt);
+    /// Wakes a sleeping cloth when a candidate body is new, gone or moving; records the poses.
+    void wakeForBodies(double dt);
     /// The cloth's box swept over dt at its current velocities, grown by the contact reach.
     void sweptBounds(double dt, Vec3& lo, Vec3& hi) const;
     void setProxyBounds(const Vec3& lo, const Vec3& hi);
@@ -400,8 +408,9 @@ void BulletCloth::Impl::gatherBodies(double dt) {
     // If the cloth will sweep beyond it in this step (a first step, velocities set by the user,
     // a longer step), move the proxy now and ask the broadphase directly (a tree query, not
     // a loop over bodies) for what the larger box overlaps.
-    Vec3 lo, hi;
-    sweptBounds(dt, lo, hi);
+    // A sleeping cloth does not move: its proxy still holds it (and the sweep is O(particles)).
+    Vec3 lo = proxyMin, hi = proxyMax;
+    if (!cloth->isAsleep()) sweptBounds(dt, lo, hi);
     if ((lo.array() < proxyMin.array()).any() || (hi.array() > proxyMax.array()).any()) {
         setProxyBounds(lo, hi);
         CollectObjects collect;
@@ -448,6 +457,34 @@ void BulletCloth::Impl::gatherBodies(double dt) {
         bodies.push_back(b);
     }
     last.candidateBodies = bodies.size();
+}
+
+void BulletCloth::Impl::wakeForBodies(double dt) {
+    Cloth& c = *cloth;
+    // Body motion that wakes the cloth: what would carry a point farther than sleep.distance
+    // within the quiet time (a mean speed of distance / time).
+    const auto& sl = c.settings().sleep;
+    const double tol = sl.distance / std::max(sl.time, dt);
+    bool wakeUp = c.isAsleep() && bodies.size() != lastPoses.size();
+    for (std::size_t k = 0; k < bodies.size() && c.isAsleep() && !wakeUp; ++k) {
+        const BodySnapshot& b = bodies[k];
+        const auto was = std::find_if(lastPoses.begin(), lastPoses.end(),
+                                      [&](const auto& p) { return p.first == b.object; });
+        if (was == lastPoses.end()) {
+            wakeUp = true; // a new candidate
+            break;
+        }
+        const Pose& pose = was->second;
+        // Turning is measured at the body's extent (its AABB's half diagonal; an infinite
+        // plane turns only when its pose changes at all).
+        const double radius = 0.5 * (b.aabbMax - b.aabbMin).norm();
+        const double turn = (b.pose.R - pose.R).cwiseAbs().maxCoeff();
+        wakeUp = (b.pose.t - pose.t).norm() > tol * dt || (turn > 0.0 && !(turn * radius <= tol * dt)) ||
+                 b.v.norm() > tol || (b.w.norm() > 0.0 && !(b.w.norm() * radius <= tol));
+    }
+    if (wakeUp) c.wake();
+    lastPoses.resize(bodies.size());
+    for (std::size_t k = 0; k < bodies.size(); ++k) lastPoses[k] = {bodies[k].object, bodies[k].pose};
 }
 
 inline void BulletCloth::Impl::updateBox(std::size_t i, const Vec3& xi, const Vec3& from,
@@ -877,8 +914,9 @@ void BulletCloth::Impl::step(double dt) {
     }
     if (settings.useWorldGravity) { // follow the world's gravity if the user changes it
         const Vec3 g = toVec(world->getGravity());
-        if (g != c.settings().gravity) c.setGravity(g);
+        if (g != c.settings().gravity) c.setGravity(g); // wakes the cloth
     }
+    wakeForBodies(dt); // a moving attachment body wakes it through its kinematic path
     const double h = dt / settings.substeps;
     struct InStep {
         bool& flag;
@@ -888,10 +926,14 @@ void BulletCloth::Impl::step(double dt) {
         InStep& operator=(const InStep&) = delete;
     } guard(inStep);
     double bodySeconds = std::chrono::duration<double>(Clock::now() - start).count();
+    bool slept = true; // every sub-step was taken asleep
     for (int s = 0; s < settings.substeps; ++s) {
+        const bool wasAsleep = c.isAsleep();
         c.step(h);
-        const auto afterStep = Clock::now();
         ++last.steps;
+        if (wasAsleep && c.isAsleep()) continue; // nothing moved, nothing to hand to bodies
+        slept = false;
+        const auto afterStep = Clock::now();
         // The eq. (7) force the particles got at the end of this step acts for h; the body
         // gets the opposite. It also bounds the friction of the next step.
         lastSupport.assign(c.particleCount(), 0.0);
@@ -937,6 +979,7 @@ void BulletCloth::Impl::step(double dt) {
         if (!b.dynamicBody) continue;
         if (b.linearImpulse.squaredNorm() == 0.0 && b.angularImpulse.squaredNorm() == 0.0) continue;
         btRigidBody* rb = b.dynamicBody;
+        if (rb->isActive()) c.wake(); // it carries or pushes a body: no sleep (see the header)
         // A sleeping body is not woken by nudges below its sleeping threshold.
         const double dv = b.linearImpulse.norm() * b.invMass;
         if (!rb->isActive() && dv < double(rb->getLinearSleepingThreshold())) continue;
@@ -944,7 +987,7 @@ void BulletCloth::Impl::step(double dt) {
         rb->applyTorqueImpulse(toBt(b.angularImpulse));
         rb->activate();
     }
-    updateBounds(dt);
+    if (!slept) updateBounds(dt);
     bodySeconds += std::chrono::duration<double>(Clock::now() - afterSteps).count();
     c.timers().add(slotBodies, bodySeconds);
     total.candidateBodies += last.candidateBodies;
@@ -987,6 +1030,11 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
         m.margin = sum / count + 4.0 * h;
     }
     if (settings.useWorldGravity) m.cloth->setGravity(toVec(world->getGravity()));
+    if (settings.sleep && !m.cloth->settings().sleep.enabled) {
+        SleepSettings sleep = m.cloth->settings().sleep;
+        sleep.enabled = true;
+        m.cloth->setSleep(sleep);
+    }
 
     m.slotStageLimiter = m.cloth->timers().slot("bullet_contacts/limiter");
     m.slotBodies = m.cloth->timers().slot("bullet_bodies");

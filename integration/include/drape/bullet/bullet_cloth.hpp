@@ -19,6 +19,13 @@
 //    dynamic bodies exchange equal and opposite impulses with them (two-way coupling).
 //  - Bodies are snapshotted (transform, velocities, inverse mass and inertia) before the cloth
 //    step; the impulses the cloth gave them are applied after it.
+//  - Sleeping (BulletClothSettings::sleep, on by default): a cloth at rest falls asleep as
+//    Cloth::isAsleep() describes and then costs a broadphase-overlap scan per sub-step. It
+//    wakes before it steps when a candidate body (a broadphase overlap of its proxy) is new,
+//    has left, moves faster than v = sleep.distance / sleep.time (1 mm/s by default) or
+//    has moved or turned by more than v times the step since the last sub-step; when an attachment's body moves; when the
+//    world's gravity changes. It stays awake while it pushes an active dynamic body (a body
+//    resting on a sleeping cloth would lose its support).
 //
 // Units are the world's (metres, kilograms, seconds when the scene is in SI). Bullet is
 // single precision; drape is double precision; values are converted at this boundary.
@@ -80,6 +87,9 @@ struct BulletClothSettings {
     /// Broadphase filter group and mask of the cloth's proxy (Bullet's collision filtering).
     int collisionGroup = 1;  ///< btBroadphaseProxy::DefaultFilter
     int collisionMask = -1;  ///< btBroadphaseProxy::AllFilter
+    /// Turn the cloth's sleeping on when it is added (with the thresholds of its
+    /// ClothSettings::sleep); false leaves the cloth's own setting.
+    bool sleep = true;
 };
 
 /// Work done in the last Bullet sub-step (all cloth sub-steps summed). Counts, not times, so

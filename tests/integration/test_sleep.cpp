@@ -1,0 +1,120 @@
+// Sleeping in a Bullet world: a cloth resting on a box falls asleep and then costs no contact
+// work; a ball dropped on it wakes it and the cloth gives under it; a hanging cloth wakes
+// when the body it hangs from moves, and when the world's gravity changes.
+#include "world_fixture.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+using namespace drape;
+using namespace drape::testing;
+
+namespace {
+
+constexpr double kStep = 1.0 / 240.0;
+
+ClothSettings smallCloth() {
+    ClothSettings s;
+    s.particleMass = 0.002;
+    s.springStiffness = 10.0;
+    s.damping = 0.01; // C_d / m = 5 /s
+    return s;
+}
+
+void run(TestWorld& w, int steps) {
+    for (int s = 0; s < steps; ++s) w.world.stepSimulation(btScalar(kStep), 1, btScalar(kStep));
+}
+
+/// Steps until the cloth sleeps (at most 10 s of world time); returns whether it does.
+bool runUntilAsleep(TestWorld& w, const Cloth& c) {
+    for (int s = 0; s < 10 * 240 && !c.isAsleep(); ++s) run(w, 1);
+    return c.isAsleep();
+}
+
+std::uint64_t integrations(const Cloth& c) {
+    const PhaseTimer* t = c.timers().find("integrate");
+    return t ? t->calls : 0;
+}
+
+double maxMove(const Vec3List& a, const Vec3List& b) {
+    double m = 0.0;
+    for (std::size_t i = 0; i < a.size(); ++i) m = std::max(m, (a[i] - b[i]).norm());
+    return m;
+}
+
+} // namespace
+
+TEST_CASE("a cloth resting on a box sleeps, and a ball dropped on it wakes it", "[world][sleep]") {
+    TestWorld w;
+    w.body(w.shape<btBoxShape>(btVector3(0.3f, 0.1f, 0.3f)), 0.0, Vec3(0, 0, 0)); // top at 0.1
+    auto cloth = makeCloth(horizontalSheet(9, 9, 0.05, 0.13), smallCloth());
+    auto& handle = w.add(cloth);
+    REQUIRE(cloth->settings().sleep.enabled); // drape::bullet turns it on
+    REQUIRE(runUntilAsleep(w, *cloth));
+
+    // Asleep: frozen, and no cloth step, contact query or body impulse is made.
+    const Vec3List frozen = cloth->positions();
+    const auto calls = integrations(*cloth);
+    const auto queries = handle.totalStats().narrowphaseQueries;
+    run(w, 240);
+    CHECK(cloth->isAsleep());
+    CHECK(cloth->positions() == frozen);
+    CHECK(integrations(*cloth) == calls);
+    CHECK(handle.totalStats().narrowphaseQueries == queries);
+    CHECK(cloth->sleptSteps() >= 240);
+
+    // A ball falls onto the middle of the sheet: it becomes a candidate, moving, and wakes it.
+    const double radius = 0.05;
+    btRigidBody* ball = w.body(w.shape<btSphereShape>(btScalar(radius)), 0.05, Vec3(0, 0.4, 0));
+    bool woke = false;
+    for (int s = 0; s < 2 * 240; ++s) {
+        run(w, 1);
+        woke = woke || !cloth->isAsleep();
+    }
+    CHECK(woke);
+    // The ball lies on the cloth over the box (not through it; it may roll on the sheet's
+    // triangulation), and the cloth gave under it.
+    const Vec3 p = eig(ball->getCenterOfMassPosition());
+    CHECK(p.y() > 0.1 + radius);
+    CHECK(p.y() < 0.1 + radius + 0.03);
+    CHECK(std::abs(p.x()) < 0.25);
+    CHECK(std::abs(p.z()) < 0.25);
+    CHECK(maxMove(cloth->positions(), frozen) > 1e-3);
+    // While the cloth carries the active ball it stays awake.
+    CHECK_FALSE(cloth->isAsleep());
+}
+
+TEST_CASE("a hanging cloth sleeps and wakes when its body moves or gravity changes", "[world][sleep]") {
+    TestWorld w;
+    btRigidBody* bar = w.kinematic(w.shape<btBoxShape>(btVector3(0.3f, 0.02f, 0.02f)), Vec3(0, 1.0, 0));
+    auto cloth = makeCloth(horizontalSheet(7, 7, 0.05, 0.97), smallCloth());
+    auto& handle = w.add(cloth);
+    handle.attachHere(0, bar);
+    handle.attachHere(6, bar);
+    REQUIRE(runUntilAsleep(w, *cloth));
+    const Vec3List frozen = cloth->positions();
+    run(w, 120);
+    REQUIRE(cloth->isAsleep());
+
+    // The bar slides 5 cm along x over a quarter second: the cloth wakes and follows.
+    for (int s = 1; s <= 60; ++s) {
+        btTransform t = bar->getWorldTransform();
+        t.setOrigin(btVector3(btScalar(0.05 * s / 60.0), 1.0f, 0.0f));
+        bar->getMotionState()->setWorldTransform(t);
+        run(w, 1);
+        if (s == 1) CHECK_FALSE(cloth->isAsleep());
+    }
+    CHECK_FALSE(cloth->isAsleep());
+    CHECK(cloth->positions()[0].x() - frozen[0].x() == Approx(0.05).margin(1e-4));
+    CHECK(cloth->positions()[48].x() - frozen[48].x() > 0.01);
+
+    // It settles again, and a change of the world's gravity wakes it.
+    REQUIRE(runUntilAsleep(w, *cloth));
+    w.world.setGravity(btVector3(2.0f, -9.81f, 0.0f));
+    run(w, 1);
+    CHECK_FALSE(cloth->isAsleep());
+    const Vec3List before = cloth->positions();
+    run(w, 120);
+    CHECK(cloth->positions()[48].x() - before[48].x() > 0.005);
+}
