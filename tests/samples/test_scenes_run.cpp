@@ -7,8 +7,10 @@
 
 #include <catch2/catch.hpp>
 
+#include <cctype>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 using namespace drape;
@@ -325,4 +327,96 @@ TEST_CASE("two runs of a scene end in the same state hash (printed in the summar
     }
     CHECK(hashes[0] != 0);
     CHECK(hashes[0] == hashes[1]);
+}
+
+namespace {
+
+/// True when a text file holds "inf" or "nan" as a word (any case).
+bool holdsNonFinite(const fs::path& file) {
+    std::ifstream in(file);
+    std::string word;
+    while (in >> word) {
+        for (char& c : word)
+            c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        for (const char* bad : {"inf", "nan"}) {
+            std::size_t at = 0;
+            while ((at = word.find(bad, at)) != std::string::npos) {
+                const bool leftOk = at == 0 || !std::isalpha(static_cast<unsigned char>(word[at - 1]));
+                const std::size_t end = at + 3;
+                const bool rightOk =
+                    end >= word.size() || !std::isalpha(static_cast<unsigned char>(word[end])) ||
+                    word.compare(at, 8, "infinity") == 0;
+                if (leftOk && rightOk) return true;
+                ++at;
+            }
+        }
+    }
+    return false;
+}
+
+} // namespace
+
+TEST_CASE("statistics that are not finite stop the run with the value named", "[scenes][overflow]") {
+    using Catch::Matchers::Contains;
+    const SceneDesc scene = parseScene(R"({
+      "cloth": {"sheet": {"rows": 3, "cols": 3, "spacing": 0.1}, "particle_mass": 0.01,
+                "stiffness": 20.0}})",
+                                       "overflow.json", kScenes);
+    {
+        Simulation sim(scene);
+        sim.cloth().setVelocity(4, Vec3(1e200, 0.0, 0.0)); // finite, but m v^2 / 2 is not
+        CHECK_THROWS_AS(sim.stats(), StepError);
+        CHECK_THROWS_WITH(sim.stats(), Contains("step 0 (t = 0 s): the kinetic energy is inf; "
+                                                "the simulation overflowed"));
+    }
+    {
+        Simulation sim(scene);
+        sim.cloth().setPosition(2, Vec3(0.0, -1e39, 0.0)); // a double, not a float
+        CHECK_THROWS_WITH(sim.stats(),
+                          Contains("particle 2 is at (0, -1e+39, 0) m, beyond the range of the "
+                                   "single-precision output"));
+    }
+    {
+        Simulation sim(scene);
+        sim.cloth().mutableVelocities()[1].y() = std::numeric_limits<double>::infinity();
+        CHECK_THROWS_WITH(sim.stats(), Contains("the velocity of particle 1 is not finite"));
+    }
+    Simulation sim(scene);
+    CHECK_NOTHROW(sim.stats());
+}
+
+TEST_CASE("a run whose state overflows fails (StepError) and writes no inf or nan",
+          "[scenes][runner][overflow]") {
+    RunOptions o;
+    o.scene = fs::path(DRAPE_TEST_DATA_DIR) / "bad_blow_up.json";
+    o.outDir = fs::path(DRAPE_TEST_OUT_DIR) / "run_blow_up";
+    fs::remove_all(o.outDir);
+    o.render = false;
+    o.video = false;
+    for (const double fps : {25.0, 100.0}) {
+        INFO("fps " << fps);
+        o.fps = fps;
+        std::ostringstream log;
+        CHECK_THROWS_AS(runScene(o, log), StepError);
+        REQUIRE(fs::exists(o.outDir / "stats.csv")); // the rows before the failure
+        for (const auto& e : fs::recursive_directory_iterator(o.outDir)) {
+            INFO(e.path());
+            CHECK_FALSE(holdsNonFinite(e.path()));
+        }
+        CHECK_FALSE(fs::exists(o.outDir / "summary.txt"));
+        CHECK_FALSE(fs::exists(o.outDir / "cloth_final.obj"));
+    }
+}
+
+TEST_CASE("export refuses vertices beyond single precision", "[mesh][overflow]") {
+    if (!meshIoAvailable()) return;
+    TriangleMesh m;
+    m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1e300, 0)};
+    m.triangles = {Triangle{0, 1, 2}};
+    const fs::path file = fs::path(DRAPE_TEST_OUT_DIR) / "overflow.obj";
+    fs::remove(file);
+    CHECK_THROWS_WITH(exportMesh(m, file),
+                      Catch::Matchers::Contains("overflow.obj: vertex 2 is not finite or beyond the "
+                                                "single-precision range"));
+    CHECK_FALSE(fs::exists(file));
 }

@@ -8,6 +8,7 @@
 #include <cctype>
 #include <cmath>
 #include <fstream>
+#include <limits>
 
 #if DRAPE_SAMPLES_HAVE_ASSIMP
 #include <assimp/Exporter.hpp>
@@ -247,6 +248,12 @@ void exportMesh(const TriangleMesh& mesh, const std::filesystem::path& file) {
         meshFail(file,
                  "unknown mesh format \"" + ext + "\" for export (use .obj, .ply, .gltf or .glb)");
     if (mesh.vertices.empty() || mesh.triangles.empty()) meshFail(file, "nothing to export");
+    // The file stores single precision: a vertex beyond its range would be written as inf.
+    constexpr double kFloatMax = static_cast<double>(std::numeric_limits<float>::max());
+    for (std::size_t i = 0; i < mesh.vertices.size(); ++i)
+        if (!(mesh.vertices[i].cwiseAbs().maxCoeff() <= kFloatMax))
+            meshFail(file, "vertex " + std::to_string(i) + " is not finite or beyond the "
+                           "single-precision range of the file; nothing written");
 
     // Area-weighted vertex normals, so that other tools shade the mesh smoothly.
     std::vector<Vec3> normals(mesh.vertices.size(), Vec3::Zero());

@@ -229,6 +229,7 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
     }
 
     const bool writeObj = scene.output.obj && meshIoAvailable();
+    (void)sim.stats(); // the final state (throws StepError if anything is non-finite)
     if (writeObj) exportMesh(sim.clothMesh(), options.outDir / "cloth_final.obj");
 
     if (render && options.video && scene.output.video) {
@@ -252,6 +253,24 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
     r.wallSeconds = seconds(start, Clock::now());
     r.stateHash = drape::stateHash(cloth);
 
+    // The summary's numbers: the state was checked at the last frame, these are checked
+    // again here so that no inf or nan reaches summary.txt whatever their source.
+    const double meanStepMs = 1000.0 * r.stepWallSeconds / static_cast<double>(r.steps);
+    const double realTimeFactor = r.simulatedSeconds / std::max(r.stepWallSeconds, 1e-12);
+    const double finalEnergy = cloth.kineticEnergy();
+    const std::pair<const char*, double> summaryValues[] = {
+        {"the simulated time", r.simulatedSeconds},
+        {"the largest strain (final)", r.finalMaxStrain},
+        {"the largest strain (peak)", r.peakMaxStrain},
+        {"the final kinetic energy", finalEnergy},
+        {"the mean step time", meanStepMs},
+        {"the real-time factor", realTimeFactor}};
+    for (const auto& [name, value] : summaryValues)
+        if (!std::isfinite(value))
+            throw StepError(scene.sourceFile.string() + ": " + name + " is " +
+                            std::to_string(value) +
+                            "; the simulation overflowed, and nothing non-finite is written");
+
     std::ostringstream sum;
     sum << std::setprecision(6);
     sum << "scene               " << scene.name << "\n"
@@ -269,10 +288,8 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
         << "simulated time      " << r.simulatedSeconds << " s\n"
         << "wall time           " << r.wallSeconds << " s (stepping " << r.stepWallSeconds
         << " s, rendering " << r.renderWallSeconds << " s)\n"
-        << "mean step           " << 1000.0 * r.stepWallSeconds / static_cast<double>(r.steps)
-        << " ms\n"
-        << "real-time factor    " << r.simulatedSeconds / std::max(r.stepWallSeconds, 1e-12)
-        << "x (stepping only)\n"
+        << "mean step           " << meanStepMs << " ms\n"
+        << "real-time factor    " << realTimeFactor << "x (stepping only)\n"
         << "max strain (final)  " << r.finalMaxStrain << "\n"
         << "max strain (peak)   " << r.peakMaxStrain << " (over the frames)\n"
         << "limiter cap hits    " << cloth.limiterCapHits()
@@ -282,7 +299,7 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
                       std::to_string(cloth.settings().limiter.maxRounds) +
                       "): the strain bound was not promised in them")
         << "\n"
-        << "kinetic energy      " << cloth.kineticEnergy() << " J (final)\n"
+        << "kinetic energy      " << finalEnergy << " J (final)\n"
         << "state hash          " << [&] {
                char buf[32];
                std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(r.stateHash));

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 namespace drape::samples {
@@ -17,6 +18,12 @@ namespace drape::samples {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+
+std::string num(double x) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.6g", x);
+    return buf;
+}
 
 std::string origin(const SceneDesc& s) {
     return s.sourceFile.empty() ? std::string("scene") : s.sourceFile.string();
@@ -210,6 +217,14 @@ std::size_t Simulation::contactCount() const {
     return world_ ? world_->contactCount() : 0;
 }
 
+void Simulation::overflow(const std::string& what) const {
+    throw StepError(origin(scene_) + ": step " + std::to_string(steps_) + " (t = " +
+                    num(time()) + " s): " + what +
+                    "; the simulation overflowed (the state grew without bound: a time step "
+                    "beyond the stability limit, or forces far too large), and nothing "
+                    "non-finite is written");
+}
+
 FrameStats Simulation::stats() const {
     FrameStats s;
     s.time = time();
@@ -217,11 +232,29 @@ FrameStats Simulation::stats() const {
     s.maxStrain = cloth_->maxStrain();
     s.meanStrain = cloth_->meanStrain();
     s.kineticEnergy = cloth_->kineticEnergy();
+    // Every value written (CSV, summary, OBJ in single precision, frames) must be finite:
+    // positions within float range, velocities and statistics finite.
+    constexpr double kFloatMax = static_cast<double>(std::numeric_limits<float>::max());
     double lowest = std::numeric_limits<double>::infinity();
-    for (const Vec3& x : cloth_->positions())
-        lowest = std::min(lowest, x.dot(up_));
+    const Vec3List& x = cloth_->positions();
+    const Vec3List& v = cloth_->velocities();
+    for (std::size_t i = 0; i < x.size(); ++i) {
+        if (!(x[i].cwiseAbs().maxCoeff() <= kFloatMax))
+            overflow("particle " + std::to_string(i) + " is at (" + num(x[i].x()) + ", " +
+                     num(x[i].y()) + ", " + num(x[i].z()) +
+                     ") m, beyond the range of the single-precision output");
+        if (!v[i].allFinite())
+            overflow("the velocity of particle " + std::to_string(i) + " is not finite");
+        lowest = std::min(lowest, x[i].dot(up_));
+    }
     s.lowestPoint = lowest;
     s.contacts = contactCount();
+    const std::pair<const char*, double> values[] = {{"the kinetic energy", s.kineticEnergy},
+                                                     {"the largest strain", s.maxStrain},
+                                                     {"the mean strain", s.meanStrain},
+                                                     {"the lowest point", s.lowestPoint}};
+    for (const auto& [name, value] : values)
+        if (!std::isfinite(value)) overflow(std::string(name) + " is " + num(value));
     return s;
 }
 

@@ -60,6 +60,9 @@ class Simulation {
     const std::vector<std::vector<Index>>& pinnedParticles() const { return pinSets_; }
     const std::vector<std::vector<Index>>& attachedParticles() const { return attachSets_; }
 
+    /// The statistics of the current state. Throws StepError (naming the value, the step and
+    /// the time) when a statistic is not finite, a velocity is not finite or a particle lies
+    /// beyond single-precision range: nothing a run writes can then be inf or nan.
     FrameStats stats() const;
     std::size_t contactCount() const;
 
@@ -88,6 +91,7 @@ class Simulation {
 
   private:
     [[noreturn]] void fail(const std::string& path, const std::string& what) const;
+    [[noreturn]] void overflow(const std::string& what) const;
     std::vector<Index> resolve(const ParticleSelector& sel,
                                const std::vector<Index>& vertexToParticle,
                                const std::map<std::string, std::vector<Index>>& groups) const;
