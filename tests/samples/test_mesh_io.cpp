@@ -4,8 +4,16 @@
 
 #include <catch2/catch.hpp>
 
+#include <chrono>
+#include <cstring>
+#include <fcntl.h>
 #include <filesystem>
 #include <fstream>
+#include <future>
+#include <memory>
+#include <sys/stat.h>
+#include <thread>
+#include <unistd.h>
 
 using namespace drape;
 using namespace drape::samples;
@@ -166,4 +174,209 @@ TEST_CASE("broken or missing mesh files are named with what is wrong", "[mesh][e
                       Contains("unknown mesh format \".docx\" for export"));
     CHECK_THROWS_WITH(exportMesh(testMesh(), "/nonexistent-folder/x.obj"),
                       Contains("x.obj: assimp cannot write it"));
+}
+
+namespace {
+
+/// Runs importMesh on another thread and waits at most `seconds`. A FIFO that the import
+/// blocks on is then opened for writing and closed (which releases a blocked reader), so a
+/// failing test ends instead of hanging the suite.
+struct BoundedImport {
+    bool finished = false;
+    std::string error;
+    ImportedMesh mesh;
+};
+BoundedImport importWithin(const fs::path& file, double seconds, const fs::path& fifo) {
+    auto result = std::make_shared<BoundedImport>();
+    auto done = std::make_shared<std::promise<void>>();
+    std::future<void> ready = done->get_future();
+    std::thread worker([file, result, done] {
+        try {
+            result->mesh = importMesh(file);
+        } catch (const std::exception& e) {
+            result->error = e.what();
+        }
+        done->set_value();
+    });
+    const bool inTime =
+        ready.wait_for(std::chrono::duration<double>(seconds)) == std::future_status::ready;
+    if (!inTime) {
+        const int fd = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
+        if (fd >= 0) ::close(fd);
+    }
+    worker.join();
+    BoundedImport out = *result;
+    out.finished = inTime;
+    return out;
+}
+
+fs::path makeFifo(const fs::path& path) {
+    fs::remove(path);
+    REQUIRE(::mkfifo(path.c_str(), 0600) == 0);
+    return path;
+}
+
+std::string importError(const fs::path& file) {
+    try {
+        importMesh(file);
+    } catch (const SceneError& e) {
+        return e.what();
+    }
+    FAIL("accepted: " << file);
+    return {};
+}
+
+void writeBytes(const fs::path& p, const std::string& bytes) {
+    std::ofstream f(p, std::ios::binary);
+    f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+std::string le32(std::uint32_t v) {
+    std::string s(4, '\0');
+    for (int i = 0; i < 4; ++i)
+        s[static_cast<std::size_t>(i)] = static_cast<char>((v >> (8 * i)) & 0xFFu);
+    return s;
+}
+
+std::string floats(std::initializer_list<float> values) {
+    std::string s;
+    for (float f : values) {
+        char b[4];
+        std::memcpy(b, &f, 4);
+        s.append(b, 4);
+    }
+    return s;
+}
+
+} // namespace
+
+TEST_CASE("an OBJ whose material library is a FIFO loads in bounded time, with a warning",
+          "[mesh][hostile][io]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "fifo";
+    fs::create_directories(dir);
+    const fs::path fifo = makeFifo(dir / "materials.mtl");
+    writeText(dir / "fifo_mtl.obj", "mtllib materials.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
+                                    "usemtl cloth\nf 1 2 3\nf 2 4 3\n");
+    const BoundedImport r = importWithin(dir / "fifo_mtl.obj", 30.0, fifo);
+    REQUIRE(r.finished); // assimp's own IO system blocks in open() forever here
+    INFO(r.error);
+    REQUIRE(r.error.empty());
+    CHECK(r.mesh.mesh.triangles.size() == 2);
+    REQUIRE(r.mesh.warnings.size() == 1);
+    CHECK_THAT(r.mesh.warnings[0], Contains("fifo_mtl.obj: did not open") &&
+                                       Contains("materials.mtl, which it names: not a regular "
+                                                "file (a FIFO); read without it"));
+
+    // The mesh file itself a FIFO: refused at once.
+    const fs::path fifoMesh = makeFifo(dir / "mesh_fifo.obj");
+    const BoundedImport m = importWithin(fifoMesh, 30.0, fifoMesh);
+    REQUIRE(m.finished);
+    CHECK_THAT(m.error, Contains("mesh_fifo.obj: cannot read: not a regular file (a FIFO)"));
+
+    // A glTF whose buffer is a FIFO: refused, the FIFO named.
+    const fs::path fifoBin = makeFifo(dir / "buffer.bin");
+    writeText(dir / "fifo_buffer.gltf",
+              R"({"asset": {"version": "2.0"}, "buffers": [{"byteLength": 36, "uri": "buffer.bin"}],
+                  "bufferViews": [{"buffer": 0, "byteLength": 36}],
+                  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                                 "min": [0, 0, 0], "max": [1, 1, 0]}],
+                  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+                  "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0})");
+    const BoundedImport g = importWithin(dir / "fifo_buffer.gltf", 30.0, fifoBin);
+    REQUIRE(g.finished);
+    CHECK_THAT(g.error, Contains("fifo_buffer.gltf: assimp cannot read it: ") &&
+                            Contains("buffer.bin: not a regular file (a FIFO)"));
+}
+
+TEST_CASE("files a mesh names that are devices or folders are not read", "[mesh][hostile][io]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "devices";
+    fs::create_directories(dir);
+    // /dev/zero never ends: a material library read from it would exhaust memory.
+    fs::remove(dir / "zero.mtl");
+    fs::create_symlink("/dev/zero", dir / "zero.mtl");
+    writeText(dir / "zero_mtl.obj", "mtllib zero.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    ImportedMesh m = importMesh(dir / "zero_mtl.obj");
+    CHECK(m.mesh.triangles.size() == 1);
+    REQUIRE(m.warnings.size() == 1);
+    CHECK_THAT(m.warnings[0], Contains("zero.mtl, which it names: not a regular file (a character "
+                                       "device)"));
+    fs::create_directories(dir / "folder.mtl");
+    writeText(dir / "folder_mtl.obj", "mtllib folder.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    m = importMesh(dir / "folder_mtl.obj");
+    REQUIRE(m.warnings.size() == 1);
+    CHECK_THAT(m.warnings[0], Contains("folder.mtl, which it names: not a regular file (a folder)"));
+    // A plain mesh has no warnings.
+    writeText(dir / "plain.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    CHECK(importMesh(dir / "plain.obj").warnings.empty());
+}
+
+TEST_CASE("header counts larger than the file can hold are refused, naming the count",
+          "[mesh][hostile][counts]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "counts";
+    fs::create_directories(dir);
+    // Binary STL: 80-byte header, a triangle count, 50 bytes per triangle.
+    const std::string facet = floats({0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0}) + std::string(2, '\0');
+    writeBytes(dir / "huge.stl", std::string(80, ' ') + le32(4000000000u) + facet + facet);
+    CHECK_THAT(importError(dir / "huge.stl"),
+               Contains("huge.stl: binary STL header claims 4000000000 triangles, which need "
+                        "200000000084 bytes (84 + 50 per triangle), but the file has only 184 bytes"));
+    writeBytes(dir / "three.stl", std::string(80, ' ') + le32(3u) + facet + facet);
+    CHECK_THAT(importError(dir / "three.stl"),
+               Contains("binary STL header claims 3 triangles, which need 234 bytes"));
+    const std::string facet2 =
+        floats({0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 0}) + std::string(2, '\0');
+    writeBytes(dir / "two.stl", std::string(80, ' ') + le32(2u) + facet + facet2);
+    const ImportedMesh two = importMesh(dir / "two.stl");
+    CHECK(two.mesh.triangles.size() == 2);
+    CHECK(two.mesh.vertices.size() == 4);
+
+    // ASCII PLY with billions of vertices in a few bytes.
+    writeText(dir / "huge_ascii.ply",
+              "ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\n"
+              "property float y\nproperty float z\nelement face 1\n"
+              "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    CHECK_THAT(importError(dir / "huge_ascii.ply"),
+               Contains("huge_ascii.ply: PLY header claims 4000000000 \"vertex\" elements, at least "
+                        "6 bytes each, but the file has only 26 bytes after its header"));
+    // Binary PLY: the face count is the hostile one.
+    writeBytes(dir / "huge_binary.ply",
+               "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+               "property float y\nproperty float z\nelement face 3000000000\n"
+               "property list uchar int vertex_indices\nend_header\n" +
+                   floats({0, 0, 0, 1, 0, 0, 0, 1, 0}) + std::string(1, '\3') + le32(0) +
+                   le32(1) + le32(2));
+    CHECK_THAT(importError(dir / "huge_binary.ply"),
+               Contains("PLY header claims 3000000000 \"face\" elements, at least 1 byte each"));
+    // A count beyond 64 bits is named as written.
+    writeText(dir / "digits.ply", "ply\nformat ascii 1.0\nelement vertex 123456789012345678901234\n"
+                                  "property float x\nend_header\n0\n");
+    CHECK_THAT(importError(dir / "digits.ply"),
+               Contains("PLY header claims 123456789012345678901234 \"vertex\" elements"));
+    // OFF.
+    writeText(dir / "huge.off", "OFF\n3 4000000000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    CHECK_THAT(importError(dir / "huge.off"),
+               Contains("huge.off: OFF header claims 3 vertices and 4000000000 faces, which need at "
+                        "least 8000000017 bytes, but the file has only 45 bytes"));
+    // Collada arrays.
+    writeText(dir / "huge.dae",
+              R"(<?xml version="1.0"?><COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1"><library_geometries><geometry id="g"><mesh>
+<source id="p"><float_array id="pa" count="3000000000">0 0 0 1 0 0 0 1 0</float_array></source>
+</mesh></geometry></library_geometries></COLLADA>)");
+    CHECK_THAT(importError(dir / "huge.dae"),
+               Contains("huge.dae: Collada <float_array> claims count=\"3000000000\", more items "
+                        "than the file"));
+    // Honest headers still load.
+    writeText(dir / "fine.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    CHECK(importMesh(dir / "fine.off").mesh.triangles.size() == 1);
+    writeText(dir / "fine.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                                "property float y\nproperty float z\nelement face 1\n"
+                                "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n"
+                                "0 1 0\n3 0 1 2\n");
+    CHECK(importMesh(dir / "fine.ply").mesh.triangles.size() == 1);
 }

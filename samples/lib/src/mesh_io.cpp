@@ -5,12 +5,20 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <fstream>
+#include <iterator>
 #include <limits>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #if DRAPE_SAMPLES_HAVE_ASSIMP
+#include "assimp_io.hpp"
+
 #include <assimp/Exporter.hpp>
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
@@ -56,6 +64,9 @@ bool meshIoAvailable() {
 
 namespace {
 
+constexpr std::uint64_t kMaxMeshFileBytes = 512u * 1024u * 1024u;
+constexpr std::uint64_t kMaxImportBytes = 2048ull * 1024u * 1024u;
+
 std::string lowerExtension(const std::filesystem::path& file) {
     std::string ext = file.extension().string();
     for (char& ch : ext)
@@ -80,6 +91,193 @@ bool isPlyWithoutEndHeader(const std::filesystem::path& file) {
             return false;
     }
     return true;
+}
+
+/// A count from a file header, as written (digits only), and its value (saturated).
+struct Count {
+    std::string text;
+    std::uint64_t value = 0;
+};
+
+bool parseCount(const std::string& token, Count& out) {
+    if (token.empty() || token.find_first_not_of("0123456789") != std::string::npos) return false;
+    out.text = token;
+    out.value = 0;
+    for (char c : token) {
+        const auto d = static_cast<std::uint64_t>(c - '0');
+        out.value = out.value > (UINT64_MAX - d) / 10 ? UINT64_MAX : out.value * 10 + d;
+    }
+    return true;
+}
+
+std::string bytesText(std::uint64_t n) {
+    return std::to_string(n) + (n == 1 ? " byte" : " bytes");
+}
+
+/// Header counts larger than the file can hold: assimp allocates what a header claims before
+/// it reads the data (a binary STL's triangle count, a PLY element count, an OFF vertex
+/// count), so a 200-byte file claiming billions of vertices ends in std::bad_alloc or in
+/// gigabytes of memory. Each count is checked against the least the file needs to hold it.
+void checkHeaderCounts(const std::filesystem::path& file, const std::string& ext,
+                       std::uint64_t size) {
+    std::ifstream in(file, std::ios::binary);
+    if (ext == ".stl") {
+        char head[84];
+        if (!in.read(head, sizeof head)) return; // assimp refuses files this short
+        std::size_t i = 0;
+        while (i < 80 && std::isspace(static_cast<unsigned char>(head[i])))
+            ++i;
+        if (std::string(head + i, std::min<std::size_t>(5, 80 - i)) == "solid") return; // ASCII
+        const std::uint64_t count = static_cast<std::uint64_t>(static_cast<unsigned char>(head[80])) |
+                                    static_cast<std::uint64_t>(static_cast<unsigned char>(head[81])) << 8 |
+                                    static_cast<std::uint64_t>(static_cast<unsigned char>(head[82])) << 16 |
+                                    static_cast<std::uint64_t>(static_cast<unsigned char>(head[83])) << 24;
+        const std::uint64_t need = 84 + 50 * count;
+        if (need > size)
+            meshFail(file, "binary STL header claims " + std::to_string(count) +
+                               " triangles, which need " + bytesText(need) +
+                               " (84 + 50 per triangle), but the file has only " + bytesText(size));
+        return;
+    }
+    if (ext == ".ply") {
+        std::string line;
+        if (!std::getline(in, line) || line.compare(0, 3, "ply") != 0) return;
+        bool binary = false;
+        struct Element {
+            std::string name;
+            Count count;
+            std::uint64_t minBytes = 0; // per element
+            bool known = true;          // every property type was understood
+        };
+        std::vector<Element> elements;
+        auto typeSize = [](const std::string& t) -> std::uint64_t {
+            if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
+            if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
+            if (t == "int" || t == "uint" || t == "int32" || t == "uint32" || t == "float" ||
+                t == "float32")
+                return 4;
+            if (t == "double" || t == "float64") return 8;
+            return 0;
+        };
+        bool ended = false;
+        while (std::getline(in, line)) {
+            std::istringstream ss(line);
+            std::string word;
+            ss >> word;
+            if (word == "end_header") {
+                ended = true;
+                break;
+            }
+            if (word == "format") {
+                std::string f;
+                ss >> f;
+                binary = f.rfind("binary", 0) == 0;
+            } else if (word == "element") {
+                Element e;
+                std::string n;
+                ss >> e.name >> n;
+                if (!parseCount(n, e.count)) return; // assimp refuses it itself
+                elements.push_back(e);
+            } else if (word == "property" && !elements.empty()) {
+                Element& e = elements.back();
+                std::string type;
+                ss >> type;
+                if (type == "list") {
+                    std::string countType;
+                    ss >> countType;
+                    const std::uint64_t c = typeSize(countType);
+                    e.known = e.known && c > 0;
+                    e.minBytes += binary ? c : 2; // an empty list: just its count
+                } else {
+                    const std::uint64_t t = typeSize(type);
+                    e.known = e.known && t > 0;
+                    e.minBytes += binary ? t : 2; // ASCII: a digit and a separator
+                }
+            }
+        }
+        if (!ended) return;
+        const auto header = static_cast<std::uint64_t>(in.tellg());
+        const std::uint64_t body = size > header ? size - header : 0;
+        // ASCII: the last value needs no separator after it.
+        std::uint64_t left = binary ? body : body + 1;
+        for (const Element& e : elements) {
+            if (!e.known) return; // assimp refuses unknown property types itself
+            const std::uint64_t per = std::max<std::uint64_t>(1, e.minBytes);
+            if (e.count.value > left / per)
+                meshFail(file, "PLY header claims " + e.count.text + " \"" + e.name +
+                                   "\" elements, at least " + bytesText(per) +
+                                   " each, but the file has only " + bytesText(body) +
+                                   " after its header");
+            left -= e.count.value * per;
+        }
+        return;
+    }
+    if (ext == ".dae") {
+        // Collada: count="N" of arrays, accessors and primitives counts items written in the
+        // file itself, at least a byte each.
+        const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+        const std::string key = "count=\"";
+        for (std::size_t at = text.find(key); at != std::string::npos; at = text.find(key, at + 1)) {
+            if (at == 0 || !std::isspace(static_cast<unsigned char>(text[at - 1]))) continue;
+            const std::size_t start = at + key.size();
+            const std::size_t end = text.find('"', start);
+            Count c;
+            if (end == std::string::npos || !parseCount(text.substr(start, end - start), c) ||
+                c.value <= size)
+                continue;
+            const std::size_t open = text.rfind('<', at);
+            std::size_t nameEnd = open == std::string::npos ? open : open + 1;
+            while (nameEnd < at && !std::isspace(static_cast<unsigned char>(text[nameEnd])))
+                ++nameEnd;
+            const std::string element =
+                open == std::string::npos ? std::string("an element")
+                                          : "<" + text.substr(open + 1, nameEnd - open - 1) + ">";
+            meshFail(file, "Collada " + element + " claims count=\"" + c.text +
+                               "\", more items than the file (" + bytesText(size) + ") can hold");
+        }
+        return;
+    }
+    if (ext == ".off") {
+        // [ST][C][N][4][n]OFF [dim] nv nf ne, '#' comments; assimp reads 32-bit counts.
+        std::string token;
+        std::vector<std::string> tokens;
+        std::string line;
+        while (tokens.size() < 5 && std::getline(in, line)) {
+            const std::size_t hash = line.find('#');
+            std::istringstream ss(line.substr(0, hash));
+            while (ss >> token)
+                tokens.push_back(token);
+        }
+        if (tokens.empty()) return;
+        std::size_t at = 0;
+        std::uint64_t dims = 3;
+        const std::string& keyword = tokens[0];
+        if (keyword.size() >= 3 && keyword.compare(keyword.size() - 3, 3, "OFF") == 0) {
+            ++at;
+            if (keyword.find('n') != std::string::npos) {
+                Count d;
+                if (at >= tokens.size() || !parseCount(tokens[at], d)) return;
+                dims = std::max<std::uint64_t>(1, std::min<std::uint64_t>(d.value, 3));
+                ++at;
+            }
+        }
+        Count nv, nf;
+        if (at + 1 >= tokens.size() || !parseCount(tokens[at], nv) || !parseCount(tokens[at + 1], nf))
+            return;
+        // A vertex is at least dims numbers of one digit and their separators; a face at
+        // least a number and a line break.
+        auto times = [](std::uint64_t n, std::uint64_t k) {
+            return n > UINT64_MAX / k ? UINT64_MAX : n * k;
+        };
+        const std::uint64_t vertexBytes = times(nv.value, 2 * dims);
+        const std::uint64_t faceBytes = times(nf.value, 2);
+        const std::uint64_t need =
+            vertexBytes > UINT64_MAX - faceBytes ? UINT64_MAX : vertexBytes + faceBytes;
+        if (need > size + 1)
+            meshFail(file, "OFF header claims " + nv.text + " vertices and " + nf.text +
+                               " faces, which need at least " + bytesText(need - 1) +
+                               ", but the file has only " + bytesText(size));
+    }
 }
 
 struct RawMesh {
@@ -141,20 +339,49 @@ ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance)
     std::error_code ec;
     if (!std::filesystem::exists(file, ec)) meshFail(file, "mesh file not found");
     if (std::filesystem::is_directory(file, ec)) meshFail(file, "is a folder, not a mesh file");
-    const auto size = std::filesystem::file_size(file, ec);
-    if (ec) meshFail(file, "cannot read: " + ec.message());
+    std::uint64_t size = 0;
+    const std::string notRegular = detail::describeNonRegular(file.string(), size);
+    if (!notRegular.empty()) meshFail(file, "cannot read: " + notRegular);
     if (size == 0) meshFail(file, "mesh file is empty");
-    if (size > 512u * 1024u * 1024u) meshFail(file, "mesh file larger than 512 MiB");
+    if (size > kMaxMeshFileBytes) meshFail(file, "mesh file larger than 512 MiB");
 
     if (isPlyWithoutEndHeader(file))
         meshFail(file, "PLY header has no end_header line (the file is truncated or not PLY)");
+    checkHeaderCounts(file, lowerExtension(file), size);
 
     Assimp::Importer importer;
+    // Every file assimp opens (the mesh file, material libraries, buffers, textures) goes
+    // through drape's IO system: regular files only, none beyond 512 MiB, 1 GiB in all. The
+    // importer owns it; `io` stays valid while the importer lives.
+    auto* io = new detail::GuardedIOSystem(kMaxMeshFileBytes, kMaxImportBytes);
+    importer.SetIOHandler(io);
+    auto refusedFiles = [&] {
+        std::string list;
+        for (const auto& r : io->refusals())
+            list += (list.empty() ? "" : "; ") + r.file + ": " + r.reason;
+        return list;
+    };
     // Points and lines stay in their meshes (they are skipped below) so that the order of
     // first use of every vertex is the file's order.
     const aiScene* scene = importer.ReadFile(file.string(), aiProcess_ValidateDataStructure);
-    if (!scene || !scene->mRootNode)
-        meshFail(file, std::string("assimp cannot read it: ") + importer.GetErrorString());
+    if (io->budgetExceeded())
+        meshFail(file, "reading it and the files it names took more than " +
+                           std::to_string(kMaxImportBytes >> 20) + " MiB");
+    if (!scene || !scene->mRootNode) {
+        std::string why = importer.GetErrorString();
+        // assimp turns an allocation failure into its error string.
+        if (why.find("bad_alloc") != std::string::npos ||
+            why.find("length_error") != std::string::npos)
+            why = "it runs out of memory (" + why +
+                  "): a count in the file is larger than the file can hold";
+        const std::string refused = refusedFiles();
+        meshFail(file, "assimp cannot read it: " + why +
+                           (refused.empty() ? std::string() : " (refused to open " + refused + ")"));
+    }
+    ImportedMesh out;
+    for (const auto& r : io->refusals())
+        out.warnings.push_back(file.string() + ": did not open " + r.file +
+                               ", which it names: " + r.reason + "; read without it");
     // assimp 5.2's triangulation asserts (aborts the process) on a mesh that declares polygons
     // but has none, which some malformed files produce (a PLY polygon whose indices are out of
     // range is dropped after the mesh was marked): check before triangulating.
@@ -202,7 +429,6 @@ ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance)
         for (Index i : t)
             used[i] = 1;
     std::vector<Index> compact(used.size(), Index(-1));
-    ImportedMesh out;
     for (std::size_t i = 0; i < used.size(); ++i)
         if (used[i]) {
             compact[i] = static_cast<Index>(out.mesh.vertices.size());

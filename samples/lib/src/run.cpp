@@ -146,6 +146,13 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
     Simulation sim(scene);
     const Cloth& cloth = sim.cloth();
     RunResult r;
+    r.warnings = sim.warnings();
+    for (const std::string& w : r.warnings) {
+        if (options.warn)
+            options.warn(w);
+        else
+            log << "warning: " << w << "\n";
+    }
     r.particles = cloth.particleCount();
     r.springs = cloth.topology().springCount();
     log << "scene    " << scene.name << (scene.description.empty() ? "" : ": " + scene.description)
@@ -314,6 +321,8 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
         sum << "final mesh          none (built without assimp)\n";
     if (scene.output.csv)
         sum << "statistics          " << (options.outDir / "stats.csv").string() << "\n";
+    for (const std::string& w : r.warnings)
+        sum << "warning             " << w << "\n";
     sum << "phases (wall time):\n";
     for (const auto& t : cloth.timers().all())
         if (t.calls)

@@ -29,7 +29,8 @@ std::string origin(const SceneDesc& s) {
     return s.sourceFile.empty() ? std::string("scene") : s.sourceFile.string();
 }
 
-std::vector<DrawMesh> shapeMeshes(const RigidBodyDesc& b, const Vec3& around, double planeSize) {
+std::vector<DrawMesh> shapeMeshes(const RigidBodyDesc& b, const Vec3& around, double planeSize,
+                                  std::vector<std::string>& warnings) {
     DrawMesh m;
     switch (b.shape.kind) {
     case ShapeKind::Box:
@@ -46,6 +47,7 @@ std::vector<DrawMesh> shapeMeshes(const RigidBodyDesc& b, const Vec3& around, do
         return makePlaneMeshes(b.shape.normal, b.shape.offset, around, planeSize, b.color);
     case ShapeKind::Mesh: {
         ImportedMesh im = importMesh(b.shape.mesh);
+        warnings.insert(warnings.end(), im.warnings.begin(), im.warnings.end());
         m = toDrawMesh(im.mesh.vertices, im.mesh.triangles, b.color, b.color);
         break;
     }
@@ -67,6 +69,7 @@ Simulation::Simulation(const SceneDesc& scene) : scene_(scene) {
         }
     } else {
         ImportedMesh im = importMesh(*scene_.mesh); // SceneError names the file
+        warnings_ = std::move(im.warnings);
         mesh = std::move(im.mesh);
         groups = std::move(im.groups);
     }
@@ -121,7 +124,7 @@ Simulation::Simulation(const SceneDesc& scene) : scene_(scene) {
     const double planeSize =
         4.0 * std::max((hi - lo).norm(), (scene_.camera.position - centre).norm());
     for (const RigidBodyDesc& b : scene_.rigidBodies)
-        bodyMeshes_.push_back(shapeMeshes(b, centre, planeSize));
+        bodyMeshes_.push_back(shapeMeshes(b, centre, planeSize, warnings_));
     if (scene_.needsBullet()) world_ = RigidWorld::create(scene_, *cloth_, attachSets_);
     applyWind();
 }

@@ -23,6 +23,9 @@ struct ImportedMesh {
     std::map<std::string, std::vector<Index>> groups; ///< group name -> welded vertex indices
     std::size_t rawVertexCount = 0;                   ///< vertices before welding
     std::size_t skippedPrimitives = 0;                ///< points and lines ignored
+    /// What was read but not used, or not read, each a sentence naming the file (files the
+    /// mesh names that were refused, degenerate triangles dropped...). drape-run prints them.
+    std::vector<std::string> warnings;
 };
 
 /// Whether this build reads and writes mesh files (DRAPE_WITH_ASSIMP).

@@ -84,6 +84,10 @@ class Simulation {
     /// Per-phase timing of the cloth (see drape::PhaseTimers).
     const PhaseTimers& timers() const { return cloth_->timers(); }
 
+    /// What building the scene noticed but did not refuse (mesh files: dropped degenerate
+    /// triangles, files a mesh names that were not opened...), one sentence each.
+    const std::vector<std::string>& warnings() const { return warnings_; }
+
     /// A one-line name of what runs besides the cloth (e.g. "bullet: 2 bodies").
     std::string worldDescription() const;
 
@@ -105,6 +109,7 @@ class Simulation {
     std::vector<std::vector<DrawMesh>> bodyMeshes_;
     std::uint64_t steps_ = 0;
     Vec3 up_ = Vec3::UnitY();
+    std::vector<std::string> warnings_;
 };
 
 } // namespace drape::samples
