@@ -1,6 +1,9 @@
 // Mesh I/O through assimp: export then import gives back the same vertices (in the same
 // order) and triangles; duplicates are welded; groups are found; broken files are named.
 #include "drape_samples/mesh_io.hpp"
+#include "drape_samples/simulation.hpp"
+
+#include <drape/topology.hpp>
 
 #include <catch2/catch.hpp>
 
@@ -379,4 +382,133 @@ TEST_CASE("header counts larger than the file can hold are refused, naming the c
                                 "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n"
                                 "0 1 0\n3 0 1 2\n");
     CHECK(importMesh(dir / "fine.ply").mesh.triangles.size() == 1);
+}
+
+namespace {
+
+/// A 3 x 3 grid of vertices (8 triangles, faces 0-7) in an OBJ group "sheet", then `extra`.
+std::string gridObj(const std::string& extraVertices, const std::string& extraFaces) {
+    std::string s = "o sheet\n";
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+            s += "v " + std::to_string(c) + " " + std::to_string(r) + " 0\n";
+    s += extraVertices;
+    for (int r = 0; r < 2; ++r)
+        for (int c = 0; c < 2; ++c) {
+            const int a = 1 + r * 3 + c, b = a + 1, d = a + 3, e = d + 1;
+            s += "f " + std::to_string(a) + " " + std::to_string(b) + " " + std::to_string(e) + "\n";
+            s += "f " + std::to_string(a) + " " + std::to_string(e) + " " + std::to_string(d) + "\n";
+        }
+    return s + extraFaces;
+}
+
+} // namespace
+
+TEST_CASE("degenerate and duplicate triangles are dropped with a warning saying how many and where",
+          "[mesh][degenerate]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "degenerate";
+    fs::create_directories(dir);
+    // Vertices 10-13: a copy of vertex 1's position (exact: assimp's FindDegenerates finds the
+    // triangle using it), a point 1e-13 m from vertex 2 (welded: drape finds that one), a
+    // vertex on the line through vertices 1 and 2 (no area), and a vertex no face uses
+    // (assimp's OBJ reader never passes that one on).
+    const std::string extraV = "v 0 0 0\nv 1.0000000000001 0 0\nv 3 0 0\nv 5 5 5\n";
+    // Faces 8-11: collapsed exactly, collapsed by welding, zero area, and face 0 again with
+    // the other winding (a duplicate).
+    const std::string extraF = "f 1 10 5\nf 2 11 6\nf 1 2 12\nf 1 5 2\n";
+    writeText(dir / "few_collapsed.obj", gridObj(extraV, extraF));
+    const ImportedMesh m = importMesh(dir / "few_collapsed.obj");
+    CHECK(m.mesh.triangles.size() == 8);
+    CHECK(m.mesh.vertices.size() == 9);
+    CHECK(m.droppedDegenerate == 3);
+    CHECK(m.droppedDuplicates == 1);
+    CHECK(m.droppedVertices == 1); // (3, 0, 0), whose only triangle was dropped
+    REQUIRE(m.warnings.size() == 1);
+    INFO(m.warnings[0]);
+    CHECK_THAT(m.warnings[0],
+               Contains("few_collapsed.obj: dropped 3 degenerate triangles (two corners at one "
+                        "point, or no area: mesh \"sheet\" faces 8, 9, 10), 1 duplicate triangle "
+                        "(the same three corners as an earlier one: mesh \"sheet\" face 11), 1 "
+                        "vertex no triangle uses; 8 of 12 triangles kept"));
+    // What is left builds a cloth (ClothTopology::build refuses all four).
+    CHECK_NOTHROW(ClothTopology::build(m.mesh));
+
+    // The scene option refuses instead, with the same count and places.
+    MeshImportOptions refuse;
+    refuse.refuseDegenerate = true;
+    CHECK_THROWS_WITH(importMesh(dir / "few_collapsed.obj", refuse),
+                      Contains("few_collapsed.obj: has 3 degenerate triangles") &&
+                          Contains("mesh \"sheet\" faces 8, 9, 10") &&
+                          Contains("refused (mesh.degenerate_triangles is \"refuse\""));
+
+    // A clean mesh: no warning, and the refuse option accepts it.
+    writeText(dir / "clean.obj", gridObj("", ""));
+    CHECK(importMesh(dir / "clean.obj").warnings.empty());
+    CHECK(importMesh(dir / "clean.obj", refuse).mesh.triangles.size() == 8);
+
+    // Nothing usable left: an error, not an empty cloth.
+    writeText(dir / "all_collapsed.obj", "v 0 0 0\nv 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 1 3 4\n");
+    CHECK_THROWS_WITH(importMesh(dir / "all_collapsed.obj"),
+                      Contains("all_collapsed.obj: contains no usable triangle: all 2 are "
+                               "degenerate or duplicates"));
+    // A mesh whose vertices all sit at one point (assimp's FindInvalidData deletes it).
+    writeText(dir / "one_point.obj", gridObj("", "") + "o blob\nv 7 7 7\nv 7 7 7\nv 7 7 7\n"
+                                                       "f 10 11 12\n");
+    const ImportedMesh blob = importMesh(dir / "one_point.obj");
+    CHECK(blob.mesh.triangles.size() == 8);
+    REQUIRE(blob.warnings.size() == 1);
+    CHECK_THAT(blob.warnings[0], Contains("1 degenerate triangle") && Contains("mesh \"blob\""));
+}
+
+TEST_CASE("a binary STL with a few collapsed facets loads, as assimp's spider does",
+          "[mesh][degenerate]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "degenerate";
+    fs::create_directories(dir);
+    auto facet = [](std::initializer_list<float> corners) {
+        std::string f = floats({0, 0, 1});
+        f += floats(corners);
+        return f + std::string(2, '\0');
+    };
+    std::string body;
+    // A strip of 6 good triangles, then 2 facets with a corner repeated.
+    for (int i = 0; i < 3; ++i) {
+        const auto x = static_cast<float>(i);
+        body += facet({x, 0, 0, x + 1, 0, 0, x + 1, 1, 0});
+        body += facet({x, 0, 0, x + 1, 1, 0, x, 1, 0});
+    }
+    body += facet({0, 0, 0, 0, 0, 0, 1, 1, 0});
+    body += facet({2, 1, 0, 3, 1, 0, 3, 1, 0});
+    writeBytes(dir / "collapsed.stl", std::string(80, ' ') + le32(8) + body);
+    const ImportedMesh m = importMesh(dir / "collapsed.stl");
+    CHECK(m.mesh.triangles.size() == 6);
+    CHECK(m.droppedDegenerate == 2);
+    REQUIRE(m.warnings.size() == 1);
+    CHECK_THAT(m.warnings[0], Contains("collapsed.stl: dropped 2 degenerate triangles") &&
+                                  Contains("faces 6, 7") &&
+                                  Contains("6 of 8 triangles kept"));
+}
+
+TEST_CASE("a scene's mesh with degenerate triangles runs, or is refused when asked",
+          "[mesh][degenerate][scenes]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "degenerate";
+    fs::create_directories(dir);
+    writeText(dir / "scene_mesh.obj", gridObj("v 0 0 0\n", "f 1 10 5\nf 1 2 5\n"));
+    const std::string cloth = R"({"cloth": {"mesh": {"file": "scene_mesh.obj", "scale": 0.1)";
+    const std::string rest = R"(}, "total_mass": 0.1, "stiffness": 5.0},
+                                 "simulation": {"time_step": 0.001, "duration": 0.01}})";
+    Simulation sim(parseScene(cloth + rest, "degenerate.json", dir));
+    CHECK(sim.cloth().topology().triangleCount() == 8);
+    REQUIRE(sim.warnings().size() == 1);
+    CHECK_THAT(sim.warnings()[0], Contains("dropped 1 degenerate triangle") &&
+                                      Contains("1 duplicate triangle"));
+    sim.step();
+    CHECK_THROWS_WITH(Simulation(parseScene(cloth + R"(, "degenerate_triangles": "refuse")" + rest,
+                                            "degenerate.json", dir)),
+                      Contains("scene_mesh.obj: has 1 degenerate triangle"));
 }

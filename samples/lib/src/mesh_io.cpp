@@ -2,6 +2,7 @@
 #include "drape_samples/mesh_io.hpp"
 
 #include <drape/error.hpp>
+#include <drape/topology.hpp>
 
 #include <Eigen/Geometry>
 
@@ -9,6 +10,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <fstream>
 #include <iterator>
 #include <limits>
@@ -51,9 +53,20 @@ void transformMesh(TriangleMesh& mesh, const Vec3& scale, const Vec3& rotationDe
 }
 
 ImportedMesh importMesh(const MeshDesc& desc) {
-    ImportedMesh m = importMesh(desc.file, desc.weldTolerance);
-    transformMesh(m.mesh, desc.scale, desc.rotationDeg, desc.translation);
-    return m;
+    MeshImportOptions o;
+    o.weldTolerance = desc.weldTolerance;
+    o.refuseDegenerate = desc.refuseDegenerate;
+    o.transform = true;
+    o.scale = desc.scale;
+    o.rotationDeg = desc.rotationDeg;
+    o.translation = desc.translation;
+    return importMesh(desc.file, o);
+}
+
+ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance) {
+    MeshImportOptions o;
+    o.weldTolerance = weldTolerance;
+    return importMesh(file, o);
 }
 
 #if DRAPE_SAMPLES_HAVE_ASSIMP
@@ -283,15 +296,24 @@ void checkHeaderCounts(const std::filesystem::path& file, const std::string& ext
 struct RawMesh {
     TriangleMesh mesh;
     std::map<std::string, std::vector<Index>> rawGroups; // raw vertex indices
-    std::size_t skipped = 0;
+    std::size_t skipped = 0;                             // the file's points and lines
+    // Where each triangle comes from: the scene's mesh and its face (after triangulation).
+    std::vector<std::pair<unsigned, unsigned>> origin;
+    // Triangles FindDegenerates collapsed to lines or points, as (mesh, face).
+    std::vector<std::pair<unsigned, unsigned>> collapsed;
 };
 
+/// Faces of each mesh that were triangles before FindDegenerates ran, to tell a triangle it
+/// collapsed (to a line or a point) from the file's own lines and points.
+using TriangleMasks = std::map<const aiMesh*, std::vector<unsigned char>>;
+
 void gather(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent, RawMesh& out,
-            const std::filesystem::path& file) {
+            const TriangleMasks& wasTriangle, const std::filesystem::path& file) {
     const aiMatrix4x4 world = parent * node.mTransformation;
     for (unsigned k = 0; k < node.mNumMeshes; ++k) {
         if (node.mMeshes[k] >= scene.mNumMeshes) meshFail(file, "node refers to a missing mesh");
-        const aiMesh& m = *scene.mMeshes[node.mMeshes[k]];
+        const unsigned meshIndex = node.mMeshes[k];
+        const aiMesh& m = *scene.mMeshes[meshIndex];
         const std::size_t base = out.mesh.vertices.size();
         if (base + m.mNumVertices > kMaxSceneParticles * 8)
             meshFail(file, "too many vertices (limit " + std::to_string(kMaxSceneParticles * 8) +
@@ -304,10 +326,16 @@ void gather(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent,
                                    "\" is not finite");
             out.mesh.vertices.push_back(v);
         }
+        const auto mask = wasTriangle.find(&m);
         for (unsigned f = 0; f < m.mNumFaces; ++f) {
             const aiFace& face = m.mFaces[f];
             if (face.mNumIndices != 3) {
-                ++out.skipped;
+                const bool collapsed = mask != wasTriangle.end() && f < mask->second.size() &&
+                                       mask->second[f];
+                if (collapsed)
+                    out.collapsed.emplace_back(meshIndex, f);
+                else
+                    ++out.skipped;
                 continue;
             }
             Triangle t{};
@@ -318,6 +346,7 @@ void gather(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent,
                 t[c] = static_cast<Index>(base + face.mIndices[c]);
             }
             out.mesh.triangles.push_back(t);
+            out.origin.emplace_back(meshIndex, f);
         }
         std::vector<Index> all(m.mNumVertices);
         for (unsigned i = 0; i < m.mNumVertices; ++i)
@@ -330,12 +359,36 @@ void gather(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent,
         }
     }
     for (unsigned c = 0; c < node.mNumChildren; ++c)
-        gather(scene, *node.mChildren[c], world, out, file);
+        gather(scene, *node.mChildren[c], world, out, wasTriangle, file);
+}
+
+/// "mesh \"body\" faces 3, 17, 40 and 5 more; mesh \"hat\" face 2": where the listed
+/// (mesh, face) pairs are, the first few of each mesh.
+std::string whereText(std::vector<std::pair<unsigned, unsigned>> faces,
+                      const std::vector<std::string>& meshNames) {
+    std::sort(faces.begin(), faces.end());
+    constexpr std::size_t kShown = 8;
+    std::string out;
+    for (std::size_t i = 0; i < faces.size();) {
+        const unsigned mesh = faces[i].first;
+        std::size_t j = i;
+        while (j < faces.size() && faces[j].first == mesh)
+            ++j;
+        const std::string& name = mesh < meshNames.size() ? meshNames[mesh] : std::string();
+        out += (out.empty() ? "" : "; ") +
+               (name.empty() ? "mesh " + std::to_string(mesh) : "mesh \"" + name + "\"") +
+               (j - i == 1 ? " face " : " faces ");
+        for (std::size_t k = i; k < j && k < i + kShown; ++k)
+            out += (k == i ? "" : ", ") + std::to_string(faces[k].second);
+        if (j - i > kShown) out += " and " + std::to_string(j - i - kShown) + " more";
+        i = j;
+    }
+    return out;
 }
 
 } // namespace
 
-ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance) {
+ImportedMesh importMesh(const std::filesystem::path& file, const MeshImportOptions& options) {
     std::error_code ec;
     if (!std::filesystem::exists(file, ec)) meshFail(file, "mesh file not found");
     if (std::filesystem::is_directory(file, ec)) meshFail(file, "is a folder, not a mesh file");
@@ -351,7 +404,7 @@ ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance)
 
     Assimp::Importer importer;
     // Every file assimp opens (the mesh file, material libraries, buffers, textures) goes
-    // through drape's IO system: regular files only, none beyond 512 MiB, 1 GiB in all. The
+    // through drape's IO system: regular files only, none beyond 512 MiB, 2 GiB in all. The
     // importer owns it; `io` stays valid while the importer lives.
     auto* io = new detail::GuardedIOSystem(kMaxMeshFileBytes, kMaxImportBytes);
     importer.SetIOHandler(io);
@@ -382,11 +435,19 @@ ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance)
     for (const auto& r : io->refusals())
         out.warnings.push_back(file.string() + ": did not open " + r.file +
                                ", which it names: " + r.reason + "; read without it");
-    // assimp 5.2's triangulation asserts (aborts the process) on a mesh that declares polygons
-    // but has none, which some malformed files produce (a PLY polygon whose indices are out of
-    // range is dropped after the mesh was marked): check before triangulating.
     for (unsigned i = 0; i < scene->mNumMeshes; ++i) {
         const aiMesh& m = *scene->mMeshes[i];
+        // Non-finite positions are named here: FindInvalidData (below) would delete the
+        // whole mesh for one of them.
+        for (unsigned v = 0; v < m.mNumVertices; ++v)
+            if (!std::isfinite(m.mVertices[v].x) || !std::isfinite(m.mVertices[v].y) ||
+                !std::isfinite(m.mVertices[v].z))
+                meshFail(file, "vertex " + std::to_string(v) + " of mesh \"" + m.mName.C_Str() +
+                                   "\" is not finite");
+        // assimp 5.2's triangulation asserts (aborts the process) on a mesh that declares
+        // polygons but has none, which some malformed files produce (a PLY polygon whose
+        // indices are out of range is dropped after the mesh was marked): check before
+        // triangulating.
         if (!(m.mPrimitiveTypes & aiPrimitiveType_POLYGON)) continue;
         bool polygon = false;
         for (unsigned f = 0; f < m.mNumFaces && !polygon; ++f) polygon = m.mFaces[f].mNumIndices > 3;
@@ -400,30 +461,108 @@ ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance)
     if (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE)
         meshFail(file, "assimp reports the file as incomplete");
 
+    // assimp's FindDegenerates turns a triangle with two corners at one position into a line
+    // or a point (it keeps every face where it is: AI_CONFIG_PP_FD_REMOVE off, and no
+    // absolute area test, which would drop real millimetre triangles); FindInvalidData
+    // deletes a mesh whose used vertices all sit at one point. Both are reported below.
+    TriangleMasks wasTriangle;
+    std::vector<std::string> meshNames(scene->mNumMeshes);
+    std::vector<std::pair<const aiMesh*, std::size_t>> meshTriangles; // before the steps
+    for (unsigned i = 0; i < scene->mNumMeshes; ++i) {
+        const aiMesh* m = scene->mMeshes[i];
+        auto& mask = wasTriangle[m];
+        mask.resize(m->mNumFaces);
+        std::size_t triangles = 0;
+        for (unsigned f = 0; f < m->mNumFaces; ++f) {
+            mask[f] = m->mFaces[f].mNumIndices == 3;
+            triangles += mask[f];
+        }
+        meshNames[i] = m->mName.C_Str();
+        meshTriangles.emplace_back(m, triangles);
+    }
+    importer.SetPropertyInteger(AI_CONFIG_PP_FD_REMOVE, 0);
+    importer.SetPropertyInteger(AI_CONFIG_PP_FD_CHECKAREA, 0);
+    scene = importer.ApplyPostProcessing(aiProcess_FindDegenerates | aiProcess_FindInvalidData);
+    if (!scene || !scene->mRootNode) {
+        const std::string why = importer.GetErrorString();
+        if (why.find("No meshes remaining") != std::string::npos)
+            meshFail(file, "contains no usable triangle: in every mesh all vertices sit at one "
+                           "point");
+        meshFail(file, "assimp cannot check it for degenerate triangles: " + why);
+    }
+    // Meshes FindInvalidData deleted (their pointers are gone from the scene).
+    std::size_t collapsedMeshTriangles = 0;
+    std::string collapsedMeshes;
+    for (std::size_t i = 0; i < meshTriangles.size(); ++i) {
+        bool present = false;
+        for (unsigned j = 0; j < scene->mNumMeshes && !present; ++j)
+            present = scene->mMeshes[j] == meshTriangles[i].first;
+        if (present || meshTriangles[i].second == 0) continue;
+        collapsedMeshTriangles += meshTriangles[i].second;
+        collapsedMeshes += (collapsedMeshes.empty() ? "" : ", ") +
+                           (meshNames[i].empty() ? "mesh " + std::to_string(i)
+                                                 : "mesh \"" + meshNames[i] + "\"");
+    }
+    // Mesh indices changed if a mesh was deleted: name meshes by the scene as it is now.
+    std::vector<std::string> names(scene->mNumMeshes);
+    for (unsigned i = 0; i < scene->mNumMeshes; ++i)
+        names[i] = scene->mMeshes[i]->mName.C_Str();
+
     RawMesh raw;
-    gather(*scene, *scene->mRootNode, aiMatrix4x4(), raw, file);
-    if (raw.mesh.triangles.empty())
+    gather(*scene, *scene->mRootNode, aiMatrix4x4(), raw, wasTriangle, file);
+    const std::size_t fileTriangles =
+        raw.mesh.triangles.size() + raw.collapsed.size() + collapsedMeshTriangles;
+    if (fileTriangles == 0)
         meshFail(file,
                  "contains no triangles" +
                      (raw.skipped ? " (only " + std::to_string(raw.skipped) + " points or lines)"
                                   : std::string()));
 
-    double tol = weldTolerance;
-    if (tol < 0.0) {
-        Vec3 lo = raw.mesh.vertices[0], hi = lo;
-        for (const Vec3& v : raw.mesh.vertices) {
-            lo = lo.cwiseMin(v);
-            hi = hi.cwiseMax(v);
+    if (options.transform) {
+        transformMesh(raw.mesh, options.scale, options.rotationDeg, options.translation);
+        for (std::size_t i = 0; i < raw.mesh.vertices.size(); ++i) {
+            const Vec3& v = raw.mesh.vertices[i];
+            if (!(v.cwiseAbs().maxCoeff() <= kMaxCoordinate)) {
+                char buf[128];
+                std::snprintf(buf, sizeof buf, "(%g, %g, %g)", v.x(), v.y(), v.z());
+                meshFail(file, "vertex " + std::to_string(i) + " lands at " + buf +
+                                   " m after mesh.scale, rotation_deg and translation, outside "
+                                   "the [-1e+06, 1e+06] m coordinate range");
+            }
         }
-        tol = 1e-9 * (hi - lo).norm();
     }
+
+    // Welding and drape's own test: corners within the weld tolerance become one particle,
+    // so a triangle can collapse here too, or keep a near-zero area (validateMesh's test),
+    // or repeat another triangle's three particles.
+    UnusableTriangles unusable;
     WeldResult welded;
-    try {
-        welded = weldVertices(raw.mesh, tol);
-    } catch (const drape::Error& e) {
-        meshFail(file, e.what());
+    if (!raw.mesh.triangles.empty()) {
+        double tol = options.weldTolerance;
+        if (tol < 0.0) {
+            Vec3 lo = raw.mesh.vertices[0], hi = lo;
+            for (const Vec3& v : raw.mesh.vertices) {
+                lo = lo.cwiseMin(v);
+                hi = hi.cwiseMax(v);
+            }
+            tol = 1e-9 * (hi - lo).norm();
+        }
+        try {
+            welded = weldVertices(raw.mesh, tol);
+            unusable = dropUnusableTriangles(welded.mesh, TopologyOptions{}.minAreaRatio);
+        } catch (const drape::Error& e) {
+            meshFail(file, e.what());
+        }
     }
-    // Drop vertices no triangle uses (point clouds, helper vertices), keeping the order.
+    std::vector<std::pair<unsigned, unsigned>> degenerate = raw.collapsed, duplicate;
+    for (std::size_t t : unusable.degenerate)
+        degenerate.push_back(raw.origin[t]);
+    for (std::size_t t : unusable.duplicate)
+        duplicate.push_back(raw.origin[t]);
+    const std::size_t degenerateCount = degenerate.size() + collapsedMeshTriangles;
+
+    // Drop vertices no triangle uses (point clouds, helper vertices, corners of dropped
+    // triangles), keeping the order.
     std::vector<Index> used(welded.mesh.vertices.size(), 0);
     for (const Triangle& t : welded.mesh.triangles)
         for (Index i : t)
@@ -434,6 +573,39 @@ ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance)
             compact[i] = static_cast<Index>(out.mesh.vertices.size());
             out.mesh.vertices.push_back(welded.mesh.vertices[i]);
         }
+    // Vertices no kept triangle uses (after welding: a seam's copies count once).
+    const std::size_t isolated = welded.mesh.vertices.size() - out.mesh.vertices.size();
+
+    if (degenerateCount + duplicate.size() + isolated > 0) {
+        std::string what;
+        if (degenerateCount > 0) {
+            what += std::to_string(degenerateCount) + " degenerate triangle" +
+                    (degenerateCount == 1 ? "" : "s") + " (two corners at one point, or no area";
+            if (!degenerate.empty()) what += ": " + whereText(degenerate, names);
+            if (!collapsedMeshes.empty())
+                what += (degenerate.empty() ? ": " : "; ") + std::string("all of ") +
+                        collapsedMeshes + ", whose vertices all sit at one point";
+            what += ")";
+        }
+        if (!duplicate.empty())
+            what += (what.empty() ? "" : ", ") + std::to_string(duplicate.size()) +
+                    " duplicate triangle" + (duplicate.size() == 1 ? "" : "s") +
+                    " (the same three corners as an earlier one: " + whereText(duplicate, names) +
+                    ")";
+        if (isolated > 0)
+            what += (what.empty() ? "" : ", ") + std::to_string(isolated) + " vertex" +
+                    (isolated == 1 ? "" : "es") + " no triangle uses";
+        if (options.refuseDegenerate)
+            meshFail(file, "has " + what +
+                               "; refused (mesh.degenerate_triangles is \"refuse\"; \"drop\" "
+                               "drops them with a warning)");
+        if (out.mesh.vertices.empty() || welded.mesh.triangles.empty())
+            meshFail(file, "contains no usable triangle: all " + std::to_string(fileTriangles) +
+                               " are degenerate or duplicates (" + what + ")");
+        out.warnings.push_back(file.string() + ": dropped " + what + "; " +
+                               std::to_string(welded.mesh.triangles.size()) + " of " +
+                               std::to_string(fileTriangles) + " triangles kept");
+    }
     if (out.mesh.vertices.size() > kMaxSceneParticles)
         meshFail(file, std::to_string(out.mesh.vertices.size()) +
                            " vertices after welding exceeds the limit of " +
@@ -454,6 +626,9 @@ ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance)
     }
     out.rawVertexCount = raw.mesh.vertices.size();
     out.skippedPrimitives = raw.skipped;
+    out.droppedDegenerate = degenerateCount;
+    out.droppedDuplicates = duplicate.size();
+    out.droppedVertices = isolated;
     return out;
 }
 
@@ -546,7 +721,7 @@ bool meshIoAvailable() {
     return false;
 }
 
-ImportedMesh importMesh(const std::filesystem::path& file, double) {
+ImportedMesh importMesh(const std::filesystem::path& file, const MeshImportOptions&) {
     meshFail(file, "this build has no mesh import (configure with -DDRAPE_WITH_ASSIMP=ON)");
 }
 
