@@ -512,3 +512,23 @@ TEST_CASE("a scene's mesh with degenerate triangles runs, or is refused when ask
                                             "degenerate.json", dir)),
                       Contains("scene_mesh.obj: has 1 degenerate triangle"));
 }
+
+TEST_CASE("a mesh transform that puts a vertex outside the coordinate range is refused",
+          "[mesh][ranges]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "ranges";
+    fs::create_directories(dir);
+    writeText(dir / "ten.obj", "v 0 0 0\nv 10 0 0\nv 0 10 0\nf 1 2 3\n");
+    MeshDesc d;
+    d.file = dir / "ten.obj";
+    d.scale = Vec3::Constant(1e6); // in range, and so are the coordinates; the product is not
+    CHECK_THROWS_WITH(importMesh(d),
+                      Contains("ten.obj: vertex 1 lands at (1e+07, 0, 0) m after mesh.scale, "
+                               "rotation_deg and translation, outside the [-1e+06, 1e+06] m "
+                               "coordinate range"));
+    d.scale = Vec3::Constant(2.0);
+    d.translation = Vec3(0.0, 0.0, 5.0);
+    const ImportedMesh m = importMesh(d);
+    CHECK(m.mesh.vertices[1].isApprox(Vec3(20.0, 0.0, 5.0)));
+}

@@ -420,3 +420,92 @@ TEST_CASE("export refuses vertices beyond single precision", "[mesh][overflow]")
                                                 "single-precision range"));
     CHECK_FALSE(fs::exists(file));
 }
+
+TEST_CASE("simulation.substeps \"auto\" picks the sub-steps from the stability estimate",
+          "[scenes][substeps]") {
+    using Catch::Matchers::Contains;
+    // bad_unstable.json: k = 1e6 N/m on 1 g particles, dt = 0.01 s, far beyond the limit.
+    const std::string cloth = R"({"cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.1},
+                                            "particle_mass": 0.001, "stiffness": 1e6},
+                                  "pins": [{"grid": [[0, 0]]}],
+                                  "simulation": {"time_step": 0.01, "duration": 1.0)";
+    {
+        Simulation refused(parseScene(cloth + "}}", "stiff.json", kScenes));
+        CHECK(refused.substeps() == 1);
+        CHECK_THROWS_WITH(refused.step(), Contains("exceeds the stability limit") &&
+                                              Contains("set simulation.substeps to \"auto\""));
+    }
+    Simulation sim(parseScene(cloth + R"(, "substeps": "auto"}})", "stiff.json", kScenes));
+    const double limit = sim.cloth().stableTimeStep();
+    const int n = sim.substeps();
+    CHECK(n == static_cast<int>(std::ceil(0.01 / (kAutoSubstepMargin * limit))));
+    CHECK(0.01 / n <= kAutoSubstepMargin * limit);        // each sub-step is stable, with margin
+    CHECK(0.01 / (n - 1) > kAutoSubstepMargin * limit);   // and no more of them than needed
+    CHECK(n > 100);
+    for (int k = 0; k < 3; ++k)
+        sim.step();
+    CHECK(sim.cloth().stepCount() == 3u * static_cast<unsigned>(n));
+    CHECK(sim.time() == Approx(0.03));
+    CHECK(allFinite(sim.cloth().positions()));
+    CHECK_NOTHROW(sim.stats());
+
+    // A scene that is stable already keeps one step.
+    Simulation easy(parseScene(R"({"cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.1},
+                                             "particle_mass": 0.01, "stiffness": 5},
+                                   "simulation": {"substeps": "auto"}})",
+                               "easy.json", kScenes));
+    CHECK(easy.substeps() == 1);
+    // implicit Euler has no limit: one step.
+    Simulation implicit(parseScene(cloth + R"(, "substeps": "auto", "integrator": "implicit_euler"}})",
+                                   "implicit.json", kScenes));
+    CHECK(implicit.substeps() == 1);
+
+    // More than kMaxSubsteps needed: refused before the run, naming the field and the numbers.
+    CHECK_THROWS_WITH(
+        Simulation(parseScene(R"({"cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.1},
+                                            "particle_mass": 1e-9, "stiffness": 1e9},
+                                  "simulation": {"time_step": 1, "duration": 1, "substeps": "auto"}})",
+                              "hopeless.json", kScenes)),
+        Contains("simulation.substeps: \"auto\" would need 1.7") &&
+            Contains("more than the limit of 10000: lower simulation.time_step"));
+}
+
+TEST_CASE("an integer simulation.substeps steps the cloth that many times per step",
+          "[scenes][substeps]") {
+    const SceneDesc scene = parseScene(R"({"cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.1},
+                                                     "particle_mass": 0.01, "stiffness": 5},
+                                           "simulation": {"time_step": 0.01, "substeps": 4}})",
+                                       "four.json", kScenes);
+    Simulation sim(scene);
+    CHECK(sim.substeps() == 4);
+    sim.step();
+    CHECK(sim.cloth().stepCount() == 4);
+    CHECK(sim.cloth().time() == Approx(0.01));
+    // The same as stepping a cloth four times by dt / 4.
+    Simulation ref(parseScene(R"({"cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.1},
+                                            "particle_mass": 0.01, "stiffness": 5},
+                                  "simulation": {"time_step": 0.0025}})",
+                              "ref.json", kScenes));
+    for (int k = 0; k < 4; ++k)
+        ref.step();
+    CHECK(sim.cloth().positions() == ref.cloth().positions());
+}
+
+TEST_CASE("\"auto\" sub-steps in a scene with rigid bodies sub-step the cloth in the world",
+          "[scenes][substeps]") {
+    if (!rigidBodiesAvailable()) {
+        WARN("skipped: no Bullet integration");
+        return;
+    }
+    Simulation sim(parseScene(R"({"cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.1},
+                                            "particle_mass": 0.001, "stiffness": 1e5},
+                                  "simulation": {"time_step": 0.01, "duration": 1, "substeps": "auto"},
+                                  "rigid_bodies": [{"shape": {"type": "plane", "offset": -1}}]})",
+                              "world.json", kScenes));
+    const int n = sim.substeps();
+    CHECK(n > 1);
+    sim.step();
+    sim.step();
+    CHECK(sim.cloth().stepCount() == 2u * static_cast<unsigned>(n));
+    CHECK(allFinite(sim.cloth().positions()));
+}

@@ -165,7 +165,11 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
     log << "\n"
         << "run      " << toString(scene.cloth.integrator) << ", dt " << scene.timeStep << " s, "
         << scene.stepCount() << " steps (" << scene.duration << " s)"
-        << ", stable dt limit " << cloth.stableTimeStep() << " s\n";
+        << ", stable dt limit " << cloth.stableTimeStep() << " s";
+    if (sim.substeps() > 1 || scene.autoSubsteps)
+        log << ", " << sim.substeps() << " cloth sub-step" << (sim.substeps() == 1 ? "" : "s")
+            << " per step" << (scene.autoSubsteps ? " (auto)" : "");
+    log << "\n";
 
     std::unique_ptr<OffscreenRenderer> renderer;
     if (render)
@@ -291,6 +295,9 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
         sum << " (max strain " << scene.cloth.limiter.maxStrain << ")";
     sum << "\n"
         << "time step           " << scene.timeStep << " s\n"
+        << "cloth sub-steps     " << sim.substeps() << " per step"
+        << (scene.autoSubsteps ? " (auto, from the stable limit " : " (stable limit ")
+        << cloth.stableTimeStep() << " s)\n"
         << "steps               " << r.steps << "\n"
         << "simulated time      " << r.simulatedSeconds << " s\n"
         << "wall time           " << r.wallSeconds << " s (stepping " << r.stepWallSeconds

@@ -125,11 +125,30 @@ Simulation::Simulation(const SceneDesc& scene) : scene_(scene) {
         4.0 * std::max((hi - lo).norm(), (scene_.camera.position - centre).norm());
     for (const RigidBodyDesc& b : scene_.rigidBodies)
         bodyMeshes_.push_back(shapeMeshes(b, centre, planeSize, warnings_));
+    chooseSubsteps();
     if (scene_.needsBullet()) world_ = RigidWorld::create(scene_, *cloth_, attachSets_);
     applyWind();
 }
 
 Simulation::~Simulation() = default;
+
+void Simulation::chooseSubsteps() {
+    if (!scene_.autoSubsteps) return; // scene_.substeps as the file gave it
+    // The stability estimate with the pins in place (attachments, added with the world,
+    // only remove free particles, which never lowers the limit).
+    const double limit = cloth_->stableTimeStep();
+    const double dt = scene_.timeStep;
+    if (!(limit > 0.0)) fail("simulation.substeps", "\"auto\": no stable time step exists");
+    const double needed = std::ceil(dt / (kAutoSubstepMargin * limit));
+    if (!(needed <= static_cast<double>(kMaxSubsteps)))
+        fail("simulation.substeps",
+             "\"auto\" would need " + num(needed) + " sub-steps of the " + num(dt) +
+                 " s time step (the stable limit of " +
+                 std::string(toString(scene_.cloth.integrator)) + " for this cloth is " +
+                 num(limit) + " s), more than the limit of " + std::to_string(kMaxSubsteps) +
+                 ": lower simulation.time_step, or use implicit_euler");
+    scene_.substeps = std::max(1, static_cast<int>(needed));
+}
 
 void Simulation::fail(const std::string& path, const std::string& what) const {
     throw SceneError(origin(scene_) + ": " + path + ": " + what);
@@ -204,13 +223,21 @@ double Simulation::time() const {
 void Simulation::step() {
     const double dt = scene_.timeStep;
     try {
-        if (world_)
-            world_->step(time(), dt);
-        else
-            cloth_->step(dt);
+        if (world_) {
+            world_->step(time(), dt); // the world sub-steps the cloth (scene_.substeps)
+        } else {
+            const int n = scene_.substeps;
+            for (int k = 0; k < n; ++k)
+                cloth_->step(dt / n);
+        }
     } catch (const drape::Error& e) {
+        const bool unstable = e.code() == ErrorCode::UnstableTimeStep && !scene_.autoSubsteps;
         throw StepError(origin(scene_) + ": step " + std::to_string(steps_ + 1) +
-                        " (t = " + std::to_string(time()) + " s) failed: " + e.what());
+                        " (t = " + std::to_string(time()) + " s) failed: " + e.what() +
+                        (unstable ? std::string(" (or set simulation.substeps to \"auto\" to "
+                                                "choose the sub-steps from the stability "
+                                                "estimate)")
+                                  : std::string()));
     }
     ++steps_;
     applyWind();

@@ -35,6 +35,11 @@ struct BodyView {
     const std::vector<DrawMesh>* meshes = nullptr;           ///< in the local frame
 };
 
+/// simulation.substeps = "auto" keeps each cloth step at most this fraction of the
+/// stability estimate (the estimate is an upper bound on omega_max; the margin covers the
+/// contact and damping forces it leaves out).
+inline constexpr double kAutoSubstepMargin = 0.9;
+
 /// Whether this build can run scenes with rigid bodies (drape::bullet was available).
 bool rigidBodiesAvailable();
 
@@ -55,6 +60,9 @@ class Simulation {
     const Cloth& cloth() const { return *cloth_; }
     double time() const;
     std::uint64_t steps() const { return steps_; }
+    /// Cloth steps per scene step (simulation.substeps, or what "auto" chose: the fewest
+    /// that keep each at most kAutoSubstepMargin of the cloth's stable time step).
+    int substeps() const { return scene_.substeps; }
 
     /// Particles each pin and attachment entry selected (resolved from the scene).
     const std::vector<std::vector<Index>>& pinnedParticles() const { return pinSets_; }
@@ -96,6 +104,7 @@ class Simulation {
   private:
     [[noreturn]] void fail(const std::string& path, const std::string& what) const;
     [[noreturn]] void overflow(const std::string& what) const;
+    void chooseSubsteps();
     std::vector<Index> resolve(const ParticleSelector& sel,
                                const std::vector<Index>& vertexToParticle,
                                const std::map<std::string, std::vector<Index>>& groups) const;
