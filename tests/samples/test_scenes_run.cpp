@@ -197,6 +197,17 @@ TEST_CASE("overrides replace the scene's integrator, time step and length", "[sc
     RunOptions bad;
     bad.steps = 0;
     CHECK_THROWS_AS(applyOverrides(s, bad), SceneError);
+    // The command line's numbers have the scene file's ranges.
+    RunOptions hugeDt;
+    hugeDt.timeStep = 1e300;
+    CHECK_THROWS_WITH(applyOverrides(s, hugeDt), Catch::Matchers::Contains("--dt: must be in [1e-09, 10] s"));
+    RunOptions hugeSeconds;
+    hugeSeconds.seconds = 1e300;
+    CHECK_THROWS_WITH(applyOverrides(s, hugeSeconds),
+                      Catch::Matchers::Contains("--seconds: must be in (0, 1e+06] s"));
+    RunOptions tinyFps;
+    tinyFps.fps = 1e-300;
+    CHECK_THROWS_WITH(applyOverrides(s, tinyFps), Catch::Matchers::Contains("--fps: must be in"));
 }
 
 TEST_CASE("Experiment I: no spring at the suspension points stretches beyond the limit",

@@ -14,6 +14,7 @@ namespace drape::samples::detail {
 namespace {
 
 std::string mib(std::uint64_t bytes) {
+    if (bytes % (1024u * 1024u) != 0) return std::to_string(bytes) + " bytes";
     return std::to_string(bytes / (1024u * 1024u)) + " MiB";
 }
 
@@ -86,6 +87,8 @@ class GuardedStream final : public Assimp::IOStream {
     size_t Write(const void*, size_t, size_t) override { return 0; }
 
     aiReturn Seek(size_t offset, aiOrigin origin) override {
+        // As fseek: the offset is added to the origin (a negative offset arrives wrapped
+        // around, and wraps back here); the stream cannot move past the end.
         std::uint64_t base = 0;
         switch (origin) {
         case aiOrigin_SET:
@@ -95,15 +98,14 @@ class GuardedStream final : public Assimp::IOStream {
             base = pos_;
             break;
         case aiOrigin_END:
-            // assimp passes a positive offset back from the end.
-            if (offset > size_) return aiReturn_FAILURE;
-            pos_ = size_ - offset;
-            return aiReturn_SUCCESS;
+            base = size_;
+            break;
         default:
             return aiReturn_FAILURE;
         }
-        if (offset > size_ - base) return aiReturn_FAILURE;
-        pos_ = base + offset;
+        const std::uint64_t target = base + static_cast<std::uint64_t>(offset);
+        if (target > size_) return aiReturn_FAILURE;
+        pos_ = target;
         return aiReturn_SUCCESS;
     }
 

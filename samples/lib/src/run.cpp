@@ -23,6 +23,12 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+std::string num(double x) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", x);
+    return buf;
+}
+
 double seconds(Clock::time_point a, Clock::time_point b) {
     return std::chrono::duration<double>(b - a).count();
 }
@@ -83,6 +89,8 @@ void applyOverrides(SceneDesc& scene, const RunOptions& o) {
     if (o.timeStep) {
         if (!(*o.timeStep > 0.0) || !std::isfinite(*o.timeStep))
             throw SceneError("--dt: the time step must be a positive number of seconds");
+        if (!(*o.timeStep >= kMinTimeStep && *o.timeStep <= kMaxTimeStep))
+            throw SceneError("--dt: must be in [1e-09, 10] s, got " + num(*o.timeStep));
         scene.timeStep = *o.timeStep;
     }
     if (o.steps && o.seconds) throw SceneError("--steps and --seconds: give one, not both");
@@ -94,6 +102,8 @@ void applyOverrides(SceneDesc& scene, const RunOptions& o) {
     if (o.seconds) {
         if (!(*o.seconds > 0.0) || !std::isfinite(*o.seconds))
             throw SceneError("--seconds: must be a positive number of seconds");
+        if (*o.seconds > kMaxDuration)
+            throw SceneError("--seconds: must be in (0, 1e+06] s, got " + num(*o.seconds));
         scene.duration = *o.seconds;
     }
     if (scene.duration / scene.timeStep > static_cast<double>(kMaxSceneSteps))
@@ -102,6 +112,8 @@ void applyOverrides(SceneDesc& scene, const RunOptions& o) {
     if (scene.stepCount() == 0) throw SceneError(org + ": the run is shorter than one time step");
     if (o.fps) {
         if (!(*o.fps > 0.0) || !std::isfinite(*o.fps)) throw SceneError("--fps: must be positive");
+        if (!(*o.fps >= kMinFps && *o.fps <= kMaxFps))
+            throw SceneError("--fps: must be in [1e-06, 1e+06] 1/s, got " + num(*o.fps));
         scene.output.fps = *o.fps;
     }
     if (scene.output.fps * scene.duration > static_cast<double>(kMaxSceneFrames))

@@ -41,8 +41,8 @@ constexpr Limits kDensity{1e-3, 1e5, "kg/m^3"};
 constexpr Limits kDamping{0.0, 1e9, "N s/m"};
 constexpr Limits kAirDensity{0.0, 1e4, "kg/m^3"};
 constexpr Limits kCoefficient{0.0, 100.0, ""};
-constexpr Limits kTimeStep{1e-9, 10.0, "s"};
-constexpr Limits kDuration{1e-9, 1e6, "s"};
+constexpr Limits kTimeStep{kMinTimeStep, kMaxTimeStep, "s"};
+constexpr Limits kDuration{kMinTimeStep, kMaxDuration, "s"};
 constexpr Limits kTime{0.0, 1e9, "s"};
 constexpr Limits kGravity{-1e4, 1e4, "m/s^2"};
 constexpr Limits kVelocity{-1e4, 1e4, "m/s"};
@@ -57,7 +57,7 @@ constexpr Limits kStrainTolerance{0.0, 10.0, ""};
 constexpr Limits kWarmStart{0.0, 1.0, "", false, true};
 constexpr Limits kLongRangeSlack{1.0, 100.0, ""};
 constexpr Limits kFov{0.0, 179.0, "degrees", true, true};
-constexpr Limits kFps{1e-6, 1e6, "1/s"};
+constexpr Limits kFps{kMinFps, kMaxFps, "1/s"};
 constexpr Limits kWeldTolerance{0.0, 1e5, "m"};
 
 MeshDesc parseMeshDesc(JsonObject o, const std::filesystem::path& baseDir) {

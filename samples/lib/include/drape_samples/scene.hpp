@@ -40,6 +40,11 @@ inline constexpr std::size_t kMaxRigidBodies = 10'000;
 /// Every position a scene or mesh puts in the world (sheet corners, mesh vertices after
 /// their transform, bodies, camera) lies within +-kMaxCoordinate on each axis [m].
 inline constexpr double kMaxCoordinate = 1e6;
+/// Ranges of simulation.time_step and duration [s] and output.fps [1/s], also applied to
+/// drape-run's --dt, --seconds and --fps.
+inline constexpr double kMinTimeStep = 1e-9, kMaxTimeStep = 10.0;
+inline constexpr double kMaxDuration = 1e6;
+inline constexpr double kMinFps = 1e-6, kMaxFps = 1e6;
 /// Cloth sub-steps per scene time step (simulation.substeps, also the cap of "auto").
 inline constexpr int kMaxSubsteps = 10'000;
 
