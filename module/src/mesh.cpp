@@ -3,6 +3,7 @@
 
 #include "drape/error.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -45,6 +46,28 @@ void checkSizesAndIndices(const TriangleMesh& mesh) {
             }
         }
     }
+}
+
+/// validateMesh's test: a repeated vertex, or an area below minAreaRatio times the longest
+/// edge squared. Returns an empty string for a usable triangle, else why it is not.
+std::string degeneracy(const TriangleMesh& mesh, std::size_t t, double minAreaRatio) {
+    const auto& tri = mesh.triangles[t];
+    if (tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2]) {
+        return "triangle " + std::to_string(t) + " repeats a vertex (" + std::to_string(tri[0]) +
+               ", " + std::to_string(tri[1]) + ", " + std::to_string(tri[2]) + ")";
+    }
+    const Vec3& a = mesh.vertices[tri[0]];
+    const Vec3& b = mesh.vertices[tri[1]];
+    const Vec3& c = mesh.vertices[tri[2]];
+    const double longest2 =
+        std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
+    const double area = 0.5 * (b - a).cross(c - a).norm();
+    if (!(area > minAreaRatio * longest2)) {
+        return "triangle " + std::to_string(t) + " (vertices " + std::to_string(tri[0]) + ", " +
+               std::to_string(tri[1]) + ", " + std::to_string(tri[2]) +
+               ") has zero or near-zero area " + std::to_string(area);
+    }
+    return {};
 }
 
 struct CellKey {
@@ -132,26 +155,46 @@ WeldResult weldVertices(const TriangleMesh& mesh, double tolerance) {
 void validateMesh(const TriangleMesh& mesh, double minAreaRatio) {
     checkSizesAndIndices(mesh);
     for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
-        const auto& tri = mesh.triangles[t];
-        if (tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2]) {
-            throw Error(ErrorCode::DegenerateTriangle,
-                        "triangle " + std::to_string(t) + " repeats a vertex (" +
-                            std::to_string(tri[0]) + ", " + std::to_string(tri[1]) + ", " +
-                            std::to_string(tri[2]) + ")");
-        }
-        const Vec3& a = mesh.vertices[tri[0]];
-        const Vec3& b = mesh.vertices[tri[1]];
-        const Vec3& c = mesh.vertices[tri[2]];
-        const double longest2 =
-            std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
-        const double area = triangleArea(mesh, t);
-        if (!(area > minAreaRatio * longest2)) {
-            throw Error(ErrorCode::DegenerateTriangle,
-                        "triangle " + std::to_string(t) + " (vertices " + std::to_string(tri[0]) +
-                            ", " + std::to_string(tri[1]) + ", " + std::to_string(tri[2]) +
-                            ") has zero or near-zero area " + std::to_string(area));
+        const std::string why = degeneracy(mesh, t, minAreaRatio);
+        if (!why.empty()) throw Error(ErrorCode::DegenerateTriangle, why);
+    }
+}
+
+UnusableTriangles dropUnusableTriangles(TriangleMesh& mesh, double minAreaRatio) {
+    checkSizesAndIndices(mesh);
+    UnusableTriangles out;
+    const std::size_t n = mesh.triangles.size();
+    std::vector<unsigned char> drop(n, 0);
+    for (std::size_t t = 0; t < n; ++t) {
+        if (!degeneracy(mesh, t, minAreaRatio).empty()) {
+            drop[t] = 1;
+            out.degenerate.push_back(t);
         }
     }
+    // Duplicates among the rest: equal sorted vertex triples; the lowest index is kept.
+    std::vector<Triangle> sorted(n);
+    std::vector<std::size_t> order;
+    order.reserve(n);
+    for (std::size_t t = 0; t < n; ++t) {
+        sorted[t] = mesh.triangles[t];
+        std::sort(sorted[t].begin(), sorted[t].end());
+        if (!drop[t]) order.push_back(t);
+    }
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return sorted[a] < sorted[b]; });
+    for (std::size_t i = 1; i < order.size(); ++i) {
+        if (sorted[order[i]] == sorted[order[i - 1]]) {
+            drop[order[i]] = 1;
+            out.duplicate.push_back(order[i]);
+        }
+    }
+    std::sort(out.duplicate.begin(), out.duplicate.end());
+    if (out.empty()) return out;
+    std::size_t kept = 0;
+    for (std::size_t t = 0; t < n; ++t)
+        if (!drop[t]) mesh.triangles[kept++] = mesh.triangles[t];
+    mesh.triangles.resize(kept);
+    return out;
 }
 
 TriangleMesh makeSheet(const SheetSpec& spec) {

@@ -59,6 +59,8 @@ int main(int argc, char** argv) {
     o.render = !noRender;
     o.video = !noVideo;
     o.progress = !quiet && isatty(STDERR_FILENO);
+    // Warnings go to stderr even with --quiet: they say what of the input was not used.
+    o.warn = [](const std::string& w) { std::cerr << "drape-run: warning: " << w << "\n"; };
 
     std::ostringstream sink;
     std::ostream& log = quiet ? static_cast<std::ostream&>(sink) : std::cout;

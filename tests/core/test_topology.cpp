@@ -272,3 +272,40 @@ TEST_CASE("Vertices no triangle uses are not particles", "[topology]") {
     CHECK(topo->vertexToParticle()[3] == 2u);
     checkTopology(*topo, 1);
 }
+
+TEST_CASE("dropUnusableTriangles removes degenerate and duplicate triangles, keeping the rest in "
+          "order", "[topology][mesh]") {
+    TriangleMesh m;
+    m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0), Vec3(2, 0, 0),
+                  Vec3(1e-6, 1e-6, 0)};
+    m.triangles = {
+        {0, 1, 2}, // 0 kept
+        {0, 0, 3}, // 1 repeats a vertex
+        {0, 2, 3}, // 2 kept
+        {2, 1, 0}, // 3 triangle 0 with the other winding: a duplicate
+        {0, 1, 4}, // 4 three corners on a line: no area
+        {3, 0, 2}, // 5 triangle 2 rotated: a duplicate
+        {1, 4, 2}, // 6 kept
+        {0, 5, 2}, // 7 vertex 5 lies on the diagonal 0-2: no area
+    };
+    const double ratio = 1e-10;
+    TriangleMesh copy = m;
+    const UnusableTriangles u = dropUnusableTriangles(copy, ratio);
+    CHECK(u.degenerate == std::vector<std::size_t>{1, 4, 7});
+    CHECK(u.duplicate == std::vector<std::size_t>{3, 5});
+    CHECK_FALSE(u.empty());
+    REQUIRE(copy.triangles.size() == 3);
+    CHECK(copy.triangles[0] == Triangle{0, 1, 2});
+    CHECK(copy.triangles[1] == Triangle{0, 2, 3});
+    CHECK(copy.triangles[2] == Triangle{1, 4, 2});
+    CHECK(copy.vertices.size() == m.vertices.size()); // vertices are left alone
+    CHECK_NOTHROW(validateMesh(copy, ratio));
+    CHECK_NOTHROW(ClothTopology::build(copy));
+    // A clean mesh is untouched.
+    const UnusableTriangles none = dropUnusableTriangles(copy, ratio);
+    CHECK(none.empty());
+    CHECK(copy.triangles.size() == 3);
+    // validateMesh and ClothTopology::build still refuse what it would drop.
+    CHECK_THROWS_AS(validateMesh(m, ratio), Error);
+    CHECK_THROWS_AS(ClothTopology::build(m), Error);
+}

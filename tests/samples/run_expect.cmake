@@ -1,5 +1,10 @@
 # Runs CMD with ARGS (a ;-list) and checks its exit code (EXPECT_CODE), that stderr matches
 # EXPECT_STDERR and stdout matches EXPECT_STDOUT (regexes, optional) and that the |-separated EXPECT_FILES exist under OUT.
+# With CLEAN_OUT the folder OUT is emptied first; with NO_NONFINITE_IN (a folder) no text file
+# the run left there (.obj, .csv, .txt) may contain inf or nan.
+if(CLEAN_OUT)
+    file(REMOVE_RECURSE "${OUT}")
+endif()
 execute_process(COMMAND ${CMD} ${ARGS}
     RESULT_VARIABLE code OUTPUT_VARIABLE out ERROR_VARIABLE err TIMEOUT 300)
 if(NOT code STREQUAL "${EXPECT_CODE}")
@@ -20,6 +25,17 @@ if(DEFINED EXPECT_FILES)
         file(SIZE "${OUT}/${f}" size)
         if(size EQUAL 0)
             message(FATAL_ERROR "empty output ${OUT}/${f}")
+        endif()
+    endforeach()
+endif()
+if(DEFINED NO_NONFINITE_IN)
+    file(GLOB_RECURSE written "${NO_NONFINITE_IN}/*.obj" "${NO_NONFINITE_IN}/*.csv"
+                               "${NO_NONFINITE_IN}/*.txt")
+    foreach(f ${written})
+        file(READ "${f}" text)
+        # inf, infinity, nan in any case, as a word (not inside "info" or a name like "nano").
+        if(text MATCHES "(^|[^A-Za-z_])[-+]?([iI][nN][fF]|[nN][aA][nN])([^A-Za-z_]|$)")
+            message(FATAL_ERROR "${f} contains a non-finite number (${CMAKE_MATCH_0})")
         endif()
     endforeach()
 endif()

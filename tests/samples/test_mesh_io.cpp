@@ -1,11 +1,22 @@
 // Mesh I/O through assimp: export then import gives back the same vertices (in the same
 // order) and triangles; duplicates are welded; groups are found; broken files are named.
 #include "drape_samples/mesh_io.hpp"
+#include "drape_samples/simulation.hpp"
+
+#include <drape/topology.hpp>
 
 #include <catch2/catch.hpp>
 
+#include <chrono>
+#include <cstring>
+#include <fcntl.h>
 #include <filesystem>
 #include <fstream>
+#include <future>
+#include <memory>
+#include <sys/stat.h>
+#include <thread>
+#include <unistd.h>
 
 using namespace drape;
 using namespace drape::samples;
@@ -166,4 +177,358 @@ TEST_CASE("broken or missing mesh files are named with what is wrong", "[mesh][e
                       Contains("unknown mesh format \".docx\" for export"));
     CHECK_THROWS_WITH(exportMesh(testMesh(), "/nonexistent-folder/x.obj"),
                       Contains("x.obj: assimp cannot write it"));
+}
+
+namespace {
+
+/// Runs importMesh on another thread and waits at most `seconds`. A FIFO that the import
+/// blocks on is then opened for writing and closed (which releases a blocked reader), so a
+/// failing test ends instead of hanging the suite.
+struct BoundedImport {
+    bool finished = false;
+    std::string error;
+    ImportedMesh mesh;
+};
+BoundedImport importWithin(const fs::path& file, double seconds, const fs::path& fifo) {
+    auto result = std::make_shared<BoundedImport>();
+    auto done = std::make_shared<std::promise<void>>();
+    std::future<void> ready = done->get_future();
+    std::thread worker([file, result, done] {
+        try {
+            result->mesh = importMesh(file);
+        } catch (const std::exception& e) {
+            result->error = e.what();
+        }
+        done->set_value();
+    });
+    const bool inTime =
+        ready.wait_for(std::chrono::duration<double>(seconds)) == std::future_status::ready;
+    if (!inTime) {
+        const int fd = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
+        if (fd >= 0) ::close(fd);
+    }
+    worker.join();
+    BoundedImport out = *result;
+    out.finished = inTime;
+    return out;
+}
+
+fs::path makeFifo(const fs::path& path) {
+    fs::remove(path);
+    REQUIRE(::mkfifo(path.c_str(), 0600) == 0);
+    return path;
+}
+
+std::string importError(const fs::path& file) {
+    try {
+        importMesh(file);
+    } catch (const SceneError& e) {
+        return e.what();
+    }
+    FAIL("accepted: " << file);
+    return {};
+}
+
+void writeBytes(const fs::path& p, const std::string& bytes) {
+    std::ofstream f(p, std::ios::binary);
+    f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+std::string le32(std::uint32_t v) {
+    std::string s(4, '\0');
+    for (int i = 0; i < 4; ++i)
+        s[static_cast<std::size_t>(i)] = static_cast<char>((v >> (8 * i)) & 0xFFu);
+    return s;
+}
+
+std::string floats(std::initializer_list<float> values) {
+    std::string s;
+    for (float f : values) {
+        char b[4];
+        std::memcpy(b, &f, 4);
+        s.append(b, 4);
+    }
+    return s;
+}
+
+} // namespace
+
+TEST_CASE("an OBJ whose material library is a FIFO loads in bounded time, with a warning",
+          "[mesh][hostile][io]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "fifo";
+    fs::create_directories(dir);
+    const fs::path fifo = makeFifo(dir / "materials.mtl");
+    writeText(dir / "fifo_mtl.obj", "mtllib materials.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
+                                    "usemtl cloth\nf 1 2 3\nf 2 4 3\n");
+    const BoundedImport r = importWithin(dir / "fifo_mtl.obj", 30.0, fifo);
+    REQUIRE(r.finished); // assimp's own IO system blocks in open() forever here
+    INFO(r.error);
+    REQUIRE(r.error.empty());
+    CHECK(r.mesh.mesh.triangles.size() == 2);
+    REQUIRE(r.mesh.warnings.size() == 1);
+    CHECK_THAT(r.mesh.warnings[0], Contains("fifo_mtl.obj: did not open") &&
+                                       Contains("materials.mtl, which it names: not a regular "
+                                                "file (a FIFO); read without it"));
+
+    // The mesh file itself a FIFO: refused at once.
+    const fs::path fifoMesh = makeFifo(dir / "mesh_fifo.obj");
+    const BoundedImport m = importWithin(fifoMesh, 30.0, fifoMesh);
+    REQUIRE(m.finished);
+    CHECK_THAT(m.error, Contains("mesh_fifo.obj: cannot read: not a regular file (a FIFO)"));
+
+    // A glTF whose buffer is a FIFO: refused, the FIFO named.
+    const fs::path fifoBin = makeFifo(dir / "buffer.bin");
+    writeText(dir / "fifo_buffer.gltf",
+              R"({"asset": {"version": "2.0"}, "buffers": [{"byteLength": 36, "uri": "buffer.bin"}],
+                  "bufferViews": [{"buffer": 0, "byteLength": 36}],
+                  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                                 "min": [0, 0, 0], "max": [1, 1, 0]}],
+                  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+                  "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0})");
+    const BoundedImport g = importWithin(dir / "fifo_buffer.gltf", 30.0, fifoBin);
+    REQUIRE(g.finished);
+    CHECK_THAT(g.error, Contains("fifo_buffer.gltf: assimp cannot read it: ") &&
+                            Contains("buffer.bin: not a regular file (a FIFO)"));
+}
+
+TEST_CASE("files a mesh names that are devices or folders are not read", "[mesh][hostile][io]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "devices";
+    fs::create_directories(dir);
+    // /dev/zero never ends: a material library read from it would exhaust memory.
+    fs::remove(dir / "zero.mtl");
+    fs::create_symlink("/dev/zero", dir / "zero.mtl");
+    writeText(dir / "zero_mtl.obj", "mtllib zero.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    ImportedMesh m = importMesh(dir / "zero_mtl.obj");
+    CHECK(m.mesh.triangles.size() == 1);
+    REQUIRE(m.warnings.size() == 1);
+    CHECK_THAT(m.warnings[0], Contains("zero.mtl, which it names: not a regular file (a character "
+                                       "device)"));
+    fs::create_directories(dir / "folder.mtl");
+    writeText(dir / "folder_mtl.obj", "mtllib folder.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    m = importMesh(dir / "folder_mtl.obj");
+    REQUIRE(m.warnings.size() == 1);
+    CHECK_THAT(m.warnings[0], Contains("folder.mtl, which it names: not a regular file (a folder)"));
+    // A plain mesh has no warnings.
+    writeText(dir / "plain.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    CHECK(importMesh(dir / "plain.obj").warnings.empty());
+}
+
+TEST_CASE("header counts larger than the file can hold are refused, naming the count",
+          "[mesh][hostile][counts]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "counts";
+    fs::create_directories(dir);
+    // Binary STL: 80-byte header, a triangle count, 50 bytes per triangle.
+    const std::string facet = floats({0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0}) + std::string(2, '\0');
+    writeBytes(dir / "huge.stl", std::string(80, ' ') + le32(4000000000u) + facet + facet);
+    CHECK_THAT(importError(dir / "huge.stl"),
+               Contains("huge.stl: binary STL header claims 4000000000 triangles, which need "
+                        "200000000084 bytes (84 + 50 per triangle), but the file has only 184 bytes"));
+    writeBytes(dir / "three.stl", std::string(80, ' ') + le32(3u) + facet + facet);
+    CHECK_THAT(importError(dir / "three.stl"),
+               Contains("binary STL header claims 3 triangles, which need 234 bytes"));
+    const std::string facet2 =
+        floats({0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 0}) + std::string(2, '\0');
+    writeBytes(dir / "two.stl", std::string(80, ' ') + le32(2u) + facet + facet2);
+    const ImportedMesh two = importMesh(dir / "two.stl");
+    CHECK(two.mesh.triangles.size() == 2);
+    CHECK(two.mesh.vertices.size() == 4);
+
+    // ASCII PLY with billions of vertices in a few bytes.
+    writeText(dir / "huge_ascii.ply",
+              "ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\n"
+              "property float y\nproperty float z\nelement face 1\n"
+              "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    CHECK_THAT(importError(dir / "huge_ascii.ply"),
+               Contains("huge_ascii.ply: PLY header claims 4000000000 \"vertex\" elements, at least "
+                        "6 bytes each, but the file has only 26 bytes after its header"));
+    // Binary PLY: the face count is the hostile one.
+    writeBytes(dir / "huge_binary.ply",
+               "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+               "property float y\nproperty float z\nelement face 3000000000\n"
+               "property list uchar int vertex_indices\nend_header\n" +
+                   floats({0, 0, 0, 1, 0, 0, 0, 1, 0}) + std::string(1, '\3') + le32(0) +
+                   le32(1) + le32(2));
+    CHECK_THAT(importError(dir / "huge_binary.ply"),
+               Contains("PLY header claims 3000000000 \"face\" elements, at least 1 byte each"));
+    // A count beyond 64 bits is named as written.
+    writeText(dir / "digits.ply", "ply\nformat ascii 1.0\nelement vertex 123456789012345678901234\n"
+                                  "property float x\nend_header\n0\n");
+    CHECK_THAT(importError(dir / "digits.ply"),
+               Contains("PLY header claims 123456789012345678901234 \"vertex\" elements"));
+    // OFF.
+    writeText(dir / "huge.off", "OFF\n3 4000000000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    CHECK_THAT(importError(dir / "huge.off"),
+               Contains("huge.off: OFF header claims 3 vertices and 4000000000 faces, which need at "
+                        "least 8000000017 bytes, but the file has only 45 bytes"));
+    // Collada arrays.
+    writeText(dir / "huge.dae",
+              R"(<?xml version="1.0"?><COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1"><library_geometries><geometry id="g"><mesh>
+<source id="p"><float_array id="pa" count="3000000000">0 0 0 1 0 0 0 1 0</float_array></source>
+</mesh></geometry></library_geometries></COLLADA>)");
+    CHECK_THAT(importError(dir / "huge.dae"),
+               Contains("huge.dae: Collada <float_array> claims count=\"3000000000\", more items "
+                        "than the file"));
+    // Honest headers still load.
+    writeText(dir / "fine.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    CHECK(importMesh(dir / "fine.off").mesh.triangles.size() == 1);
+    writeText(dir / "fine.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                                "property float y\nproperty float z\nelement face 1\n"
+                                "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n"
+                                "0 1 0\n3 0 1 2\n");
+    CHECK(importMesh(dir / "fine.ply").mesh.triangles.size() == 1);
+}
+
+namespace {
+
+/// A 3 x 3 grid of vertices (8 triangles, faces 0-7) in an OBJ group "sheet", then `extra`.
+std::string gridObj(const std::string& extraVertices, const std::string& extraFaces) {
+    std::string s = "o sheet\n";
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+            s += "v " + std::to_string(c) + " " + std::to_string(r) + " 0\n";
+    s += extraVertices;
+    for (int r = 0; r < 2; ++r)
+        for (int c = 0; c < 2; ++c) {
+            const int a = 1 + r * 3 + c, b = a + 1, d = a + 3, e = d + 1;
+            s += "f " + std::to_string(a) + " " + std::to_string(b) + " " + std::to_string(e) + "\n";
+            s += "f " + std::to_string(a) + " " + std::to_string(e) + " " + std::to_string(d) + "\n";
+        }
+    return s + extraFaces;
+}
+
+} // namespace
+
+TEST_CASE("degenerate and duplicate triangles are dropped with a warning saying how many and where",
+          "[mesh][degenerate]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "degenerate";
+    fs::create_directories(dir);
+    // Vertices 10-13: a copy of vertex 1's position (exact: assimp's FindDegenerates finds the
+    // triangle using it), a point 1e-13 m from vertex 2 (welded: drape finds that one), a
+    // vertex on the line through vertices 1 and 2 (no area), and a vertex no face uses
+    // (assimp's OBJ reader never passes that one on).
+    const std::string extraV = "v 0 0 0\nv 1.0000000000001 0 0\nv 3 0 0\nv 5 5 5\n";
+    // Faces 8-11: collapsed exactly, collapsed by welding, zero area, and face 0 again with
+    // the other winding (a duplicate).
+    const std::string extraF = "f 1 10 5\nf 2 11 6\nf 1 2 12\nf 1 5 2\n";
+    writeText(dir / "few_collapsed.obj", gridObj(extraV, extraF));
+    const ImportedMesh m = importMesh(dir / "few_collapsed.obj");
+    CHECK(m.mesh.triangles.size() == 8);
+    CHECK(m.mesh.vertices.size() == 9);
+    CHECK(m.droppedDegenerate == 3);
+    CHECK(m.droppedDuplicates == 1);
+    CHECK(m.droppedVertices == 1); // (3, 0, 0), whose only triangle was dropped
+    REQUIRE(m.warnings.size() == 1);
+    INFO(m.warnings[0]);
+    CHECK_THAT(m.warnings[0],
+               Contains("few_collapsed.obj: dropped 3 degenerate triangles (two corners at one "
+                        "point, or no area: mesh \"sheet\" faces 8, 9, 10), 1 duplicate triangle "
+                        "(the same three corners as an earlier one: mesh \"sheet\" face 11), 1 "
+                        "vertex no triangle uses; 8 of 12 triangles kept"));
+    // What is left builds a cloth (ClothTopology::build refuses all four).
+    CHECK_NOTHROW(ClothTopology::build(m.mesh));
+
+    // The scene option refuses instead, with the same count and places.
+    MeshImportOptions refuse;
+    refuse.refuseDegenerate = true;
+    CHECK_THROWS_WITH(importMesh(dir / "few_collapsed.obj", refuse),
+                      Contains("few_collapsed.obj: has 3 degenerate triangles") &&
+                          Contains("mesh \"sheet\" faces 8, 9, 10") &&
+                          Contains("refused (mesh.degenerate_triangles is \"refuse\""));
+
+    // A clean mesh: no warning, and the refuse option accepts it.
+    writeText(dir / "clean.obj", gridObj("", ""));
+    CHECK(importMesh(dir / "clean.obj").warnings.empty());
+    CHECK(importMesh(dir / "clean.obj", refuse).mesh.triangles.size() == 8);
+
+    // Nothing usable left: an error, not an empty cloth.
+    writeText(dir / "all_collapsed.obj", "v 0 0 0\nv 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 1 3 4\n");
+    CHECK_THROWS_WITH(importMesh(dir / "all_collapsed.obj"),
+                      Contains("all_collapsed.obj: contains no usable triangle: all 2 are "
+                               "degenerate or duplicates"));
+    // A mesh whose vertices all sit at one point (assimp's FindInvalidData deletes it).
+    writeText(dir / "one_point.obj", gridObj("", "") + "o blob\nv 7 7 7\nv 7 7 7\nv 7 7 7\n"
+                                                       "f 10 11 12\n");
+    const ImportedMesh blob = importMesh(dir / "one_point.obj");
+    CHECK(blob.mesh.triangles.size() == 8);
+    REQUIRE(blob.warnings.size() == 1);
+    CHECK_THAT(blob.warnings[0], Contains("1 degenerate triangle") && Contains("mesh \"blob\""));
+}
+
+TEST_CASE("a binary STL with a few collapsed facets loads, as assimp's spider does",
+          "[mesh][degenerate]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "degenerate";
+    fs::create_directories(dir);
+    auto facet = [](std::initializer_list<float> corners) {
+        std::string f = floats({0, 0, 1});
+        f += floats(corners);
+        return f + std::string(2, '\0');
+    };
+    std::string body;
+    // A strip of 6 good triangles, then 2 facets with a corner repeated.
+    for (int i = 0; i < 3; ++i) {
+        const auto x = static_cast<float>(i);
+        body += facet({x, 0, 0, x + 1, 0, 0, x + 1, 1, 0});
+        body += facet({x, 0, 0, x + 1, 1, 0, x, 1, 0});
+    }
+    body += facet({0, 0, 0, 0, 0, 0, 1, 1, 0});
+    body += facet({2, 1, 0, 3, 1, 0, 3, 1, 0});
+    writeBytes(dir / "collapsed.stl", std::string(80, ' ') + le32(8) + body);
+    const ImportedMesh m = importMesh(dir / "collapsed.stl");
+    CHECK(m.mesh.triangles.size() == 6);
+    CHECK(m.droppedDegenerate == 2);
+    REQUIRE(m.warnings.size() == 1);
+    CHECK_THAT(m.warnings[0], Contains("collapsed.stl: dropped 2 degenerate triangles") &&
+                                  Contains("faces 6, 7") &&
+                                  Contains("6 of 8 triangles kept"));
+}
+
+TEST_CASE("a scene's mesh with degenerate triangles runs, or is refused when asked",
+          "[mesh][degenerate][scenes]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "degenerate";
+    fs::create_directories(dir);
+    writeText(dir / "scene_mesh.obj", gridObj("v 0 0 0\n", "f 1 10 5\nf 1 2 5\n"));
+    const std::string cloth = R"({"cloth": {"mesh": {"file": "scene_mesh.obj", "scale": 0.1)";
+    const std::string rest = R"(}, "total_mass": 0.1, "stiffness": 5.0},
+                                 "simulation": {"time_step": 0.001, "duration": 0.01}})";
+    Simulation sim(parseScene(cloth + rest, "degenerate.json", dir));
+    CHECK(sim.cloth().topology().triangleCount() == 8);
+    REQUIRE(sim.warnings().size() == 1);
+    CHECK_THAT(sim.warnings()[0], Contains("dropped 1 degenerate triangle") &&
+                                      Contains("1 duplicate triangle"));
+    sim.step();
+    CHECK_THROWS_WITH(Simulation(parseScene(cloth + R"(, "degenerate_triangles": "refuse")" + rest,
+                                            "degenerate.json", dir)),
+                      Contains("scene_mesh.obj: has 1 degenerate triangle"));
+}
+
+TEST_CASE("a mesh transform that puts a vertex outside the coordinate range is refused",
+          "[mesh][ranges]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "ranges";
+    fs::create_directories(dir);
+    writeText(dir / "ten.obj", "v 0 0 0\nv 10 0 0\nv 0 10 0\nf 1 2 3\n");
+    MeshDesc d;
+    d.file = dir / "ten.obj";
+    d.scale = Vec3::Constant(1e6); // in range, and so are the coordinates; the product is not
+    CHECK_THROWS_WITH(importMesh(d),
+                      Contains("ten.obj: vertex 1 lands at (1e+07, 0, 0) m after mesh.scale, "
+                               "rotation_deg and translation, outside the [-1e+06, 1e+06] m "
+                               "coordinate range"));
+    d.scale = Vec3::Constant(2.0);
+    d.translation = Vec3(0.0, 0.0, 5.0);
+    const ImportedMesh m = importMesh(d);
+    CHECK(m.mesh.vertices[1].isApprox(Vec3(20.0, 0.0, 5.0)));
 }

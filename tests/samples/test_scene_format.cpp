@@ -132,7 +132,7 @@ TEST_CASE("broken scenes are refused with the path of the field", "[scene][error
                Contains("exceeds the limit"));
     CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
                            "particle_mass": -0.01, "stiffness": 50.0}})"),
-               Contains("cloth.particle_mass: must be > 0"));
+               Contains("cloth.particle_mass: must be in [1e-12, 1e+06] kg, got -0.01"));
     CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
                            "stiffness": 50.0}})"),
                Contains("cloth: no mass"));
@@ -140,7 +140,7 @@ TEST_CASE("broken scenes are refused with the path of the field", "[scene][error
                            "mesh": {"file": "x.obj"}, "particle_mass": 0.01, "stiffness": 5}})"),
                Contains("exactly one of cloth.sheet"));
     CHECK_THAT(errorOf(withCloth(R"("simulation": {"time_step": 0})")),
-               Contains("simulation.time_step: must be > 0, got 0"));
+               Contains("simulation.time_step: must be in [1e-09, 10] s, got 0"));
     CHECK_THAT(errorOf(withCloth(R"("simulation": {"integrator": "leapfrog"})")),
                Contains("simulation.integrator: unknown value \"leapfrog\""));
     CHECK_THAT(errorOf(withCloth(R"("simulation": {"gravity": [0, -9.8]})")),
@@ -180,11 +180,157 @@ TEST_CASE("broken scenes are refused with the path of the field", "[scene][error
     CHECK_THAT(
         errorOf(R"({"cloth": {"sheet": {"rows": 4, "colls": 5, "spacing": 0.1},
                            "particle_mass": 0.01, "stiffness": 50.0}})"),
-        Contains(
-            "cloth.sheet.cols: required field is missing (is \"colls\" a misspelling of it?)"));
+        Contains("cloth.sheet.colls: unknown field (did you mean \"cols\"? fields allowed here: "));
     CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
                            "particle_mass": 0.01, "stiffness": 50.0, "front_color": [2, 0, 0]}})"),
-               Contains("cloth.front_color[0]: colour components are in [0, 1]"));
+               Contains("cloth.front_color[0]: colour components are in [0, 1], got 2"));
+}
+
+TEST_CASE("a key given twice in one object is refused, named with its path", "[scene][errors]") {
+    using Catch::Matchers::Contains;
+    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1, "rows": 6},
+                           "particle_mass": 0.01, "stiffness": 50.0}})"),
+               Contains("test.json: cloth.sheet.rows: duplicate key (the object sets \"rows\" more "
+                        "than once"));
+    CHECK_THAT(errorOf(withCloth(R"("name": "a", "name": "b")")),
+               Contains("test.json: name: duplicate key"));
+    CHECK_THAT(errorOf(withCloth(R"("cloth": 1)")), Contains("test.json: cloth: duplicate key"));
+    // Inside arrays: the element's index is part of the path.
+    CHECK_THAT(errorOf(withCloth(R"("pins": [{"indices": [0]},
+                                             {"box": {"min": [0, 0, 0], "max": [1, 1, 1],
+                                                      "min": [-1, -1, -1]}}])")),
+               Contains("test.json: pins[1].box.min: duplicate key"));
+    CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "sphere", "radius": 1}},
+                                   {"shape": {"type": "sphere", "radius": 1, "radius": 2}}])")),
+               Contains("test.json: rigid_bodies[1].shape.radius: duplicate key"));
+    CHECK_THAT(errorOf(withCloth(R"("pins": [{"grid": [[0, 0], [0, 1]], "grid": [[1, 1]]}])")),
+               Contains("test.json: pins[0].grid: duplicate key"));
+    // The same key in two different objects is fine.
+    CHECK_NOTHROW(parse(withCloth(R"("pins": [{"indices": [0]}, {"indices": [1]}])")));
+}
+
+TEST_CASE("an unknown key is reported, with the key it resembles, before any missing field",
+          "[scene][errors]") {
+    using Catch::Matchers::Contains;
+    // "stifness" leaves the cloth without a stiffness: the typo is named, not "no stiffness".
+    const std::string stiff = errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
+                                          "particle_mass": 0.01, "stifness": 50.0}})");
+    CHECK_THAT(stiff, Contains("cloth.stifness: unknown field (did you mean \"stiffness\"?"));
+    CHECK_THAT(stiff, !Contains("no stiffness"));
+    const std::string mass = errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
+                                         "particle_mas": 0.01, "stiffness": 50.0}})");
+    CHECK_THAT(mass, Contains("cloth.particle_mas: unknown field (did you mean \"particle_mass\"?"));
+    CHECK_THAT(mass, !Contains("no mass"));
+    // A misspelt required field: the typo, not "required field is missing".
+    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacng": 0.1},
+                           "particle_mass": 0.01, "stiffness": 50.0}})"),
+               Contains("cloth.sheet.spacng: unknown field (did you mean \"spacing\"?"));
+    CHECK_THAT(errorOf(R"({"clth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1}}})"),
+               Contains("test.json: clth: unknown field (did you mean \"cloth\"?"));
+    CHECK_THAT(errorOf(withCloth(R"("simulation": {"Time_Step": 0.01})")),
+               Contains("simulation.Time_Step: unknown field (did you mean \"time_step\"?"));
+    CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "sphere", "raduis": 1}}])")),
+               Contains("rigid_bodies[0].shape.raduis: unknown field (did you mean \"radius\"?"));
+    // Nothing close: no suggestion, the list of allowed fields.
+    CHECK_THAT(errorOf(withCloth(R"("camera": {"zoom": 2})")),
+               Contains("camera.zoom: unknown field (fields allowed here: fov_deg, height, "
+                        "position, target, up, width)"));
+    // A field of another shape type is still refused, after the type is known.
+    CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "box", "radius": 1,
+                                                               "half_extents": [1, 1, 1]}}])")),
+               Contains("rigid_bodies[0].shape.radius: unknown field"));
+}
+
+TEST_CASE("every number is checked against its physical range, named in the message",
+          "[scene][errors][ranges]") {
+    using Catch::Matchers::Contains;
+    // Absurd but finite values that used to run and write inf or nan.
+    CHECK_THAT(errorOf(withCloth(R"("simulation": {"gravity": [0, -1e45, 0]})")),
+               Contains("simulation.gravity[1]: must be in [-10000, 10000] m/s^2, got -1e+45"));
+    CHECK_THAT(errorOf(withCloth(R"("simulation": {"gravity": [1e308, 0, 0]})")),
+               Contains("simulation.gravity[0]: must be in [-10000, 10000] m/s^2, got 1e+308"));
+    CHECK_THAT(
+        errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "plane"}}],
+                             "collision": {"thickness": 1e300})")),
+        Contains("collision.thickness: must be in [1e-06, 100000] m, got 1e+300"));
+    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 1e300},
+                           "particle_mass": 0.01, "stiffness": 50.0}})"),
+               Contains("cloth.sheet.spacing: must be in [1e-06, 100000] m, got 1e+300"));
+    CHECK_THAT(errorOf(R"({"cloth": {"mesh": {"file": "x.obj", "scale": 1e300},
+                           "particle_mass": 0.01, "stiffness": 50.0}})"),
+               Contains("cloth.mesh.scale: must be in [1e-06, 1e+06], got 1e+300"));
+    CHECK_THAT(errorOf(R"({"cloth": {"mesh": {"file": "x.obj", "scale": [1, 0, 1]},
+                           "particle_mass": 0.01, "stiffness": 50.0}})"),
+               Contains("cloth.mesh.scale[1]: must be in [1e-06, 1e+06], got 0"));
+    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
+                           "particle_mass": 0.01, "stiffness": 1e300}})"),
+               Contains("cloth.stiffness: must be in [1e-09, 1e+12] N/m, got 1e+300"));
+    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
+                           "particle_mass": 1e-300, "stiffness": 5}})"),
+               Contains("cloth.particle_mass: must be in [1e-12, 1e+06] kg, got 1e-300"));
+    CHECK_THAT(errorOf(withCloth(R"("pins": [{"indices": [0], "velocity": [0, 1e20, 0]}])")),
+               Contains("pins[0].velocity[1]: must be in [-10000, 10000] m/s, got 1e+20"));
+    CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "sphere", "radius": 1},
+                                     "motion": "dynamic", "linear_velocity": [1e9, 0, 0]}])")),
+               Contains("rigid_bodies[0].linear_velocity[0]: must be in [-10000, 10000] m/s"));
+    CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "box",
+                                     "half_extents": [1, 1e200, 1]}}])")),
+               Contains("rigid_bodies[0].shape.half_extents[1]: must be in [1e-06, 100000] m"));
+    CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "sphere", "radius": 1},
+                                     "position": [0, 0, 1e12]}])")),
+               Contains("rigid_bodies[0].position[2]: must be in [-1e+06, 1e+06] m, got 1e+12"));
+    CHECK_THAT(errorOf(withCloth(R"("camera": {"fov_deg": 179})")),
+               Contains("camera.fov_deg: must be in (0, 179) degrees, got 179"));
+    CHECK_THAT(errorOf(withCloth(R"("simulation": {"duration": 1e30})")),
+               Contains("simulation.duration: must be in [1e-09, 1e+06] s, got 1e+30"));
+    CHECK_THAT(errorOf(withCloth(R"("output": {"fps": 1e-300})")),
+               Contains("output.fps: must be in [1e-06, 1e+06] 1/s, got 1e-300"));
+    CHECK_THAT(errorOf(withCloth(R"("wind": {"velocity": [1e300, 0, 0]})")),
+               Contains("wind.velocity[0]: must be in [-10000, 10000] m/s"));
+    // Each number in range, the product out of it: the sheet would leave the world.
+    CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 500, "spacing": 10000},
+                           "particle_mass": 0.01, "stiffness": 50.0}})"),
+               Contains("cloth.sheet: the sheet reaches (4.99e+06, 0, 0), outside the [-1e+06, "
+                        "1e+06] m coordinate range"));
+    // Values at the ends of their ranges are accepted.
+    CHECK_NOTHROW(parse(withCloth(R"("simulation": {"gravity": [0, -10000, 0], "time_step": 10,
+                                                    "duration": 10})")));
+    CHECK_NOTHROW(parse(withCloth(R"("rigid_bodies": [{"shape": {"type": "plane"}}],
+                                     "collision": {"thickness": 1e-6})")));
+}
+
+TEST_CASE("simulation.substeps: an integer or \"auto\", given once", "[scene][substeps]") {
+    using Catch::Matchers::Contains;
+    CHECK(parse(withCloth("")).substeps == 1);
+    CHECK_FALSE(parse(withCloth("")).autoSubsteps);
+    CHECK(parse(withCloth(R"("simulation": {"substeps": 7})")).substeps == 7);
+    CHECK(parse(withCloth(R"("simulation": {"substeps": "auto"})")).autoSubsteps);
+    CHECK(parse(withCloth(R"("rigid_bodies": [{"shape": {"type": "plane"}}],
+                            "collision": {"substeps": 3})"))
+              .substeps == 3);
+    CHECK_THAT(errorOf(withCloth(R"("simulation": {"substeps": "automatic"})")),
+               Contains("simulation.substeps: expected an integer in [1, 10000] or \"auto\", got "
+                        "\"automatic\""));
+    CHECK_THAT(errorOf(withCloth(R"("simulation": {"substeps": 0})")),
+               Contains("simulation.substeps: must be in [1, 10000], got 0"));
+    CHECK_THAT(errorOf(withCloth(R"("simulation": {"substeps": "auto"},
+                                    "rigid_bodies": [{"shape": {"type": "plane"}}],
+                                    "collision": {"substeps": 3})")),
+               Contains("collision.substeps: give the sub-steps once, as simulation.substeps"));
+}
+
+TEST_CASE("mesh.degenerate_triangles: drop (the default) or refuse", "[scene][mesh]") {
+    using Catch::Matchers::Contains;
+    const auto mesh = [](const std::string& extra) {
+        return R"({"cloth": {"mesh": {"file": "x.obj")" + extra +
+               R"(}, "particle_mass": 0.01, "stiffness": 50.0}})";
+    };
+    CHECK_FALSE(parse(mesh("")).mesh->refuseDegenerate);
+    CHECK_FALSE(parse(mesh(R"(, "degenerate_triangles": "drop")")).mesh->refuseDegenerate);
+    CHECK(parse(mesh(R"(, "degenerate_triangles": "refuse")")).mesh->refuseDegenerate);
+    CHECK_THAT(errorOf(mesh(R"(, "degenerate_triangles": "fix")")),
+               Contains("cloth.mesh.degenerate_triangles: unknown value \"fix\" (expected one of "
+                        "\"drop\", \"refuse\")"));
 }
 
 TEST_CASE("a missing or unreadable scene file is named", "[scene][errors]") {

@@ -7,8 +7,10 @@
 
 #include <catch2/catch.hpp>
 
+#include <cctype>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 using namespace drape;
@@ -195,6 +197,17 @@ TEST_CASE("overrides replace the scene's integrator, time step and length", "[sc
     RunOptions bad;
     bad.steps = 0;
     CHECK_THROWS_AS(applyOverrides(s, bad), SceneError);
+    // The command line's numbers have the scene file's ranges.
+    RunOptions hugeDt;
+    hugeDt.timeStep = 1e300;
+    CHECK_THROWS_WITH(applyOverrides(s, hugeDt), Catch::Matchers::Contains("--dt: must be in [1e-09, 10] s"));
+    RunOptions hugeSeconds;
+    hugeSeconds.seconds = 1e300;
+    CHECK_THROWS_WITH(applyOverrides(s, hugeSeconds),
+                      Catch::Matchers::Contains("--seconds: must be in (0, 1e+06] s"));
+    RunOptions tinyFps;
+    tinyFps.fps = 1e-300;
+    CHECK_THROWS_WITH(applyOverrides(s, tinyFps), Catch::Matchers::Contains("--fps: must be in"));
 }
 
 TEST_CASE("Experiment I: no spring at the suspension points stretches beyond the limit",
@@ -325,4 +338,185 @@ TEST_CASE("two runs of a scene end in the same state hash (printed in the summar
     }
     CHECK(hashes[0] != 0);
     CHECK(hashes[0] == hashes[1]);
+}
+
+namespace {
+
+/// True when a text file holds "inf" or "nan" as a word (any case).
+bool holdsNonFinite(const fs::path& file) {
+    std::ifstream in(file);
+    std::string word;
+    while (in >> word) {
+        for (char& c : word)
+            c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        for (const char* bad : {"inf", "nan"}) {
+            std::size_t at = 0;
+            while ((at = word.find(bad, at)) != std::string::npos) {
+                const bool leftOk = at == 0 || !std::isalpha(static_cast<unsigned char>(word[at - 1]));
+                const std::size_t end = at + 3;
+                const bool rightOk =
+                    end >= word.size() || !std::isalpha(static_cast<unsigned char>(word[end])) ||
+                    word.compare(at, 8, "infinity") == 0;
+                if (leftOk && rightOk) return true;
+                ++at;
+            }
+        }
+    }
+    return false;
+}
+
+} // namespace
+
+TEST_CASE("statistics that are not finite stop the run with the value named", "[scenes][overflow]") {
+    using Catch::Matchers::Contains;
+    const SceneDesc scene = parseScene(R"({
+      "cloth": {"sheet": {"rows": 3, "cols": 3, "spacing": 0.1}, "particle_mass": 0.01,
+                "stiffness": 20.0}})",
+                                       "overflow.json", kScenes);
+    {
+        Simulation sim(scene);
+        sim.cloth().setVelocity(4, Vec3(1e200, 0.0, 0.0)); // finite, but m v^2 / 2 is not
+        CHECK_THROWS_AS(sim.stats(), StepError);
+        CHECK_THROWS_WITH(sim.stats(), Contains("step 0 (t = 0 s): the kinetic energy is inf; "
+                                                "the simulation overflowed"));
+    }
+    {
+        Simulation sim(scene);
+        sim.cloth().setPosition(2, Vec3(0.0, -1e39, 0.0)); // a double, not a float
+        CHECK_THROWS_WITH(sim.stats(),
+                          Contains("particle 2 is at (0, -1e+39, 0) m, beyond the range of the "
+                                   "single-precision output"));
+    }
+    {
+        Simulation sim(scene);
+        sim.cloth().mutableVelocities()[1].y() = std::numeric_limits<double>::infinity();
+        CHECK_THROWS_WITH(sim.stats(), Contains("the velocity of particle 1 is not finite"));
+    }
+    Simulation sim(scene);
+    CHECK_NOTHROW(sim.stats());
+}
+
+TEST_CASE("a run whose state overflows fails (StepError) and writes no inf or nan",
+          "[scenes][runner][overflow]") {
+    RunOptions o;
+    o.scene = fs::path(DRAPE_TEST_DATA_DIR) / "bad_blow_up.json";
+    o.outDir = fs::path(DRAPE_TEST_OUT_DIR) / "run_blow_up";
+    fs::remove_all(o.outDir);
+    o.render = false;
+    o.video = false;
+    for (const double fps : {25.0, 100.0}) {
+        INFO("fps " << fps);
+        o.fps = fps;
+        std::ostringstream log;
+        CHECK_THROWS_AS(runScene(o, log), StepError);
+        REQUIRE(fs::exists(o.outDir / "stats.csv")); // the rows before the failure
+        for (const auto& e : fs::recursive_directory_iterator(o.outDir)) {
+            INFO(e.path());
+            CHECK_FALSE(holdsNonFinite(e.path()));
+        }
+        CHECK_FALSE(fs::exists(o.outDir / "summary.txt"));
+        CHECK_FALSE(fs::exists(o.outDir / "cloth_final.obj"));
+    }
+}
+
+TEST_CASE("export refuses vertices beyond single precision", "[mesh][overflow]") {
+    if (!meshIoAvailable()) return;
+    TriangleMesh m;
+    m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1e300, 0)};
+    m.triangles = {Triangle{0, 1, 2}};
+    const fs::path file = fs::path(DRAPE_TEST_OUT_DIR) / "overflow.obj";
+    fs::remove(file);
+    CHECK_THROWS_WITH(exportMesh(m, file),
+                      Catch::Matchers::Contains("overflow.obj: vertex 2 is not finite or beyond the "
+                                                "single-precision range"));
+    CHECK_FALSE(fs::exists(file));
+}
+
+TEST_CASE("simulation.substeps \"auto\" picks the sub-steps from the stability estimate",
+          "[scenes][substeps]") {
+    using Catch::Matchers::Contains;
+    // bad_unstable.json: k = 1e6 N/m on 1 g particles, dt = 0.01 s, far beyond the limit.
+    const std::string cloth = R"({"cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.1},
+                                            "particle_mass": 0.001, "stiffness": 1e6},
+                                  "pins": [{"grid": [[0, 0]]}],
+                                  "simulation": {"time_step": 0.01, "duration": 1.0)";
+    {
+        Simulation refused(parseScene(cloth + "}}", "stiff.json", kScenes));
+        CHECK(refused.substeps() == 1);
+        CHECK_THROWS_WITH(refused.step(), Contains("exceeds the stability limit") &&
+                                              Contains("set simulation.substeps to \"auto\""));
+    }
+    Simulation sim(parseScene(cloth + R"(, "substeps": "auto"}})", "stiff.json", kScenes));
+    const double limit = sim.cloth().stableTimeStep();
+    const int n = sim.substeps();
+    CHECK(n == static_cast<int>(std::ceil(0.01 / (kAutoSubstepMargin * limit))));
+    CHECK(0.01 / n <= kAutoSubstepMargin * limit);        // each sub-step is stable, with margin
+    CHECK(0.01 / (n - 1) > kAutoSubstepMargin * limit);   // and no more of them than needed
+    CHECK(n > 100);
+    for (int k = 0; k < 3; ++k)
+        sim.step();
+    CHECK(sim.cloth().stepCount() == 3u * static_cast<unsigned>(n));
+    CHECK(sim.time() == Approx(0.03));
+    CHECK(allFinite(sim.cloth().positions()));
+    CHECK_NOTHROW(sim.stats());
+
+    // A scene that is stable already keeps one step.
+    Simulation easy(parseScene(R"({"cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.1},
+                                             "particle_mass": 0.01, "stiffness": 5},
+                                   "simulation": {"substeps": "auto"}})",
+                               "easy.json", kScenes));
+    CHECK(easy.substeps() == 1);
+    // implicit Euler has no limit: one step.
+    Simulation implicit(parseScene(cloth + R"(, "substeps": "auto", "integrator": "implicit_euler"}})",
+                                   "implicit.json", kScenes));
+    CHECK(implicit.substeps() == 1);
+
+    // More than kMaxSubsteps needed: refused before the run, naming the field and the numbers.
+    CHECK_THROWS_WITH(
+        Simulation(parseScene(R"({"cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.1},
+                                            "particle_mass": 1e-9, "stiffness": 1e9},
+                                  "simulation": {"time_step": 1, "duration": 1, "substeps": "auto"}})",
+                              "hopeless.json", kScenes)),
+        Contains("simulation.substeps: \"auto\" would need 1.7") &&
+            Contains("more than the limit of 10000: lower simulation.time_step"));
+}
+
+TEST_CASE("an integer simulation.substeps steps the cloth that many times per step",
+          "[scenes][substeps]") {
+    const SceneDesc scene = parseScene(R"({"cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.1},
+                                                     "particle_mass": 0.01, "stiffness": 5},
+                                           "simulation": {"time_step": 0.01, "substeps": 4}})",
+                                       "four.json", kScenes);
+    Simulation sim(scene);
+    CHECK(sim.substeps() == 4);
+    sim.step();
+    CHECK(sim.cloth().stepCount() == 4);
+    CHECK(sim.cloth().time() == Approx(0.01));
+    // The same as stepping a cloth four times by dt / 4.
+    Simulation ref(parseScene(R"({"cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.1},
+                                            "particle_mass": 0.01, "stiffness": 5},
+                                  "simulation": {"time_step": 0.0025}})",
+                              "ref.json", kScenes));
+    for (int k = 0; k < 4; ++k)
+        ref.step();
+    CHECK(sim.cloth().positions() == ref.cloth().positions());
+}
+
+TEST_CASE("\"auto\" sub-steps in a scene with rigid bodies sub-step the cloth in the world",
+          "[scenes][substeps]") {
+    if (!rigidBodiesAvailable()) {
+        WARN("skipped: no Bullet integration");
+        return;
+    }
+    Simulation sim(parseScene(R"({"cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.1},
+                                            "particle_mass": 0.001, "stiffness": 1e5},
+                                  "simulation": {"time_step": 0.01, "duration": 1, "substeps": "auto"},
+                                  "rigid_bodies": [{"shape": {"type": "plane", "offset": -1}}]})",
+                              "world.json", kScenes));
+    const int n = sim.substeps();
+    CHECK(n > 1);
+    sim.step();
+    sim.step();
+    CHECK(sim.cloth().stepCount() == 2u * static_cast<unsigned>(n));
+    CHECK(allFinite(sim.cloth().positions()));
 }

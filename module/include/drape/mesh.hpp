@@ -41,6 +41,24 @@ WeldResult weldVertices(const TriangleMesh& mesh, double tolerance);
 /// `minAreaRatio` times the square of its longest edge. Throws drape::Error naming the triangle.
 void validateMesh(const TriangleMesh& mesh, double minAreaRatio = 1e-10);
 
+/// Triangles a mesh cannot use as cloth, as removed by dropUnusableTriangles.
+struct UnusableTriangles {
+    /// A repeated vertex, or an area below minAreaRatio times the longest edge squared
+    /// (validateMesh's criterion). Indices into the mesh as it was, increasing.
+    std::vector<std::size_t> degenerate;
+    /// The same three vertices as an earlier triangle (in any order, so either winding):
+    /// two copies would double the springs' stiffness (ClothTopology::build refuses them).
+    /// Indices into the mesh as it was, increasing; the first copy is kept.
+    std::vector<std::size_t> duplicate;
+    bool empty() const { return degenerate.empty() && duplicate.empty(); }
+};
+
+/// Removes degenerate and duplicate triangles (see UnusableTriangles), keeping the order of
+/// the others; vertices are left as they are (some may then be used by no triangle).
+/// Throws like validateMesh on out-of-range indices or non-finite vertices. What remains
+/// passes validateMesh with the same minAreaRatio, and ClothTopology::build's duplicate check.
+UnusableTriangles dropUnusableTriangles(TriangleMesh& mesh, double minAreaRatio = 1e-10);
+
 /// Area of triangle t [m^2].
 double triangleArea(const TriangleMesh& mesh, std::size_t t);
 

@@ -1,8 +1,12 @@
 // json_reader.hpp: strict, path-aware reading of JSON objects for scene files.
 //
-// Each accessor records the key it was asked for, so finish() can reject any key nobody
-// asked for: a typo like "spacng" is an error, not a silently ignored field. Every message
-// starts with the field's path ("cloth.sheet.rows: ...").
+// parseJson refuses a key that appears twice in one object (naming it with its path).
+// Each object declares the keys it knows (keys()) before anything is read from it, so an
+// unknown key (a typo like "stifness") is reported first, with the known key it is closest
+// to, never as a "missing field". Each accessor also records the key it was asked for, so
+// finish() rejects any key nobody asked for. Numbers are checked against a physical range
+// (Limits) that the message names. Every message starts with the field's path
+// ("cloth.sheet.rows: ...").
 #pragma once
 
 #include "drape_samples/scene.hpp"
@@ -10,7 +14,10 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstdio>
+#include <initializer_list>
 #include <set>
 #include <string>
 #include <vector>
@@ -19,10 +26,91 @@ namespace drape::samples::detail {
 
 using Json = nlohmann::json;
 
-enum class Range { Any, Positive, NonNegative, UnitInterval };
+/// The physical range of a number: [lo, hi], either end open when asked, and its unit for
+/// messages (SCENES.md lists the same ranges).
+struct Limits {
+    double lo;
+    double hi;
+    const char* unit = "";
+    bool openLo = false;
+    bool openHi = false;
+};
+
+inline std::string fmtNumber(double x) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%g", x);
+    return buf;
+}
+
+/// "[1e-06, 100000] m", "(0, 179) degrees".
+inline std::string describe(const Limits& l) {
+    std::string s = std::string(l.openLo ? "(" : "[") + fmtNumber(l.lo) + ", " + fmtNumber(l.hi) +
+                    (l.openHi ? ")" : "]");
+    if (l.unit && *l.unit) s += std::string(" ") + l.unit;
+    return s;
+}
+
+inline bool within(double x, const Limits& l) {
+    const bool aboveLo = l.openLo ? x > l.lo : x >= l.lo;
+    const bool belowHi = l.openHi ? x < l.hi : x <= l.hi;
+    return aboveLo && belowHi;
+}
 
 inline std::string typeName(const Json& j) {
     return j.type_name();
+}
+
+/// Parses JSON text and refuses a key given twice in one object (nlohmann keeps the last
+/// one silently). Throws SceneError naming `origin` and the key's path; nlohmann's own
+/// exceptions (syntax errors, numbers out of range) pass through to the caller.
+inline Json parseJson(const std::string& text, const std::string& origin) {
+    struct Frame {
+        bool array = false;
+        std::size_t index = 0; // arrays: the element being read
+        std::string key;       // objects: the key being read
+        std::set<std::string> keys;
+    };
+    std::vector<Frame> stack;
+    // The path of what each open object or array is reading now ("pins[0].box.min").
+    auto currentPath = [&stack] {
+        std::string p;
+        for (const Frame& f : stack)
+            p += f.array ? "[" + std::to_string(f.index) + "]" : (p.empty() ? "" : ".") + f.key;
+        return p;
+    };
+    auto elementDone = [&stack] {
+        if (!stack.empty() && stack.back().array) ++stack.back().index;
+    };
+    const Json::parser_callback_t cb = [&](int, Json::parse_event_t event, Json& parsed) {
+        switch (event) {
+        case Json::parse_event_t::object_start:
+            stack.push_back(Frame{});
+            break;
+        case Json::parse_event_t::array_start:
+            stack.push_back(Frame{});
+            stack.back().array = true;
+            break;
+        case Json::parse_event_t::key: {
+            Frame& top = stack.back();
+            top.key = parsed.get<std::string>();
+            if (!top.keys.insert(top.key).second)
+                throw SceneError(origin + ": " + currentPath() +
+                                 ": duplicate key (the object sets \"" + top.key +
+                                 "\" more than once; give it once)");
+            break;
+        }
+        case Json::parse_event_t::object_end:
+        case Json::parse_event_t::array_end:
+            stack.pop_back();
+            elementDone();
+            break;
+        case Json::parse_event_t::value:
+            elementDone();
+            break;
+        }
+        return true;
+    };
+    return Json::parse(text, cb);
 }
 
 class JsonObject {
@@ -45,6 +133,18 @@ class JsonObject {
         fail(pathOf(key), what);
     }
 
+    /// Declares every key this object may hold and refuses any other at once, with the
+    /// declared key it is closest to ("did you mean"), before any field is read: a typo is
+    /// never reported as a missing field.
+    void keys(std::initializer_list<const char*> allowed) {
+        for (const char* k : allowed)
+            allowed_.insert(k);
+        for (auto it = j_.begin(); it != j_.end(); ++it) {
+            if (allowed_.count(it.key())) continue;
+            fail(pathOf(it.key()), unknownFieldMessage(it.key(), allowed_));
+        }
+    }
+
     bool has(const std::string& key) {
         known_.insert(key);
         return j_.contains(key);
@@ -60,12 +160,45 @@ class JsonObject {
         return *v;
     }
 
-    /// " (is \"spacng\" a misspelling of it?)" when a present key is within two edits of `key`.
+    /// " (is \"spacng\" a misspelling of it?)" when a present key that is not one of this
+    /// object's own keys is within two edits of `key`.
     std::string misspellingHint(const std::string& key) const {
         for (auto it = j_.begin(); it != j_.end(); ++it)
-            if (editDistance(it.key(), key) <= 2)
+            if (!allowed_.count(it.key()) && editDistance(lower(it.key()), lower(key)) <= 2)
                 return " (is \"" + it.key() + "\" a misspelling of it?)";
         return {};
+    }
+
+    /// The allowed key closest to `key` (case ignored), if it is within two edits and
+    /// shorter than the key itself; empty if none is.
+    static std::string suggestion(const std::string& key, const std::set<std::string>& allowed) {
+        std::string best;
+        std::size_t bestDistance = 3;
+        for (const auto& a : allowed) {
+            const std::size_t d = editDistance(lower(key), lower(a));
+            if (d < bestDistance && d < std::max(key.size(), a.size())) {
+                bestDistance = d;
+                best = a;
+            }
+        }
+        return best;
+    }
+
+    static std::string unknownFieldMessage(const std::string& key,
+                                           const std::set<std::string>& allowed) {
+        std::string list;
+        for (const auto& k : allowed)
+            list += (list.empty() ? "" : ", ") + k;
+        const std::string near = suggestion(key, allowed);
+        return "unknown field (" +
+               (near.empty() ? std::string() : "did you mean \"" + near + "\"? ") +
+               "fields allowed here: " + list + ")";
+    }
+
+    static std::string lower(std::string s) {
+        for (char& c : s)
+            c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        return s;
     }
 
     static std::size_t editDistance(const std::string& a, const std::string& b) {
@@ -82,31 +215,20 @@ class JsonObject {
         return prev[b.size()];
     }
 
-    double toNumber(const Json& v, const std::string& path, Range r) const {
+    /// The number at `path`; it must lie within `l` (the message names the range).
+    double toNumber(const Json& v, const std::string& path, const Limits& l) const {
         if (!v.is_number()) fail(path, "expected a number, got " + typeName(v));
         const double x = v.get<double>();
         if (!std::isfinite(x)) fail(path, "must be finite");
-        switch (r) {
-        case Range::Any:
-            break;
-        case Range::Positive:
-            if (!(x > 0.0)) fail(path, "must be > 0, got " + fmt(x));
-            break;
-        case Range::NonNegative:
-            if (!(x >= 0.0)) fail(path, "must be >= 0, got " + fmt(x));
-            break;
-        case Range::UnitInterval:
-            if (!(x >= 0.0 && x <= 1.0)) fail(path, "must be in [0, 1], got " + fmt(x));
-            break;
-        }
+        if (!within(x, l)) fail(path, "must be in " + describe(l) + ", got " + fmt(x));
         return x;
     }
-    double number(const std::string& key, double def, Range r = Range::Any) {
+    double number(const std::string& key, double def, const Limits& l) {
         const Json* v = find(key);
-        return v ? toNumber(*v, pathOf(key), r) : def;
+        return v ? toNumber(*v, pathOf(key), l) : def;
     }
-    double requireNumber(const std::string& key, Range r = Range::Any) {
-        return toNumber(require(key), pathOf(key), r);
+    double requireNumber(const std::string& key, const Limits& l) {
+        return toNumber(require(key), pathOf(key), l);
     }
 
     long long toInteger(const Json& v, const std::string& path, long long lo, long long hi) const {
@@ -159,7 +281,8 @@ class JsonObject {
         failKey(key, "unknown value \"" + s + "\" (expected one of " + list + ")");
     }
 
-    Vec3 toVec3(const Json& v, const std::string& path) const {
+    /// [x, y, z], each component within `l` (the message names the component).
+    Vec3 toVec3(const Json& v, const std::string& path, const Limits& l) const {
         if (!v.is_array() || v.size() != 3)
             fail(path,
                  "expected an array of 3 numbers, got " +
@@ -167,25 +290,31 @@ class JsonObject {
         Vec3 r;
         for (int i = 0; i < 3; ++i)
             r[i] = toNumber(v[static_cast<std::size_t>(i)], path + "[" + std::to_string(i) + "]",
-                            Range::Any);
+                            l);
         return r;
     }
-    Vec3 vec3(const std::string& key, const Vec3& def) {
+    Vec3 vec3(const std::string& key, const Vec3& def, const Limits& l) {
         const Json* v = find(key);
-        return v ? toVec3(*v, pathOf(key)) : def;
+        return v ? toVec3(*v, pathOf(key), l) : def;
     }
-    Vec3 requireVec3(const std::string& key) { return toVec3(require(key), pathOf(key)); }
+    Vec3 requireVec3(const std::string& key, const Limits& l) {
+        return toVec3(require(key), pathOf(key), l);
+    }
 
     Color color(const std::string& key, const Color& def) {
         const Json* v = find(key);
         if (!v) return def;
-        const Vec3 c = toVec3(*v, pathOf(key));
+        if (!v->is_array() || v->size() != 3)
+            failKey(key, "expected an array of 3 numbers, got " +
+                             (v->is_array() ? "an array of " + std::to_string(v->size())
+                                            : typeName(*v)));
         Color out{};
-        for (int i = 0; i < 3; ++i) {
-            if (c[i] < 0.0 || c[i] > 1.0)
-                fail(pathOf(key) + "[" + std::to_string(i) + "]",
-                     "colour components are in [0, 1]");
-            out[static_cast<std::size_t>(i)] = static_cast<float>(c[i]);
+        for (std::size_t i = 0; i < 3; ++i) {
+            const std::string p = pathOf(key) + "[" + std::to_string(i) + "]";
+            if (!(*v)[i].is_number()) fail(p, "expected a number, got " + typeName((*v)[i]));
+            const double c = (*v)[i].get<double>();
+            if (!(c >= 0.0 && c <= 1.0)) fail(p, "colour components are in [0, 1], got " + fmt(c));
+            out[i] = static_cast<float>(c);
         }
         return out;
     }
@@ -214,26 +343,20 @@ class JsonObject {
     void finish() const {
         for (auto it = j_.begin(); it != j_.end(); ++it) {
             if (known_.count(it.key())) continue;
-            std::string list;
-            for (const auto& k : known_)
-                list += (list.empty() ? "" : ", ") + k;
-            fail(pathOf(it.key()), "unknown field (fields allowed here: " + list + ")");
+            fail(pathOf(it.key()), unknownFieldMessage(it.key(), known_));
         }
     }
 
     const std::string& origin() const { return origin_; }
 
-    static std::string fmt(double x) {
-        char buf[64];
-        std::snprintf(buf, sizeof buf, "%g", x);
-        return buf;
-    }
+    static std::string fmt(double x) { return fmtNumber(x); }
 
   private:
     const Json& j_;
     std::string path_;
     std::string origin_;
-    std::set<std::string> known_;
+    std::set<std::string> known_;   // keys an accessor asked for
+    std::set<std::string> allowed_; // keys declared with keys()
 };
 
 } // namespace drape::samples::detail

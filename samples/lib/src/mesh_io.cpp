@@ -2,14 +2,25 @@
 #include "drape_samples/mesh_io.hpp"
 
 #include <drape/error.hpp>
+#include <drape/topology.hpp>
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
 #include <fstream>
+#include <iterator>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #if DRAPE_SAMPLES_HAVE_ASSIMP
+#include "assimp_io.hpp"
+
 #include <assimp/Exporter.hpp>
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
@@ -42,9 +53,20 @@ void transformMesh(TriangleMesh& mesh, const Vec3& scale, const Vec3& rotationDe
 }
 
 ImportedMesh importMesh(const MeshDesc& desc) {
-    ImportedMesh m = importMesh(desc.file, desc.weldTolerance);
-    transformMesh(m.mesh, desc.scale, desc.rotationDeg, desc.translation);
-    return m;
+    MeshImportOptions o;
+    o.weldTolerance = desc.weldTolerance;
+    o.refuseDegenerate = desc.refuseDegenerate;
+    o.transform = true;
+    o.scale = desc.scale;
+    o.rotationDeg = desc.rotationDeg;
+    o.translation = desc.translation;
+    return importMesh(desc.file, o);
+}
+
+ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance) {
+    MeshImportOptions o;
+    o.weldTolerance = weldTolerance;
+    return importMesh(file, o);
 }
 
 #if DRAPE_SAMPLES_HAVE_ASSIMP
@@ -54,6 +76,9 @@ bool meshIoAvailable() {
 }
 
 namespace {
+
+constexpr std::uint64_t kMaxMeshFileBytes = 512u * 1024u * 1024u;
+constexpr std::uint64_t kMaxImportBytes = 2048ull * 1024u * 1024u;
 
 std::string lowerExtension(const std::filesystem::path& file) {
     std::string ext = file.extension().string();
@@ -81,18 +106,214 @@ bool isPlyWithoutEndHeader(const std::filesystem::path& file) {
     return true;
 }
 
+/// A count from a file header, as written (digits only), and its value (saturated).
+struct Count {
+    std::string text;
+    std::uint64_t value = 0;
+};
+
+bool parseCount(const std::string& token, Count& out) {
+    if (token.empty() || token.find_first_not_of("0123456789") != std::string::npos) return false;
+    out.text = token;
+    out.value = 0;
+    for (char c : token) {
+        const auto d = static_cast<std::uint64_t>(c - '0');
+        out.value = out.value > (UINT64_MAX - d) / 10 ? UINT64_MAX : out.value * 10 + d;
+    }
+    return true;
+}
+
+std::string bytesText(std::uint64_t n) {
+    return std::to_string(n) + (n == 1 ? " byte" : " bytes");
+}
+
+/// Header counts larger than the file can hold: assimp allocates what a header claims before
+/// it reads the data (a binary STL's triangle count, a PLY element count, an OFF vertex
+/// count), so a 200-byte file claiming billions of vertices ends in std::bad_alloc or in
+/// gigabytes of memory. Each count is checked against the least the file needs to hold it.
+void checkHeaderCounts(const std::filesystem::path& file, const std::string& ext,
+                       std::uint64_t size) {
+    std::ifstream in(file, std::ios::binary);
+    if (ext == ".stl") {
+        char head[84];
+        if (!in.read(head, sizeof head)) return; // assimp refuses files this short
+        std::size_t i = 0;
+        while (i < 80 && std::isspace(static_cast<unsigned char>(head[i])))
+            ++i;
+        if (std::string(head + i, std::min<std::size_t>(5, 80 - i)) == "solid") return; // ASCII
+        const std::uint64_t count = static_cast<std::uint64_t>(static_cast<unsigned char>(head[80])) |
+                                    static_cast<std::uint64_t>(static_cast<unsigned char>(head[81])) << 8 |
+                                    static_cast<std::uint64_t>(static_cast<unsigned char>(head[82])) << 16 |
+                                    static_cast<std::uint64_t>(static_cast<unsigned char>(head[83])) << 24;
+        const std::uint64_t need = 84 + 50 * count;
+        if (need > size)
+            meshFail(file, "binary STL header claims " + std::to_string(count) +
+                               " triangles, which need " + bytesText(need) +
+                               " (84 + 50 per triangle), but the file has only " + bytesText(size));
+        return;
+    }
+    if (ext == ".ply") {
+        std::string line;
+        if (!std::getline(in, line) || line.compare(0, 3, "ply") != 0) return;
+        bool binary = false;
+        struct Element {
+            std::string name;
+            Count count;
+            std::uint64_t minBytes = 0; // per element
+            bool known = true;          // every property type was understood
+        };
+        std::vector<Element> elements;
+        auto typeSize = [](const std::string& t) -> std::uint64_t {
+            if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
+            if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
+            if (t == "int" || t == "uint" || t == "int32" || t == "uint32" || t == "float" ||
+                t == "float32")
+                return 4;
+            if (t == "double" || t == "float64") return 8;
+            return 0;
+        };
+        bool ended = false;
+        while (std::getline(in, line)) {
+            std::istringstream ss(line);
+            std::string word;
+            ss >> word;
+            if (word == "end_header") {
+                ended = true;
+                break;
+            }
+            if (word == "format") {
+                std::string f;
+                ss >> f;
+                binary = f.rfind("binary", 0) == 0;
+            } else if (word == "element") {
+                Element e;
+                std::string n;
+                ss >> e.name >> n;
+                if (!parseCount(n, e.count)) return; // assimp refuses it itself
+                elements.push_back(e);
+            } else if (word == "property" && !elements.empty()) {
+                Element& e = elements.back();
+                std::string type;
+                ss >> type;
+                if (type == "list") {
+                    std::string countType;
+                    ss >> countType;
+                    const std::uint64_t c = typeSize(countType);
+                    e.known = e.known && c > 0;
+                    e.minBytes += binary ? c : 2; // an empty list: just its count
+                } else {
+                    const std::uint64_t t = typeSize(type);
+                    e.known = e.known && t > 0;
+                    e.minBytes += binary ? t : 2; // ASCII: a digit and a separator
+                }
+            }
+        }
+        if (!ended) return;
+        const auto header = static_cast<std::uint64_t>(in.tellg());
+        const std::uint64_t body = size > header ? size - header : 0;
+        // ASCII: the last value needs no separator after it.
+        std::uint64_t left = binary ? body : body + 1;
+        for (const Element& e : elements) {
+            if (!e.known) return; // assimp refuses unknown property types itself
+            const std::uint64_t per = std::max<std::uint64_t>(1, e.minBytes);
+            if (e.count.value > left / per)
+                meshFail(file, "PLY header claims " + e.count.text + " \"" + e.name +
+                                   "\" elements, at least " + bytesText(per) +
+                                   " each, but the file has only " + bytesText(body) +
+                                   " after its header");
+            left -= e.count.value * per;
+        }
+        return;
+    }
+    if (ext == ".dae") {
+        // Collada: count="N" of arrays, accessors and primitives counts items written in the
+        // file itself, at least a byte each.
+        const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+        const std::string key = "count=\"";
+        for (std::size_t at = text.find(key); at != std::string::npos; at = text.find(key, at + 1)) {
+            if (at == 0 || !std::isspace(static_cast<unsigned char>(text[at - 1]))) continue;
+            const std::size_t start = at + key.size();
+            const std::size_t end = text.find('"', start);
+            Count c;
+            if (end == std::string::npos || !parseCount(text.substr(start, end - start), c) ||
+                c.value <= size)
+                continue;
+            const std::size_t open = text.rfind('<', at);
+            std::size_t nameEnd = open == std::string::npos ? open : open + 1;
+            while (nameEnd < at && !std::isspace(static_cast<unsigned char>(text[nameEnd])))
+                ++nameEnd;
+            const std::string element =
+                open == std::string::npos ? std::string("an element")
+                                          : "<" + text.substr(open + 1, nameEnd - open - 1) + ">";
+            meshFail(file, "Collada " + element + " claims count=\"" + c.text +
+                               "\", more items than the file (" + bytesText(size) + ") can hold");
+        }
+        return;
+    }
+    if (ext == ".off") {
+        // [ST][C][N][4][n]OFF [dim] nv nf ne, '#' comments; assimp reads 32-bit counts.
+        std::string token;
+        std::vector<std::string> tokens;
+        std::string line;
+        while (tokens.size() < 5 && std::getline(in, line)) {
+            const std::size_t hash = line.find('#');
+            std::istringstream ss(line.substr(0, hash));
+            while (ss >> token)
+                tokens.push_back(token);
+        }
+        if (tokens.empty()) return;
+        std::size_t at = 0;
+        std::uint64_t dims = 3;
+        const std::string& keyword = tokens[0];
+        if (keyword.size() >= 3 && keyword.compare(keyword.size() - 3, 3, "OFF") == 0) {
+            ++at;
+            if (keyword.find('n') != std::string::npos) {
+                Count d;
+                if (at >= tokens.size() || !parseCount(tokens[at], d)) return;
+                dims = std::max<std::uint64_t>(1, std::min<std::uint64_t>(d.value, 3));
+                ++at;
+            }
+        }
+        Count nv, nf;
+        if (at + 1 >= tokens.size() || !parseCount(tokens[at], nv) || !parseCount(tokens[at + 1], nf))
+            return;
+        // A vertex is at least dims numbers of one digit and their separators; a face at
+        // least a number and a line break.
+        auto times = [](std::uint64_t n, std::uint64_t k) {
+            return n > UINT64_MAX / k ? UINT64_MAX : n * k;
+        };
+        const std::uint64_t vertexBytes = times(nv.value, 2 * dims);
+        const std::uint64_t faceBytes = times(nf.value, 2);
+        const std::uint64_t need =
+            vertexBytes > UINT64_MAX - faceBytes ? UINT64_MAX : vertexBytes + faceBytes;
+        if (need > size + 1)
+            meshFail(file, "OFF header claims " + nv.text + " vertices and " + nf.text +
+                               " faces, which need at least " + bytesText(need - 1) +
+                               ", but the file has only " + bytesText(size));
+    }
+}
+
 struct RawMesh {
     TriangleMesh mesh;
     std::map<std::string, std::vector<Index>> rawGroups; // raw vertex indices
-    std::size_t skipped = 0;
+    std::size_t skipped = 0;                             // the file's points and lines
+    // Where each triangle comes from: the scene's mesh and its face (after triangulation).
+    std::vector<std::pair<unsigned, unsigned>> origin;
+    // Triangles FindDegenerates collapsed to lines or points, as (mesh, face).
+    std::vector<std::pair<unsigned, unsigned>> collapsed;
 };
 
+/// Faces of each mesh that were triangles before FindDegenerates ran, to tell a triangle it
+/// collapsed (to a line or a point) from the file's own lines and points.
+using TriangleMasks = std::map<const aiMesh*, std::vector<unsigned char>>;
+
 void gather(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent, RawMesh& out,
-            const std::filesystem::path& file) {
+            const TriangleMasks& wasTriangle, const std::filesystem::path& file) {
     const aiMatrix4x4 world = parent * node.mTransformation;
     for (unsigned k = 0; k < node.mNumMeshes; ++k) {
         if (node.mMeshes[k] >= scene.mNumMeshes) meshFail(file, "node refers to a missing mesh");
-        const aiMesh& m = *scene.mMeshes[node.mMeshes[k]];
+        const unsigned meshIndex = node.mMeshes[k];
+        const aiMesh& m = *scene.mMeshes[meshIndex];
         const std::size_t base = out.mesh.vertices.size();
         if (base + m.mNumVertices > kMaxSceneParticles * 8)
             meshFail(file, "too many vertices (limit " + std::to_string(kMaxSceneParticles * 8) +
@@ -105,10 +326,16 @@ void gather(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent,
                                    "\" is not finite");
             out.mesh.vertices.push_back(v);
         }
+        const auto mask = wasTriangle.find(&m);
         for (unsigned f = 0; f < m.mNumFaces; ++f) {
             const aiFace& face = m.mFaces[f];
             if (face.mNumIndices != 3) {
-                ++out.skipped;
+                const bool collapsed = mask != wasTriangle.end() && f < mask->second.size() &&
+                                       mask->second[f];
+                if (collapsed)
+                    out.collapsed.emplace_back(meshIndex, f);
+                else
+                    ++out.skipped;
                 continue;
             }
             Triangle t{};
@@ -119,6 +346,7 @@ void gather(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent,
                 t[c] = static_cast<Index>(base + face.mIndices[c]);
             }
             out.mesh.triangles.push_back(t);
+            out.origin.emplace_back(meshIndex, f);
         }
         std::vector<Index> all(m.mNumVertices);
         for (unsigned i = 0; i < m.mNumVertices; ++i)
@@ -131,34 +359,95 @@ void gather(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent,
         }
     }
     for (unsigned c = 0; c < node.mNumChildren; ++c)
-        gather(scene, *node.mChildren[c], world, out, file);
+        gather(scene, *node.mChildren[c], world, out, wasTriangle, file);
+}
+
+/// "mesh \"body\" faces 3, 17, 40 and 5 more; mesh \"hat\" face 2": where the listed
+/// (mesh, face) pairs are, the first few of each mesh.
+std::string whereText(std::vector<std::pair<unsigned, unsigned>> faces,
+                      const std::vector<std::string>& meshNames) {
+    std::sort(faces.begin(), faces.end());
+    constexpr std::size_t kShown = 8;
+    std::string out;
+    for (std::size_t i = 0; i < faces.size();) {
+        const unsigned mesh = faces[i].first;
+        std::size_t j = i;
+        while (j < faces.size() && faces[j].first == mesh)
+            ++j;
+        const std::string& name = mesh < meshNames.size() ? meshNames[mesh] : std::string();
+        out += (out.empty() ? "" : "; ") +
+               (name.empty() ? "mesh " + std::to_string(mesh) : "mesh \"" + name + "\"") +
+               (j - i == 1 ? " face " : " faces ");
+        for (std::size_t k = i; k < j && k < i + kShown; ++k)
+            out += (k == i ? "" : ", ") + std::to_string(faces[k].second);
+        if (j - i > kShown) out += " and " + std::to_string(j - i - kShown) + " more";
+        i = j;
+    }
+    return out;
 }
 
 } // namespace
 
-ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance) {
+ImportedMesh importMesh(const std::filesystem::path& file, const MeshImportOptions& options) {
     std::error_code ec;
     if (!std::filesystem::exists(file, ec)) meshFail(file, "mesh file not found");
     if (std::filesystem::is_directory(file, ec)) meshFail(file, "is a folder, not a mesh file");
-    const auto size = std::filesystem::file_size(file, ec);
-    if (ec) meshFail(file, "cannot read: " + ec.message());
+    std::uint64_t size = 0;
+    const std::string notRegular = detail::describeNonRegular(file.string(), size);
+    if (!notRegular.empty()) meshFail(file, "cannot read: " + notRegular);
     if (size == 0) meshFail(file, "mesh file is empty");
-    if (size > 512u * 1024u * 1024u) meshFail(file, "mesh file larger than 512 MiB");
+    if (size > kMaxMeshFileBytes) meshFail(file, "mesh file larger than 512 MiB");
 
     if (isPlyWithoutEndHeader(file))
         meshFail(file, "PLY header has no end_header line (the file is truncated or not PLY)");
+    checkHeaderCounts(file, lowerExtension(file), size);
 
     Assimp::Importer importer;
+    // Every file assimp opens (the mesh file, material libraries, buffers, textures) goes
+    // through drape's IO system: regular files only, none beyond 512 MiB, 2 GiB in all. The
+    // importer owns it; `io` stays valid while the importer lives.
+    auto* io = new detail::GuardedIOSystem(kMaxMeshFileBytes, kMaxImportBytes);
+    importer.SetIOHandler(io);
+    auto refusedFiles = [&] {
+        std::string list;
+        for (const auto& r : io->refusals())
+            list += (list.empty() ? "" : "; ") + r.file + ": " + r.reason;
+        return list;
+    };
     // Points and lines stay in their meshes (they are skipped below) so that the order of
     // first use of every vertex is the file's order.
     const aiScene* scene = importer.ReadFile(file.string(), aiProcess_ValidateDataStructure);
-    if (!scene || !scene->mRootNode)
-        meshFail(file, std::string("assimp cannot read it: ") + importer.GetErrorString());
-    // assimp 5.2's triangulation asserts (aborts the process) on a mesh that declares polygons
-    // but has none, which some malformed files produce (a PLY polygon whose indices are out of
-    // range is dropped after the mesh was marked): check before triangulating.
+    if (io->budgetExceeded())
+        meshFail(file, "reading it and the files it names took more than " +
+                           std::to_string(kMaxImportBytes >> 20) + " MiB");
+    if (!scene || !scene->mRootNode) {
+        std::string why = importer.GetErrorString();
+        // assimp turns an allocation failure into its error string.
+        if (why.find("bad_alloc") != std::string::npos ||
+            why.find("length_error") != std::string::npos)
+            why = "it runs out of memory (" + why +
+                  "): a count in the file is larger than the file can hold";
+        const std::string refused = refusedFiles();
+        meshFail(file, "assimp cannot read it: " + why +
+                           (refused.empty() ? std::string() : " (refused to open " + refused + ")"));
+    }
+    ImportedMesh out;
+    for (const auto& r : io->refusals())
+        out.warnings.push_back(file.string() + ": did not open " + r.file +
+                               ", which it names: " + r.reason + "; read without it");
     for (unsigned i = 0; i < scene->mNumMeshes; ++i) {
         const aiMesh& m = *scene->mMeshes[i];
+        // Non-finite positions are named here: FindInvalidData (below) would delete the
+        // whole mesh for one of them.
+        for (unsigned v = 0; v < m.mNumVertices; ++v)
+            if (!std::isfinite(m.mVertices[v].x) || !std::isfinite(m.mVertices[v].y) ||
+                !std::isfinite(m.mVertices[v].z))
+                meshFail(file, "vertex " + std::to_string(v) + " of mesh \"" + m.mName.C_Str() +
+                                   "\" is not finite");
+        // assimp 5.2's triangulation asserts (aborts the process) on a mesh that declares
+        // polygons but has none, which some malformed files produce (a PLY polygon whose
+        // indices are out of range is dropped after the mesh was marked): check before
+        // triangulating.
         if (!(m.mPrimitiveTypes & aiPrimitiveType_POLYGON)) continue;
         bool polygon = false;
         for (unsigned f = 0; f < m.mNumFaces && !polygon; ++f) polygon = m.mFaces[f].mNumIndices > 3;
@@ -172,41 +461,151 @@ ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance)
     if (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE)
         meshFail(file, "assimp reports the file as incomplete");
 
+    // assimp's FindDegenerates turns a triangle with two corners at one position into a line
+    // or a point (it keeps every face where it is: AI_CONFIG_PP_FD_REMOVE off, and no
+    // absolute area test, which would drop real millimetre triangles); FindInvalidData
+    // deletes a mesh whose used vertices all sit at one point. Both are reported below.
+    TriangleMasks wasTriangle;
+    std::vector<std::string> meshNames(scene->mNumMeshes);
+    std::vector<std::pair<const aiMesh*, std::size_t>> meshTriangles; // before the steps
+    for (unsigned i = 0; i < scene->mNumMeshes; ++i) {
+        const aiMesh* m = scene->mMeshes[i];
+        auto& mask = wasTriangle[m];
+        mask.resize(m->mNumFaces);
+        std::size_t triangles = 0;
+        for (unsigned f = 0; f < m->mNumFaces; ++f) {
+            mask[f] = m->mFaces[f].mNumIndices == 3;
+            triangles += mask[f];
+        }
+        meshNames[i] = m->mName.C_Str();
+        meshTriangles.emplace_back(m, triangles);
+    }
+    importer.SetPropertyInteger(AI_CONFIG_PP_FD_REMOVE, 0);
+    importer.SetPropertyInteger(AI_CONFIG_PP_FD_CHECKAREA, 0);
+    scene = importer.ApplyPostProcessing(aiProcess_FindDegenerates | aiProcess_FindInvalidData);
+    if (!scene || !scene->mRootNode) {
+        const std::string why = importer.GetErrorString();
+        if (why.find("No meshes remaining") != std::string::npos)
+            meshFail(file, "contains no usable triangle: in every mesh all vertices sit at one "
+                           "point");
+        meshFail(file, "assimp cannot check it for degenerate triangles: " + why);
+    }
+    // Meshes FindInvalidData deleted (their pointers are gone from the scene).
+    std::size_t collapsedMeshTriangles = 0;
+    std::string collapsedMeshes;
+    for (std::size_t i = 0; i < meshTriangles.size(); ++i) {
+        bool present = false;
+        for (unsigned j = 0; j < scene->mNumMeshes && !present; ++j)
+            present = scene->mMeshes[j] == meshTriangles[i].first;
+        if (present || meshTriangles[i].second == 0) continue;
+        collapsedMeshTriangles += meshTriangles[i].second;
+        collapsedMeshes += (collapsedMeshes.empty() ? "" : ", ") +
+                           (meshNames[i].empty() ? "mesh " + std::to_string(i)
+                                                 : "mesh \"" + meshNames[i] + "\"");
+    }
+    // Mesh indices changed if a mesh was deleted: name meshes by the scene as it is now.
+    std::vector<std::string> names(scene->mNumMeshes);
+    for (unsigned i = 0; i < scene->mNumMeshes; ++i)
+        names[i] = scene->mMeshes[i]->mName.C_Str();
+
     RawMesh raw;
-    gather(*scene, *scene->mRootNode, aiMatrix4x4(), raw, file);
-    if (raw.mesh.triangles.empty())
+    gather(*scene, *scene->mRootNode, aiMatrix4x4(), raw, wasTriangle, file);
+    const std::size_t fileTriangles =
+        raw.mesh.triangles.size() + raw.collapsed.size() + collapsedMeshTriangles;
+    if (fileTriangles == 0)
         meshFail(file,
                  "contains no triangles" +
                      (raw.skipped ? " (only " + std::to_string(raw.skipped) + " points or lines)"
                                   : std::string()));
 
-    double tol = weldTolerance;
-    if (tol < 0.0) {
-        Vec3 lo = raw.mesh.vertices[0], hi = lo;
-        for (const Vec3& v : raw.mesh.vertices) {
-            lo = lo.cwiseMin(v);
-            hi = hi.cwiseMax(v);
+    if (options.transform) {
+        transformMesh(raw.mesh, options.scale, options.rotationDeg, options.translation);
+        for (std::size_t i = 0; i < raw.mesh.vertices.size(); ++i) {
+            const Vec3& v = raw.mesh.vertices[i];
+            if (!(v.cwiseAbs().maxCoeff() <= kMaxCoordinate)) {
+                char buf[128];
+                std::snprintf(buf, sizeof buf, "(%g, %g, %g)", v.x(), v.y(), v.z());
+                meshFail(file, "vertex " + std::to_string(i) + " lands at " + buf +
+                                   " m after mesh.scale, rotation_deg and translation, outside "
+                                   "the [-1e+06, 1e+06] m coordinate range");
+            }
         }
-        tol = 1e-9 * (hi - lo).norm();
     }
+
+    // Welding and drape's own test: corners within the weld tolerance become one particle,
+    // so a triangle can collapse here too, or keep a near-zero area (validateMesh's test),
+    // or repeat another triangle's three particles.
+    UnusableTriangles unusable;
     WeldResult welded;
-    try {
-        welded = weldVertices(raw.mesh, tol);
-    } catch (const drape::Error& e) {
-        meshFail(file, e.what());
+    if (!raw.mesh.triangles.empty()) {
+        double tol = options.weldTolerance;
+        if (tol < 0.0) {
+            Vec3 lo = raw.mesh.vertices[0], hi = lo;
+            for (const Vec3& v : raw.mesh.vertices) {
+                lo = lo.cwiseMin(v);
+                hi = hi.cwiseMax(v);
+            }
+            tol = 1e-9 * (hi - lo).norm();
+        }
+        try {
+            welded = weldVertices(raw.mesh, tol);
+            unusable = dropUnusableTriangles(welded.mesh, TopologyOptions{}.minAreaRatio);
+        } catch (const drape::Error& e) {
+            meshFail(file, e.what());
+        }
     }
-    // Drop vertices no triangle uses (point clouds, helper vertices), keeping the order.
+    std::vector<std::pair<unsigned, unsigned>> degenerate = raw.collapsed, duplicate;
+    for (std::size_t t : unusable.degenerate)
+        degenerate.push_back(raw.origin[t]);
+    for (std::size_t t : unusable.duplicate)
+        duplicate.push_back(raw.origin[t]);
+    const std::size_t degenerateCount = degenerate.size() + collapsedMeshTriangles;
+
+    // Drop vertices no triangle uses (point clouds, helper vertices, corners of dropped
+    // triangles), keeping the order.
     std::vector<Index> used(welded.mesh.vertices.size(), 0);
     for (const Triangle& t : welded.mesh.triangles)
         for (Index i : t)
             used[i] = 1;
     std::vector<Index> compact(used.size(), Index(-1));
-    ImportedMesh out;
     for (std::size_t i = 0; i < used.size(); ++i)
         if (used[i]) {
             compact[i] = static_cast<Index>(out.mesh.vertices.size());
             out.mesh.vertices.push_back(welded.mesh.vertices[i]);
         }
+    // Vertices no kept triangle uses (after welding: a seam's copies count once).
+    const std::size_t isolated = welded.mesh.vertices.size() - out.mesh.vertices.size();
+
+    if (degenerateCount + duplicate.size() + isolated > 0) {
+        std::string what;
+        if (degenerateCount > 0) {
+            what += std::to_string(degenerateCount) + " degenerate triangle" +
+                    (degenerateCount == 1 ? "" : "s") + " (two corners at one point, or no area";
+            if (!degenerate.empty()) what += ": " + whereText(degenerate, names);
+            if (!collapsedMeshes.empty())
+                what += (degenerate.empty() ? ": " : "; ") + std::string("all of ") +
+                        collapsedMeshes + ", whose vertices all sit at one point";
+            what += ")";
+        }
+        if (!duplicate.empty())
+            what += (what.empty() ? "" : ", ") + std::to_string(duplicate.size()) +
+                    " duplicate triangle" + (duplicate.size() == 1 ? "" : "s") +
+                    " (the same three corners as an earlier one: " + whereText(duplicate, names) +
+                    ")";
+        if (isolated > 0)
+            what += (what.empty() ? "" : ", ") + std::to_string(isolated) + " vertex" +
+                    (isolated == 1 ? "" : "es") + " no triangle uses";
+        if (options.refuseDegenerate)
+            meshFail(file, "has " + what +
+                               "; refused (mesh.degenerate_triangles is \"refuse\"; \"drop\" "
+                               "drops them with a warning)");
+        if (out.mesh.vertices.empty() || welded.mesh.triangles.empty())
+            meshFail(file, "contains no usable triangle: all " + std::to_string(fileTriangles) +
+                               " are degenerate or duplicates (" + what + ")");
+        out.warnings.push_back(file.string() + ": dropped " + what + "; " +
+                               std::to_string(welded.mesh.triangles.size()) + " of " +
+                               std::to_string(fileTriangles) + " triangles kept");
+    }
     if (out.mesh.vertices.size() > kMaxSceneParticles)
         meshFail(file, std::to_string(out.mesh.vertices.size()) +
                            " vertices after welding exceeds the limit of " +
@@ -227,6 +626,9 @@ ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance)
     }
     out.rawVertexCount = raw.mesh.vertices.size();
     out.skippedPrimitives = raw.skipped;
+    out.droppedDegenerate = degenerateCount;
+    out.droppedDuplicates = duplicate.size();
+    out.droppedVertices = isolated;
     return out;
 }
 
@@ -247,6 +649,12 @@ void exportMesh(const TriangleMesh& mesh, const std::filesystem::path& file) {
         meshFail(file,
                  "unknown mesh format \"" + ext + "\" for export (use .obj, .ply, .gltf or .glb)");
     if (mesh.vertices.empty() || mesh.triangles.empty()) meshFail(file, "nothing to export");
+    // The file stores single precision: a vertex beyond its range would be written as inf.
+    constexpr double kFloatMax = static_cast<double>(std::numeric_limits<float>::max());
+    for (std::size_t i = 0; i < mesh.vertices.size(); ++i)
+        if (!(mesh.vertices[i].cwiseAbs().maxCoeff() <= kFloatMax))
+            meshFail(file, "vertex " + std::to_string(i) + " is not finite or beyond the "
+                           "single-precision range of the file; nothing written");
 
     // Area-weighted vertex normals, so that other tools shade the mesh smoothly.
     std::vector<Vec3> normals(mesh.vertices.size(), Vec3::Zero());
@@ -313,7 +721,7 @@ bool meshIoAvailable() {
     return false;
 }
 
-ImportedMesh importMesh(const std::filesystem::path& file, double) {
+ImportedMesh importMesh(const std::filesystem::path& file, const MeshImportOptions&) {
     meshFail(file, "this build has no mesh import (configure with -DDRAPE_WITH_ASSIMP=ON)");
 }
 

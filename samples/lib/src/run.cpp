@@ -23,6 +23,12 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+std::string num(double x) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", x);
+    return buf;
+}
+
 double seconds(Clock::time_point a, Clock::time_point b) {
     return std::chrono::duration<double>(b - a).count();
 }
@@ -83,6 +89,8 @@ void applyOverrides(SceneDesc& scene, const RunOptions& o) {
     if (o.timeStep) {
         if (!(*o.timeStep > 0.0) || !std::isfinite(*o.timeStep))
             throw SceneError("--dt: the time step must be a positive number of seconds");
+        if (!(*o.timeStep >= kMinTimeStep && *o.timeStep <= kMaxTimeStep))
+            throw SceneError("--dt: must be in [1e-09, 10] s, got " + num(*o.timeStep));
         scene.timeStep = *o.timeStep;
     }
     if (o.steps && o.seconds) throw SceneError("--steps and --seconds: give one, not both");
@@ -94,6 +102,8 @@ void applyOverrides(SceneDesc& scene, const RunOptions& o) {
     if (o.seconds) {
         if (!(*o.seconds > 0.0) || !std::isfinite(*o.seconds))
             throw SceneError("--seconds: must be a positive number of seconds");
+        if (*o.seconds > kMaxDuration)
+            throw SceneError("--seconds: must be in (0, 1e+06] s, got " + num(*o.seconds));
         scene.duration = *o.seconds;
     }
     if (scene.duration / scene.timeStep > static_cast<double>(kMaxSceneSteps))
@@ -102,6 +112,8 @@ void applyOverrides(SceneDesc& scene, const RunOptions& o) {
     if (scene.stepCount() == 0) throw SceneError(org + ": the run is shorter than one time step");
     if (o.fps) {
         if (!(*o.fps > 0.0) || !std::isfinite(*o.fps)) throw SceneError("--fps: must be positive");
+        if (!(*o.fps >= kMinFps && *o.fps <= kMaxFps))
+            throw SceneError("--fps: must be in [1e-06, 1e+06] 1/s, got " + num(*o.fps));
         scene.output.fps = *o.fps;
     }
     if (scene.output.fps * scene.duration > static_cast<double>(kMaxSceneFrames))
@@ -146,6 +158,13 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
     Simulation sim(scene);
     const Cloth& cloth = sim.cloth();
     RunResult r;
+    r.warnings = sim.warnings();
+    for (const std::string& w : r.warnings) {
+        if (options.warn)
+            options.warn(w);
+        else
+            log << "warning: " << w << "\n";
+    }
     r.particles = cloth.particleCount();
     r.springs = cloth.topology().springCount();
     log << "scene    " << scene.name << (scene.description.empty() ? "" : ": " + scene.description)
@@ -158,7 +177,11 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
     log << "\n"
         << "run      " << toString(scene.cloth.integrator) << ", dt " << scene.timeStep << " s, "
         << scene.stepCount() << " steps (" << scene.duration << " s)"
-        << ", stable dt limit " << cloth.stableTimeStep() << " s\n";
+        << ", stable dt limit " << cloth.stableTimeStep() << " s";
+    if (sim.substeps() > 1 || scene.autoSubsteps)
+        log << ", " << sim.substeps() << " cloth sub-step" << (sim.substeps() == 1 ? "" : "s")
+            << " per step" << (scene.autoSubsteps ? " (auto)" : "");
+    log << "\n";
 
     std::unique_ptr<OffscreenRenderer> renderer;
     if (render)
@@ -229,6 +252,7 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
     }
 
     const bool writeObj = scene.output.obj && meshIoAvailable();
+    (void)sim.stats(); // the final state (throws StepError if anything is non-finite)
     if (writeObj) exportMesh(sim.clothMesh(), options.outDir / "cloth_final.obj");
 
     if (render && options.video && scene.output.video) {
@@ -252,6 +276,24 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
     r.wallSeconds = seconds(start, Clock::now());
     r.stateHash = drape::stateHash(cloth);
 
+    // The summary's numbers: the state was checked at the last frame, these are checked
+    // again here so that no inf or nan reaches summary.txt whatever their source.
+    const double meanStepMs = 1000.0 * r.stepWallSeconds / static_cast<double>(r.steps);
+    const double realTimeFactor = r.simulatedSeconds / std::max(r.stepWallSeconds, 1e-12);
+    const double finalEnergy = cloth.kineticEnergy();
+    const std::pair<const char*, double> summaryValues[] = {
+        {"the simulated time", r.simulatedSeconds},
+        {"the largest strain (final)", r.finalMaxStrain},
+        {"the largest strain (peak)", r.peakMaxStrain},
+        {"the final kinetic energy", finalEnergy},
+        {"the mean step time", meanStepMs},
+        {"the real-time factor", realTimeFactor}};
+    for (const auto& [name, value] : summaryValues)
+        if (!std::isfinite(value))
+            throw StepError(scene.sourceFile.string() + ": " + name + " is " +
+                            std::to_string(value) +
+                            "; the simulation overflowed, and nothing non-finite is written");
+
     std::ostringstream sum;
     sum << std::setprecision(6);
     sum << "scene               " << scene.name << "\n"
@@ -265,14 +307,15 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
         sum << " (max strain " << scene.cloth.limiter.maxStrain << ")";
     sum << "\n"
         << "time step           " << scene.timeStep << " s\n"
+        << "cloth sub-steps     " << sim.substeps() << " per step"
+        << (scene.autoSubsteps ? " (auto, from the stable limit " : " (stable limit ")
+        << cloth.stableTimeStep() << " s)\n"
         << "steps               " << r.steps << "\n"
         << "simulated time      " << r.simulatedSeconds << " s\n"
         << "wall time           " << r.wallSeconds << " s (stepping " << r.stepWallSeconds
         << " s, rendering " << r.renderWallSeconds << " s)\n"
-        << "mean step           " << 1000.0 * r.stepWallSeconds / static_cast<double>(r.steps)
-        << " ms\n"
-        << "real-time factor    " << r.simulatedSeconds / std::max(r.stepWallSeconds, 1e-12)
-        << "x (stepping only)\n"
+        << "mean step           " << meanStepMs << " ms\n"
+        << "real-time factor    " << realTimeFactor << "x (stepping only)\n"
         << "max strain (final)  " << r.finalMaxStrain << "\n"
         << "max strain (peak)   " << r.peakMaxStrain << " (over the frames)\n"
         << "limiter cap hits    " << cloth.limiterCapHits()
@@ -282,7 +325,7 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
                       std::to_string(cloth.settings().limiter.maxRounds) +
                       "): the strain bound was not promised in them")
         << "\n"
-        << "kinetic energy      " << cloth.kineticEnergy() << " J (final)\n"
+        << "kinetic energy      " << finalEnergy << " J (final)\n"
         << "state hash          " << [&] {
                char buf[32];
                std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(r.stateHash));
@@ -297,6 +340,8 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
         sum << "final mesh          none (built without assimp)\n";
     if (scene.output.csv)
         sum << "statistics          " << (options.outDir / "stats.csv").string() << "\n";
+    for (const std::string& w : r.warnings)
+        sum << "warning             " << w << "\n";
     sum << "phases (wall time):\n";
     for (const auto& t : cloth.timers().all())
         if (t.calls)

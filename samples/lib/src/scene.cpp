@@ -13,7 +13,7 @@ namespace drape::samples {
 
 using detail::Json;
 using detail::JsonObject;
-using detail::Range;
+using detail::Limits;
 
 std::size_t SceneDesc::stepCount() const {
     return static_cast<std::size_t>(std::llround(duration / timeStep));
@@ -23,32 +23,72 @@ namespace {
 
 constexpr std::size_t kMaxListEntries = 1u << 20;
 
+// The physical range of every number a scene holds (SCENES.md, "Ranges", lists the same).
+// Wide enough for any real scene (the paper's 350 m sheets, millimetre meshes), narrow
+// enough that no product of them overflows a double during a run.
+constexpr Limits kCoordinate{-kMaxCoordinate, kMaxCoordinate, "m"};
+constexpr Limits kDirection{-1e6, 1e6, ""};
+constexpr Limits kSize{1e-6, 1e5, "m"};
+constexpr Limits kSizeOrZero{0.0, 1e5, "m"};
+constexpr Limits kScale{1e-6, 1e6, ""};
+constexpr Limits kAngle{-1e6, 1e6, "degrees"};
+constexpr Limits kParticleMass{1e-12, 1e6, "kg"};
+constexpr Limits kTotalMass{1e-9, 1e9, "kg"};
+constexpr Limits kStiffness{1e-9, 1e12, "N/m"};
+constexpr Limits kYoungsModulus{1e-3, 1e13, "Pa"};
+constexpr Limits kMaterialThickness{1e-7, 1.0, "m"};
+constexpr Limits kDensity{1e-3, 1e5, "kg/m^3"};
+constexpr Limits kDamping{0.0, 1e9, "N s/m"};
+constexpr Limits kAirDensity{0.0, 1e4, "kg/m^3"};
+constexpr Limits kCoefficient{0.0, 100.0, ""};
+constexpr Limits kTimeStep{kMinTimeStep, kMaxTimeStep, "s"};
+constexpr Limits kDuration{kMinTimeStep, kMaxDuration, "s"};
+constexpr Limits kTime{0.0, 1e9, "s"};
+constexpr Limits kGravity{-1e4, 1e4, "m/s^2"};
+constexpr Limits kVelocity{-1e4, 1e4, "m/s"};
+constexpr Limits kAngularVelocity{-1e4, 1e4, "rad/s"};
+constexpr Limits kFrequency{0.0, 1e6, "Hz"};
+constexpr Limits kBodyMass{1e-6, 1e9, "kg"};
+constexpr Limits kUnitInterval{0.0, 1.0, ""};
+constexpr Limits kPenaltyForce{0.0, 1e12, "N"};
+constexpr Limits kCgTolerance{1e-16, 1.0, ""};
+constexpr Limits kMaxStrain{1e-6, 10.0, ""};
+constexpr Limits kStrainTolerance{0.0, 10.0, ""};
+constexpr Limits kWarmStart{0.0, 1.0, "", false, true};
+constexpr Limits kLongRangeSlack{1.0, 100.0, ""};
+constexpr Limits kFov{0.0, 179.0, "degrees", true, true};
+constexpr Limits kFps{kMinFps, kMaxFps, "1/s"};
+constexpr Limits kWeldTolerance{0.0, 1e5, "m"};
+
 MeshDesc parseMeshDesc(JsonObject o, const std::filesystem::path& baseDir) {
+    o.keys({"file", "scale", "rotation_deg", "translation", "weld_tolerance",
+            "degenerate_triangles"});
     MeshDesc m;
     const std::string file = o.requireString("file");
     if (file.empty()) o.failKey("file", "must not be empty");
     m.file = std::filesystem::path(file);
     if (m.file.is_relative()) m.file = baseDir / m.file;
     if (const Json* s = o.find("scale")) {
-        if (s->is_number()) {
-            const double k = o.toNumber(*s, o.pathOf("scale"), Range::Positive);
-            m.scale = Vec3::Constant(k);
-        } else {
-            m.scale = o.toVec3(*s, o.pathOf("scale"));
-            for (int i = 0; i < 3; ++i)
-                if (!(m.scale[i] > 0.0))
-                    o.fail(o.pathOf("scale") + "[" + std::to_string(i) + "]", "must be > 0");
-        }
+        if (s->is_number())
+            m.scale = Vec3::Constant(o.toNumber(*s, o.pathOf("scale"), kScale));
+        else
+            m.scale = o.toVec3(*s, o.pathOf("scale"), kScale);
     }
-    m.rotationDeg = o.vec3("rotation_deg", m.rotationDeg);
-    m.translation = o.vec3("translation", m.translation);
-    m.weldTolerance = o.number("weld_tolerance", m.weldTolerance);
+    m.rotationDeg = o.vec3("rotation_deg", m.rotationDeg, kAngle);
+    m.translation = o.vec3("translation", m.translation, kCoordinate);
+    if (const Json* w = o.find("weld_tolerance")) {
+        // Negative: automatic (documented as -1); else a distance.
+        const bool automatic = w->is_number() && w->get<double>() < 0.0;
+        if (!automatic) m.weldTolerance = o.toNumber(*w, o.pathOf("weld_tolerance"), kWeldTolerance);
+    }
+    m.refuseDegenerate = o.choice("degenerate_triangles", "drop", {"drop", "refuse"}) == "refuse";
     o.finish();
     return m;
 }
 
 ParticleSelector parseSelector(JsonObject& o, bool isSheet) {
     ParticleSelector s;
+    // The caller declared the object's keys (its own and "indices", "grid", "box", "groups").
     s.path = o.path();
     const Json& idx = o.array("indices", kMaxListEntries);
     for (std::size_t i = 0; i < idx.size(); ++i)
@@ -65,8 +105,9 @@ ParticleSelector parseSelector(JsonObject& o, bool isSheet) {
              static_cast<Index>(o.toInteger(grid[i][1], p + "[1]", 0, 0xFFFFFFFELL))});
     }
     if (auto box = o.optObject("box")) {
-        const Vec3 lo = box->requireVec3("min");
-        const Vec3 hi = box->requireVec3("max");
+        box->keys({"min", "max"});
+        const Vec3 lo = box->requireVec3("min", kCoordinate);
+        const Vec3 hi = box->requireVec3("max", kCoordinate);
         for (int i = 0; i < 3; ++i)
             if (lo[i] > hi[i]) box->fail(box->pathOf("min"), "min must not exceed max on any axis");
         box->finish();
@@ -86,6 +127,8 @@ ParticleSelector parseSelector(JsonObject& o, bool isSheet) {
 }
 
 void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDir) {
+    o.keys({"sheet", "mesh", "particle_mass", "total_mass", "mass_lumping", "stiffness",
+            "material", "damping", "spring_damping", "air", "front_color", "back_color"});
     const bool hasSheet = o.has("sheet");
     const bool hasMesh = o.has("mesh");
     if (hasSheet == hasMesh)
@@ -93,6 +136,7 @@ void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDi
                "give exactly one of cloth.sheet (a generated sheet) or cloth.mesh (a file)");
     if (hasSheet) {
         JsonObject s = o.object("sheet");
+        s.keys({"rows", "cols", "spacing", "origin", "u_axis", "v_axis"});
         SheetDesc d;
         d.spec.rows =
             static_cast<Index>(s.toInteger(s.require("rows"), s.pathOf("rows"), 2, 1 << 20));
@@ -103,14 +147,25 @@ void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDi
                    "rows x cols = " +
                        std::to_string(static_cast<std::size_t>(d.spec.rows) * d.spec.cols) +
                        " particles exceeds the limit of " + std::to_string(kMaxSceneParticles));
-        d.spec.spacing = s.requireNumber("spacing", Range::Positive);
-        d.spec.origin = s.vec3("origin", Vec3::Zero());
-        d.spec.uAxis = s.vec3("u_axis", Vec3::UnitX());
-        d.spec.vAxis = s.vec3("v_axis", -Vec3::UnitY());
+        d.spec.spacing = s.requireNumber("spacing", kSize);
+        d.spec.origin = s.vec3("origin", Vec3::Zero(), kCoordinate);
+        d.spec.uAxis = s.vec3("u_axis", Vec3::UnitX(), kDirection);
+        d.spec.vAxis = s.vec3("v_axis", -Vec3::UnitY(), kDirection);
         if (d.spec.uAxis.norm() < 1e-12) s.failKey("u_axis", "must not be zero");
         if (d.spec.vAxis.norm() < 1e-12) s.failKey("v_axis", "must not be zero");
         if (d.spec.uAxis.normalized().cross(d.spec.vAxis.normalized()).norm() < 1e-6)
             s.failKey("v_axis", "must not be parallel to u_axis");
+        // The sheet is a parallelogram: its corners are its extremes.
+        const Vec3 u = d.spec.uAxis.normalized() * (d.spec.spacing * (d.spec.cols - 1));
+        const Vec3 v = d.spec.vAxis.normalized() * (d.spec.spacing * (d.spec.rows - 1));
+        for (const Vec3& corner : {d.spec.origin, Vec3(d.spec.origin + u), Vec3(d.spec.origin + v),
+                                   Vec3(d.spec.origin + u + v)})
+            if (!(corner.cwiseAbs().maxCoeff() <= kMaxCoordinate))
+                s.fail(s.path(), "the sheet reaches (" + JsonObject::fmt(corner.x()) + ", " +
+                                     JsonObject::fmt(corner.y()) + ", " +
+                                     JsonObject::fmt(corner.z()) + "), outside the " +
+                                     detail::describe(kCoordinate) +
+                                     " coordinate range (origin, spacing x rows and cols)");
         s.finish();
         sc.sheet = d;
     } else {
@@ -118,17 +173,18 @@ void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDi
     }
 
     ClothSettings& c = sc.cloth;
-    c.particleMass = o.number("particle_mass", 0.0, Range::Positive);
-    c.totalMass = o.number("total_mass", 0.0, Range::Positive);
+    c.particleMass = o.number("particle_mass", 0.0, kParticleMass);
+    c.totalMass = o.number("total_mass", 0.0, kTotalMass);
     if (o.has("particle_mass") && o.has("total_mass"))
         o.failKey("total_mass", "give particle_mass or total_mass, not both");
     const std::string lump = o.choice("mass_lumping", "uniform", {"uniform", "area"});
     c.lumping = lump == "area" ? MassLumping::AreaLumped : MassLumping::Uniform;
-    c.springStiffness = o.number("stiffness", 0.0, Range::Positive);
+    c.springStiffness = o.number("stiffness", 0.0, kStiffness);
     if (auto m = o.optObject("material")) {
-        c.material.youngsModulus = m->number("youngs_modulus", 0.0, Range::Positive);
-        c.material.thickness = m->number("thickness", 0.0, Range::Positive);
-        c.material.density = m->number("density", 0.0, Range::Positive);
+        m->keys({"youngs_modulus", "thickness", "density"});
+        c.material.youngsModulus = m->number("youngs_modulus", 0.0, kYoungsModulus);
+        c.material.thickness = m->number("thickness", 0.0, kMaterialThickness);
+        c.material.density = m->number("density", 0.0, kDensity);
         m->finish();
     }
     const bool massGiven = c.particleMass > 0.0 || c.totalMass > 0.0 ||
@@ -141,12 +197,13 @@ void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDi
     if (!stiffnessGiven)
         o.fail(o.path(), "no stiffness: give stiffness, or material.youngs_modulus and "
                          "material.thickness");
-    c.damping = o.number("damping", 0.0, Range::NonNegative);
-    c.springDamping = o.number("spring_damping", 0.0, Range::NonNegative);
+    c.damping = o.number("damping", 0.0, kDamping);
+    c.springDamping = o.number("spring_damping", 0.0, kDamping);
     if (auto a = o.optObject("air")) {
-        c.aero.airDensity = a->number("density", 1.2, Range::NonNegative);
-        c.aero.dragCoefficient = a->number("drag_coefficient", 1.0, Range::NonNegative);
-        c.aero.liftCoefficient = a->number("lift_coefficient", 0.0, Range::NonNegative);
+        a->keys({"density", "drag_coefficient", "lift_coefficient"});
+        c.aero.airDensity = a->number("density", 1.2, kAirDensity);
+        c.aero.dragCoefficient = a->number("drag_coefficient", 1.0, kCoefficient);
+        c.aero.liftCoefficient = a->number("lift_coefficient", 0.0, kCoefficient);
         a->finish();
     }
     sc.frontColor = o.color("front_color", sc.frontColor);
@@ -155,19 +212,33 @@ void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDi
 }
 
 void parseSimulation(JsonObject o, SceneDesc& sc) {
+    o.keys({"integrator", "time_step", "duration", "substeps", "gravity",
+            "reject_unstable_time_step", "implicit"});
     const std::string integ = o.choice(
         "integrator", "velocity_verlet",
         {"velocity_verlet", "explicit_euler", "symplectic_euler", "rk4", "implicit_euler"});
     sc.cloth.integrator = integratorFromString(integ);
-    sc.timeStep = o.number("time_step", sc.timeStep, Range::Positive);
-    sc.duration = o.number("duration", sc.duration, Range::Positive);
-    sc.cloth.gravity = o.vec3("gravity", Vec3(0.0, -9.81, 0.0));
+    sc.timeStep = o.number("time_step", sc.timeStep, kTimeStep);
+    sc.duration = o.number("duration", sc.duration, kDuration);
+    if (const Json* n = o.find("substeps")) {
+        if (n->is_string()) {
+            if (n->get<std::string>() != "auto")
+                o.failKey("substeps", "expected an integer in [1, " +
+                                          std::to_string(kMaxSubsteps) + "] or \"auto\", got \"" +
+                                          n->get<std::string>() + "\"");
+            sc.autoSubsteps = true;
+        } else {
+            sc.substeps = static_cast<int>(o.toInteger(*n, o.pathOf("substeps"), 1, kMaxSubsteps));
+        }
+    }
+    sc.cloth.gravity = o.vec3("gravity", Vec3(0.0, -9.81, 0.0), kGravity);
     sc.cloth.rejectUnstableTimeStep = o.boolean("reject_unstable_time_step", true);
     if (auto imp = o.optObject("implicit")) {
+        imp->keys({"solver", "cg_tolerance", "cg_max_iterations"});
         const std::string solver = imp->choice("solver", "cg", {"cg", "ldlt"});
         sc.cloth.implicit.solver =
             solver == "ldlt" ? LinearSolverKind::LDLT : LinearSolverKind::ConjugateGradient;
-        sc.cloth.implicit.cgTolerance = imp->number("cg_tolerance", 1e-10, Range::Positive);
+        sc.cloth.implicit.cgTolerance = imp->number("cg_tolerance", 1e-10, kCgTolerance);
         sc.cloth.implicit.cgMaxIterations =
             static_cast<int>(imp->integer("cg_max_iterations", 500, 1, 100000));
         imp->finish();
@@ -180,18 +251,18 @@ void parseSimulation(JsonObject o, SceneDesc& sc) {
 }
 
 void parseStrainLimit(JsonObject o, SceneDesc& sc) {
+    o.keys({"method", "max_strain", "max_rounds", "tolerance", "warm_start",
+            "long_range_attachments", "long_range_slack"});
     LimiterSettings& l = sc.cloth.limiter;
     const std::string method =
         o.choice("method", "stress_ordered", {"stress_ordered", "provot", "none"});
     l.kind = limiterFromString(method);
-    l.maxStrain = o.number("max_strain", 0.10, Range::Positive);
+    l.maxStrain = o.number("max_strain", 0.10, kMaxStrain);
     l.maxRounds = static_cast<int>(o.integer("max_rounds", l.maxRounds, 1, 100000));
-    l.tolerance = o.number("tolerance", l.tolerance, Range::NonNegative);
-    l.warmStart = o.number("warm_start", l.warmStart, Range::NonNegative);
-    if (l.warmStart >= 1.0) o.fail(o.pathOf("warm_start"), "must be in [0, 1)");
+    l.tolerance = o.number("tolerance", l.tolerance, kStrainTolerance);
+    l.warmStart = o.number("warm_start", l.warmStart, kWarmStart);
     l.longRangeAttachments = o.boolean("long_range_attachments", l.longRangeAttachments);
-    l.longRangeSlack = o.number("long_range_slack", l.longRangeSlack, Range::Positive);
-    if (l.longRangeSlack < 1.0) o.fail(o.pathOf("long_range_slack"), "must be >= 1");
+    l.longRangeSlack = o.number("long_range_slack", l.longRangeSlack, kLongRangeSlack);
     o.finish();
 }
 
@@ -200,11 +271,12 @@ void parsePins(JsonObject& parent, SceneDesc& sc) {
     for (std::size_t i = 0; i < arr.size(); ++i) {
         JsonObject o(arr[i], parent.pathOf("pins") + "[" + std::to_string(i) + "]",
                      parent.origin());
+        o.keys({"indices", "grid", "box", "groups", "velocity", "start_time", "end_time"});
         PinDesc p;
         p.select = parseSelector(o, sc.sheet.has_value());
-        p.velocity = o.vec3("velocity", Vec3::Zero());
-        p.startTime = o.number("start_time", 0.0, Range::NonNegative);
-        p.endTime = o.number("end_time", 1e300, Range::NonNegative);
+        p.velocity = o.vec3("velocity", Vec3::Zero(), kVelocity);
+        p.startTime = o.number("start_time", 0.0, kTime);
+        p.endTime = o.number("end_time", 1e300, kTime);
         if (p.endTime < p.startTime) o.failKey("end_time", "must not be before start_time");
         o.finish();
         sc.pins.push_back(std::move(p));
@@ -216,6 +288,7 @@ void parseAttachments(JsonObject& parent, SceneDesc& sc) {
     for (std::size_t i = 0; i < arr.size(); ++i) {
         JsonObject o(arr[i], parent.pathOf("attachments") + "[" + std::to_string(i) + "]",
                      parent.origin());
+        o.keys({"body", "indices", "grid", "box", "groups"});
         AttachmentDesc a;
         a.body = o.requireString("body");
         a.select = parseSelector(o, sc.sheet.has_value());
@@ -225,28 +298,26 @@ void parseAttachments(JsonObject& parent, SceneDesc& sc) {
 }
 
 ShapeDesc parseShape(JsonObject o, const std::filesystem::path& baseDir) {
+    o.keys({"type", "half_extents", "radius", "height", "normal", "offset", "mesh"});
     ShapeDesc s;
     if (!o.has("type")) o.failKey("type", "required field is missing");
     const std::string type = o.choice("type", "", {"box", "sphere", "capsule", "plane", "mesh"});
     if (type == "box") {
         s.kind = ShapeKind::Box;
-        s.halfExtents = o.requireVec3("half_extents");
-        for (int i = 0; i < 3; ++i)
-            if (!(s.halfExtents[i] > 0.0))
-                o.fail(o.pathOf("half_extents") + "[" + std::to_string(i) + "]", "must be > 0");
+        s.halfExtents = o.requireVec3("half_extents", kSize);
     } else if (type == "sphere") {
         s.kind = ShapeKind::Sphere;
-        s.radius = o.requireNumber("radius", Range::Positive);
+        s.radius = o.requireNumber("radius", kSize);
     } else if (type == "capsule") {
         s.kind = ShapeKind::Capsule;
-        s.radius = o.requireNumber("radius", Range::Positive);
-        s.height = o.requireNumber("height", Range::NonNegative);
+        s.radius = o.requireNumber("radius", kSize);
+        s.height = o.requireNumber("height", kSizeOrZero);
     } else if (type == "plane") {
         s.kind = ShapeKind::Plane;
-        s.normal = o.vec3("normal", Vec3::UnitY());
+        s.normal = o.vec3("normal", Vec3::UnitY(), kDirection);
         if (s.normal.norm() < 1e-12) o.failKey("normal", "must not be zero");
         s.normal.normalize();
-        s.offset = o.number("offset", 0.0);
+        s.offset = o.number("offset", 0.0, kCoordinate);
     } else {
         s.kind = ShapeKind::Mesh;
         JsonObject m = o.object("mesh");
@@ -261,6 +332,9 @@ void parseRigidBodies(JsonObject& parent, SceneDesc& sc, const std::filesystem::
     for (std::size_t i = 0; i < arr.size(); ++i) {
         JsonObject o(arr[i], parent.pathOf("rigid_bodies") + "[" + std::to_string(i) + "]",
                      parent.origin());
+        o.keys({"name", "shape", "motion", "position", "rotation_deg", "mass", "linear_velocity",
+                "angular_velocity", "friction", "restitution", "launch_time", "keyframes",
+                "color"});
         RigidBodyDesc b;
         b.path = o.path();
         b.name = o.string("name", "body" + std::to_string(i));
@@ -272,20 +346,20 @@ void parseRigidBodies(JsonObject& parent, SceneDesc& sc, const std::filesystem::
         b.motion = motion == "dynamic"     ? MotionKind::Dynamic
                    : motion == "kinematic" ? MotionKind::Kinematic
                                            : MotionKind::Static;
-        b.position = o.vec3("position", Vec3::Zero());
-        b.rotationDeg = o.vec3("rotation_deg", Vec3::Zero());
-        b.mass = o.number("mass", 1.0, Range::Positive);
+        b.position = o.vec3("position", Vec3::Zero(), kCoordinate);
+        b.rotationDeg = o.vec3("rotation_deg", Vec3::Zero(), kAngle);
+        b.mass = o.number("mass", 1.0, kBodyMass);
         if (o.has("mass") && b.motion != MotionKind::Dynamic)
             o.failKey("mass", "only dynamic bodies have a mass");
-        b.linearVelocity = o.vec3("linear_velocity", Vec3::Zero());
-        b.angularVelocity = o.vec3("angular_velocity", Vec3::Zero());
+        b.linearVelocity = o.vec3("linear_velocity", Vec3::Zero(), kVelocity);
+        b.angularVelocity = o.vec3("angular_velocity", Vec3::Zero(), kAngularVelocity);
         if ((o.has("linear_velocity") || o.has("angular_velocity")) &&
             b.motion != MotionKind::Dynamic)
             o.failKey("linear_velocity", "only dynamic bodies start with a velocity (kinematic "
                                          "bodies follow keyframes)");
-        b.friction = o.number("friction", 0.5, Range::NonNegative);
-        b.restitution = o.number("restitution", 0.0, Range::UnitInterval);
-        b.launchTime = o.number("launch_time", 0.0, Range::NonNegative);
+        b.friction = o.number("friction", 0.5, kCoefficient);
+        b.restitution = o.number("restitution", 0.0, kUnitInterval);
+        b.launchTime = o.number("launch_time", 0.0, kTime);
         if (o.has("launch_time") && b.motion != MotionKind::Dynamic)
             o.failKey("launch_time", "only dynamic bodies are launched");
         const Json& keys = o.array("keyframes", 100000);
@@ -294,10 +368,11 @@ void parseRigidBodies(JsonObject& parent, SceneDesc& sc, const std::filesystem::
         for (std::size_t k = 0; k < keys.size(); ++k) {
             JsonObject ko(keys[k], o.pathOf("keyframes") + "[" + std::to_string(k) + "]",
                           o.origin());
+            ko.keys({"time", "position", "rotation_deg"});
             KeyframeDesc kf;
-            kf.time = ko.requireNumber("time", Range::NonNegative);
-            kf.position = ko.requireVec3("position");
-            kf.rotationDeg = ko.vec3("rotation_deg", Vec3::Zero());
+            kf.time = ko.requireNumber("time", kTime);
+            kf.position = ko.requireVec3("position", kCoordinate);
+            kf.rotationDeg = ko.vec3("rotation_deg", Vec3::Zero(), kAngle);
             if (!b.keyframes.empty() && !(kf.time > b.keyframes.back().time))
                 ko.failKey("time", "keyframe times must increase");
             ko.finish();
@@ -314,22 +389,23 @@ void parseRigidBodies(JsonObject& parent, SceneDesc& sc, const std::filesystem::
 }
 
 void parseCamera(JsonObject o, CameraDesc& c) {
-    c.position = o.vec3("position", c.position);
-    c.target = o.vec3("target", c.target);
-    c.up = o.vec3("up", c.up);
+    o.keys({"position", "target", "up", "fov_deg", "width", "height"});
+    c.position = o.vec3("position", c.position, kCoordinate);
+    c.target = o.vec3("target", c.target, kCoordinate);
+    c.up = o.vec3("up", c.up, kDirection);
     if ((c.position - c.target).norm() < 1e-12) o.failKey("target", "must differ from position");
     if (c.up.norm() < 1e-12) o.failKey("up", "must not be zero");
     if (c.up.normalized().cross((c.target - c.position).normalized()).norm() < 1e-6)
         o.failKey("up", "must not be parallel to the viewing direction");
-    c.fovDeg = o.number("fov_deg", c.fovDeg, Range::Positive);
-    if (c.fovDeg >= 179.0) o.failKey("fov_deg", "must be below 179 degrees");
+    c.fovDeg = o.number("fov_deg", c.fovDeg, kFov);
     c.width = static_cast<int>(o.integer("width", c.width, 16, kMaxImageSide));
     c.height = static_cast<int>(o.integer("height", c.height, 16, kMaxImageSide));
     o.finish();
 }
 
 void parseOutput(JsonObject o, OutputDesc& out) {
-    out.fps = o.number("fps", out.fps, Range::Positive);
+    o.keys({"fps", "png", "obj", "csv", "video", "background"});
+    out.fps = o.number("fps", out.fps, kFps);
     out.png = o.boolean("png", out.png);
     out.obj = o.boolean("obj", out.obj);
     out.csv = o.boolean("csv", out.csv);
@@ -344,7 +420,7 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
                      const std::filesystem::path& baseDir) {
     Json root;
     try {
-        root = Json::parse(text);
+        root = detail::parseJson(text, origin);
     } catch (const Json::parse_error& e) {
         // nlohmann's message carries the line and column.
         throw SceneError(origin + ": not valid JSON: " + e.what());
@@ -353,6 +429,8 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
         throw SceneError(origin + ": not usable JSON: " + e.what());
     }
     JsonObject top(root, "", origin);
+    top.keys({"name", "description", "cloth", "simulation", "strain_limit", "pins",
+              "attachments", "wind", "rigid_bodies", "collision", "camera", "output"});
     SceneDesc sc;
     sc.name = top.string("name", "");
     sc.description = top.string("description", "");
@@ -372,29 +450,34 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
                              a.body + "\"");
     }
     if (auto w = top.optObject("wind")) {
+        w->keys({"velocity", "gust_amplitude", "gust_frequency"});
         WindDesc wd;
-        wd.velocity = w->vec3("velocity", Vec3::Zero());
-        wd.gustAmplitude = w->vec3("gust_amplitude", Vec3::Zero());
-        wd.gustFrequency = w->number("gust_frequency", 0.0, Range::NonNegative);
+        wd.velocity = w->vec3("velocity", Vec3::Zero(), kVelocity);
+        wd.gustAmplitude = w->vec3("gust_amplitude", Vec3::Zero(), kVelocity);
+        wd.gustFrequency = w->number("gust_frequency", 0.0, kFrequency);
         w->finish();
         if (!(sc.cloth.aero.airDensity > 0.0))
             top.fail("wind", "wind acts through the air: set cloth.air.density > 0 (1.2 for air)");
         sc.wind = wd;
     }
     if (auto c = top.optObject("collision")) {
+        c->keys({"thickness", "friction_scale", "penalty_force", "continuous", "substeps",
+                 "self_collision", "self_thickness"});
         CollisionDesc cd;
-        cd.thickness = c->number("thickness", -1.0);
-        if (c->has("thickness") && !(cd.thickness > 0.0)) c->failKey("thickness", "must be > 0");
-        cd.frictionScale = c->number("friction_scale", 1.0, Range::NonNegative);
-        cd.penaltyForce = c->number("penalty_force", -1.0);
-        if (c->has("penalty_force") && cd.penaltyForce < 0.0)
-            c->failKey("penalty_force", "must be >= 0");
+        cd.thickness = c->number("thickness", -1.0, kSize);
+        cd.frictionScale = c->number("friction_scale", 1.0, kCoefficient);
+        cd.penaltyForce = c->number("penalty_force", -1.0, kPenaltyForce);
         cd.continuous = c->boolean("continuous", true);
         cd.substeps = static_cast<int>(c->integer("substeps", 1, 1, 1000));
+        if (c->has("substeps")) {
+            const auto sim = root.find("simulation");
+            if (sim != root.end() && sim->is_object() && sim->contains("substeps"))
+                c->failKey("substeps", "give the sub-steps once, as simulation.substeps "
+                                       "(collision.substeps is its older name)");
+            sc.substeps = cd.substeps;
+        }
         cd.selfCollision = c->boolean("self_collision", false);
-        cd.selfThickness = c->number("self_thickness", -1.0);
-        if (c->has("self_thickness") && !(cd.selfThickness > 0.0))
-            c->failKey("self_thickness", "must be > 0");
+        cd.selfThickness = c->number("self_thickness", -1.0, kSize);
         c->finish();
         if (sc.rigidBodies.empty() && !cd.selfCollision)
             top.fail("collision",

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 namespace drape::samples {
@@ -18,11 +19,18 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
+std::string num(double x) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.6g", x);
+    return buf;
+}
+
 std::string origin(const SceneDesc& s) {
     return s.sourceFile.empty() ? std::string("scene") : s.sourceFile.string();
 }
 
-std::vector<DrawMesh> shapeMeshes(const RigidBodyDesc& b, const Vec3& around, double planeSize) {
+std::vector<DrawMesh> shapeMeshes(const RigidBodyDesc& b, const Vec3& around, double planeSize,
+                                  std::vector<std::string>& warnings) {
     DrawMesh m;
     switch (b.shape.kind) {
     case ShapeKind::Box:
@@ -39,6 +47,7 @@ std::vector<DrawMesh> shapeMeshes(const RigidBodyDesc& b, const Vec3& around, do
         return makePlaneMeshes(b.shape.normal, b.shape.offset, around, planeSize, b.color);
     case ShapeKind::Mesh: {
         ImportedMesh im = importMesh(b.shape.mesh);
+        warnings.insert(warnings.end(), im.warnings.begin(), im.warnings.end());
         m = toDrawMesh(im.mesh.vertices, im.mesh.triangles, b.color, b.color);
         break;
     }
@@ -60,6 +69,7 @@ Simulation::Simulation(const SceneDesc& scene) : scene_(scene) {
         }
     } else {
         ImportedMesh im = importMesh(*scene_.mesh); // SceneError names the file
+        warnings_ = std::move(im.warnings);
         mesh = std::move(im.mesh);
         groups = std::move(im.groups);
     }
@@ -114,12 +124,31 @@ Simulation::Simulation(const SceneDesc& scene) : scene_(scene) {
     const double planeSize =
         4.0 * std::max((hi - lo).norm(), (scene_.camera.position - centre).norm());
     for (const RigidBodyDesc& b : scene_.rigidBodies)
-        bodyMeshes_.push_back(shapeMeshes(b, centre, planeSize));
+        bodyMeshes_.push_back(shapeMeshes(b, centre, planeSize, warnings_));
+    chooseSubsteps();
     if (scene_.needsBullet()) world_ = RigidWorld::create(scene_, *cloth_, attachSets_);
     applyWind();
 }
 
 Simulation::~Simulation() = default;
+
+void Simulation::chooseSubsteps() {
+    if (!scene_.autoSubsteps) return; // scene_.substeps as the file gave it
+    // The stability estimate with the pins in place (attachments, added with the world,
+    // only remove free particles, which never lowers the limit).
+    const double limit = cloth_->stableTimeStep();
+    const double dt = scene_.timeStep;
+    if (!(limit > 0.0)) fail("simulation.substeps", "\"auto\": no stable time step exists");
+    const double needed = std::ceil(dt / (kAutoSubstepMargin * limit));
+    if (!(needed <= static_cast<double>(kMaxSubsteps)))
+        fail("simulation.substeps",
+             "\"auto\" would need " + num(needed) + " sub-steps of the " + num(dt) +
+                 " s time step (the stable limit of " +
+                 std::string(toString(scene_.cloth.integrator)) + " for this cloth is " +
+                 num(limit) + " s), more than the limit of " + std::to_string(kMaxSubsteps) +
+                 ": lower simulation.time_step, or use implicit_euler");
+    scene_.substeps = std::max(1, static_cast<int>(needed));
+}
 
 void Simulation::fail(const std::string& path, const std::string& what) const {
     throw SceneError(origin(scene_) + ": " + path + ": " + what);
@@ -194,13 +223,21 @@ double Simulation::time() const {
 void Simulation::step() {
     const double dt = scene_.timeStep;
     try {
-        if (world_)
-            world_->step(time(), dt);
-        else
-            cloth_->step(dt);
+        if (world_) {
+            world_->step(time(), dt); // the world sub-steps the cloth (scene_.substeps)
+        } else {
+            const int n = scene_.substeps;
+            for (int k = 0; k < n; ++k)
+                cloth_->step(dt / n);
+        }
     } catch (const drape::Error& e) {
+        const bool unstable = e.code() == ErrorCode::UnstableTimeStep && !scene_.autoSubsteps;
         throw StepError(origin(scene_) + ": step " + std::to_string(steps_ + 1) +
-                        " (t = " + std::to_string(time()) + " s) failed: " + e.what());
+                        " (t = " + std::to_string(time()) + " s) failed: " + e.what() +
+                        (unstable ? std::string(" (or set simulation.substeps to \"auto\" to "
+                                                "choose the sub-steps from the stability "
+                                                "estimate)")
+                                  : std::string()));
     }
     ++steps_;
     applyWind();
@@ -210,6 +247,14 @@ std::size_t Simulation::contactCount() const {
     return world_ ? world_->contactCount() : 0;
 }
 
+void Simulation::overflow(const std::string& what) const {
+    throw StepError(origin(scene_) + ": step " + std::to_string(steps_) + " (t = " +
+                    num(time()) + " s): " + what +
+                    "; the simulation overflowed (the state grew without bound: a time step "
+                    "beyond the stability limit, or forces far too large), and nothing "
+                    "non-finite is written");
+}
+
 FrameStats Simulation::stats() const {
     FrameStats s;
     s.time = time();
@@ -217,11 +262,29 @@ FrameStats Simulation::stats() const {
     s.maxStrain = cloth_->maxStrain();
     s.meanStrain = cloth_->meanStrain();
     s.kineticEnergy = cloth_->kineticEnergy();
+    // Every value written (CSV, summary, OBJ in single precision, frames) must be finite:
+    // positions within float range, velocities and statistics finite.
+    constexpr double kFloatMax = static_cast<double>(std::numeric_limits<float>::max());
     double lowest = std::numeric_limits<double>::infinity();
-    for (const Vec3& x : cloth_->positions())
-        lowest = std::min(lowest, x.dot(up_));
+    const Vec3List& x = cloth_->positions();
+    const Vec3List& v = cloth_->velocities();
+    for (std::size_t i = 0; i < x.size(); ++i) {
+        if (!(x[i].cwiseAbs().maxCoeff() <= kFloatMax))
+            overflow("particle " + std::to_string(i) + " is at (" + num(x[i].x()) + ", " +
+                     num(x[i].y()) + ", " + num(x[i].z()) +
+                     ") m, beyond the range of the single-precision output");
+        if (!v[i].allFinite())
+            overflow("the velocity of particle " + std::to_string(i) + " is not finite");
+        lowest = std::min(lowest, x[i].dot(up_));
+    }
     s.lowestPoint = lowest;
     s.contacts = contactCount();
+    const std::pair<const char*, double> values[] = {{"the kinetic energy", s.kineticEnergy},
+                                                     {"the largest strain", s.maxStrain},
+                                                     {"the mean strain", s.meanStrain},
+                                                     {"the lowest point", s.lowestPoint}};
+    for (const auto& [name, value] : values)
+        if (!std::isfinite(value)) overflow(std::string(name) + " is " + num(value));
     return s;
 }
 

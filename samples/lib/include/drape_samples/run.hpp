@@ -6,10 +6,12 @@
 #include "drape_samples/scene.hpp"
 
 #include <filesystem>
+#include <functional>
 #include <iosfwd>
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace drape::samples {
 
@@ -26,6 +28,8 @@ struct RunOptions {
     bool render = true;               ///< PNG frames (and the MP4)
     bool video = true;                ///< MP4 through ffmpeg when it is on the PATH
     bool progress = false;            ///< progress bar on stderr
+    /// Called once per warning, as soon as the scene is built (before the first step).
+    std::function<void(const std::string&)> warn;
 };
 
 /// What a run did, for the summary.
@@ -41,6 +45,7 @@ struct RunResult {
     std::size_t particles = 0;
     std::size_t springs = 0;
     std::string video; ///< path of the MP4, or why there is none
+    std::vector<std::string> warnings; ///< Simulation::warnings() of the run
     /// drape::stateHash of the final cloth state: equal for two runs of the same scene with
     /// the same build (and any thread count), printed in the summary.
     std::uint64_t stateHash = 0;
@@ -49,7 +54,9 @@ struct RunResult {
 /// Applies the overrides to a loaded scene (throws SceneError on impossible values).
 void applyOverrides(SceneDesc& scene, const RunOptions& options);
 
-/// Loads, runs and writes everything. Messages go to `log`. Throws SceneError on any error.
+/// Loads, runs and writes everything. Messages go to `log`; warnings (what the scene's meshes
+/// had that was dropped or not read) go to options.warn, or to `log` as "warning: ..." lines
+/// without it, and into summary.txt. Throws SceneError on any error.
 RunResult runScene(const RunOptions& options, std::ostream& log);
 
 } // namespace drape::samples

@@ -35,6 +35,11 @@ struct BodyView {
     const std::vector<DrawMesh>* meshes = nullptr;           ///< in the local frame
 };
 
+/// simulation.substeps = "auto" keeps each cloth step at most this fraction of the
+/// stability estimate (the estimate is an upper bound on omega_max; the margin covers the
+/// contact and damping forces it leaves out).
+inline constexpr double kAutoSubstepMargin = 0.9;
+
 /// Whether this build can run scenes with rigid bodies (drape::bullet was available).
 bool rigidBodiesAvailable();
 
@@ -55,11 +60,17 @@ class Simulation {
     const Cloth& cloth() const { return *cloth_; }
     double time() const;
     std::uint64_t steps() const { return steps_; }
+    /// Cloth steps per scene step (simulation.substeps, or what "auto" chose: the fewest
+    /// that keep each at most kAutoSubstepMargin of the cloth's stable time step).
+    int substeps() const { return scene_.substeps; }
 
     /// Particles each pin and attachment entry selected (resolved from the scene).
     const std::vector<std::vector<Index>>& pinnedParticles() const { return pinSets_; }
     const std::vector<std::vector<Index>>& attachedParticles() const { return attachSets_; }
 
+    /// The statistics of the current state. Throws StepError (naming the value, the step and
+    /// the time) when a statistic is not finite, a velocity is not finite or a particle lies
+    /// beyond single-precision range: nothing a run writes can then be inf or nan.
     FrameStats stats() const;
     std::size_t contactCount() const;
 
@@ -81,6 +92,10 @@ class Simulation {
     /// Per-phase timing of the cloth (see drape::PhaseTimers).
     const PhaseTimers& timers() const { return cloth_->timers(); }
 
+    /// What building the scene noticed but did not refuse (mesh files: dropped degenerate
+    /// triangles, files a mesh names that were not opened...), one sentence each.
+    const std::vector<std::string>& warnings() const { return warnings_; }
+
     /// A one-line name of what runs besides the cloth (e.g. "bullet: 2 bodies").
     std::string worldDescription() const;
 
@@ -88,6 +103,8 @@ class Simulation {
 
   private:
     [[noreturn]] void fail(const std::string& path, const std::string& what) const;
+    [[noreturn]] void overflow(const std::string& what) const;
+    void chooseSubsteps();
     std::vector<Index> resolve(const ParticleSelector& sel,
                                const std::vector<Index>& vertexToParticle,
                                const std::map<std::string, std::vector<Index>>& groups) const;
@@ -101,6 +118,7 @@ class Simulation {
     std::vector<std::vector<DrawMesh>> bodyMeshes_;
     std::uint64_t steps_ = 0;
     Vec3 up_ = Vec3::UnitY();
+    std::vector<std::string> warnings_;
 };
 
 } // namespace drape::samples
