@@ -112,12 +112,18 @@ struct Count {
     std::uint64_t value = 0;
 };
 
+/// The count assimp reads from `token`: its leading decimal digits, as assimp's strtoul10
+/// does ("12abc" is 12; assimp wraps long numbers to 32 bits, here they saturate, which only
+/// makes the check stricter). False if the token starts with no digit (assimp reads 0).
 bool parseCount(const std::string& token, Count& out) {
-    if (token.empty() || token.find_first_not_of("0123456789") != std::string::npos) return false;
-    out.text = token;
+    std::size_t n = 0;
+    while (n < token.size() && token[n] >= '0' && token[n] <= '9')
+        ++n;
+    if (n == 0) return false;
+    out.text = token.substr(0, n);
     out.value = 0;
-    for (char c : token) {
-        const auto d = static_cast<std::uint64_t>(c - '0');
+    for (std::size_t i = 0; i < n; ++i) {
+        const auto d = static_cast<std::uint64_t>(token[i] - '0');
         out.value = out.value > (UINT64_MAX - d) / 10 ? UINT64_MAX : out.value * 10 + d;
     }
     return true;
@@ -160,7 +166,7 @@ void checkHeaderCounts(const std::filesystem::path& file, const std::string& ext
             std::string name;
             Count count;
             std::uint64_t minBytes = 0; // per element
-            bool known = true;          // every property type was understood
+            bool known = true;          // no property assimp cannot parse yet
         };
         std::vector<Element> elements;
         auto typeSize = [](const std::string& t) -> std::uint64_t {
@@ -189,23 +195,32 @@ void checkHeaderCounts(const std::filesystem::path& file, const std::string& ext
                 Element e;
                 std::string n;
                 ss >> e.name >> n;
-                if (!parseCount(n, e.count)) return; // assimp refuses it itself
+                // assimp 5.2 reads the count from the token after the name, except for names
+                // it does not know, where it reads it from the name itself ("element 9999
+                // vertex"): take the larger of the two.
+                Count fromName;
+                if (!parseCount(n, e.count)) e.count = Count{"0", 0};
+                if (parseCount(e.name, fromName) && fromName.value > e.count.value)
+                    e.count = fromName;
                 elements.push_back(e);
-            } else if (word == "property" && !elements.empty()) {
+            } else if (word == "property" && !elements.empty() && elements.back().known) {
+                // assimp ends an element's property list at the first property it cannot
+                // parse; the element keeps those before it.
                 Element& e = elements.back();
                 std::string type;
                 ss >> type;
+                std::uint64_t bytes = 0;
                 if (type == "list") {
                     std::string countType;
                     ss >> countType;
-                    const std::uint64_t c = typeSize(countType);
-                    e.known = e.known && c > 0;
-                    e.minBytes += binary ? c : 2; // an empty list: just its count
+                    bytes = typeSize(countType); // an empty list: just its count
                 } else {
-                    const std::uint64_t t = typeSize(type);
-                    e.known = e.known && t > 0;
-                    e.minBytes += binary ? t : 2; // ASCII: a digit and a separator
+                    bytes = typeSize(type);
                 }
+                if (bytes == 0)
+                    e.known = false;
+                else
+                    e.minBytes += binary ? bytes : 2; // ASCII: a digit and a separator
             }
         }
         if (!ended) return;
@@ -214,7 +229,6 @@ void checkHeaderCounts(const std::filesystem::path& file, const std::string& ext
         // ASCII: the last value needs no separator after it.
         std::uint64_t left = binary ? body : body + 1;
         for (const Element& e : elements) {
-            if (!e.known) return; // assimp refuses unknown property types itself
             const std::uint64_t per = std::max<std::uint64_t>(1, e.minBytes);
             if (e.count.value > left / per)
                 meshFail(file, "PLY header claims " + e.count.text + " \"" + e.name +
