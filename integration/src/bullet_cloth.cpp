@@ -472,7 +472,7 @@ void BulletCloth::Impl::wakeForBodies(double dt) {
                                       [&](const auto& p) { return p.first == b.object; });
         if (was == lastPoses.end()) {
             wakeUp = true; // a new candidate
-            break;
+            continue;     // (the loop ends on wakeUp)
         }
         const Pose& pose = was->second;
         // Turning is measured at the body's extent (its AABB's half diagonal; an infinite

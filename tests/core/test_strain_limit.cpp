@@ -15,6 +15,16 @@ using namespace drape_test;
 
 namespace {
 
+/// Unequal particle masses in [0.5, 2] kg drawn from rng, and their inverses.
+void randomMasses(Rng& rng, std::size_t n, std::vector<double>& mass, std::vector<double>& invMass) {
+    mass.resize(n);
+    invMass.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        mass[i] = rng.uniform(0.5, 2.0);
+        invMass[i] = 1.0 / mass[i];
+    }
+}
+
 /// Experiment I of the paper: 35 x 35 particles, mass 0.5, spacing 10, stiffness 20, the two
 /// top corners pinned, gravity 9.8 downward. `vertical`: the sheet hangs in the x-y plane
 /// (row 0 on top); otherwise it starts horizontal (x-z plane) and swings down.
@@ -317,12 +327,9 @@ TEST_CASE("Limiters without pins keep the centre of mass (inverse-mass shares)",
     // sum m_i x_i is unchanged; on a badly overstretched irregular mesh the sweeps converge.
     const auto topo = ClothTopology::build(irregularMesh(6, 5, 77, true));
     const std::size_t n = topo->particleCount();
-    std::vector<double> mass(n), invMass(n);
+    std::vector<double> mass, invMass;
     Rng rng(1);
-    for (std::size_t i = 0; i < n; ++i) {
-        mass[i] = rng.uniform(0.5, 2.0);
-        invMass[i] = 1.0 / mass[i];
-    }
+    randomMasses(rng, n, mass, invMass);
     std::vector<Vec3> x;
     for (const Vec3& p : topo->restPositions())
         x.push_back(1.25 * p +
@@ -368,12 +375,9 @@ TEST_CASE("relimit keeps particles above their contact planes and reaches the bo
     // planes added (m push, the only outside impulse) equal to the change of sum m x.
     const auto topo = ClothTopology::build(irregularMesh(8, 6, 5));
     const std::size_t n = topo->particleCount();
-    std::vector<double> mass(n), invMass(n);
+    std::vector<double> mass, invMass;
     Rng rng(3);
-    for (std::size_t i = 0; i < n; ++i) {
-        mass[i] = rng.uniform(0.5, 2.0);
-        invMass[i] = 1.0 / mass[i];
-    }
+    randomMasses(rng, n, mass, invMass);
     const std::vector<double> k(topo->springCount(), 1.0);
     LimiterSettings s = limiterSettings();
     s.longRangeAttachments = false;
