@@ -4,6 +4,7 @@
 #include "drape/error.hpp"
 
 #include "parallel.hpp"
+#include "restrict.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -45,22 +46,29 @@ void addPackedSpringForces(const std::vector<Spring>& springs, const std::vector
 }
 } // namespace
 
-SpringBlocks makeSpringBlocks(const ClothTopology& topology, std::size_t blocks) {
+SpringBlocks makeSpringBlocks(const ClothTopology& topology, const std::vector<Index>& subset,
+                              std::size_t blocks) {
     const std::size_t n = topology.particleCount();
     blocks = std::max<std::size_t>(1, std::min(blocks, n));
     SpringBlocks out;
     out.inner.resize(blocks);
     auto blockOf = [&](Index i) { return static_cast<std::size_t>(i) * blocks / n; };
     const auto& springs = topology.springs();
-    for (std::size_t s = 0; s < springs.size(); ++s) {
+    for (Index s : subset) {
         const std::size_t ba = blockOf(springs[s].a), bb = blockOf(springs[s].b);
         if (ba == bb) {
-            out.inner[ba].push_back(static_cast<Index>(s));
+            out.inner[ba].push_back(s);
         } else {
-            out.crossing.push_back(static_cast<Index>(s));
+            out.crossing.push_back(s);
         }
     }
     return out;
+}
+
+SpringBlocks makeSpringBlocks(const ClothTopology& topology, std::size_t blocks) {
+    std::vector<Index> all(topology.springCount());
+    for (std::size_t s = 0; s < all.size(); ++s) all[s] = static_cast<Index>(s);
+    return makeSpringBlocks(topology, all, blocks);
 }
 
 void addSpringDamping(const std::vector<Spring>& springs, double c, const Vec3List& x,
@@ -195,6 +203,25 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
     packedStart_.push_back(0);
     for (const auto& inner : blocks.inner) pack(inner);
     pack(blocks.crossing);
+    // The force pass: family springs by slot, the loose ones packed by block as above.
+    const std::size_t blockCount = blocks.inner.size();
+    const SpringBlocks loose = makeSpringBlocks(*topology_, topology_->looseSprings(), blockCount);
+    auto packLoose = [&](const std::vector<Index>& list) {
+        for (Index s : list) {
+            loosePacked_.push_back(springs[s]);
+            if (uniformStiffness_ == 0.0) looseStiffness_.push_back(stiffness_[s]);
+        }
+        looseStart_.push_back(loosePacked_.size());
+    };
+    looseStart_.push_back(0);
+    for (const auto& inner : loose.inner) packLoose(inner);
+    packLoose(loose.crossing);
+    {
+        const auto& slotSpring = topology_->familySlotSprings();
+        slotStiffness_.resize(slotSpring.size());
+        for (std::size_t j = 0; j < slotSpring.size(); ++j)
+            slotStiffness_[j] = slotSpring[j] == kNoParticle ? 0.0 : stiffness_[slotSpring[j]];
+    }
     if (settings_.springDamping > 0.0) orderDampingSweep();
     rebuildPipeline();
 }
@@ -303,12 +330,14 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
         ScopedPhase timer(timers_, e.timerSlot);
         switch (e.term) {
         case Term::Springs: {
-            const std::size_t nb = packedStart_.size() - 2; // inner blocks; the last range crosses
+            addFamilySpringForces(x, f);
+            const std::size_t nb = looseStart_.size() - 2; // inner blocks; the last range crosses
+            if (loosePacked_.empty()) break;
             // Blocks in parallel (each writes only its own particles), then the crossing
             // springs: the same sums in the same order for any thread count.
             auto range = [&](std::size_t block) {
-                addPackedSpringForces(packed_, packedStiffness_, uniformStiffness_,
-                                      packedStart_[block], packedStart_[block + 1], x, f);
+                addPackedSpringForces(loosePacked_, looseStiffness_, uniformStiffness_,
+                                      looseStart_[block], looseStart_[block + 1], x, f);
             };
             auto blockRange = [&](std::size_t b, std::size_t end) {
                 for (std::size_t k = b; k < end; ++k) range(k);
@@ -333,6 +362,132 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
         case Term::External: externals_[e.external].second(x, v, f); break;
         }
     }
+}
+
+namespace {
+// The kernels of the family pass, as functions whose arrays are declared not to overlap (they
+// never do: positions, slot forces and particle forces are separate buffers), so that the
+// compiler vectorises them without run-time overlap checks.
+
+/// Spring forces of m consecutive slots: a and b are the coordinate runs of the two ends.
+void familySlotForces(std::size_t m, const double* DRAPE_RESTRICT ax, const double* DRAPE_RESTRICT ay,
+                      const double* DRAPE_RESTRICT az, const double* DRAPE_RESTRICT bx,
+                      const double* DRAPE_RESTRICT by, const double* DRAPE_RESTRICT bz,
+                      const double* DRAPE_RESTRICT k, const double* DRAPE_RESTRICT l0,
+                      double* DRAPE_RESTRICT ox, double* DRAPE_RESTRICT oy, double* DRAPE_RESTRICT oz) {
+    for (std::size_t j = 0; j < m; ++j) {
+        const double dx = bx[j] - ax[j], dy = by[j] - ay[j], dz = bz[j] - az[j];
+        const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+        // Coincident ends (l = 0) have d = 0: dividing by 1 instead gives them a zero force
+        // without a branch (a select, not a jump), which keeps the loop vectorisable.
+        const double t = k[j] * (l - l0[j]) / (l + static_cast<double>(l == 0.0));
+        ox[j] = t * dx;
+        oy[j] = t * dy;
+        oz[j] = t * dz;
+    }
+}
+
+void addRun(std::size_t m, const double* DRAPE_RESTRICT in, double* DRAPE_RESTRICT out) {
+    for (std::size_t j = 0; j < m; ++j) out[j] += in[j];
+}
+
+void subtractRun(std::size_t m, const double* DRAPE_RESTRICT in, double* DRAPE_RESTRICT out) {
+    for (std::size_t j = 0; j < m; ++j) out[j] -= in[j];
+}
+} // namespace
+
+// The family springs (ClothTopology::springFamilies) in three passes over plain arrays, each a
+// loop the compiler vectorises: the positions are copied into coordinate arrays; each slot's
+// force k (l - L0) / l d is computed from two contiguous runs of particles (a hole has k = 0
+// and L0 = 0, so its force is 0 unless its ends coincide, which the l > 0 test also covers);
+// and every particle adds the slots it starts (+) and ends (-), family by family, before the
+// forces go back onto f. Each particle's sum has the same terms in the same order for any
+// split of the particles among threads, so results do not depend on the thread count.
+void ForceModel::addFamilySpringForces(const Vec3List& x, Vec3List& f) {
+    const auto& families = topology_->springFamilies();
+    if (families.empty()) return;
+    const std::size_t n = x.size();
+    const std::size_t slots = topology_->familySlotSprings().size();
+    soaX_.resize(3 * n);
+    soaF_.resize(3 * n);
+    slotF_.resize(3 * slots);
+    auto forRange = [&](std::size_t count, const std::function<void(std::size_t, std::size_t)>& body) {
+        if (pool_) {
+            pool_->parallelFor(count, body);
+        } else {
+            body(0, count);
+        }
+    };
+    forRange(n, [&](std::size_t b, std::size_t e) {
+        double* px = soaX_.data();
+        double* py = px + n;
+        double* pz = py + n;
+        for (std::size_t i = b; i < e; ++i) {
+            px[i] = x[i][0];
+            py[i] = x[i][1];
+            pz[i] = x[i][2];
+        }
+    });
+    const double* rest = topology_->familySlotRestLengths().data();
+    const double* kSlot = slotStiffness_.data();
+    forRange(slots, [&](std::size_t b, std::size_t e) {
+        const double* px = soaX_.data();
+        const double* py = px + n;
+        const double* pz = py + n;
+        double* fx = slotF_.data();
+        double* fy = fx + slots;
+        double* fz = fy + slots;
+        for (const SpringFamily& fam : families) {
+            const std::size_t lo = std::max(b, fam.slot), hi = std::min(e, fam.slot + fam.count);
+            if (lo >= hi) continue;
+            // Slot j joins particle a = first + (j - slot) to a + offset.
+            const std::size_t m = hi - lo;
+            const double* ax = px + (fam.first + (lo - fam.slot));
+            const double* ay = py + (fam.first + (lo - fam.slot));
+            const double* az = pz + (fam.first + (lo - fam.slot));
+            const double* bx = ax + fam.offset;
+            const double* by = ay + fam.offset;
+            const double* bz = az + fam.offset;
+            const double* k = kSlot + lo;
+            const double* l0 = rest + lo;
+            double* ox = fx + lo;
+            double* oy = fy + lo;
+            double* oz = fz + lo;
+            familySlotForces(m, ax, ay, az, bx, by, bz, k, l0, ox, oy, oz);
+        }
+    });
+    forRange(n, [&](std::size_t b, std::size_t e) {
+        for (std::size_t c = 0; c < 3; ++c) {
+            double* out = soaF_.data() + c * n;
+            const double* in = slotF_.data() + c * slots;
+            std::fill(out + b, out + e, 0.0);
+            for (const SpringFamily& fam : families) {
+                // Starts: particle first + j gets +force of slot `slot + j`.
+                std::size_t lo = std::max<std::size_t>(b, fam.first);
+                std::size_t hi = std::min<std::size_t>(e, std::size_t(fam.first) + fam.count);
+                if (lo < hi) {
+                    const double* add = in + fam.slot + (lo - fam.first);
+                    addRun(hi - lo, add, out + lo);
+                }
+                // Ends: particle first + offset + j gets -force of the same slot.
+                const std::size_t endFirst = std::size_t(fam.first) + fam.offset;
+                lo = std::max<std::size_t>(b, endFirst);
+                hi = std::min<std::size_t>(e, endFirst + fam.count);
+                if (lo < hi) {
+                    const double* sub = in + fam.slot + (lo - endFirst);
+                    subtractRun(hi - lo, sub, out + lo);
+                }
+            }
+        }
+        const double* px = soaF_.data();
+        const double* py = px + n;
+        const double* pz = py + n;
+        for (std::size_t i = b; i < e; ++i) {
+            f[i][0] += px[i];
+            f[i][1] += py[i];
+            f[i][2] += pz[i];
+        }
+    });
 }
 
 // Why a flow and not a force (Velocity-Verlet, see integrators.cpp): with the damping in the

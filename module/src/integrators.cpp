@@ -27,6 +27,15 @@ template <class Body> void forParticles(IntegratorContext& c, Body body) {
     }
 }
 
+/// Runs body(begin, end) over chunks of the particles, on the context's pool when it has one.
+template <class Body> void forRanges(IntegratorContext& c, Body body) {
+    if (c.pool) {
+        c.pool->parallelFor(c.x.size(), body);
+    } else {
+        body(std::size_t{0}, c.x.size());
+    }
+}
+
 /// Eq. (14) with the time step restored in the velocity term:
 ///   x(t+dt) = x(t) + v(t) dt + f(t)/(2m) dt^2
 ///   v(t+dt) = v(t) + (f(t) + f(t+dt))/(2m) dt
@@ -89,11 +98,37 @@ public:
             });
             return true;
         }
-        forParticles(c, [&](std::size_t i) {
-            const Vec3 vi = t.linear ? dampedBy(t.cdh, c.invMass[i]) * v0[i] : v0[i];
-            const Vec3 vh = vi + (h * c.invMass[i]) * c.f[i];
-            c.v[i] = vh;
-            c.x[i] = x0[i] + c.dt * vh;
+        // The common case (no spring damping, no aerodynamics) as one flat loop over the
+        // components: the damping factor is looked up only when the inverse mass changes.
+        forRanges(c, [&](std::size_t b, std::size_t e) {
+            if (b >= e) return;
+            const double* w = c.invMass.data();
+            const double* xs = x0[0].data();
+            const double* vs = v0[0].data();
+            const double* fs = c.f[0].data();
+            double* xd = c.x[0].data();
+            double* vd = c.v[0].data();
+            const double cdh = t.linear ? t.cdh : 0.0, dt = c.dt, half = h;
+            double lastW = -1.0, decay = 1.0;
+            for (std::size_t i = b; i < e; ++i) {
+                const double wi = w[i];
+                if (wi != lastW) {
+                    lastW = wi;
+                    decay = std::exp(-cdh * wi);
+                }
+                const double hw = half * wi;
+                const std::size_t j = 3 * i;
+                const double v0x = decay * vs[j] + hw * fs[j];
+                const double v0y = decay * vs[j + 1] + hw * fs[j + 1];
+                const double v0z = decay * vs[j + 2] + hw * fs[j + 2];
+                const double x0x = xs[j] + dt * v0x, x0y = xs[j + 1] + dt * v0y, x0z = xs[j + 2] + dt * v0z;
+                vd[j] = v0x;
+                vd[j + 1] = v0y;
+                vd[j + 2] = v0z;
+                xd[j] = x0x;
+                xd[j + 1] = x0y;
+                xd[j + 2] = x0z;
+            }
         });
         return true;
     }
@@ -149,13 +184,48 @@ public:
                 }
             });
         } else if (t.linear) {
-            passes([&](std::size_t i) {
-                if (c.invMass[i] == 0.0) {
-                    c.f[i] -= t.cd * c.v[i];
-                } else {
-                    c.v[i] = dampedBy(t.cdh, c.invMass[i]) * (c.v[i] + (h * c.invMass[i]) * c.f[i]);
+            // The closing kick and L(dt/2) in one flat pass, with the finiteness sum (several
+            // partial sums, so the additions do not wait for each other).
+            auto range = [&](std::size_t b, std::size_t e) {
+                if (b >= e) return;
+                const double* w = c.invMass.data();
+                double* xs = c.x[0].data();
+                double* vs = c.v[0].data();
+                double* fs = c.f[0].data();
+                const double cd = t.cd, cdh = t.cdh, half = h;
+                double lastW = -1.0, decay = 1.0;
+                double sx = 0.0, sv = 0.0, sf = 0.0;
+                for (std::size_t i = b; i < e; ++i) {
+                    const std::size_t j = 3 * i;
+                    const double wi = w[i];
+                    if (wi == 0.0) {
+                        fs[j] -= cd * vs[j];
+                        fs[j + 1] -= cd * vs[j + 1];
+                        fs[j + 2] -= cd * vs[j + 2];
+                    } else {
+                        if (wi != lastW) {
+                            lastW = wi;
+                            decay = std::exp(-cdh * wi);
+                        }
+                        const double hw = half * wi;
+                        const double vx = decay * (vs[j] + hw * fs[j]);
+                        const double vy = decay * (vs[j + 1] + hw * fs[j + 1]);
+                        const double vz = decay * (vs[j + 2] + hw * fs[j + 2]);
+                        vs[j] = vx;
+                        vs[j + 1] = vy;
+                        vs[j + 2] = vz;
+                    }
+                    sx += (xs[j] + xs[j + 1]) + xs[j + 2];
+                    sv += (vs[j] + vs[j + 1]) + vs[j + 2];
+                    sf += (fs[j] + fs[j + 1]) + fs[j + 2];
                 }
-            });
+                if (!std::isfinite(sx + sv + sf)) bad.store(true, std::memory_order_relaxed);
+            };
+            if (c.pool) {
+                c.pool->parallelFor(c.x.size(), range);
+            } else {
+                range(0, c.x.size());
+            }
         } else {
             passes([&](std::size_t i) { c.v[i] += (h * c.invMass[i]) * c.f[i]; });
         }

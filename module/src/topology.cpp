@@ -127,6 +127,8 @@ std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& in
     for (std::size_t k = 0; k < topo->adjSprings_.size(); ++k)
         topo->adjInvRest2_[k] = topo->invRest2_[topo->adjSprings_[k]];
 
+    topo->bakeFamilies();
+
     topo->triangleAreas_.resize(topo->triangles_.size());
     for (std::size_t t = 0; t < topo->triangles_.size(); ++t) {
         const auto& tri = topo->triangles_[t];
@@ -136,6 +138,57 @@ std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& in
         topo->totalArea_ += topo->triangleAreas_[t];
     }
     return topo;
+}
+
+// Families: the springs grouped by offset b - a, each group split into runs wherever more
+// than kMaxGap consecutive slots would be empty. A run becomes a family when it has at least
+// kMinSprings springs and fills at least 40 % of its slots (a sheet's alternating diagonals
+// fill about half); its springs are then evaluated in contiguous memory. The rest stay loose.
+void ClothTopology::bakeFamilies() {
+    constexpr Index kMaxGap = 4;
+    constexpr std::size_t kMinSprings = 8;
+    families_.clear();
+    slotSpring_.clear();
+    slotRest_.clear();
+    slotInvRest2_.clear();
+    looseSprings_.clear();
+    std::vector<Index> order(springs_.size());
+    for (std::size_t s = 0; s < order.size(); ++s) order[s] = static_cast<Index>(s);
+    auto offsetOf = [&](Index s) { return springs_[s].b - springs_[s].a; };
+    std::sort(order.begin(), order.end(), [&](Index p, Index q) {
+        const Index op = offsetOf(p), oq = offsetOf(q);
+        return op != oq ? op < oq : springs_[p].a < springs_[q].a;
+    });
+    std::vector<unsigned char> inFamily(springs_.size(), 0);
+    for (std::size_t i = 0; i < order.size();) {
+        // One run: same offset, gaps of at most kMaxGap empty slots.
+        std::size_t j = i + 1;
+        while (j < order.size() && offsetOf(order[j]) == offsetOf(order[i]) &&
+               springs_[order[j]].a - springs_[order[j - 1]].a <= kMaxGap + 1) {
+            ++j;
+        }
+        const Index first = springs_[order[i]].a;
+        const Index span = springs_[order[j - 1]].a - first + 1;
+        const std::size_t count = j - i;
+        if (count >= kMinSprings && 5 * count >= 2 * std::size_t(span)) {
+            SpringFamily f{offsetOf(order[i]), first, span, slotSpring_.size()};
+            slotSpring_.resize(f.slot + span, kNoParticle);
+            slotRest_.resize(f.slot + span, 0.0);
+            slotInvRest2_.resize(f.slot + span, 0.0);
+            for (std::size_t k = i; k < j; ++k) {
+                const Index s = order[k];
+                const std::size_t slot = f.slot + (springs_[s].a - first);
+                slotSpring_[slot] = s;
+                slotRest_[slot] = springs_[s].restLength;
+                slotInvRest2_[slot] = invRest2_[s];
+                inFamily[s] = 1;
+            }
+            families_.push_back(f);
+        }
+        i = j;
+    }
+    for (std::size_t s = 0; s < springs_.size(); ++s)
+        if (!inFamily[s]) looseSprings_.push_back(static_cast<Index>(s));
 }
 
 } // namespace drape

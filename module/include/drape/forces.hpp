@@ -36,6 +36,9 @@ struct SpringBlocks {
     std::vector<Index> crossing;
 };
 SpringBlocks makeSpringBlocks(const ClothTopology& topology, std::size_t blocks);
+/// The same split of a subset of the springs (indices into topology.springs(), ascending).
+SpringBlocks makeSpringBlocks(const ClothTopology& topology, const std::vector<Index>& subset,
+                              std::size_t blocks);
 
 /// Damping along springs: a gets c ((v_b - v_a) . n) n, b the opposite. Dissipates relative
 /// motion along the spring only, so rigid motion is not damped.
@@ -163,6 +166,17 @@ private:
     void orderDampingSweep();
     std::vector<double> packedStiffness_;
     std::vector<std::size_t> packedStart_;
+    /// The loose springs (ClothTopology::looseSprings) split and packed as packed_ is, for
+    /// the force pass; the family springs go through addFamilySpringForces.
+    std::vector<Spring> loosePacked_;
+    std::vector<double> looseStiffness_;
+    std::vector<std::size_t> looseStart_;
+    /// Per family slot: the spring's stiffness (0 for a hole, whose force is then 0).
+    std::vector<double> slotStiffness_;
+    /// Scratch of the family force pass: positions and forces as three coordinate arrays
+    /// (x of every particle, then y, then z), and each slot's spring force.
+    std::vector<double> soaX_, soaF_, slotF_;
+    void addFamilySpringForces(const Vec3List& x, Vec3List& f);
     /// The common stiffness when every spring has the same (the step then reads no
     /// per-spring stiffness), else 0.
     double uniformStiffness_ = 0.0;

@@ -19,6 +19,18 @@ struct Spring {
     double restLength; ///< length in the initial shape [m]
 };
 
+/// A run of springs that share the index offset b - a and whose first ends a are (nearly)
+/// consecutive: slot j holds the spring from first + j to first + j + offset, or a hole. A
+/// mesh generated row by row (a sheet) has most of its springs in a few families; the force
+/// and strain kernels then read both ends from contiguous memory instead of through an index
+/// list, and the compiler can vectorise them.
+struct SpringFamily {
+    Index offset;      ///< b - a of every spring in the family (> 0)
+    Index first;       ///< first end a of slot 0
+    Index count;       ///< slots; slot j has a = first + j
+    std::size_t slot;  ///< where the family's slots start in the per-slot arrays
+};
+
 /// Options for ClothTopology::build.
 struct TopologyOptions {
     /// Vertices closer than this are welded into one particle [m]. Negative means
@@ -64,6 +76,17 @@ public:
     /// 1 / L0^2 of each spring, for strain checks on squared lengths without a division.
     const std::vector<double>& inverseSquaredRestLengths() const { return invRest2_; }
 
+    /// The spring families (SpringFamily), baked once: every spring is in exactly one family
+    /// slot or in looseSprings().
+    const std::vector<SpringFamily>& springFamilies() const { return families_; }
+    /// Per family slot: its spring, or kNoParticle for a hole.
+    const std::vector<Index>& familySlotSprings() const { return slotSpring_; }
+    /// Per family slot: the spring's rest length [m] (0 for a hole).
+    const std::vector<double>& familySlotRestLengths() const { return slotRest_; }
+    /// Per family slot: 1 / L0^2 (0 for a hole).
+    const std::vector<double>& familySlotInverseSquaredRestLengths() const { return slotInvRest2_; }
+    /// Springs in no family (irregular meshes), in index order.
+    const std::vector<Index>& looseSprings() const { return looseSprings_; }
     /// Edges used by exactly one triangle (the cloth's border).
     std::size_t boundaryEdgeCount() const { return boundaryEdges_; }
 
@@ -82,6 +105,12 @@ private:
     std::vector<double> adjInvRest2_;
     std::vector<double> invRest2_;
     std::size_t boundaryEdges_ = 0;
+    std::vector<SpringFamily> families_;
+    std::vector<Index> slotSpring_;
+    std::vector<double> slotRest_;
+    std::vector<double> slotInvRest2_;
+    std::vector<Index> looseSprings_;
+    void bakeFamilies();
 };
 
 using TopologyPtr = std::shared_ptr<const ClothTopology>;
