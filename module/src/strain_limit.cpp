@@ -4,6 +4,8 @@
 
 #include "drape/settings.hpp"
 
+#include "restrict.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -127,19 +129,35 @@ AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Ind
 
 // --- the worklist limiter -------------------------------------------------------------------
 
+void StrainLimiter::sortWarmList() {
+    if (!warmListValid_) { // after a restore or reset: every spring with a correction
+        warmList_.clear();
+        std::fill(inWarmList_.begin(), inWarmList_.end(), 0);
+        std::fill(warmLeft_.begin(), warmLeft_.end(), 0.0);
+        for (std::size_t si = 0; si < lambda_.size(); ++si) {
+            if (lambda_[si] == 0.0) continue;
+            warmList_.push_back(static_cast<std::uint32_t>(si));
+            inWarmList_[si] = 1;
+        }
+        warmListValid_ = true;
+        return;
+    }
+    // The springs the last step added come after the sorted ones it kept.
+    const auto mid = warmList_.begin() + static_cast<std::ptrdiff_t>(std::min(warmSorted_, warmList_.size()));
+    std::sort(mid, warmList_.end());
+    std::inplace_merge(warmList_.begin(), mid, warmList_.end());
+}
+
 void StrainLimiter::clearMoved() {
     for (Index i : movedIndex_) moved_[i] = 0;
     movedIndex_.clear();
     movedFrom_.clear();
 }
 
-void StrainLimiter::move(Index i, const Vec3& dx, std::vector<Vec3>& x) {
-    if (!moved_[i]) {
-        moved_[i] = 1;
-        movedIndex_.push_back(i);
-        movedFrom_.push_back(x[i]);
-    }
-    x[i] += dx;
+void StrainLimiter::firstMove(Index i, const std::vector<Vec3>& x) {
+    moved_[i] = 1;
+    movedIndex_.push_back(i);
+    movedFrom_.push_back(x[i]);
 }
 
 double StrainLimiter::slidingWeight(Index i, double w, const Vec3& dir,
@@ -174,7 +192,11 @@ void StrainLimiter::dirty(Index i, const Vec3& dx, std::vector<Vec3>& x) {
 void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<double>& invMass,
                             const LimiterSettings& s) {
     const std::size_t n = topology.particleCount(), ns = topology.springCount();
-    if (lambda_.size() != ns) lambda_.assign(ns, 0.0);
+    if (lambda_.size() != ns) {
+        lambda_.assign(ns, 0.0);
+        warmListValid_ = false;
+    }
+    inWarmList_.resize(ns, 0);
     queued_.resize(ns, 0);
     warmLeft_.resize(ns, 0.0);
     key_.resize(ns, 0.0);
@@ -235,26 +257,48 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
     // 2. Warm start: last step's corrections, scaled, along the springs as they are now;
     // never more than would shorten a spring to half its rest length (a correction so large
     // that the spring turned since must not flip it). warmLeft_ is what a let-out may undo.
-    for (std::size_t si = 0; si < ns; ++si) {
+    // Only the springs of warmList_ can have a correction; they are visited in index order
+    // (the same order as a loop over all springs), and those left without one drop out.
+    sortWarmList();
+    std::size_t kept = 0;
+    for (std::size_t k = 0; k < warmList_.size(); ++k) {
+        const std::uint32_t si = warmList_[k];
         double& lam = lambda_[si];
         warmLeft_[si] = 0.0;
-        if (lam == 0.0) continue;
-        const Spring& sp = springs[si];
-        const double wsum = invMass[sp.a] + invMass[sp.b];
-        ++st.work;
-        const Vec3 d = x[sp.b] - x[sp.a];
-        const double l = d.norm();
-        lam = wsum > 0.0 ? std::min(lam * s.warmStart, std::max(0.0, l - 0.5 * sp.restLength) / wsum) : 0.0;
-        warmLeft_[si] = lam;
-        if (lam == 0.0) continue;
-        const Vec3 c = (lam / l) * d;
-        if (invMass[sp.a] > 0.0) move(sp.a, invMass[sp.a] * c, x);
-        if (invMass[sp.b] > 0.0) move(sp.b, -invMass[sp.b] * c, x);
+        if (lam != 0.0) {
+            const Spring& sp = springs[si];
+            const double wsum = invMass[sp.a] + invMass[sp.b];
+            ++st.work;
+            const Vec3 d = x[sp.b] - x[sp.a];
+            const double l = d.norm();
+            lam = wsum > 0.0 ? std::min(lam * s.warmStart, std::max(0.0, l - 0.5 * sp.restLength) / wsum) : 0.0;
+            warmLeft_[si] = lam;
+            if (lam != 0.0) {
+                const Vec3 c = (lam / l) * d;
+                if (invMass[sp.a] > 0.0) move(sp.a, invMass[sp.a] * c, x);
+                if (invMass[sp.b] > 0.0) move(sp.b, -invMass[sp.b] * c, x);
+            }
+        }
+        if (lam != 0.0) {
+            warmList_[kept++] = si;
+        } else {
+            inWarmList_[si] = 0;
+        }
     }
-    // 3. One scan of every spring.
+    warmList_.resize(kept);
+    warmSorted_ = kept;
+    // 3. One scan of every spring: the families through coordinate arrays (springs beyond the
+    // band), then the warm-started family springs below it, then the loose springs one by one.
     next_.clear();
-    double worst2 = 0.0;
-    for (std::size_t si = 0; si < ns; ++si) {
+    double worst2 = scanFamilies(topology, invMass, stiffness, x, st);
+    const auto& slotOf = topology.springSlots();
+    for (std::uint32_t si : warmList_) {
+        const std::size_t slot = slotOf[si];
+        if (slot == kNoSlot || queued_[si] || !(ratio2_[slot] < lower2_)) continue;
+        const Spring& sp = springs[si];
+        if (invMass[sp.a] + invMass[sp.b] != 0.0) queue(si, ratio2_[slot], sp.restLength, stiffness);
+    }
+    for (Index si : topology.looseSprings()) {
         worst2 = std::max(worst2, check(si, topology, invMass, stiffness, x, st));
     }
     st.maxStrainBefore = ns ? std::sqrt(worst2) - 1.0 : 0.0;
@@ -262,6 +306,62 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
     runWaves(topology, invMass, stiffness, s, x, st);
     finish(topology, x, st);
     return st;
+}
+
+namespace {
+/// (l / L0)^2 of m consecutive family slots (0 for a hole): a and b are the coordinate runs of
+/// the two ends. The arrays never overlap (DRAPE_RESTRICT), so the loop vectorises.
+void slotRatios(std::size_t m, const double* DRAPE_RESTRICT ax, const double* DRAPE_RESTRICT ay,
+                const double* DRAPE_RESTRICT az, const double* DRAPE_RESTRICT bx,
+                const double* DRAPE_RESTRICT by, const double* DRAPE_RESTRICT bz,
+                const double* DRAPE_RESTRICT inv2, double* DRAPE_RESTRICT out) {
+    for (std::size_t j = 0; j < m; ++j) {
+        const double dx = bx[j] - ax[j], dy = by[j] - ay[j], dz = bz[j] - az[j];
+        out[j] = (dx * dx + dy * dy + dz * dz) * inv2[j];
+    }
+}
+} // namespace
+
+double StrainLimiter::scanFamilies(const ClothTopology& topology, const std::vector<double>& invMass,
+                                   const std::vector<double>& stiffness, const std::vector<Vec3>& x,
+                                   StrainLimitStats& st) {
+    const auto& families = topology.springFamilies();
+    if (families.empty()) return 0.0;
+    const std::size_t n = x.size();
+    const auto& slotSpring = topology.familySlotSprings();
+    const auto& inv2 = topology.familySlotInverseSquaredRestLengths();
+    soa_.resize(3 * n);
+    ratio2_.resize(slotSpring.size());
+    double* px = soa_.data();
+    double* py = px + n;
+    double* pz = py + n;
+    for (std::size_t i = 0; i < n; ++i) {
+        px[i] = x[i][0];
+        py[i] = x[i][1];
+        pz[i] = x[i][2];
+    }
+    for (const SpringFamily& fam : families) {
+        slotRatios(fam.count, px + fam.first, py + fam.first, pz + fam.first,
+                   px + fam.first + fam.offset, py + fam.first + fam.offset,
+                   pz + fam.first + fam.offset, inv2.data() + fam.slot, ratio2_.data() + fam.slot);
+    }
+    st.work += topology.springCount() - topology.looseSprings().size();
+    // Springs beyond the band (the rare case: a branch the processor predicts). A hole has
+    // ratio 0. The warm-started springs below the band are found by limit() from its list.
+    const auto& springs = topology.springs();
+    double worst2 = 0.0;
+    const double* r2 = ratio2_.data();
+    const double upper2 = upper2_;
+    for (std::size_t j = 0; j < slotSpring.size(); ++j) {
+        const double r = r2[j];
+        worst2 = std::max(worst2, r);
+        if (r > upper2) {
+            const Index si = slotSpring[j];
+            const Spring& sp = springs[si];
+            if (invMass[sp.a] + invMass[sp.b] != 0.0) queue(si, r, sp.restLength, stiffness);
+        }
+    }
+    return worst2;
 }
 
 StrainLimitStats StrainLimiter::relimit(const ClothTopology& topology,
@@ -357,6 +457,10 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
             const double dl = want >= 0.0 ? want : std::max(want, -warmLeft_[si]);
             if (dl == 0.0) continue;
             lambda_[si] += dl;
+            if (!inWarmList_[si]) {
+                inWarmList_[si] = 1;
+                warmList_.push_back(si);
+            }
             if (dl < 0.0) warmLeft_[si] += dl;
             const Vec3 c = (dl / l) * d;
             ++st.corrections;

@@ -152,6 +152,7 @@ void ClothTopology::bakeFamilies() {
     slotRest_.clear();
     slotInvRest2_.clear();
     looseSprings_.clear();
+    springSlot_.assign(springs_.size(), kNoSlot);
     std::vector<Index> order(springs_.size());
     for (std::size_t s = 0; s < order.size(); ++s) order[s] = static_cast<Index>(s);
     auto offsetOf = [&](Index s) { return springs_[s].b - springs_[s].a; };
@@ -181,6 +182,7 @@ void ClothTopology::bakeFamilies() {
                 slotSpring_[slot] = s;
                 slotRest_[slot] = springs_[s].restLength;
                 slotInvRest2_[slot] = invRest2_[s];
+                springSlot_[s] = slot;
                 inFamily[s] = 1;
             }
             families_.push_back(f);

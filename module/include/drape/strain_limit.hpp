@@ -155,6 +155,7 @@ public:
     void resetWarmStart() {
         lambda_.assign(lambda_.size(), 0.0);
         warmLeft_.assign(warmLeft_.size(), 0.0);
+        warmListValid_ = false;
     }
 
     /// Particles moved since the last clearMoved(), each with where it was before its first
@@ -167,14 +168,27 @@ public:
     /// displacement of an end is its inverse mass times lambda]; the warm start's memory, part
     /// of a snapshot.
     const std::vector<double>& warmStartState() const { return lambda_; }
-    void setWarmStartState(std::vector<double> lambda) { lambda_ = std::move(lambda); }
+    void setWarmStartState(std::vector<double> lambda) {
+        lambda_ = std::move(lambda);
+        warmListValid_ = false;
+    }
     // (warmLeft_ needs no saving: it is rebuilt at the start of every step.)
     const AnchorField& anchors() const { return anchors_; }
 
 private:
     void prepare(const ClothTopology& topology, const std::vector<double>& invMass,
                  const LimiterSettings& s);
-    void move(Index i, const Vec3& dx, std::vector<Vec3>& x);
+    void move(Index i, const Vec3& dx, std::vector<Vec3>& x) {
+        if (!moved_[i]) firstMove(i, x);
+        x[i] += dx;
+    }
+    /// Records particle i's position before its first move of the step.
+    void firstMove(Index i, const std::vector<Vec3>& x);
+    /// The scan of step 3 over the spring families: queues the family springs that need a
+    /// correction and returns the largest (l / L0)^2 among them.
+    double scanFamilies(const ClothTopology& topology, const std::vector<double>& invMass,
+                        const std::vector<double>& stiffness, const std::vector<Vec3>& x,
+                        StrainLimitStats& st);
     /// move() inside a wave: the particle's springs are checked when the wave ends.
     void dirty(Index i, const Vec3& dx, std::vector<Vec3>& x);
     /// Inverse mass of particle i for a move along unit dir: w, or w (1 - (dir . n)^2) when it
@@ -212,6 +226,15 @@ private:
     std::vector<Queued> order_;         ///< the wave being walked, most stressed first
     std::vector<double> lambda_;        ///< accumulated correction per spring
     std::vector<double> warmLeft_;      ///< warm start a let-out may still undo this step
+    /// The springs whose lambda may be nonzero (each once: inWarmList_); the first
+    /// warmSorted_ are in index order, the rest were added by this step's walks. Rebuilt from
+    /// lambda_ when !warmListValid_ (after a restore or reset).
+    std::vector<std::uint32_t> warmList_;
+    std::vector<unsigned char> inWarmList_;
+    std::size_t warmSorted_ = 0;
+    bool warmListValid_ = false;
+    /// Puts warmList_ in index order (sorting only what the last step added).
+    void sortWarmList();
     std::vector<unsigned char> queued_; ///< spring is in the next wave
     std::vector<std::uint32_t> wave_, next_;
     std::vector<double> key_;           ///< stress of each queued spring
@@ -222,6 +245,8 @@ private:
     std::vector<Index> movedIndex_;
     std::vector<Vec3> movedFrom_;
     AnchorField anchors_;
+    std::vector<double> soa_;    ///< scan scratch: x of every particle, then y, then z
+    std::vector<double> ratio2_; ///< scan scratch: (l / L0)^2 per family slot
     ContactPlanes* planes_ = nullptr; ///< during relimit() only
     std::vector<Index> anchorList_, anchorScratch_;
     bool anchorsValid_ = false;

@@ -31,6 +31,9 @@ struct SpringFamily {
     std::size_t slot;  ///< where the family's slots start in the per-slot arrays
 };
 
+/// ClothTopology::springSlots() entry of a spring in no family.
+inline constexpr std::size_t kNoSlot = static_cast<std::size_t>(-1);
+
 /// Options for ClothTopology::build.
 struct TopologyOptions {
     /// Vertices closer than this are welded into one particle [m]. Negative means
@@ -85,6 +88,8 @@ public:
     const std::vector<double>& familySlotRestLengths() const { return slotRest_; }
     /// Per family slot: 1 / L0^2 (0 for a hole).
     const std::vector<double>& familySlotInverseSquaredRestLengths() const { return slotInvRest2_; }
+    /// Per spring: its family slot, or kNoSlot for a loose spring.
+    const std::vector<std::size_t>& springSlots() const { return springSlot_; }
     /// Springs in no family (irregular meshes), in index order.
     const std::vector<Index>& looseSprings() const { return looseSprings_; }
     /// Edges used by exactly one triangle (the cloth's border).
@@ -110,6 +115,7 @@ private:
     std::vector<double> slotRest_;
     std::vector<double> slotInvRest2_;
     std::vector<Index> looseSprings_;
+    std::vector<std::size_t> springSlot_;
     void bakeFamilies();
 };
 
