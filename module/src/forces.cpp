@@ -394,6 +394,49 @@ void addRun(std::size_t m, const double* DRAPE_RESTRICT in, double* DRAPE_RESTRI
 void subtractRun(std::size_t m, const double* DRAPE_RESTRICT in, double* DRAPE_RESTRICT out) {
     for (std::size_t j = 0; j < m; ++j) out[j] -= in[j];
 }
+
+/// The slot forces of one family on particles [b, e) (one coordinate): + for the particles
+/// that start a slot, - for those that end one.
+void addFamilyTerms(const SpringFamily& fam, const double* in, double* out, std::size_t b,
+                    std::size_t e) {
+    std::size_t lo = std::max<std::size_t>(b, fam.first);
+    std::size_t hi = std::min<std::size_t>(e, std::size_t(fam.first) + fam.count);
+    if (lo < hi) addRun(hi - lo, in + fam.slot + (lo - fam.first), out + lo);
+    const std::size_t endFirst = std::size_t(fam.first) + fam.offset;
+    lo = std::max<std::size_t>(b, endFirst);
+    hi = std::min<std::size_t>(e, endFirst + fam.count);
+    if (lo < hi) subtractRun(hi - lo, in + fam.slot + (lo - endFirst), out + lo);
+}
+
+/// out[j] += sum over the G families of (start[j] - end[j]), for m particles; run holds each
+/// family's start and end pointers.
+template <int G>
+void fusedTerms(std::size_t m, const double* const* run, double* DRAPE_RESTRICT out) {
+    const double* DRAPE_RESTRICT s0 = run[0];
+    const double* DRAPE_RESTRICT e0 = run[1];
+    const double* DRAPE_RESTRICT s1 = G > 1 ? run[2] : run[0];
+    const double* DRAPE_RESTRICT e1 = G > 1 ? run[3] : run[1];
+    const double* DRAPE_RESTRICT s2 = G > 2 ? run[4] : run[0];
+    const double* DRAPE_RESTRICT e2 = G > 2 ? run[5] : run[1];
+    const double* DRAPE_RESTRICT s3 = G > 3 ? run[6] : run[0];
+    const double* DRAPE_RESTRICT e3 = G > 3 ? run[7] : run[1];
+    for (std::size_t j = 0; j < m; ++j) {
+        double sum = s0[j] - e0[j];
+        if (G > 1) sum += s1[j] - e1[j];
+        if (G > 2) sum += s2[j] - e2[j];
+        if (G > 3) sum += s3[j] - e3[j];
+        out[j] += sum;
+    }
+}
+
+void addFusedTerms(std::size_t groupSize, std::size_t m, const double* const* run, double* out) {
+    switch (groupSize) {
+    case 1: fusedTerms<1>(m, run, out); break;
+    case 2: fusedTerms<2>(m, run, out); break;
+    case 3: fusedTerms<3>(m, run, out); break;
+    default: fusedTerms<4>(m, run, out); break;
+    }
+}
 } // namespace
 
 // The family springs (ClothTopology::springFamilies) in three passes over plain arrays, each a
@@ -461,21 +504,31 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, Vec3List& f) {
             double* out = soaF_.data() + c * n;
             const double* in = slotF_.data() + c * slots;
             std::fill(out + b, out + e, 0.0);
-            for (const SpringFamily& fam : families) {
-                // Starts: particle first + j gets +force of slot `slot + j`.
-                std::size_t lo = std::max<std::size_t>(b, fam.first);
-                std::size_t hi = std::min<std::size_t>(e, std::size_t(fam.first) + fam.count);
-                if (lo < hi) {
-                    const double* add = in + fam.slot + (lo - fam.first);
-                    addRun(hi - lo, add, out + lo);
+            // Up to four families at a time. Inside the group's interior (the particles that
+            // start and end a slot of every family in it) one fused pass adds all its terms;
+            // the particles outside take them family by family. Which formula a particle gets
+            // depends on its index only, never on the chunk: the same sums for any thread count.
+            for (std::size_t g = 0; g < families.size(); g += 4) {
+                const std::size_t gEnd = std::min(families.size(), g + 4);
+                std::size_t lo = b, hi = e;
+                for (std::size_t q = g; q < gEnd; ++q) {
+                    const SpringFamily& fam = families[q];
+                    lo = std::max<std::size_t>(lo, std::size_t(fam.first) + fam.offset);
+                    hi = std::min<std::size_t>(hi, std::size_t(fam.first) + fam.count);
                 }
-                // Ends: particle first + offset + j gets -force of the same slot.
-                const std::size_t endFirst = std::size_t(fam.first) + fam.offset;
-                lo = std::max<std::size_t>(b, endFirst);
-                hi = std::min<std::size_t>(e, endFirst + fam.count);
+                if (lo >= hi) lo = hi = e; // no interior in this chunk: all family by family
+                for (std::size_t q = g; q < gEnd; ++q) {
+                    addFamilyTerms(families[q], in, out, b, lo);
+                    addFamilyTerms(families[q], in, out, hi, e);
+                }
                 if (lo < hi) {
-                    const double* sub = in + fam.slot + (lo - endFirst);
-                    subtractRun(hi - lo, sub, out + lo);
+                    const double* run[8];
+                    for (std::size_t q = g; q < gEnd; ++q) {
+                        const SpringFamily& fam = families[q];
+                        run[2 * (q - g)] = in + fam.slot + (lo - fam.first);                   // starts
+                        run[2 * (q - g) + 1] = in + fam.slot + (lo - fam.first - fam.offset);  // ends
+                    }
+                    addFusedTerms(gEnd - g, hi - lo, run, out + lo);
                 }
             }
         }
