@@ -201,6 +201,7 @@ void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<dou
     warmLeft_.resize(ns, 0.0);
     key_.resize(ns, 0.0);
     checkedAt_.resize(ns, 0u);
+    candidates_.resize(topology.adjacentSprings().size() + 1);
     dirtyAt_.resize(n, 0u);
     moved_.resize(n, 0);
     const double upper = 1.0 + s.maxStrain + s.tolerance;
@@ -349,19 +350,33 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology, const std::vec
     // Springs beyond the band (the rare case: a branch the processor predicts). A hole has
     // ratio 0. The warm-started springs below the band are found by limit() from its list.
     const auto& springs = topology.springs();
-    double worst2 = 0.0;
     const double* r2 = ratio2_.data();
     const double upper2 = upper2_;
-    for (std::size_t j = 0; j < slotSpring.size(); ++j) {
-        const double r = r2[j];
-        worst2 = std::max(worst2, r);
-        if (r > upper2) {
-            const Index si = slotSpring[j];
-            const Spring& sp = springs[si];
-            if (invMass[sp.a] + invMass[sp.b] != 0.0) queue(si, r, sp.restLength, stiffness);
+    auto decide = [&](std::size_t j) {
+        if (!(r2[j] > upper2)) return;
+        const Index si = slotSpring[j];
+        const Spring& sp = springs[si];
+        if (invMass[sp.a] + invMass[sp.b] != 0.0) queue(si, r2[j], sp.restLength, stiffness);
+    };
+    // Four slots at a time, with four running maxima (one chain of maxima would make every
+    // slot wait for the one before it).
+    double w0 = 0.0, w1 = 0.0, w2 = 0.0, w3 = 0.0;
+    const std::size_t m = slotSpring.size();
+    std::size_t j = 0;
+    for (; j + 4 <= m; j += 4) {
+        w0 = std::max(w0, r2[j]);
+        w1 = std::max(w1, r2[j + 1]);
+        w2 = std::max(w2, r2[j + 2]);
+        w3 = std::max(w3, r2[j + 3]);
+        if (std::max(std::max(r2[j], r2[j + 1]), std::max(r2[j + 2], r2[j + 3])) > upper2) {
+            for (std::size_t q = j; q < j + 4; ++q) decide(q);
         }
     }
-    return worst2;
+    for (; j < m; ++j) {
+        w0 = std::max(w0, r2[j]);
+        decide(j);
+    }
+    return std::max(std::max(w0, w1), std::max(w2, w3));
 }
 
 StrainLimitStats StrainLimiter::relimit(const ClothTopology& topology,
@@ -475,17 +490,45 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
         // After the wave, the springs of every particle it moved are checked once (a particle
         // moved by several corrections is looked at once, from where it ended). The check
         // reads the spring from the particle's adjacency (neighbour, 1 / L0^2 side by side).
-        for (Index e : dirty_) {
-            const Vec3 xe = x[e];
-            for (Index k = off[e]; k < off[e + 1]; ++k) {
-                const Index si = spr[k];
-                if (checkedAt_[si] == stamp_) continue;
-                checkedAt_[si] = stamp_;
-                if (queued_[si]) continue;
-                ++st.work;
-                const Index o = nbr[k];
-                const double ratio2 = (x[o] - xe).squaredNorm() * inv2[k];
-                if (needs(si, ratio2) && invMass[e] + invMass[o] != 0.0) queue(si, ratio2, rest[k], stiffness);
+        // The loop runs without data-dependent branches (which spring a particle shares with a
+        // particle moved earlier, and which springs leave the band, follow no pattern the
+        // processor could predict): every spring is measured, a spring seen already this wave
+        // counts nothing, and candidates are appended by adding 0 or 1 to the count. (A spring
+        // queued for the next wave was queued after its check in this loop: the stamp alone
+        // keeps it from being looked at twice. The arrays are read through local pointers.)
+        {
+            const Index* offp = off.data();
+            const Index* sprp = spr.data();
+            const Index* nbrp = nbr.data();
+            const double* inv2p = inv2.data();
+            const double* xp = x[0].data();
+            const double* warm = warmLeft_.data();
+            std::uint32_t* seen = checkedAt_.data();
+            const std::uint32_t stamp = stamp_;
+            const double up = upper2_, low = lower2_;
+            std::size_t evaluated = 0, found = 0;
+            Candidate* cand = candidates_.data();
+            for (Index e : dirty_) {
+                const double ex = xp[3 * std::size_t(e)], ey = xp[3 * std::size_t(e) + 1],
+                             ez = xp[3 * std::size_t(e) + 2];
+                for (Index k = offp[e]; k < offp[e + 1]; ++k) {
+                    const Index si = sprp[k];
+                    const std::size_t fresh = seen[si] != stamp;
+                    seen[si] = stamp;
+                    evaluated += fresh;
+                    const std::size_t o = nbrp[k];
+                    const double dx = xp[3 * o] - ex, dy = xp[3 * o + 1] - ey, dz = xp[3 * o + 2] - ez;
+                    const double ratio2 = (dx * dx + dy * dy + dz * dz) * inv2p[k];
+                    // needs(si, ratio2)
+                    const std::size_t need = (ratio2 > up) | ((ratio2 < low) & (warm[si] > 0.0));
+                    cand[found] = Candidate{ratio2, k, e};
+                    found += fresh & need;
+                }
+            }
+            st.work += evaluated;
+            for (std::size_t c = 0; c < found; ++c) {
+                const Index e = cand[c].particle, k = cand[c].slot;
+                if (invMass[e] + invMass[nbr[k]] != 0.0) queue(spr[k], cand[c].ratio2, rest[k], stiffness);
             }
         }
         dirty_.clear();

@@ -240,6 +240,14 @@ private:
     std::vector<double> key_;           ///< stress of each queued spring
     std::vector<std::uint32_t> checkedAt_, dirtyAt_; ///< wave stamp of a spring's check / a move
     std::vector<Index> dirty_;          ///< particles the current wave moved
+    /// A spring the checks after a wave found in need of a correction: its (l / L0)^2, its
+    /// adjacency entry and the moved particle it was reached from.
+    struct Candidate {
+        double ratio2;
+        Index slot;
+        Index particle;
+    };
+    std::vector<Candidate> candidates_; ///< one per adjacency entry at most (+1: the last write)
     std::uint32_t stamp_ = 0;
     std::vector<unsigned char> moved_;
     std::vector<Index> movedIndex_;
