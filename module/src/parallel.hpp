@@ -25,9 +25,13 @@ public:
     int threads() const { return static_cast<int>(workers_.size()) + 1; }
 
     /// Runs body over [0, n) in up to threads() contiguous chunks; the calling thread takes
-    /// the first chunk. Loops shorter than `grain` per thread run inline.
+    /// the first chunk. Loops shorter than `grain` per thread run inline. The default suits
+    /// the per-particle and per-slot passes (a few ns per element): waking a worker costs
+    /// tens of microseconds on a virtual machine, so below ~32k elements per thread a second
+    /// thread makes the step slower (measured: a 100 x 100 sheet took 0.40 ms/step on 2
+    /// threads and 0.32 ms on 1 with a grain of 4096).
     void parallelFor(std::size_t n, const std::function<void(std::size_t, std::size_t)>& body,
-                     std::size_t grain = 4096);
+                     std::size_t grain = 32768);
 
 private:
     void workerLoop(std::size_t index);
