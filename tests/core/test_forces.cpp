@@ -278,3 +278,65 @@ TEST_CASE("Aerodynamic drag and lift follow their formulas", "[forces][aero]") {
     aero.wind = -u;
     CHECK((total(Vec3::Zero()) - f45).norm() < 1e-12);
 }
+
+TEST_CASE("Spring families: every spring in one slot or loose, and the family kernels sum the "
+          "same forces as the per-spring loop",
+          "[forces][families]") {
+    auto checkMesh = [](const TriangleMesh& mesh, std::uint64_t seed, bool allInFamilies) {
+        const TopologyPtr topo = ClothTopology::build(mesh);
+        // Coverage: each spring exactly once, in a family slot (matching its ends) or loose.
+        std::vector<int> seen(topo->springCount(), 0);
+        const auto& slotSpring = topo->familySlotSprings();
+        for (const SpringFamily& fam : topo->springFamilies()) {
+            for (Index j = 0; j < fam.count; ++j) {
+                const Index s = slotSpring[fam.slot + j];
+                if (s == kNoParticle) continue;
+                ++seen[s];
+                CHECK(topo->springs()[s].a == fam.first + j);
+                CHECK(topo->springs()[s].b == fam.first + j + fam.offset);
+                CHECK(topo->springSlots()[s] == fam.slot + j);
+                CHECK(topo->familySlotRestLengths()[fam.slot + j] == topo->springs()[s].restLength);
+            }
+        }
+        for (Index s : topo->looseSprings()) {
+            ++seen[s];
+            CHECK(topo->springSlots()[s] == kNoSlot);
+        }
+        CHECK(std::all_of(seen.begin(), seen.end(), [](int c) { return c == 1; }));
+        CHECK(topo->looseSprings().empty() == allInFamilies);
+
+        // Forces: springs stretched and compressed, one spring's ends made to coincide.
+        Rng rng(seed);
+        std::vector<double> k;
+        for (std::size_t i = 0; i < topo->springCount(); ++i) k.push_back(rng.uniform(5.0, 50.0));
+        Vec3List x;
+        for (const Vec3& p : topo->restPositions())
+            x.push_back(p + Vec3(rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.2)));
+        const Spring& sp = topo->springs()[topo->springCount() / 2];
+        x[sp.b] = x[sp.a];
+        Vec3List expected(x.size(), Vec3::Zero());
+        addSpringForces(topo->springs(), k, x, expected);
+        ClothSettings settings;
+        settings.gravity = Vec3::Zero();
+        PhaseTimers timers;
+        ForceModel model(topo, k, std::vector<double>(x.size(), 0.1), settings, timers);
+        Vec3List f;
+        model.evaluate(x, Vec3List(x.size(), Vec3::Zero()), f);
+        double scale = 0.0, worst = 0.0;
+        for (std::size_t i = 0; i < x.size(); ++i) {
+            REQUIRE(f[i].allFinite());
+            scale = std::max(scale, expected[i].norm());
+            worst = std::max(worst, (f[i] - expected[i]).norm());
+        }
+        INFO("largest difference " << worst << " against forces up to " << scale);
+        CHECK(worst <= 1e-12 * scale); // the same terms, summed in another order
+    };
+    SECTION("a sheet: all springs in families") {
+        SheetSpec spec;
+        spec.rows = 13;
+        spec.cols = 17;
+        spec.spacing = 0.1;
+        checkMesh(makeSheet(spec), 3, true);
+    }
+    SECTION("an irregular mesh: some springs loose") { checkMesh(irregularMesh(4, 4, 7, true), 5, false); }
+}
