@@ -192,6 +192,49 @@ void restart(Cloth& cloth, const std::vector<unsigned char>& start) {
     benchmark::DoNotOptimize(cloth.stableTimeStep());
 }
 
+/// A cloth at rest, awake or asleep: a 35 x 35 sheet of cloth size (0.68 m square, 6 kg,
+/// k = 5 N/m, C_d = 0.05 N s/m, 60 Hz; the limiter carries its weight) hung from its whole top row, settled (untimed) until
+/// it sleeps (ClothSettings::sleep, defaults: 1 mm for 1 s), then stepped. `asleep` = false
+/// runs the same settling with sleeping off: the same state, stepped awake. The ratio of the
+/// two is what a sleeping cloth saves.
+void runRest(benchmark::State& state, bool asleep) {
+    SheetSpec spec = sheetSpec(35);
+    spec.spacing = 0.02;
+    ClothSettings settings = sceneSettings(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered, 1);
+    settings.particleMass = 5e-3;
+    settings.springStiffness = 5.0;
+    settings.damping = 0.05;
+    settings.sleep.enabled = true;
+    const double dt = 1.0 / 60.0;
+    auto cloth = std::make_unique<Cloth>(ClothTopology::build(makeSheet(spec)), settings);
+    for (Index c = 0; c < spec.cols; ++c) cloth->pin(sheetIndex(spec, 0, c));
+    const int maxSettle = 6000; // 100 s simulated
+    int settled = 0;
+    while (!cloth->isAsleep() && settled < maxSettle) {
+        cloth->step(dt);
+        ++settled;
+    }
+    if (!cloth->isAsleep()) {
+        state.SkipWithError("the resting sheet did not fall asleep within 100 s");
+        return;
+    }
+    if (!asleep) { // the same state, awake and with sleeping off
+        settings.sleep.enabled = false;
+        auto awake = std::make_unique<Cloth>(ClothTopology::build(makeSheet(spec)), settings);
+        for (Index c = 0; c < spec.cols; ++c) awake->pin(sheetIndex(spec, 0, c));
+        loadSnapshot(*awake, saveSnapshot(*cloth));
+        cloth = std::move(awake);
+    }
+    cloth->timers().reset();
+    for (auto _ : state)
+        cloth->step(dt);
+    state.counters["particles"] = static_cast<double>(cloth->particleCount());
+    state.counters["settle_steps"] = settled;
+    state.counters["asleep"] = cloth->isAsleep() ? 1.0 : 0.0;
+    state.counters["max_strain"] = cloth->maxStrain();
+    addPhaseCounters(state, *cloth, static_cast<double>(state.iterations()));
+}
+
 void runScaling(benchmark::State& state, std::string key, ScalingCase c) {
     try {
         std::vector<unsigned char>* start = nullptr;
@@ -431,6 +474,13 @@ int main(int argc, char** argv) {
                                      LimiterKind::StressOrdered, true)
             ->Iterations(scene.steps)
             ->Unit(benchmark::kMillisecond);
+    }
+
+    // A cloth at rest: awake against asleep.
+    for (bool asleep : {false, true}) {
+        benchmark::RegisterBenchmark(asleep ? "rest_35x35/asleep" : "rest_35x35/awake", runRest, asleep)
+            ->Iterations(1000)
+            ->Unit(benchmark::kMicrosecond);
     }
 
     // Scaling family: steps per repetition give roughly 0.2 to 1 s per repetition on one
