@@ -245,15 +245,22 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
     const std::size_t ns = springs.size();
     // 1. Long-range attachments.
     if (s.longRangeAttachments && !anchorList_.empty()) {
+        // (Local pointers: move() appends to vectors, which would make the compiler reload
+        // every member's data pointer in every iteration.)
         const double f = limit_;
+        const Index* anchor = anchors_.anchor.data();
+        const double* restDistance = anchors_.restDistance.data();
+        const double* w = invMass.data();
+        std::size_t evaluated = 0;
         for (std::size_t i = 0; i < x.size(); ++i) {
-            const Index a = anchors_.anchor[i];
-            if (a == kNoParticle || invMass[i] == 0.0) continue;
-            ++st.work;
+            const Index a = anchor[i];
+            if (a == kNoParticle || w[i] == 0.0) continue;
+            ++evaluated;
             const Vec3 d = x[i] - x[a];
-            const double l2 = d.squaredNorm(), r = f * anchors_.restDistance[i];
+            const double l2 = d.squaredNorm(), r = f * restDistance[i];
             if (l2 > r * r) move(static_cast<Index>(i), (r / std::sqrt(l2) - 1.0) * d, x);
         }
+        st.work += evaluated;
     }
     // 2. Warm start: last step's corrections, scaled, along the springs as they are now;
     // never more than would shorten a spring to half its rest length (a correction so large
@@ -261,31 +268,42 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
     // Only the springs of warmList_ can have a correction; they are visited in index order
     // (the same order as a loop over all springs), and those left without one drop out.
     sortWarmList();
-    std::size_t kept = 0;
-    for (std::size_t k = 0; k < warmList_.size(); ++k) {
-        const std::uint32_t si = warmList_[k];
-        double& lam = lambda_[si];
-        warmLeft_[si] = 0.0;
-        if (lam != 0.0) {
-            const Spring& sp = springs[si];
-            const double wsum = invMass[sp.a] + invMass[sp.b];
-            ++st.work;
-            const Vec3 d = x[sp.b] - x[sp.a];
-            const double l = d.norm();
-            lam = wsum > 0.0 ? std::min(lam * s.warmStart, std::max(0.0, l - 0.5 * sp.restLength) / wsum) : 0.0;
-            warmLeft_[si] = lam;
+    std::size_t kept = 0, warmed = 0;
+    {
+        std::uint32_t* list = warmList_.data();
+        double* lambda = lambda_.data();
+        double* left = warmLeft_.data();
+        unsigned char* listed = inWarmList_.data();
+        const Spring* spring = springs.data();
+        const double* w = invMass.data();
+        const double share = s.warmStart;
+        for (std::size_t k = 0; k < warmList_.size(); ++k) {
+            const std::uint32_t si = list[k];
+            double lam = lambda[si];
+            left[si] = 0.0;
             if (lam != 0.0) {
-                const Vec3 c = (lam / l) * d;
-                if (invMass[sp.a] > 0.0) move(sp.a, invMass[sp.a] * c, x);
-                if (invMass[sp.b] > 0.0) move(sp.b, -invMass[sp.b] * c, x);
+                const Spring& sp = spring[si];
+                const double wsum = w[sp.a] + w[sp.b];
+                ++warmed;
+                const Vec3 d = x[sp.b] - x[sp.a];
+                const double l = d.norm();
+                lam = wsum > 0.0 ? std::min(lam * share, std::max(0.0, l - 0.5 * sp.restLength) / wsum) : 0.0;
+                lambda[si] = lam;
+                left[si] = lam;
+                if (lam != 0.0) {
+                    const Vec3 c = (lam / l) * d;
+                    if (w[sp.a] > 0.0) move(sp.a, w[sp.a] * c, x);
+                    if (w[sp.b] > 0.0) move(sp.b, -w[sp.b] * c, x);
+                }
+            }
+            if (lam != 0.0) {
+                list[kept++] = si;
+            } else {
+                listed[si] = 0;
             }
         }
-        if (lam != 0.0) {
-            warmList_[kept++] = si;
-        } else {
-            inWarmList_[si] = 0;
-        }
     }
+    st.work += warmed;
     warmList_.resize(kept);
     warmSorted_ = kept;
     // 3. One scan of every spring: the families through coordinate arrays (springs beyond the
