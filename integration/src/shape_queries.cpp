@@ -33,7 +33,10 @@ SurfaceHit makeHit(const Pose& pose, double distance, const Vec3& localNormal, c
     SurfaceHit h;
     h.valid = true;
     h.distance = distance;
-    h.normal = pose.R * localNormal;
+    // A body's rotation comes from single precision: its columns are unit to ~1e-7 only, and
+    // a contact force along a normal that is not unit would cancel a load only to that
+    // fraction (a resting particle would keep a residual acceleration).
+    h.normal = (pose.R * localNormal).normalized();
     h.point = pose.toWorld(localPoint);
     return h;
 }

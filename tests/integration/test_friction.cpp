@@ -143,7 +143,8 @@ TEST_CASE("a cloth dragged across a box needs a pull of mu M g and, let go, stop
     ClothSettings cs;
     cs.particleMass = 0.002;
     cs.springStiffness = 50.0;
-    cs.springDamping = 0.02; // damps the sheet's own vibration, not its motion as a whole
+    cs.springDamping = 0.6; // ~critical: damps the sheet's own (stick-slip) vibration, not its
+                            // motion as a whole (no particle damping: it would brake the slide)
     auto cloth = makeCloth(horizontalSheet(n, n, 0.05, 0.1 + kThickness, -1.0), cs);
     btRigidBody* bar = w.kinematic(w.shape<btBoxShape>(btVector3(0.01f, 0.01f, 0.2f)),
                                    Vec3(-1.0 + 0.15, 0.3, 0.0));
@@ -159,9 +160,9 @@ TEST_CASE("a cloth dragged across a box needs a pull of mu M g and, let go, stop
     for (Index i = 0; i < cloth->particleCount(); ++i) freeMass += cloth->isPinned(i) ? 0.0 : cloth->masses()[i];
     const double g = cloth->settings().gravity.norm();
 
-    // Drag at 1 m/s for 0.6 s (the bar starts at once; the sheet catches up within ~0.1 s),
-    // averaging the pull over the last 0.3 s.
-    const int dragSteps = int(0.6 / dt), averaged = int(0.3 / dt);
+    // Drag at 1 m/s for 1 s (the bar starts at once; the sheet catches up and its stick-slip
+    // vibration dies out within ~0.4 s), averaging the pull over the last 0.5 s.
+    const int dragSteps = int(1.0 / dt), averaged = int(0.5 / dt);
     double pull = 0.0;
     Vec3 barAt = eig(bar->getWorldTransform().getOrigin());
     for (int k = 1; k <= dragSteps; ++k) {
@@ -197,7 +198,7 @@ TEST_CASE("a cloth dragged across a box needs a pull of mu M g and, let go, stop
     CHECK(v0 == Approx(speed).epsilon(0.05)); // it was moving with the bar
     CHECK(pull == Approx(mu * freeMass * g).epsilon(0.02));
     CHECK(slid == Approx(expectedSlide).epsilon(0.02));
-    CHECK(cloth->kineticEnergy() <= 1e-20); // stopped (static friction holds it exactly)
+    CHECK(cloth->kineticEnergy() <= 1e-25); // stopped (static friction holds it exactly)
 }
 
 TEST_CASE("a cloth placed at the contact distance is not pushed away and rests exactly",
