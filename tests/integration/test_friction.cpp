@@ -242,3 +242,44 @@ TEST_CASE("a cloth placed at the contact distance is not pushed away and rests e
         }
     }
 }
+
+TEST_CASE("a cloth dropped on a box settles to rest exactly, where its contacts hold its weight",
+          "[contacts][rest]") {
+    for (const double penalty : {-1.0, 0.0}) {
+        DYNAMIC_SECTION("penalty force " << penalty) {
+            const double dt = 1.0 / 240.0, top = 0.1;
+            TestWorld w;
+            w.body(w.shape<btBoxShape>(btVector3(0.3f, 0.1f, 0.3f)), 0.0, Vec3::Zero());
+            ClothSettings cs = lightCloth();
+            cs.damping = 0.01;
+            auto cloth = makeCloth(horizontalSheet(9, 9, 0.05, top + 0.05), cs); // 4 cm above the band
+            bullet::BulletClothSettings bs;
+            bs.contact.thickness = kThickness;
+            bs.contact.penaltyForce = penalty;
+            bs.sleep = false; // the state itself must come to rest, not be frozen
+            auto& handle = w.add(cloth, bs);
+            for (int k = 0; k < 240; ++k) w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
+            double lowest = 1.0, highest = 0.0;
+            for (const auto& x : cloth->positions()) {
+                lowest = std::min(lowest, x.y() - top);
+                highest = std::max(highest, x.y() - top);
+            }
+            // With eq. (7) (C_p = 2 m g, band w = h) the cloth lands in the band, and the
+            // penalty, which may only stop it, never push it back up, holds it at the first
+            // height where it can: at or just below the equilibrium C_p phi(g) = m g,
+            // phi(g) = 1/2 => g = w (1 - ln(1 + (e - 1)/2)). Without it, at the thickness.
+            const double e = std::exp(1.0);
+            const double equilibrium = kThickness + (penalty < 0.0 ? kThickness * (1.0 - std::log(1.0 + (e - 1.0) / 2.0)) : 0.0);
+            std::printf("[measured] sheet dropped on a box, penalty %g: rests %.7f..%.7f m above the top "
+                        "(eq. (7) equilibrium %.7f), KE %.3g J after 1 s, %zu of %zu particles in contact\n",
+                        penalty, lowest, highest, equilibrium, cloth->kineticEnergy(), handle.lastStats().contacts,
+                        cloth->particleCount());
+            CHECK(highest - lowest <= 1e-9);              // flat, all at one height
+            CHECK(highest <= equilibrium + 1e-7);         // float box: 1e-7 m
+            CHECK(lowest >= kThickness - 1e-7);
+            if (penalty < 0.0) CHECK(lowest >= equilibrium - 0.05 * kThickness); // caught near it
+            CHECK(cloth->kineticEnergy() <= 1e-25);
+            CHECK(handle.lastStats().contacts == cloth->particleCount());
+        }
+    }
+}
