@@ -21,24 +21,30 @@
 // 5 have nothing to do. After an awake sub-step in which it pushed an active dynamic body,
 // its quiet time restarts.
 //
-// Contact of particle i (inverse mass w_i) with a body at surface point P, outward normal n,
-// signed distance d, thickness h, penalty band w:
+// Contact of particle i (inverse mass w_i, mass m_i) with a body at surface point P, outward
+// normal n, signed distance d, thickness h, penalty band w:
 //   d < h      (touching):  x_i is projected to P + h n; if the relative normal velocity
 //              v_n = (v_i - v_body(P)) . n is negative, an impulse lambda n with
 //              lambda = -v_n / (w_i + w_body(n)) stops the approach (inelastic: cloth does not
 //              bounce), w_body(n) = 1/M + (r x n)^T I^-1 (r x n) for dynamic bodies and 0 for
-//              static and kinematic ones. While it stays touching, the force term also
-//              supports it: the inward part of its other forces is cancelled (a resting load
-//              beyond C_p, such as the tension of a cloth hanging over an edge).
-//   d < h + w  (in the band): eq. (7)'s penalty force F n on the particle (see penaltyShape).
-//   Friction (Coulomb, mu = the body's friction): a tangential impulse of at most
-//              mu (lambda + F_n dt) against the relative tangential velocity, F_n the normal
-//              force of the last step; a particle whose slip it stops is "stuck" and the force
-//              term then also cancels the tangential part of its other forces up to mu F_n, so
-//              Velocity-Verlet's half kicks do not make resting cloth creep.
+//              static and kinematic ones, with a Coulomb impulse of at most mu lambda against
+//              the tangential slip.
+//   d < h (1 + 1e-6) or, with eq. (7) on, d < h + w: a contact record, which the contact
+//              force term (contactForces) turns into a normal force N and a friction force T
+//              in f(t + dt): N holds the particle (it cancels what presses it in and stops its
+//              normal motion within the step, and never more: nothing is launched, nothing
+//              bounces), bounded by eq. (7) in the band; T stops the slip within the step while
+//              |T| <= mu N (static friction: no creep at any dt), else is mu N against it
+//              (kinetic). A resting particle's state then stays exactly as it is, and its
+//              end-of-step velocity is zero.
+//   Each normal force gets its friction once: lambda and the limiter planes' pushes (below)
+//              as impulses in the stage, N as T in the force term.
 // Dynamic bodies get the opposite of every impulse and of every contact force times the step
 // at P; their snapshot velocities are updated contact by contact (sequential impulses), so
-// many particles hitting a light body do not each see it at rest.
+// many particles hitting a light body do not each see it at rest. Against them the force term
+// has no terms in the velocity (they would feed back into a light body): N is eq. (7) plus the
+// inward part of f, T cancels the tangential force up to mu N, and the rest of the cone is an
+// impulse in the next stage (see contactForces).
 //
 // Fast particles: a particle that moved more than h in a step is also ray-tested along its
 // path (btCollisionWorld::rayTestSingle), so it cannot pass through a thin body.
