@@ -528,7 +528,12 @@ void BulletCloth::Impl::gatherBodies(double dt) {
         b.object = obj;
         b.pose = toPose(obj->getWorldTransform());
         b.com = b.pose.t;
-        b.friction = double(obj->getFriction()) * settings.contact.frictionScale;
+        const double mu = double(obj->getFriction());
+        require(std::isfinite(mu) && mu >= 0.0, ErrorCode::InvalidArgument,
+                std::string("a body the cloth may touch (") + obj->getCollisionShape()->getName() +
+                    ") has friction " + num(mu) +
+                    ": Coulomb's coefficient (btCollisionObject::setFriction) must be >= 0 and finite");
+        b.friction = mu * settings.contact.frictionScale;
         btVector3 mn, mx;
         obj->getCollisionShape()->getAabb(obj->getWorldTransform(), mn, mx);
         b.aabbMin = toVec(mn).array() - reach;

@@ -75,6 +75,16 @@ TEST_CASE("bad input gets a drape::Error naming the problem", "[world][errors]")
     CHECK(code([&] { handle.attach(0, nullptr, Vec3::Zero()); }) == ErrorCode::InvalidArgument);
     CHECK(code([&] { handle.attach(0, box, Vec3(std::nan(""), 0, 0)); }) == ErrorCode::NonFinite);
     CHECK(code([&] { handle.stepInWorld(-1.0); }) == ErrorCode::InvalidArgument);
+
+    // A body under the cloth with a negative Coulomb coefficient: the step refuses it by name,
+    // and the cloth keeps its state.
+    auto* under = w.body(w.shape<btBoxShape>(btVector3(0.5f, 0.1f, 0.5f)), 0.0, Vec3(0, 0.85, 0));
+    under->setFriction(-0.2f);
+    const Vec3List before = cloth->positions();
+    CHECK_THROWS_WITH(handle.stepInWorld(0.005), Catch::Contains("friction -0.2") && Catch::Contains("Box"));
+    CHECK(cloth->positions() == before);
+    under->setFriction(0.5f);
+    CHECK_NOTHROW(handle.stepInWorld(0.005));
 }
 
 TEST_CASE("the cloth's candidates come from the broadphase: far bodies cost nothing", "[world][broadphase]") {
