@@ -415,6 +415,11 @@ struct BulletCloth::Impl {
     /// eq. (7) record). Returns whether it is within the contact reach.
     bool collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, double dt,
                          detail::QueryCounters& counters);
+    /// Triangle-body contacts (contact.triangles): every triangle whose box overlaps the
+    /// (reach-grown) box of a convex or compound body.
+    void collideTriangles(Cloth& c, detail::QueryCounters& counters);
+    /// Contact of triangle t with body bi; returns whether it moved the triangle.
+    bool collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t, detail::QueryCounters& counters);
     /// Per particle: the box collideParticle tests against a body's AABB (the particle, or
     /// its path since the previous step when that is longer than the thickness). Empty for
     /// particles that never collide (zero inverse mass). Kept up to date as contacts move
@@ -772,6 +777,85 @@ bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t 
     return true;
 }
 
+bool BulletCloth::Impl::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t,
+                                        detail::QueryCounters& counters) {
+    BodySnapshot& b = bodies[bi];
+    const Triangle& tri = c.topology().triangles()[t];
+    Vec3List& x = c.mutablePositions();
+    Vec3List& v = c.mutableVelocities();
+    const auto& w = c.inverseMasses();
+    const double h = settings.contact.thickness;
+    const detail::TriangleHit hit = detail::closestToTriangle(
+        b.object->getCollisionShape(), b.object->getWorldTransform(), x[tri[0]], x[tri[1]], x[tri[2]], h, counters);
+    if (!hit.valid || !(hit.distance < h)) return false;
+    // The triangle's nearest point moves out by the depth along n: particle k by
+    // beta_k w_k / W of it, W = sum beta_k^2 w_k (the least-mass-weighted change that moves the
+    // point by exactly that), and its approach stops with the impulse lambda shared the same
+    // way: the point's inverse mass along n is W.
+    const Vec3& beta = hit.barycentric;
+    double weight = 0.0;
+    for (int k = 0; k < 3; ++k) weight += beta[k] * beta[k] * w[tri[k]];
+    if (!(weight > 0.0)) return false;
+    const Vec3& n = hit.normal;
+    const double depth = h - hit.distance;
+    for (int k = 0; k < 3; ++k) {
+        const Index i = tri[k];
+        if (w[i] == 0.0 || beta[k] == 0.0) continue;
+        x[i] += (beta[k] * w[i] * depth / weight) * n;
+        touching[i] = 1;
+        projected.push_back(i);
+        updateBox(i, x[i], prevX[i], false);
+        // Against a static or kinematic body the limiter's walk keeps the particle from going
+        // back along n (its own contact's plane, if it has one, comes first), so the strain
+        // bound and the triangle's contact hold together, as for particle contacts.
+        if (!b.dynamicBody && planes.of[i] < 0) {
+            planes.set(i, n, n.dot(x[i]));
+            planeBody.push_back(bi);
+            planePoint.push_back(hit.bodyPoint);
+        }
+    }
+    ++last.triangleContacts;
+    const Vec3 rel = beta[0] * v[tri[0]] + beta[1] * v[tri[1]] + beta[2] * v[tri[2]] - b.velocityAt(hit.bodyPoint);
+    const double vn = rel.dot(n);
+    if (vn >= 0.0) return true;
+    auto share = [&](const Vec3& j) { // an impulse j at the point: the particles' shares, the body's opposite
+        for (int k = 0; k < 3; ++k) v[tri[k]] += (beta[k] * w[tri[k]]) * j;
+        b.applyImpulse(-j, hit.bodyPoint);
+        last.impulseOnCloth += j;
+        if (b.dynamicBody) last.impulseOnBodies -= j;
+    };
+    const double lambda = -vn / (weight + b.inverseMassAlong(hit.bodyPoint, n));
+    share(lambda * n);
+    const Vec3 vt = rel - vn * n;
+    const double vtLen = vt.norm();
+    if (vtLen > 0.0 && b.friction > 0.0) {
+        const Vec3 tdir = vt / vtLen;
+        const double jt = std::min(vtLen / (weight + b.inverseMassAlong(hit.bodyPoint, tdir)), b.friction * lambda);
+        share(-jt * tdir);
+    }
+    return true;
+}
+
+void BulletCloth::Impl::collideTriangles(Cloth& c, detail::QueryCounters& counters) {
+    const auto& tris = c.topology().triangles();
+    const auto& w = c.inverseMasses();
+    const Vec3List& x = c.positions();
+    for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
+        const BodySnapshot& b = bodies[bi];
+        // Planes have no feature to slip between particles; concave meshes are not queried.
+        const btCollisionShape* shape = b.object->getCollisionShape();
+        if (b.plane || !(shape->isConvex() || shape->getShapeType() == COMPOUND_SHAPE_PROXYTYPE)) continue;
+        for (std::size_t t = 0; t < tris.size(); ++t) {
+            const Triangle& tri = tris[t];
+            if (w[tri[0]] == 0.0 && w[tri[1]] == 0.0 && w[tri[2]] == 0.0) continue;
+            const Vec3 lo = x[tri[0]].cwiseMin(x[tri[1]]).cwiseMin(x[tri[2]]);
+            const Vec3 hi = x[tri[0]].cwiseMax(x[tri[1]]).cwiseMax(x[tri[2]]);
+            if ((hi.array() < b.aabbMin.array()).any() || (lo.array() > b.aabbMax.array()).any()) continue;
+            collideTriangle(c, bi, t, counters);
+        }
+    }
+}
+
 void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     const std::size_t n = c.particleCount();
     planes.reset(n);
@@ -858,6 +942,7 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
             }
         }
     }
+    if (settings.contact.triangles) collideTriangles(c, counters);
     for (unsigned char t : touching) anyTouching = anyTouching || t != 0;
 
     // The projection may have overstretched springs the limiter had just fixed (a cloth
@@ -910,6 +995,7 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
                 }
             }
         }
+        if (settings.contact.triangles) collideTriangles(c, counters);
     }
 
     // What the contact planes held in the limiter's walk: the particle got m push / dt (its
@@ -917,6 +1003,7 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     for (std::size_t k = 0; k < planes.size(); ++k) flushPlane(c, k, dt);
 
     last.narrowphaseQueries += counters.queries;
+    last.triangleQueries += counters.triangleQueries;
     prevX = x;
 }
 
@@ -1053,6 +1140,8 @@ void BulletCloth::Impl::step(double dt) {
     total.particleBoxTests += last.particleBoxTests;
     total.narrowphaseQueries += last.narrowphaseQueries;
     total.rayQueries += last.rayQueries;
+    total.triangleQueries += last.triangleQueries;
+    total.triangleContacts += last.triangleContacts;
     total.contacts += last.contacts;
     total.projections += last.projections;
     total.selfContacts += last.selfContacts;

@@ -2,6 +2,7 @@
 #include "shape_queries.hpp"
 
 #include <btBulletCollisionCommon.h>
+#include <BulletCollision/CollisionShapes/btTriangleShape.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkEpaPenetrationDepthSolver.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkPairDetector.h>
 #include <BulletCollision/NarrowPhaseCollision/btPointCollector.h>
@@ -231,6 +232,54 @@ Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const V
     const double v = vb * denom, w = vc * denom;
     bary = Vec3(1 - v - w, v, w);
     return a + v * ab + w * ac;
+}
+
+TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& transform, const Vec3& a,
+                              const Vec3& b, const Vec3& c, double reach, QueryCounters& counters) {
+    if (shape->getShapeType() == COMPOUND_SHAPE_PROXYTYPE) {
+        const auto* compound = static_cast<const btCompoundShape*>(shape);
+        const Vec3 lo = a.cwiseMin(b).cwiseMin(c).array() - reach;
+        const Vec3 hi = a.cwiseMax(b).cwiseMax(c).array() + reach;
+        TriangleHit best;
+        for (int k = 0; k < compound->getNumChildShapes(); ++k) {
+            const btTransform t = transform * compound->getChildTransform(k);
+            btVector3 mn, mx;
+            compound->getChildShape(k)->getAabb(t, mn, mx);
+            if ((toVec(mx).array() < lo.array()).any() || (toVec(mn).array() > hi.array()).any()) continue;
+            const TriangleHit h = closestToTriangle(compound->getChildShape(k), t, a, b, c, reach, counters);
+            if (h.valid && (!best.valid || h.distance < best.distance)) best = h;
+        }
+        return best;
+    }
+    if (!shape->isConvex()) return {};
+    ++counters.triangleQueries;
+    // Relative to a: the numbers GJK sees in single precision are the size of the triangle
+    // and of the body's offset from it, not of the world's coordinates.
+    btTriangleShape tri(btVector3(0, 0, 0), toBt(b - a), toBt(c - a));
+    tri.setMargin(0.0f);
+    btVoronoiSimplexSolver simplex;
+    btGjkEpaPenetrationDepthSolver epa;
+    btGjkPairDetector gjk(&tri, static_cast<const btConvexShape*>(shape), &simplex, &epa);
+    btGjkPairDetector::ClosestPointInput in;
+    in.m_transformA.setIdentity();
+    in.m_transformB = transform;
+    in.m_transformB.setOrigin(toBt(toVec(transform.getOrigin()) - a));
+    btPointCollector out;
+    gjk.getClosestPoints(in, out, nullptr);
+    if (!out.m_hasResult || !(double(out.m_distance) < reach)) return {};
+    Vec3 n = toVec(out.m_normalOnBInWorld);
+    const double len = n.norm();
+    if (!(len > 0.0) || !std::isfinite(len)) return {};
+    n /= len;
+    TriangleHit h;
+    h.valid = true;
+    h.distance = double(out.m_distance);
+    h.normal = n;
+    h.bodyPoint = a + toVec(out.m_pointInWorld);
+    Vec3 bary;
+    closestPointOnTriangle(h.bodyPoint + h.distance * n, a, b, c, bary);
+    h.barycentric = bary;
+    return h;
 }
 
 SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const Vec3& p,

@@ -92,7 +92,7 @@ TEST_CASE("the cloth's candidates come from the broadphase: far bodies cost noth
     // away; with one box right under it. The counts of narrow-phase work must be identical
     // for the first two (zero: no rigid collider near, no collision work) and non-zero for
     // the third (so the counts do measure something).
-    auto run = [](int farBodies, bool nearBox) {
+    auto run = [](int farBodies, bool nearBox, bool triangles = false) {
         TestWorld w;
         auto* small = w.shape<btSphereShape>(btScalar(0.5));
         for (int k = 0; k < farBodies; ++k) {
@@ -103,6 +103,7 @@ TEST_CASE("the cloth's candidates come from the broadphase: far bodies cost noth
         auto cloth = makeCloth(horizontalSheet(10, 10, 0.1, 1.0), softCloth());
         bullet::BulletClothSettings bs;
         bs.substeps = 3; // 1/60 s is beyond this cloth's stability limit; 1/180 s is not
+        bs.contact.triangles = triangles;
         auto& h = w.add(cloth, bs);
         bullet::ContactStats sum;
         for (int s = 0; s < 60; ++s) {
@@ -110,6 +111,7 @@ TEST_CASE("the cloth's candidates come from the broadphase: far bodies cost noth
             sum.candidateBodies += h.lastStats().candidateBodies;
             sum.particleBoxTests += h.lastStats().particleBoxTests;
             sum.narrowphaseQueries += h.lastStats().narrowphaseQueries;
+            sum.triangleQueries += h.lastStats().triangleQueries;
         }
         return sum;
     };
@@ -124,6 +126,12 @@ TEST_CASE("the cloth's candidates come from the broadphase: far bodies cost noth
     CHECK(crowded.narrowphaseQueries == empty.narrowphaseQueries);
     CHECK(near.candidateBodies > 0);
     CHECK(near.narrowphaseQueries > 0);
+    // Triangle contacts too: nothing when no body is near, work when one is, none when off.
+    const auto crowdedTriangles = run(1000, false, true);
+    CHECK(crowdedTriangles.candidateBodies == 0);
+    CHECK(crowdedTriangles.triangleQueries == 0);
+    CHECK(near.triangleQueries == 0);
+    CHECK(run(0, true, true).triangleQueries > 0);
 }
 
 TEST_CASE("the README example runs as written", "[world][readme]") {

@@ -65,6 +65,13 @@ struct ContactSettings {
     /// Ray-test the path of particles that moved more than `thickness` in a step, so that a
     /// fast particle does not pass through a thin body between two steps.
     bool continuous = true;
+    /// Also keep the cloth's triangles (their edges and interiors) `thickness` away from
+    /// convex bodies and the convex children of compounds, so that a feature thinner than the
+    /// particle spacing (a rod, a box's edge) cannot pass between particles. The response is
+    /// shared among the triangle's particles by their barycentric weights, two-way with dynamic
+    /// bodies. Off by default: it costs a box test per triangle and body near the cloth, and
+    /// a GJK query per triangle within reach of a body that not all its particles touch.
+    bool triangles = false;
     /// Margin added around the cloth's bounding box for its broadphase proxy [m]. Negative
     /// means "the cloth's mean spring rest length plus four thicknesses".
     double broadphaseMargin = -1.0;
@@ -104,6 +111,8 @@ struct ContactStats {
     std::size_t particleBoxTests = 0;    ///< particle against body-AABB rejection tests
     std::size_t narrowphaseQueries = 0;  ///< closest-point queries against body shapes
     std::size_t rayQueries = 0;          ///< continuous (swept) ray tests
+    std::size_t triangleQueries = 0;     ///< triangle-body GJK queries (contact.triangles)
+    std::size_t triangleContacts = 0;    ///< triangle-body contacts that moved a triangle
     /// Particle-body contacts: particles touching a body (projected, or resting at the
     /// thickness) or, with eq. (7) on, inside its band; once per particle and body per cloth
     /// step, summed over the sub-steps.
