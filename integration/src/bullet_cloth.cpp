@@ -46,6 +46,11 @@
 // inward part of f, T cancels the tangential force up to mu N, and the rest of the cone is an
 // impulse in the next stage (see contactForces).
 //
+// Triangles (contact.triangles, off by default): each cloth triangle near a convex or compound
+// body is kept h away from it too (collideTriangle: GJK/EPA, the depth and the approach
+// impulse shared by barycentric weights), so a feature thinner than the particle spacing
+// cannot pass between particles.
+//
 // Fast particles: a particle that moved more than h in a step is also ray-tested along its
 // path (btCollisionWorld::rayTestSingle), so it cannot pass through a thin body.
 // After the projection, the particles it moved go into the limiter's worklist
