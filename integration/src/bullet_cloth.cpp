@@ -539,10 +539,12 @@ void BulletCloth::Impl::gatherBodies(double dt) {
         b.pose = toPose(obj->getWorldTransform());
         b.com = b.pose.t;
         const double mu = double(obj->getFriction());
-        require(std::isfinite(mu) && mu >= 0.0, ErrorCode::InvalidArgument,
-                std::string("a body the cloth may touch (") + obj->getCollisionShape()->getName() +
-                    ") has friction " + num(mu) +
-                    ": Coulomb's coefficient (btCollisionObject::setFriction) must be >= 0 and finite");
+        if (!(std::isfinite(mu) && mu >= 0.0)) { // (the message is built only then: every step)
+            throw Error(ErrorCode::InvalidArgument,
+                        std::string("a body the cloth may touch (") + obj->getCollisionShape()->getName() +
+                            ") has friction " + num(mu) +
+                            ": Coulomb's coefficient (btCollisionObject::setFriction) must be >= 0 and finite");
+        }
         b.friction = mu * settings.contact.frictionScale;
         btVector3 mn, mx;
         obj->getCollisionShape()->getAabb(obj->getWorldTransform(), mn, mx);
