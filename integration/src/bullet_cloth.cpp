@@ -237,6 +237,8 @@ constexpr double kE = 2.718281828459045;
 constexpr double kTouching = 1e-6;
 /// Limiter and re-projection passes after the contact projection.
 constexpr int kRelimitPasses = 8;
+/// Extra sweeps over the triangles in contact after a triangle pass.
+constexpr int kTriangleSweeps = 4;
 
 /// Eq. (7) regularised. The paper's C_p exp(1 / |PP0|) grows without bound as the particle
 /// reaches the surface and is dimensionally inconsistent; we keep its shape (an exponential
@@ -422,9 +424,15 @@ struct BulletCloth::Impl {
                          detail::QueryCounters& counters);
     /// Triangle-body contacts (contact.triangles): every triangle whose box overlaps the
     /// (reach-grown) box of a convex or compound body.
-    void collideTriangles(Cloth& c, detail::QueryCounters& counters);
-    /// Contact of triangle t with body bi; returns whether it moved the triangle.
-    bool collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t, detail::QueryCounters& counters);
+    void collideTriangles(Cloth& c, double dt, detail::QueryCounters& counters);
+    /// Contact of triangle t with body bi; returns the depth it moved the triangle out by
+    /// [m], or -1 without contact.
+    double collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t, double dt, detail::QueryCounters& counters);
+    /// Per particle: its contact plane this step comes from a triangle contact (a particle
+    /// contact's plane replaces it; a later triangle contact may update it). Sized only when
+    /// contact.triangles is on.
+    std::vector<unsigned char> trianglePlane;
+    std::vector<std::pair<std::uint32_t, std::size_t>> triangleHits; ///< (body, triangle) that touched
     /// Per particle: the box collideParticle tests against a body's AABB (the particle, or
     /// its path since the previous step when that is longer than the thickness). Empty for
     /// particles that never collide (zero inverse mass). Kept up to date as contacts move
@@ -710,6 +718,7 @@ bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t 
             flushPlane(c, std::size_t(was), dt);
         const std::size_t plane =
             std::size_t(planes.set(static_cast<Index>(i), hit.normal, hit.normal.dot(hit.point) + h));
+        if (!trianglePlane.empty()) trianglePlane[i] = 0;
         if (plane == planeBody.size()) {
             planeBody.push_back(bi);
             planePoint.push_back(hit.point);
@@ -784,7 +793,7 @@ bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t 
     return true;
 }
 
-bool BulletCloth::Impl::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t,
+double BulletCloth::Impl::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t, double dt,
                                         detail::QueryCounters& counters) {
     BodySnapshot& b = bodies[bi];
     const Triangle& tri = c.topology().triangles()[t];
@@ -794,7 +803,7 @@ bool BulletCloth::Impl::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t 
     const double h = settings.contact.thickness;
     const detail::TriangleHit hit = detail::closestToTriangle(
         b.object->getCollisionShape(), b.object->getWorldTransform(), x[tri[0]], x[tri[1]], x[tri[2]], h, counters);
-    if (!hit.valid || !(hit.distance < h)) return false;
+    if (!hit.valid || !(hit.distance < h)) return -1.0;
     // The triangle's nearest point moves out by the depth along n: particle k by
     // beta_k w_k / W of it, W = sum beta_k^2 w_k (the least-mass-weighted change that moves the
     // point by exactly that), and its approach stops with the impulse lambda shared the same
@@ -802,7 +811,7 @@ bool BulletCloth::Impl::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t 
     const Vec3& beta = hit.barycentric;
     double weight = 0.0;
     for (int k = 0; k < 3; ++k) weight += beta[k] * beta[k] * w[tri[k]];
-    if (!(weight > 0.0)) return false;
+    if (!(weight > 0.0)) return -1.0;
     const Vec3& n = hit.normal;
     const double depth = h - hit.distance;
     for (int k = 0; k < 3; ++k) {
@@ -815,16 +824,24 @@ bool BulletCloth::Impl::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t 
         // Against a static or kinematic body the limiter's walk keeps the particle from going
         // back along n (its own contact's plane, if it has one, comes first), so the strain
         // bound and the triangle's contact hold together, as for particle contacts.
-        if (!b.dynamicBody && planes.of[i] < 0) {
-            planes.set(i, n, n.dot(x[i]));
-            planeBody.push_back(bi);
-            planePoint.push_back(hit.bodyPoint);
+        if (!b.dynamicBody && (planes.of[i] < 0 || trianglePlane[i])) {
+            if (const std::int32_t was = planes.of[i]; was >= 0 && planeBody[std::size_t(was)] != bi)
+                flushPlane(c, std::size_t(was), dt);
+            const auto plane = std::size_t(planes.set(i, n, n.dot(x[i])));
+            if (plane == planeBody.size()) {
+                planeBody.push_back(bi);
+                planePoint.push_back(hit.bodyPoint);
+            } else {
+                planeBody[plane] = bi;
+                planePoint[plane] = hit.bodyPoint;
+            }
+            trianglePlane[i] = 1;
         }
     }
     ++last.triangleContacts;
     const Vec3 rel = beta[0] * v[tri[0]] + beta[1] * v[tri[1]] + beta[2] * v[tri[2]] - b.velocityAt(hit.bodyPoint);
     const double vn = rel.dot(n);
-    if (vn >= 0.0) return true;
+    if (vn >= 0.0) return depth;
     auto share = [&](const Vec3& j) { // an impulse j at the point: the particles' shares, the body's opposite
         for (int k = 0; k < 3; ++k) v[tri[k]] += (beta[k] * w[tri[k]]) * j;
         b.applyImpulse(-j, hit.bodyPoint);
@@ -840,13 +857,14 @@ bool BulletCloth::Impl::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t 
         const double jt = std::min(vtLen / (weight + b.inverseMassAlong(hit.bodyPoint, tdir)), b.friction * lambda);
         share(-jt * tdir);
     }
-    return true;
+    return depth;
 }
 
-void BulletCloth::Impl::collideTriangles(Cloth& c, detail::QueryCounters& counters) {
+void BulletCloth::Impl::collideTriangles(Cloth& c, double dt, detail::QueryCounters& counters) {
     const auto& tris = c.topology().triangles();
     const auto& w = c.inverseMasses();
     const Vec3List& x = c.positions();
+    triangleHits.clear();
     for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
         const BodySnapshot& b = bodies[bi];
         // Planes have no feature to slip between particles; concave meshes are not queried.
@@ -858,14 +876,22 @@ void BulletCloth::Impl::collideTriangles(Cloth& c, detail::QueryCounters& counte
             const Vec3 lo = x[tri[0]].cwiseMin(x[tri[1]]).cwiseMin(x[tri[2]]);
             const Vec3 hi = x[tri[0]].cwiseMax(x[tri[1]]).cwiseMax(x[tri[2]]);
             if ((hi.array() < b.aabbMin.array()).any() || (lo.array() > b.aabbMax.array()).any()) continue;
-            collideTriangle(c, bi, t, counters);
+            if (collideTriangle(c, bi, t, dt, counters) >= 0.0) triangleHits.emplace_back(bi, t);
         }
+    }
+    // Moving one triangle's particles turns its neighbours (which share them) and can press
+    // them back in: a few more sweeps over the triangles that touched (Gauss-Seidel).
+    for (int sweep = 0; sweep < kTriangleSweeps && !triangleHits.empty(); ++sweep) {
+        double deepest = 0.0;
+        for (const auto& [bi, t] : triangleHits) deepest = std::max(deepest, collideTriangle(c, bi, t, dt, counters));
+        if (deepest <= 1e-9 * settings.contact.thickness) break; // (rounding)
     }
 }
 
 void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     const std::size_t n = c.particleCount();
     planes.reset(n);
+    if (settings.contact.triangles) trianglePlane.assign(n, 0);
     planeBody.clear();
     planePoint.clear();
     if (!inStep) { // the cloth was stepped outside the world: no snapshot to collide with
@@ -949,7 +975,7 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
             }
         }
     }
-    if (settings.contact.triangles) collideTriangles(c, counters);
+    if (settings.contact.triangles) collideTriangles(c, dt, counters);
     for (unsigned char t : touching) anyTouching = anyTouching || t != 0;
 
     // The projection may have overstretched springs the limiter had just fixed (a cloth
@@ -1002,7 +1028,7 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
                 }
             }
         }
-        if (settings.contact.triangles) collideTriangles(c, counters);
+        if (settings.contact.triangles) collideTriangles(c, dt, counters);
     }
 
     // What the contact planes held in the limiter's walk: the particle got m push / dt (its
