@@ -232,9 +232,11 @@ struct ContactState {
 };
 
 constexpr double kE = 2.718281828459045;
-/// A particle within this fraction of the thickness above it rests on the body (float noise
-/// of the projection onto P + h n): it is held there, not floated by eq. (7).
-constexpr double kTouching = 1e-6;
+/// A particle within this fraction of the thickness above it rests on the body: it is held
+/// there, not floated by eq. (7). Covers the float noise of the projection onto P + h n and
+/// the drift of a dynamic body's pose, which Bullet's solver moves by ~1e-9 m a step (with
+/// 1e-6 of the thickness a sheet on a resting dynamic slab lost its support every few steps).
+constexpr double kTouching = 1e-3;
 /// Limiter and re-projection passes after the contact projection.
 constexpr int kRelimitPasses = 8;
 /// Extra sweeps over the triangles in contact after a triangle pass.
