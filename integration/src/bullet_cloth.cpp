@@ -21,24 +21,35 @@
 // 5 have nothing to do. After an awake sub-step in which it pushed an active dynamic body,
 // its quiet time restarts.
 //
-// Contact of particle i (inverse mass w_i) with a body at surface point P, outward normal n,
-// signed distance d, thickness h, penalty band w:
+// Contact of particle i (inverse mass w_i, mass m_i) with a body at surface point P, outward
+// normal n, signed distance d, thickness h, penalty band w:
 //   d < h      (touching):  x_i is projected to P + h n; if the relative normal velocity
 //              v_n = (v_i - v_body(P)) . n is negative, an impulse lambda n with
 //              lambda = -v_n / (w_i + w_body(n)) stops the approach (inelastic: cloth does not
 //              bounce), w_body(n) = 1/M + (r x n)^T I^-1 (r x n) for dynamic bodies and 0 for
-//              static and kinematic ones. While it stays touching, the force term also
-//              supports it: the inward part of its other forces is cancelled (a resting load
-//              beyond C_p, such as the tension of a cloth hanging over an edge).
-//   d < h + w  (in the band): eq. (7)'s penalty force F n on the particle (see penaltyShape).
-//   Friction (Coulomb, mu = the body's friction): a tangential impulse of at most
-//              mu (lambda + F_n dt) against the relative tangential velocity, F_n the normal
-//              force of the last step; a particle whose slip it stops is "stuck" and the force
-//              term then also cancels the tangential part of its other forces up to mu F_n, so
-//              Velocity-Verlet's half kicks do not make resting cloth creep.
+//              static and kinematic ones, with a Coulomb impulse of at most mu lambda against
+//              the tangential slip.
+//   d < h (1 + 1e-6) or, with eq. (7) on, d < h + w: a contact record, which the contact
+//              force term (contactForces) turns into a normal force N and a friction force T
+//              in f(t + dt): N holds the particle (it cancels what presses it in and stops its
+//              normal motion within the step, and never more: nothing is launched, nothing
+//              bounces), bounded by eq. (7) in the band; T stops the slip within the step while
+//              |T| <= mu N (static friction: no creep at any dt), else is mu N against it
+//              (kinetic). A resting particle's state then stays exactly as it is, and its
+//              end-of-step velocity is zero.
+//   Each normal force gets its friction once: lambda and the limiter planes' pushes (below)
+//              as impulses in the stage, N as T in the force term.
 // Dynamic bodies get the opposite of every impulse and of every contact force times the step
 // at P; their snapshot velocities are updated contact by contact (sequential impulses), so
-// many particles hitting a light body do not each see it at rest.
+// many particles hitting a light body do not each see it at rest. Against them the force term
+// has no terms in the velocity (they would feed back into a light body): N is eq. (7) plus the
+// inward part of f, T cancels the tangential force up to mu N, and the rest of the cone is an
+// impulse in the next stage (see contactForces).
+//
+// Triangles (contact.triangles, off by default): each cloth triangle near a convex or compound
+// body is kept h away from it too (collideTriangle: GJK/EPA, the depth and the approach
+// impulse shared by barycentric weights), so a feature thinner than the particle spacing
+// cannot pass between particles.
 //
 // Fast particles: a particle that moved more than h in a step is also ray-tested along its
 // path (btCollisionWorld::rayTestSingle), so it cannot pass through a thin body.
@@ -193,32 +204,43 @@ struct BodySnapshot {
     }
 };
 
-/// One particle in eq. (7)'s band: the force term reads these.
-struct PenaltyContact {
+/// One particle touching a body or inside eq. (7)'s band above it: the contact force term
+/// reads these (see contactForces).
+struct ContactRecord {
     Index particle = 0;
     std::uint32_t body = 0;
     Vec3 point = Vec3::Zero();        ///< surface point [m]
     Vec3 normal = Vec3::UnitY();      ///< outward unit normal
     Vec3 bodyVelocity = Vec3::Zero(); ///< at the point [m/s]
-    double cp = 0.0;                  ///< C_p for this particle [N]
-    double damping = 0.0;             ///< normal damping [N s/m]
-    double force = 0.0;               ///< magnitude at the last force evaluation [N]
-    bool touching = false;            ///< was within the thickness (projected) this step
-    bool stuck = false;               ///< static friction: no tangential slip this step
+    double mass = 0.0;                ///< the particle's mass [kg]
+    double cp = 0.0;                  ///< C_p for this particle [N] (0: penalty off)
+    double damping = 0.0;             ///< normal damping of the penalty [N s/m]
     double mu = 0.0;                  ///< Coulomb coefficient [-]
-    Vec3 friction = Vec3::Zero();     ///< static friction force at the last evaluation [N]
+    /// The body is dynamic: no velocity terms in the force, the rest of the friction cone as
+    /// an impulse (see contactForces).
+    bool impulses = false;
+    double force = 0.0;               ///< normal force at the last force evaluation [N]
+    Vec3 friction = Vec3::Zero();     ///< friction force at the last evaluation [N]
 };
 
 /// Shared between the stage, the force term the cloth owns, and the handle.
-struct PenaltyState {
-    std::vector<PenaltyContact> contacts;
+struct ContactState {
+    std::vector<ContactRecord> contacts;
     double thickness = 0.0;
     double band = 1.0;
+    double dt = 1.0; ///< the step the records were made in [s]
 };
 
 constexpr double kE = 2.718281828459045;
+/// A particle within this fraction of the thickness above it rests on the body: it is held
+/// there, not floated by eq. (7). Covers the float noise of the projection onto P + h n and
+/// the drift of a dynamic body's pose, which Bullet's solver moves by ~1e-9 m a step (with
+/// 1e-6 of the thickness a sheet on a resting dynamic slab lost its support every few steps).
+constexpr double kTouching = 1e-3;
 /// Limiter and re-projection passes after the contact projection.
 constexpr int kRelimitPasses = 8;
+/// Extra sweeps over the triangles in contact after a triangle pass.
+constexpr int kTriangleSweeps = 4;
 
 /// Eq. (7) regularised. The paper's C_p exp(1 / |PP0|) grows without bound as the particle
 /// reaches the surface and is dimensionally inconsistent; we keep its shape (an exponential
@@ -231,6 +253,66 @@ double penaltyShape(double gap, double band) {
     if (gap >= band) return 0.0;
     const double g = std::max(gap, 0.0);
     return (std::exp(1.0 - g / band) - 1.0) / (kE - 1.0);
+}
+
+/// The contact force term: for each record, the normal force N and the friction force T on
+/// its particle, added to f after every other term (so f holds the particle's other forces).
+/// With Velocity-Verlet this force acts in the closing half kick of the step that made the
+/// record and the opening half kick of the next one, that is, over one whole step dt between
+/// two contact stages. With v the half-step velocity the stage left, for a static or
+/// kinematic body:
+///   N = min(eq. (7), hold),  hold = max(0, -f.n - m v_n / dt)
+///       hold is the force that brings the normal relative velocity to zero within that step
+///       (it cancels the push into the body and stops an approach; a particle leaving slowly
+///       gets less than its load, so it comes back, and one leaving fast gets nothing);
+///       eq. (7) (C_p phi(gap) - c v_n) bounds N in the band above the thickness, a touching
+///       particle gets hold. N never exceeds hold: a contact holds its particle and stops its
+///       approach, but never launches it (no rest is disturbed, no bounce: inelastic like the
+///       projection).
+///   T = the force that stops the tangential slip within that step, -(f_t + m v_t / dt), if
+///       |T| <= mu N (static: the particle then stays exactly where it is, at any dt), else
+///       that force scaled to mu N (kinetic, against the slip).
+/// (Symplectic Euler applies f(t + dt) in one kick of dt: the same. The other integrators
+/// apply it less directly, RK4 at its stages, so there the terms in v act as a damping of
+/// rate 1 / dt: the same contact in the limit dt -> 0, first order like every contact.)
+/// For a dynamic body (which gets -N n - T) the terms in v would feed back: many particles
+/// each stopping their slip against a light body move it by (their mass / its mass) times that
+/// slip, the wrong way (a 0.05 kg box under 1 kg of cloth tips over). There (pc.impulses) N is
+/// eq. (7) as the paper has it (it also carries a body lying on the cloth), plus the inward
+/// part of f for a touching particle; T cancels f_t up to mu N; the rest of the friction cone,
+/// (mu N - |T|) dt, is given as an impulse against the slip by the next contact stage, which
+/// updates the body's velocity contact by contact (frictionLeft).
+/// Each normal force counts once: the stage gives friction only for the impulses it applies
+/// itself (stopping an approach, the limiter's contact planes) and for that rest.
+void contactForces(ContactState& state, const Vec3List& x, const Vec3List& v, Vec3List& f) {
+    const double invDt = 1.0 / state.dt;
+    for (auto& pc : state.contacts) {
+        const Vec3& n = pc.normal;
+        Vec3& fi = f[pc.particle];
+        const Vec3 rel = v[pc.particle] - pc.bodyVelocity;
+        const double vn = rel.dot(n);
+        const double fn = fi.dot(n);
+        const double gap = (x[pc.particle] - pc.point).dot(n) - state.thickness;
+        const bool touching = gap <= kTouching * state.thickness;
+        const double penalty = pc.cp > 0.0 ? std::max(0.0, pc.cp * penaltyShape(gap, state.band) - pc.damping * vn) : 0.0;
+        double force = 0.0;
+        if (!pc.impulses) {
+            force = std::max(0.0, -fn - pc.mass * vn * invDt);
+            if (!touching) force = std::min(force, penalty);
+        } else {
+            force = std::max(penalty, touching ? -fn : 0.0);
+        }
+        pc.force = force;
+        pc.friction = Vec3::Zero();
+        if (force <= 0.0) continue;
+        fi += force * n;
+        if (pc.mu <= 0.0) continue;
+        Vec3 stop = -(fi - fi.dot(n) * n);
+        if (!pc.impulses) stop -= (pc.mass * invDt) * (rel - vn * n);
+        const double need = stop.norm(), limit = pc.mu * force;
+        pc.friction = need <= limit ? stop : Vec3(stop * (limit / need));
+        fi += pc.friction;
+    }
 }
 
 } // namespace
@@ -251,7 +333,7 @@ struct BulletCloth::Impl {
     std::unique_ptr<ProxyGhost> ghost;
     std::unique_ptr<Action> action;
     std::shared_ptr<Stage> stage;
-    std::shared_ptr<PenaltyState> penalty;
+    std::shared_ptr<ContactState> penalty;
 
     std::vector<BodySnapshot> bodies;
     std::vector<Attachment> attachments;
@@ -274,15 +356,16 @@ struct BulletCloth::Impl {
 
     // Scratch of the contact stage, reused every step.
     std::vector<unsigned char> touching;  ///< particle touched a body this step
-    std::vector<std::int64_t> recordOf;   ///< per particle: its latest PenaltyContact, or -1
-    std::vector<double> lastSupport;      ///< per particle: contact normal force, last step [N]
+    std::vector<std::int64_t> recordOf;   ///< per particle: its latest ContactRecord, or -1
+    /// Per particle: the friction its contact forces with dynamic bodies had left in the last
+    /// step, mu N - |T| [N] (see contactForces); the stage gives it as an impulse.
+    std::vector<double> frictionLeft;
     std::vector<Index> projected; ///< particles the last contact pass moved
     /// The tangent plane of each particle's contact this step (n . x >= n . P + h), which the
     /// limiter's walk keeps, with the body and the point it belongs to.
     ContactPlanes planes;
     std::vector<std::uint32_t> planeBody;
     std::vector<Vec3> planePoint;
-    std::vector<double> planeSupport; ///< per particle: the force its planes held [N]
     std::vector<std::size_t> moved;
     /// Timer slots in the cloth's PhaseTimers: the limiter calls inside the contact stage
     /// (nested in its "bullet_contacts" phase), and the handle's work around the cloth's
@@ -303,22 +386,55 @@ struct BulletCloth::Impl {
     /// The contact stage: self-collision, particle-body contacts, re-limiting, friction.
     void resolveContacts(Cloth& c, double dt);
     /// Gives the body of contact plane k the opposite of what the plane pushed its particle
-    /// by in the limiter's walk (m push / dt), and clears the push.
-    void flushPlane(const Cloth& c, std::size_t k, double dt) {
+    /// by in the limiter's walk (m push / dt), with the Coulomb friction that normal impulse
+    /// allows, and clears the push.
+    void flushPlane(Cloth& c, std::size_t k, double dt) {
         const Vec3 push = planes.push[k];
         if (push == Vec3::Zero()) return;
-        const Vec3 j = (c.masses()[planes.particle(k)] / dt) * push;
+        const std::size_t i = planes.particle(k);
+        const Vec3 j = (c.masses()[i] / dt) * push;
         BodySnapshot& b = bodies[planeBody[k]];
         b.applyImpulse(-j, planePoint[k]);
         last.impulseOnCloth += j;
         if (b.dynamicBody) last.impulseOnBodies -= j;
-        planeSupport[planes.particle(k)] += j.norm() / dt;
+        frictionImpulse(c, i, b, planePoint[k], planes.normal[k], b.friction * j.norm());
         planes.push[k] = Vec3::Zero();
+    }
+    /// Coulomb friction of a normal impulse: a tangential impulse of at most `budget` [N s]
+    /// against particle i's velocity relative to body b at point p (tangent to `normal`); the
+    /// body gets the opposite.
+    void frictionImpulse(Cloth& c, std::size_t i, BodySnapshot& b, const Vec3& p,
+                         const Vec3& normal, double budget) {
+        if (!(budget > 0.0)) return;
+        Vec3& vi = c.mutableVelocities()[i];
+        const Vec3 rel = vi - b.velocityAt(p);
+        const Vec3 vt = rel - rel.dot(normal) * normal;
+        const double vtLen = vt.norm();
+        if (vtLen <= 0.0) return;
+        const Vec3 tdir = vt / vtLen;
+        const double wi = c.inverseMasses()[i];
+        const double jt = std::min(vtLen / (wi + b.inverseMassAlong(p, tdir)), budget);
+        const Vec3 j = -jt * tdir;
+        vi += wi * j;
+        b.applyImpulse(-j, p);
+        last.impulseOnCloth += j;
+        if (b.dynamicBody) last.impulseOnBodies -= j;
     }
     /// Contact of particle i with body bi (projection, velocity response, friction, and its
     /// eq. (7) record). Returns whether it is within the contact reach.
     bool collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, double dt,
                          detail::QueryCounters& counters);
+    /// Triangle-body contacts (contact.triangles): every triangle whose box overlaps the
+    /// (reach-grown) box of a convex or compound body.
+    void collideTriangles(Cloth& c, double dt, detail::QueryCounters& counters);
+    /// Contact of triangle t with body bi; returns the depth it moved the triangle out by
+    /// [m], or -1 without contact.
+    double collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t, double dt, detail::QueryCounters& counters);
+    /// Per particle: its contact plane this step comes from a triangle contact (a particle
+    /// contact's plane replaces it; a later triangle contact may update it). Sized only when
+    /// contact.triangles is on.
+    std::vector<unsigned char> trianglePlane;
+    std::vector<std::pair<std::uint32_t, std::size_t>> triangleHits; ///< (body, triangle) that touched
     /// Per particle: the box collideParticle tests against a body's AABB (the particle, or
     /// its path since the previous step when that is longer than the thickness). Empty for
     /// particles that never collide (zero inverse mass). Kept up to date as contacts move
@@ -432,7 +548,14 @@ void BulletCloth::Impl::gatherBodies(double dt) {
         b.object = obj;
         b.pose = toPose(obj->getWorldTransform());
         b.com = b.pose.t;
-        b.friction = double(obj->getFriction()) * settings.contact.frictionScale;
+        const double mu = double(obj->getFriction());
+        if (!(std::isfinite(mu) && mu >= 0.0)) { // (the message is built only then: every step)
+            throw Error(ErrorCode::InvalidArgument,
+                        std::string("a body the cloth may touch (") + obj->getCollisionShape()->getName() +
+                            ") has friction " + num(mu) +
+                            ": Coulomb's coefficient (btCollisionObject::setFriction) must be >= 0 and finite");
+        }
+        b.friction = mu * settings.contact.frictionScale;
         btVector3 mn, mx;
         obj->getCollisionShape()->getAabb(obj->getWorldTransform(), mn, mx);
         b.aabbMin = toVec(mn).array() - reach;
@@ -597,6 +720,7 @@ bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t 
             flushPlane(c, std::size_t(was), dt);
         const std::size_t plane =
             std::size_t(planes.set(static_cast<Index>(i), hit.normal, hit.normal.dot(hit.point) + h));
+        if (!trianglePlane.empty()) trianglePlane[i] = 0;
         if (plane == planeBody.size()) {
             planeBody.push_back(bi);
             planePoint.push_back(hit.point);
@@ -606,86 +730,170 @@ bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t 
         }
     }
 
-    // Eq. (7) penalty band (also for particles below the thickness: they end at its bottom
+    // The contact record the force term reads (contactForces): for every particle touching
+    // the body (below the thickness, or resting at it), and with eq. (7) on for every particle
+    // in the band above it (also for particles below the thickness: they end at its bottom
     // after the projection).
+    const bool touches = hit.distance < h * (1.0 + kTouching);
     const double mi = c.masses()[i];
     double cp = cs.penaltyForce < 0.0 ? 2.0 * mi * c.settings().gravity.norm() : cs.penaltyForce;
-    double penaltyImpulse = 0.0;
-    PenaltyContact* pc = nullptr;
-    if (cp > 0.0) {
-        // Keep the penalty spring (stiffness cp e / ((e - 1) w)) and its damping inside the
-        // explicit stability limits of this step: k dt^2 / m <= 1, c dt / m <= 1/2.
-        const double kMax = mi / (dt * dt);
-        const double k = cp * kE / ((kE - 1.0) * band);
-        if (k > kMax) cp *= kMax / k;
-        const double kEff = std::min(k, kMax);
+    if (cp > 0.0 || touches) {
+        double damping = 0.0;
+        if (cp > 0.0) {
+            // Keep the penalty spring (stiffness cp e / ((e - 1) w)) and its damping inside the
+            // explicit stability limits of this step: k dt^2 / m <= 1, c dt / m <= 1/2.
+            const double kMax = mi / (dt * dt);
+            const double k = cp * kE / ((kE - 1.0) * band);
+            if (k > kMax) cp *= kMax / k;
+            damping = std::min(2.0 * std::sqrt(std::min(k, kMax) * mi), 0.5 * mi / dt);
+        }
         // One record per particle and body: a second visit (after re-limiting) updates it.
+        ContactRecord* rec = nullptr;
         const std::int64_t existing = recordOf[i];
         if (existing >= 0 && penalty->contacts[std::size_t(existing)].body == bi) {
-            pc = &penalty->contacts[std::size_t(existing)];
+            rec = &penalty->contacts[std::size_t(existing)];
         } else {
             recordOf[i] = std::int64_t(penalty->contacts.size());
-            penalty->contacts.emplace_back();
-            pc = &penalty->contacts.back();
+            rec = &penalty->contacts.emplace_back();
+            ++last.contacts;
         }
-        PenaltyContact& rec = *pc;
-        rec.particle = static_cast<Index>(i);
-        rec.body = bi;
-        rec.point = hit.point;
-        rec.normal = hit.normal;
-        rec.bodyVelocity = b.velocityAt(hit.point);
-        rec.cp = cp;
-        rec.damping = std::min(2.0 * std::sqrt(kEff * mi), 0.5 * mi / dt);
-        // Resting at the band's bottom counts as touching (1e-6 of the thickness: float noise),
-        // so the support force below applies every step, not every other one.
-        rec.touching = rec.touching || hit.distance < h * (1.0 + 1e-6);
-        rec.mu = b.friction;
-        penaltyImpulse = cp * penaltyShape(std::max(hit.distance, h) - h, band) * dt;
+        rec->particle = static_cast<Index>(i);
+        rec->body = bi;
+        rec->point = hit.point;
+        rec->normal = hit.normal;
+        rec->bodyVelocity = b.velocityAt(hit.point);
+        rec->mass = mi;
+        rec->cp = std::max(cp, 0.0);
+        rec->damping = damping;
+        rec->mu = b.friction;
+        rec->impulses = b.dynamicBody != nullptr;
     }
-    if (hit.distance >= h) return true; // in the band only: the penalty handles it
+    if (b.dynamicBody && i < frictionLeft.size() && frictionLeft[i] > 0.0) {
+        // The rest of the last step's friction cone against a dynamic body, once per step.
+        frictionImpulse(c, i, b, hit.point, hit.normal, frictionLeft[i] * dt);
+        frictionLeft[i] = 0.0;
+    }
+    if (hit.distance >= h) return true; // in the band or resting on the body: no projection
 
-    ++last.contacts;
     ++last.projections;
     touching[i] = 1;
     x[i] = xi + (h - hit.distance) * hit.normal;
     const Vec3 rel = v[i] - b.velocityAt(hit.point);
     const double vn = rel.dot(hit.normal);
-    double lambda = 0.0;
     if (vn < 0.0) {
-        lambda = -vn / (wi + b.inverseMassAlong(hit.point, hit.normal));
+        // Inelastic: the approach stops, and the normal impulse lambda allows a tangential
+        // (Coulomb) impulse of mu lambda. (A resting load is carried by the contact force of
+        // contactForces, with its own friction: each normal force counts once.)
+        const double lambda = -vn / (wi + b.inverseMassAlong(hit.point, hit.normal));
         const Vec3 j = lambda * hit.normal;
         v[i] += wi * j;
         b.applyImpulse(-j, hit.point);
         last.impulseOnCloth += j;
         if (b.dynamicBody) last.impulseOnBodies -= j;
-    }
-    // Coulomb friction against the relative tangential velocity.
-    const Vec3 vt = rel - vn * hit.normal;
-    const double vtLen = vt.norm();
-    // The normal impulse of this step: the approach stopped now, and the support of the
-    // penalty or, for a particle pressed on harder, of the contact force at the last step.
-    const double support = std::max(penaltyImpulse, i < lastSupport.size() ? lastSupport[i] * dt : 0.0);
-    const double budget = b.friction * (lambda + support);
-    if (vtLen > 0.0 && budget > 0.0) {
-        const Vec3 tdir = vt / vtLen;
-        const double need = vtLen / (wi + b.inverseMassAlong(hit.point, tdir));
-        const double jt = std::min(need, budget);
-        if (pc && need <= budget) pc->stuck = true;
-        const Vec3 j = -jt * tdir;
-        v[i] += wi * j;
-        b.applyImpulse(-j, hit.point);
-        last.impulseOnCloth += j;
-        if (b.dynamicBody) last.impulseOnBodies -= j;
-    } else if (pc && vtLen == 0.0) {
-        pc->stuck = true;
+        frictionImpulse(c, i, b, hit.point, hit.normal, b.friction * lambda);
     }
     return true;
+}
+
+double BulletCloth::Impl::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t, double dt,
+                                        detail::QueryCounters& counters) {
+    BodySnapshot& b = bodies[bi];
+    const Triangle& tri = c.topology().triangles()[t];
+    Vec3List& x = c.mutablePositions();
+    Vec3List& v = c.mutableVelocities();
+    const auto& w = c.inverseMasses();
+    const double h = settings.contact.thickness;
+    const detail::TriangleHit hit = detail::closestToTriangle(
+        b.object->getCollisionShape(), b.object->getWorldTransform(), x[tri[0]], x[tri[1]], x[tri[2]], h, counters);
+    if (!hit.valid || !(hit.distance < h)) return -1.0;
+    // The triangle's nearest point moves out by the depth along n: particle k by
+    // beta_k w_k / W of it, W = sum beta_k^2 w_k (the least-mass-weighted change that moves the
+    // point by exactly that), and its approach stops with the impulse lambda shared the same
+    // way: the point's inverse mass along n is W.
+    const Vec3& beta = hit.barycentric;
+    double weight = 0.0;
+    for (int k = 0; k < 3; ++k) weight += beta[k] * beta[k] * w[tri[k]];
+    if (!(weight > 0.0)) return -1.0;
+    const Vec3& n = hit.normal;
+    const double depth = h - hit.distance;
+    for (int k = 0; k < 3; ++k) {
+        const Index i = tri[k];
+        if (w[i] == 0.0 || beta[k] == 0.0) continue;
+        x[i] += (beta[k] * w[i] * depth / weight) * n;
+        touching[i] = 1;
+        projected.push_back(i);
+        updateBox(i, x[i], prevX[i], false);
+        // Against a static or kinematic body the limiter's walk keeps the particle from going
+        // back along n (its own contact's plane, if it has one, comes first), so the strain
+        // bound and the triangle's contact hold together, as for particle contacts.
+        if (!b.dynamicBody && (planes.of[i] < 0 || trianglePlane[i])) {
+            if (const std::int32_t was = planes.of[i]; was >= 0 && planeBody[std::size_t(was)] != bi)
+                flushPlane(c, std::size_t(was), dt);
+            const auto plane = std::size_t(planes.set(i, n, n.dot(x[i])));
+            if (plane == planeBody.size()) {
+                planeBody.push_back(bi);
+                planePoint.push_back(hit.bodyPoint);
+            } else {
+                planeBody[plane] = bi;
+                planePoint[plane] = hit.bodyPoint;
+            }
+            trianglePlane[i] = 1;
+        }
+    }
+    ++last.triangleContacts;
+    const Vec3 rel = beta[0] * v[tri[0]] + beta[1] * v[tri[1]] + beta[2] * v[tri[2]] - b.velocityAt(hit.bodyPoint);
+    const double vn = rel.dot(n);
+    if (vn >= 0.0) return depth;
+    auto share = [&](const Vec3& j) { // an impulse j at the point: the particles' shares, the body's opposite
+        for (int k = 0; k < 3; ++k) v[tri[k]] += (beta[k] * w[tri[k]]) * j;
+        b.applyImpulse(-j, hit.bodyPoint);
+        last.impulseOnCloth += j;
+        if (b.dynamicBody) last.impulseOnBodies -= j;
+    };
+    const double lambda = -vn / (weight + b.inverseMassAlong(hit.bodyPoint, n));
+    share(lambda * n);
+    const Vec3 vt = rel - vn * n;
+    const double vtLen = vt.norm();
+    if (vtLen > 0.0 && b.friction > 0.0) {
+        const Vec3 tdir = vt / vtLen;
+        const double jt = std::min(vtLen / (weight + b.inverseMassAlong(hit.bodyPoint, tdir)), b.friction * lambda);
+        share(-jt * tdir);
+    }
+    return depth;
+}
+
+void BulletCloth::Impl::collideTriangles(Cloth& c, double dt, detail::QueryCounters& counters) {
+    const auto& tris = c.topology().triangles();
+    const auto& w = c.inverseMasses();
+    const Vec3List& x = c.positions();
+    triangleHits.clear();
+    for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
+        const BodySnapshot& b = bodies[bi];
+        // Planes have no feature to slip between particles; concave meshes are not queried.
+        const btCollisionShape* shape = b.object->getCollisionShape();
+        if (b.plane || !(shape->isConvex() || shape->getShapeType() == COMPOUND_SHAPE_PROXYTYPE)) continue;
+        for (std::size_t t = 0; t < tris.size(); ++t) {
+            const Triangle& tri = tris[t];
+            if (w[tri[0]] == 0.0 && w[tri[1]] == 0.0 && w[tri[2]] == 0.0) continue;
+            const Vec3 lo = x[tri[0]].cwiseMin(x[tri[1]]).cwiseMin(x[tri[2]]);
+            const Vec3 hi = x[tri[0]].cwiseMax(x[tri[1]]).cwiseMax(x[tri[2]]);
+            if ((hi.array() < b.aabbMin.array()).any() || (lo.array() > b.aabbMax.array()).any()) continue;
+            if (collideTriangle(c, bi, t, dt, counters) >= 0.0) triangleHits.emplace_back(bi, t);
+        }
+    }
+    // Moving one triangle's particles turns its neighbours (which share them) and can press
+    // them back in: a few more sweeps over the triangles that touched (Gauss-Seidel).
+    for (int sweep = 0; sweep < kTriangleSweeps && !triangleHits.empty(); ++sweep) {
+        double deepest = 0.0;
+        for (const auto& [bi, t] : triangleHits) deepest = std::max(deepest, collideTriangle(c, bi, t, dt, counters));
+        if (deepest <= 1e-9 * settings.contact.thickness) break; // (rounding)
+    }
 }
 
 void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     const std::size_t n = c.particleCount();
     planes.reset(n);
-    planeSupport.resize(n, 0.0);
+    if (settings.contact.triangles) trianglePlane.assign(n, 0);
     planeBody.clear();
     planePoint.clear();
     if (!inStep) { // the cloth was stepped outside the world: no snapshot to collide with
@@ -694,6 +902,7 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     }
     if (prevX.size() != n) prevX = c.positions();
     penalty->contacts.clear();
+    penalty->dt = dt;
     const bool self = settings.selfCollision.enabled;
     if (bodies.empty() && !self) {
         prevX = c.positions();
@@ -768,6 +977,7 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
             }
         }
     }
+    if (settings.contact.triangles) collideTriangles(c, dt, counters);
     for (unsigned char t : touching) anyTouching = anyTouching || t != 0;
 
     // The projection may have overstretched springs the limiter had just fixed (a cloth
@@ -820,41 +1030,15 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
                 }
             }
         }
+        if (settings.contact.triangles) collideTriangles(c, dt, counters);
     }
 
     // What the contact planes held in the limiter's walk: the particle got m push / dt (its
     // velocity follows its position), the body gets the opposite.
     for (std::size_t k = 0; k < planes.size(); ++k) flushPlane(c, k, dt);
 
-    // Friction for particles supported by the penalty alone (in the band, not touching).
-    const double h = settings.contact.thickness;
-    for (auto& pc : penalty->contacts) {
-        if (pc.touching) continue; // friction was applied with the projection
-        const Index i = pc.particle;
-        BodySnapshot& b = bodies[pc.body];
-        const double gap = (x[i] - pc.point).dot(pc.normal) - h;
-        const double support = std::max(pc.cp * penaltyShape(gap, band),
-                                        i < lastSupport.size() ? lastSupport[i] : 0.0);
-        const double budget = b.friction * support * dt;
-        if (budget <= 0.0) continue;
-        const Vec3 rel = v[i] - b.velocityAt(pc.point);
-        const Vec3 vt = rel - rel.dot(pc.normal) * pc.normal;
-        const double vtLen = vt.norm();
-        if (vtLen <= 0.0) {
-            pc.stuck = true;
-            continue;
-        }
-        const Vec3 tdir = vt / vtLen;
-        const double need = vtLen / (invMass[i] + b.inverseMassAlong(pc.point, tdir));
-        const double jt = std::min(need, budget);
-        pc.stuck = need <= budget;
-        const Vec3 j = -jt * tdir;
-        v[i] += invMass[i] * j;
-        b.applyImpulse(-j, pc.point);
-        last.impulseOnCloth += j;
-        if (b.dynamicBody) last.impulseOnBodies -= j;
-    }
     last.narrowphaseQueries += counters.queries;
+    last.triangleQueries += counters.triangleQueries;
     prevX = x;
 }
 
@@ -934,14 +1118,11 @@ void BulletCloth::Impl::step(double dt) {
         if (wasAsleep && c.isAsleep()) continue; // nothing moved, nothing to hand to bodies
         slept = false;
         const auto afterStep = Clock::now();
-        // The eq. (7) force the particles got at the end of this step acts for h; the body
-        // gets the opposite. It also bounds the friction of the next step.
-        lastSupport.assign(c.particleCount(), 0.0);
-        for (const auto& pc : penalty->contacts) lastSupport[pc.particle] += pc.force;
-        for (std::size_t k = 0; k < planes.size(); ++k) { // what the contact planes held [N]
-            const Index i = planes.particle(k);
-            lastSupport[i] += planeSupport[i];
-            planeSupport[i] = 0.0;
+        // The contact force (normal and friction) the particles got at the end of this step
+        // acts for h; the body gets the opposite.
+        frictionLeft.assign(c.particleCount(), 0.0);
+        for (const auto& pc : penalty->contacts) {
+            if (pc.impulses) frictionLeft[pc.particle] += std::max(0.0, pc.mu * pc.force - pc.friction.norm());
         }
         for (const auto& pc : penalty->contacts) {
             if (pc.force == 0.0) continue;
@@ -994,6 +1175,8 @@ void BulletCloth::Impl::step(double dt) {
     total.particleBoxTests += last.particleBoxTests;
     total.narrowphaseQueries += last.narrowphaseQueries;
     total.rayQueries += last.rayQueries;
+    total.triangleQueries += last.triangleQueries;
+    total.triangleContacts += last.triangleContacts;
     total.contacts += last.contacts;
     total.projections += last.projections;
     total.selfContacts += last.selfContacts;
@@ -1038,50 +1221,14 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
 
     m.slotStageLimiter = m.cloth->timers().slot("bullet_contacts/limiter");
     m.slotBodies = m.cloth->timers().slot("bullet_bodies");
-    m.penalty = std::make_shared<PenaltyState>();
+    m.penalty = std::make_shared<ContactState>();
     m.penalty->thickness = h;
     m.penalty->band = m.band;
     // The force term lives as long as the cloth; it reads the contact list, which is empty
     // once this handle is removed.
-    m.cloth->addExternalForce("contact_penalty", [state = m.penalty](const Vec3List& x,
-                                                                     const Vec3List& v, Vec3List& f) {
-        for (auto& pc : state->contacts) {
-            const Vec3& xi = x[pc.particle];
-            const double gap = (xi - pc.point).dot(pc.normal) - state->thickness;
-            const double shape = penaltyShape(gap, state->band);
-            if (shape <= 0.0) {
-                pc.force = 0.0;
-                continue;
-            }
-            const double vn = (v[pc.particle] - pc.bodyVelocity).dot(pc.normal);
-            pc.force = std::max(0.0, pc.cp * shape - pc.damping * vn);
-            f[pc.particle] += pc.force * pc.normal;
-            if (pc.touching) {
-                // A particle the stage had to project rests on the body: the body also supports
-                // whatever still presses it in (a load beyond C_p, such as the tension of a
-                // cloth hanging over an edge), so Velocity-Verlet's half kicks do not push it
-                // into the body every step.
-                const double fn = f[pc.particle].dot(pc.normal);
-                if (fn < 0.0) {
-                    f[pc.particle] -= fn * pc.normal;
-                    pc.force -= fn;
-                }
-            }
-            pc.friction = Vec3::Zero();
-            if (pc.stuck && pc.mu > 0.0) {
-                // Static friction as a force: cancel the tangential part of every force on the
-                // particle (springs, gravity... all terms before this one) up to mu F_n, so a
-                // particle the stage found sticking is not pushed on by Velocity-Verlet's
-                // half kicks (which otherwise make resting cloth creep down slopes).
-                Vec3& fi = f[pc.particle];
-                const Vec3 ft = fi - fi.dot(pc.normal) * pc.normal;
-                const double len = ft.norm();
-                if (len > 0.0) {
-                    pc.friction = -ft * std::min(1.0, pc.mu * pc.force / len);
-                    fi += pc.friction;
-                }
-            }
-        }
+    m.cloth->addExternalForce("contact_force", [state = m.penalty](const Vec3List& x, const Vec3List& v,
+                                                                   Vec3List& f) {
+        contactForces(*state, x, v, f);
     });
     m.stage = std::make_shared<Impl::Stage>(m);
     m.cloth->addStage(m.stage);
@@ -1165,12 +1312,14 @@ void BulletCloth::detach(Index particle) {
         m.targets->erase(m.targets->begin() + static_cast<std::ptrdiff_t>(k));
         for (std::size_t r = k; r < m.attachments.size(); ++r) {
             const Index pr = m.attachments[r].particle;
+            const Vec3 vr = m.cloth->velocities()[pr]; // setKinematic pins: it zeroes the velocity
             m.cloth->setKinematic(pr, [targets = m.targets, window = m.window, r](double t) {
                 const auto& tg = (*targets)[r];
                 const double span = window->second - window->first;
                 const double s = span > 0.0 ? std::clamp((t - window->first) / span, 0.0, 1.0) : 1.0;
                 return Vec3(tg.from + s * (tg.to - tg.from));
             });
+            m.cloth->mutableVelocities()[pr] = vr; // detached later, it leaves with it
         }
         return;
     }

@@ -2,6 +2,7 @@
 #include "shape_queries.hpp"
 
 #include <btBulletCollisionCommon.h>
+#include <BulletCollision/CollisionShapes/btTriangleShape.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkEpaPenetrationDepthSolver.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkPairDetector.h>
 #include <BulletCollision/NarrowPhaseCollision/btPointCollector.h>
@@ -33,7 +34,10 @@ SurfaceHit makeHit(const Pose& pose, double distance, const Vec3& localNormal, c
     SurfaceHit h;
     h.valid = true;
     h.distance = distance;
-    h.normal = pose.R * localNormal;
+    // A body's rotation comes from single precision: its columns are unit to ~1e-7 only, and
+    // a contact force along a normal that is not unit would cancel a load only to that
+    // fraction (a resting particle would keep a residual acceleration).
+    h.normal = (pose.R * localNormal).normalized();
     h.point = pose.toWorld(localPoint);
     return h;
 }
@@ -228,6 +232,159 @@ Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const V
     const double v = vb * denom, w = vc * denom;
     bary = Vec3(1 - v - w, v, w);
     return a + v * ab + w * ac;
+}
+
+namespace {
+
+/// Closest points of segments p0-p1 and q0-q1: s, t in [0, 1] (the usual clamped solution of
+/// the 2 x 2 system, degenerate segments included).
+void closestSegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1, double& s,
+                           double& t) {
+    const Vec3 d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
+    const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
+    if (a <= 0.0 && e <= 0.0) {
+        s = t = 0.0;
+        return;
+    }
+    if (a <= 0.0) {
+        s = 0.0;
+        t = std::clamp(f / e, 0.0, 1.0);
+        return;
+    }
+    const double c = d1.dot(r);
+    if (e <= 0.0) {
+        t = 0.0;
+        s = std::clamp(-c / a, 0.0, 1.0);
+        return;
+    }
+    const double b = d1.dot(d2), denom = a * e - b * b;
+    s = denom > 0.0 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
+    t = (b * s + f) / e;
+    if (t < 0.0) {
+        t = 0.0;
+        s = std::clamp(-c / a, 0.0, 1.0);
+    } else if (t > 1.0) {
+        t = 1.0;
+        s = std::clamp((b - c) / a, 0.0, 1.0);
+    }
+}
+
+/// A capsule (core segment p0-p1, radius r) against triangle (a, b, c), in double precision:
+/// the nearest pair among the segment's ends against the triangle and the triangle's edges
+/// against the segment (exact unless the segment pierces the triangle; then the triangle's
+/// normal, facing away from the segment's middle, and the depth r).
+TriangleHit capsuleTriangle(const Vec3& p0, const Vec3& p1, double r, const Vec3& a, const Vec3& b,
+                            const Vec3& c, double reach) {
+    Vec3 bestSeg = p0, bestTri = a;
+    double best = std::numeric_limits<double>::infinity();
+    auto consider = [&](const Vec3& onSeg, const Vec3& onTri) {
+        const double d2 = (onTri - onSeg).squaredNorm();
+        if (d2 < best) {
+            best = d2;
+            bestSeg = onSeg;
+            bestTri = onTri;
+        }
+    };
+    Vec3 bary;
+    consider(p0, closestPointOnTriangle(p0, a, b, c, bary));
+    consider(p1, closestPointOnTriangle(p1, a, b, c, bary));
+    const Vec3 corners[3] = {a, b, c};
+    for (int k = 0; k < 3; ++k) {
+        const Vec3& e0 = corners[k];
+        const Vec3& e1 = corners[(k + 1) % 3];
+        double s = 0.0, t = 0.0;
+        closestSegmentSegment(p0, p1, e0, e1, s, t);
+        consider(p0 + s * (p1 - p0), e0 + t * (e1 - e0));
+    }
+    TriangleHit h;
+    Vec3 normal = (b - a).cross(c - a);
+    const double area = normal.norm();
+    if (!(area > 0.0)) return h;
+    normal /= area;
+    double dist = std::sqrt(best);
+    // Does the segment pierce the triangle? (Its ends on both sides, the crossing inside.)
+    const double s0 = normal.dot(p0 - a), s1 = normal.dot(p1 - a);
+    if ((s0 < 0.0) != (s1 < 0.0)) {
+        const Vec3 x = p0 + (s0 / (s0 - s1)) * (p1 - p0);
+        const Vec3 onTri = closestPointOnTriangle(x, a, b, c, bary);
+        if ((onTri - x).squaredNorm() <= 1e-24 * (1.0 + x.squaredNorm())) {
+            if (normal.dot((a + b + c) / 3.0 - 0.5 * (p0 + p1)) < 0.0) normal = -normal;
+            h.valid = -r < reach;
+            h.distance = -r;
+            h.normal = normal;
+            h.bodyPoint = x - r * normal;
+            closestPointOnTriangle(x, a, b, c, h.barycentric);
+            return h;
+        }
+    }
+    if (!(dist - r < reach)) return h;
+    Vec3 n = dist > 0.0 ? Vec3((bestTri - bestSeg) / dist) : normal;
+    h.valid = true;
+    h.distance = dist - r;
+    h.normal = n;
+    h.bodyPoint = bestSeg + r * n;
+    closestPointOnTriangle(bestTri, a, b, c, h.barycentric);
+    return h;
+}
+
+} // namespace
+
+TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& transform, const Vec3& a,
+                              const Vec3& b, const Vec3& c, double reach, QueryCounters& counters) {
+    if (shape->getShapeType() == CAPSULE_SHAPE_PROXYTYPE) {
+        // Rods: exact, in double precision (GJK in single precision is off by millimetres
+        // for a long capsule nearly parallel to a triangle).
+        ++counters.triangleQueries;
+        const auto* cap = static_cast<const btCapsuleShape*>(shape);
+        const Pose pose = toPose(transform);
+        Vec3 axis = Vec3::Zero();
+        axis[cap->getUpAxis()] = double(cap->getHalfHeight());
+        return capsuleTriangle(pose.toWorld(-axis), pose.toWorld(axis), double(cap->getRadius()), a, b, c, reach);
+    }
+    if (shape->getShapeType() == COMPOUND_SHAPE_PROXYTYPE) {
+        const auto* compound = static_cast<const btCompoundShape*>(shape);
+        const Vec3 lo = a.cwiseMin(b).cwiseMin(c).array() - reach;
+        const Vec3 hi = a.cwiseMax(b).cwiseMax(c).array() + reach;
+        TriangleHit best;
+        for (int k = 0; k < compound->getNumChildShapes(); ++k) {
+            const btTransform t = transform * compound->getChildTransform(k);
+            btVector3 mn, mx;
+            compound->getChildShape(k)->getAabb(t, mn, mx);
+            if ((toVec(mx).array() < lo.array()).any() || (toVec(mn).array() > hi.array()).any()) continue;
+            const TriangleHit h = closestToTriangle(compound->getChildShape(k), t, a, b, c, reach, counters);
+            if (h.valid && (!best.valid || h.distance < best.distance)) best = h;
+        }
+        return best;
+    }
+    if (!shape->isConvex()) return {};
+    ++counters.triangleQueries;
+    // Relative to a: the numbers GJK sees in single precision are the size of the triangle
+    // and of the body's offset from it, not of the world's coordinates.
+    btTriangleShape tri(btVector3(0, 0, 0), toBt(b - a), toBt(c - a));
+    tri.setMargin(0.0f);
+    btVoronoiSimplexSolver simplex;
+    btGjkEpaPenetrationDepthSolver epa;
+    btGjkPairDetector gjk(&tri, static_cast<const btConvexShape*>(shape), &simplex, &epa);
+    btGjkPairDetector::ClosestPointInput in;
+    in.m_transformA.setIdentity();
+    in.m_transformB = transform;
+    in.m_transformB.setOrigin(toBt(toVec(transform.getOrigin()) - a));
+    btPointCollector out;
+    gjk.getClosestPoints(in, out, nullptr);
+    if (!out.m_hasResult || !(double(out.m_distance) < reach)) return {};
+    Vec3 n = toVec(out.m_normalOnBInWorld);
+    const double len = n.norm();
+    if (!(len > 0.0) || !std::isfinite(len)) return {};
+    n /= len;
+    TriangleHit h;
+    h.valid = true;
+    h.distance = double(out.m_distance);
+    h.normal = n;
+    h.bodyPoint = a + toVec(out.m_pointInWorld);
+    Vec3 bary;
+    closestPointOnTriangle(h.bodyPoint + h.distance * n, a, b, c, bary);
+    h.barycentric = bary;
+    return h;
 }
 
 SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const Vec3& p,

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 
 class btCollisionShape;
+class btTransform;
 
 namespace drape::bullet::detail {
 
@@ -32,6 +33,7 @@ struct SurfaceHit {
 /// Counters the queries add to.
 struct QueryCounters {
     std::size_t queries = 0; ///< closest-point queries made (a compound counts each child)
+    std::size_t triangleQueries = 0; ///< triangle-shape queries made (each compound child counts)
 };
 
 /// Signed distance of `p` to `shape` placed at `pose`. Only surfaces nearer than `reach` [m]
@@ -40,6 +42,22 @@ struct QueryCounters {
 /// meshes) it decides which side the point belongs to.
 SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const Vec3& p,
                           const Vec3& prev, double reach, QueryCounters& counters);
+
+/// Nearest points of a cloth triangle and a body's surface.
+struct TriangleHit {
+    bool valid = false;
+    double distance = 0.0;       ///< signed, negative when they overlap [m]
+    Vec3 normal = Vec3::UnitY(); ///< unit, from the body toward the triangle (world frame)
+    Vec3 bodyPoint = Vec3::Zero(); ///< on the body's surface (world frame) [m]
+    Vec3 barycentric = Vec3::Zero(); ///< the triangle's nearest point, in its weights
+};
+
+/// Nearest points between the triangle (a, b, c) (world frame) and a convex shape, or the
+/// convex children of a compound, placed at `transform` (Bullet's GJK and EPA, in single
+/// precision, relative to a). Invalid for other shapes (planes, concave meshes), and when
+/// nothing is nearer than `reach` [m].
+TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& transform, const Vec3& a,
+                              const Vec3& b, const Vec3& c, double reach, QueryCounters& counters);
 
 /// Closest point to p on triangle (a, b, c); also returns its barycentric weights.
 Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c,

@@ -14,7 +14,7 @@
 //
 // Counters (per step, over the timed window, from the cloth's own phase timers, see
 // drape/timers.hpp): <phase>_us for every phase that ran (integrate, strain_limit,
-// bullet_contacts, springs, damping, contact_penalty, integrate_finish, and bullet_bodies, the
+// bullet_contacts, springs, damping, contact_force, integrate_finish, and bullet_bodies, the
 // handle's work around the cloth step: body snapshot, impulses, proxy), cloth_us = their sum
 // (the cloth's part of the world step); "a/b" phases are parts of phase a and are not summed
 // again (bullet_contacts/limiter: the limiter passes the contact stage runs after its

@@ -75,6 +75,16 @@ TEST_CASE("bad input gets a drape::Error naming the problem", "[world][errors]")
     CHECK(code([&] { handle.attach(0, nullptr, Vec3::Zero()); }) == ErrorCode::InvalidArgument);
     CHECK(code([&] { handle.attach(0, box, Vec3(std::nan(""), 0, 0)); }) == ErrorCode::NonFinite);
     CHECK(code([&] { handle.stepInWorld(-1.0); }) == ErrorCode::InvalidArgument);
+
+    // A body under the cloth with a negative Coulomb coefficient: the step refuses it by name,
+    // and the cloth keeps its state.
+    auto* under = w.body(w.shape<btBoxShape>(btVector3(0.5f, 0.1f, 0.5f)), 0.0, Vec3(0, 0.85, 0));
+    under->setFriction(-0.2f);
+    const Vec3List before = cloth->positions();
+    CHECK_THROWS_WITH(handle.stepInWorld(0.005), Catch::Contains("friction -0.2") && Catch::Contains("Box"));
+    CHECK(cloth->positions() == before);
+    under->setFriction(0.5f);
+    CHECK_NOTHROW(handle.stepInWorld(0.005));
 }
 
 TEST_CASE("the cloth's candidates come from the broadphase: far bodies cost nothing", "[world][broadphase]") {
@@ -82,7 +92,7 @@ TEST_CASE("the cloth's candidates come from the broadphase: far bodies cost noth
     // away; with one box right under it. The counts of narrow-phase work must be identical
     // for the first two (zero: no rigid collider near, no collision work) and non-zero for
     // the third (so the counts do measure something).
-    auto run = [](int farBodies, bool nearBox) {
+    auto run = [](int farBodies, bool nearBox, bool triangles = false) {
         TestWorld w;
         auto* small = w.shape<btSphereShape>(btScalar(0.5));
         for (int k = 0; k < farBodies; ++k) {
@@ -93,6 +103,7 @@ TEST_CASE("the cloth's candidates come from the broadphase: far bodies cost noth
         auto cloth = makeCloth(horizontalSheet(10, 10, 0.1, 1.0), softCloth());
         bullet::BulletClothSettings bs;
         bs.substeps = 3; // 1/60 s is beyond this cloth's stability limit; 1/180 s is not
+        bs.contact.triangles = triangles;
         auto& h = w.add(cloth, bs);
         bullet::ContactStats sum;
         for (int s = 0; s < 60; ++s) {
@@ -100,6 +111,7 @@ TEST_CASE("the cloth's candidates come from the broadphase: far bodies cost noth
             sum.candidateBodies += h.lastStats().candidateBodies;
             sum.particleBoxTests += h.lastStats().particleBoxTests;
             sum.narrowphaseQueries += h.lastStats().narrowphaseQueries;
+            sum.triangleQueries += h.lastStats().triangleQueries;
         }
         return sum;
     };
@@ -114,6 +126,12 @@ TEST_CASE("the cloth's candidates come from the broadphase: far bodies cost noth
     CHECK(crowded.narrowphaseQueries == empty.narrowphaseQueries);
     CHECK(near.candidateBodies > 0);
     CHECK(near.narrowphaseQueries > 0);
+    // Triangle contacts too: nothing when no body is near, work when one is, none when off.
+    const auto crowdedTriangles = run(1000, false, true);
+    CHECK(crowdedTriangles.candidateBodies == 0);
+    CHECK(crowdedTriangles.triangleQueries == 0);
+    CHECK(near.triangleQueries == 0);
+    CHECK(run(0, true, true).triangleQueries > 0);
 }
 
 TEST_CASE("the README example runs as written", "[world][readme]") {

@@ -319,6 +319,15 @@ TEST_CASE("simulation.substeps: an integer or \"auto\", given once", "[scene][su
                Contains("collision.substeps: give the sub-steps once, as simulation.substeps"));
 }
 
+TEST_CASE("collision.triangle_contacts: off by default, a boolean", "[scene][contacts]") {
+    using Catch::Matchers::Contains;
+    const std::string body = R"("rigid_bodies": [{"shape": {"type": "capsule", "radius": 0.01, "height": 0.5}}], )";
+    CHECK_FALSE(parse(withCloth(body + R"("collision": {})")).collision->triangleContacts);
+    CHECK(parse(withCloth(body + R"("collision": {"triangle_contacts": true})")).collision->triangleContacts);
+    CHECK_THAT(errorOf(withCloth(body + R"("collision": {"triangle_contacts": "yes"})")),
+               Contains("collision.triangle_contacts"));
+}
+
 TEST_CASE("mesh.degenerate_triangles: drop (the default) or refuse", "[scene][mesh]") {
     using Catch::Matchers::Contains;
     const auto mesh = [](const std::string& extra) {

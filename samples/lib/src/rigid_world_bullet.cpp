@@ -84,6 +84,7 @@ class BulletWorld final : public Simulation::RigidWorld {
         s.contact.frictionScale = c.frictionScale;
         if (c.penaltyForce >= 0.0) s.contact.penaltyForce = c.penaltyForce;
         s.contact.continuous = c.continuous;
+        s.contact.triangles = c.triangleContacts;
         s.substeps = scene.substeps; // simulation.substeps, collision.substeps or "auto"
         s.selfCollision.enabled = c.selfCollision;
         s.selfCollision.thickness = c.selfThickness > 0.0 ? c.selfThickness : s.contact.thickness;

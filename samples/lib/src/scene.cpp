@@ -461,13 +461,14 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
         sc.wind = wd;
     }
     if (auto c = top.optObject("collision")) {
-        c->keys({"thickness", "friction_scale", "penalty_force", "continuous", "substeps",
-                 "self_collision", "self_thickness"});
+        c->keys({"thickness", "friction_scale", "penalty_force", "continuous", "triangle_contacts",
+                 "substeps", "self_collision", "self_thickness"});
         CollisionDesc cd;
         cd.thickness = c->number("thickness", -1.0, kSize);
         cd.frictionScale = c->number("friction_scale", 1.0, kCoefficient);
         cd.penaltyForce = c->number("penalty_force", -1.0, kPenaltyForce);
         cd.continuous = c->boolean("continuous", true);
+        cd.triangleContacts = c->boolean("triangle_contacts", false);
         cd.substeps = static_cast<int>(c->integer("substeps", 1, 1, 1000));
         if (c->has("substeps")) {
             const auto sim = root.find("simulation");

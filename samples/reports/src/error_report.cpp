@@ -141,7 +141,7 @@ ErrorResult runErrorReport(const ErrorOptions& options, const Machine& machine) 
     const int levels = quick ? 4 : 8;
     std::vector<double> dts;
     for (int i = 0; i < levels; ++i) dts.push_back(0.1 / std::pow(2.0, i));
-    const double dtRef = 0.1 / std::pow(2.0, quick ? 7 : 10);
+    const double dtRef = 0.1 / std::pow(2.0, quick ? 8 : 10);
 
     std::ostringstream md;
     md << "# Error against run time\n\n"

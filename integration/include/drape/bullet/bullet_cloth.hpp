@@ -13,10 +13,12 @@
 //    ever loops over the world's bodies. The ghost never takes part in narrow-phase, ray tests
 //    or contact generation of the world.
 //  - Contacts (particle against body, with a cloth thickness) are resolved in a drape::ClothStage
-//    after integration and strain limiting: eq. (7)'s penalty force along the contact normal
-//    (as an external force term), a position projection out of the body, an inelastic normal
-//    velocity response and Coulomb friction with the body's friction coefficient. Contacts with
-//    dynamic bodies exchange equal and opposite impulses with them (two-way coupling).
+//    after integration and strain limiting: a position projection out of the body and an
+//    inelastic normal velocity response, and a contact force term (an external force of the
+//    cloth) that holds resting particles, bounded by eq. (7)'s penalty in the band above the
+//    thickness, with Coulomb friction (the body's friction coefficient): static friction holds
+//    exactly, kinetic friction is mu times the normal force. Contacts with dynamic bodies
+//    exchange equal and opposite impulses with them (two-way coupling).
 //  - Bodies are snapshotted (transform, velocities, inverse mass and inertia) before the cloth
 //    step; the impulses the cloth gave them are applied after it.
 //  - Sleeping (BulletClothSettings::sleep, on by default): a cloth at rest falls asleep as
@@ -51,15 +53,25 @@ struct ContactSettings {
     /// Width of the band above `thickness` in which eq. (7)'s penalty force acts [m].
     /// Negative means "equal to thickness".
     double penaltyBand = -1.0;
-    /// C_p of eq. (7): penalty force on a particle at the bottom of the band [N]. Negative
-    /// means "twice the particle's weight under the cloth's gravity" (a resting particle then
-    /// floats inside the band); 0 turns the penalty off (projection and velocity response only).
+    /// C_p of eq. (7): the most the penalty pushes a particle at the bottom of the band [N].
+    /// It slows particles coming down into the band and holds them where it can carry their
+    /// load (a cloth landing on a body rests inside the band), but against static and kinematic
+    /// bodies it never pushes more than stops the particle: a cloth placed at the thickness
+    /// stays there. Negative means "twice the particle's weight under the cloth's gravity"; 0
+    /// turns the penalty off (particles then rest at the thickness).
     double penaltyForce = -1.0;
     /// Multiplies the body's btCollisionObject friction coefficient (Coulomb mu) [-].
     double frictionScale = 1.0;
     /// Ray-test the path of particles that moved more than `thickness` in a step, so that a
     /// fast particle does not pass through a thin body between two steps.
     bool continuous = true;
+    /// Also keep the cloth's triangles (their edges and interiors) `thickness` away from
+    /// convex bodies and the convex children of compounds, so that a feature thinner than the
+    /// particle spacing (a rod, a box's edge) cannot pass between particles. The response is
+    /// shared among the triangle's particles by their barycentric weights, two-way with dynamic
+    /// bodies. Off by default: it costs a box test per triangle and body near the cloth, and
+    /// a GJK query per triangle within reach of a body that not all its particles touch.
+    bool triangles = false;
     /// Margin added around the cloth's bounding box for its broadphase proxy [m]. Negative
     /// means "the cloth's mean spring rest length plus four thicknesses".
     double broadphaseMargin = -1.0;
@@ -99,7 +111,12 @@ struct ContactStats {
     std::size_t particleBoxTests = 0;    ///< particle against body-AABB rejection tests
     std::size_t narrowphaseQueries = 0;  ///< closest-point queries against body shapes
     std::size_t rayQueries = 0;          ///< continuous (swept) ray tests
-    std::size_t contacts = 0;            ///< particle-body contacts resolved
+    std::size_t triangleQueries = 0;     ///< triangle-body GJK queries (contact.triangles)
+    std::size_t triangleContacts = 0;    ///< triangle-body contacts that moved a triangle
+    /// Particle-body contacts: particles touching a body (projected, or resting at the
+    /// thickness) or, with eq. (7) on, inside its band; once per particle and body per cloth
+    /// step, summed over the sub-steps.
+    std::size_t contacts = 0;
     std::size_t projections = 0;         ///< contacts that moved a particle out of a body
     std::size_t selfContacts = 0;        ///< particle-triangle self contacts resolved
     std::size_t selfPairTests = 0;       ///< particle-triangle pairs tested by self-collision

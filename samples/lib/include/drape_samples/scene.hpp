@@ -132,6 +132,7 @@ struct CollisionDesc {
     double frictionScale = 1.0;  ///< multiplies each body's friction [-]
     double penaltyForce = -1.0;  ///< eq. (7)'s C_p [N]; negative = automatic, 0 = off
     bool continuous = true;      ///< swept tests for fast particles
+    bool triangleContacts = false; ///< triangle-body contacts too (ContactSettings::triangles)
     int substeps = 1;            ///< cloth steps per world step (older name of SceneDesc::substeps)
     bool selfCollision = false;  ///< particle-triangle self-collision
     double selfThickness = -1.0; ///< [m]; negative = thickness
