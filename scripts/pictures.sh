@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Renders one frame of every shipped scene (samples/scenes/*.json) with drape-run at 320x240
 # and writes docs/pictures/<scene>.png plus the contact sheet docs/pictures/scenes.png (the
-# frames in file-name order, three to a row, built with ffmpeg's tile filter), and one frame
+# frames in file-name order, four to a row, built with ffmpeg's tile filter), and one frame
 # of the curtain_catch game (docs/pictures/curtain_catch.png). The frame is
 # the last step of the scene's own duration unless the table below picks an earlier time
 # (in simulated seconds) at which more is going on.
@@ -36,9 +36,9 @@ for scene in samples/scenes/*.json; do
     n=$((n + 1))
     echo "pictures: $out/$name.png (from $last)"
 done
-rows=$(((n + 2) / 3))
+rows=$(((n + 3) / 4))
 ffmpeg -loglevel error -y -framerate 1 -i "$tmp/tile_%02d.png" \
-    -vf "tile=3x$rows:padding=4:margin=4:color=white" -frames:v 1 \
+    -vf "tile=4x$rows:padding=4:margin=4:color=white" -frames:v 1 \
     -compression_level 100 -pred mixed "$out/scenes.png"
 echo "pictures: $out/scenes.png ($n scenes)"
 
