@@ -18,6 +18,13 @@ packages=(
     gnuplot-nox            # samples/reports: plots
     clang                  # tests/fuzz: libFuzzer targets (scripts/fuzz.sh)
     libclang-rt-14-dev     # tests/fuzz: the libFuzzer and sanitizer runtimes
+    # samples/: drape-run turns rendered frames into frames.mp4 (H.264) with ffmpeg; the
+    # video test checks it with ffprobe (same package) and scripts/pictures.sh builds the
+    # contact sheet with its tile filter. Installed for both README commands, the test
+    # command included: `apt-get install -y --no-install-recommends ffmpeg` pulls about 90
+    # packages and took 33 s on the 2-core reference machine (well under the 2 min we allow
+    # an install to add), and without it the video test could not run.
+    ffmpeg
 )
 
 missing=()

@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Renders one frame of every shipped scene (samples/scenes/*.json) with drape-run at 320x240
+# and writes docs/pictures/<scene>.png plus the contact sheet docs/pictures/scenes.png (the
+# frames in file-name order, four to a row, built with ffmpeg's tile filter), and one frame
+# of the curtain_catch game (docs/pictures/curtain_catch.png). The frame is
+# the last step of the scene's own duration unless the table below picks an earlier time
+# (in simulated seconds) at which more is going on.
+# Usage: scripts/pictures.sh        (needs root or sudo only if packages are missing)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+./scripts/setup.sh
+build=${DRAPE_BUILD_DIR:-build}
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build "$build" -j"$(nproc)" --target drape-run drape_curtain_catch >/dev/null
+
+# scene name -> simulated seconds to run (empty: the scene's duration)
+declare -A at=(
+    [curtain_ball]=1.2   # the ball in the curtain (by the end it has dropped out of view)
+    [trampoline]=0.8     # the ball pressing into the sheet on its first landing
+)
+
+out=docs/pictures
+mkdir -p "$out"
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+n=0
+for scene in samples/scenes/*.json; do
+    name=$(basename "$scene" .json)
+    args=("$scene" -o "$tmp/$name" --width 320 --height 240 --fps 1 --no-video --quiet)
+    if [ -n "${at[$name]:-}" ]; then args+=(--seconds "${at[$name]}"); fi
+    "$build"/bin/drape-run "${args[@]}"
+    last=$(ls "$tmp/$name"/frames/frame_*.png | tail -n 1)
+    # Re-encoded by ffmpeg with the strongest PNG compression, to keep the repository small.
+    ffmpeg -loglevel error -y -i "$last" -compression_level 100 -pred mixed "$out/$name.png"
+    cp "$out/$name.png" "$(printf '%s/tile_%02d.png' "$tmp" "$n")"
+    n=$((n + 1))
+    echo "pictures: $out/$name.png (from $last)"
+done
+rows=$(((n + 3) / 4))
+ffmpeg -loglevel error -y -framerate 1 -i "$tmp/tile_%02d.png" \
+    -vf "tile=4x$rows:padding=4:margin=4:color=white" -frames:v 1 \
+    -compression_level 100 -pred mixed "$out/scenes.png"
+echo "pictures: $out/scenes.png ($n scenes)"
+
+# The game: two scripted throws (the default seed); frame 48 is the second ball in the curtain.
+"$build"/bin/curtain_catch -o "$tmp/curtain_catch" --throws 2 --width 320 --height 240 >/dev/null
+ffmpeg -loglevel error -y -i "$tmp/curtain_catch/frames/frame_00048.png" \
+    -compression_level 100 -pred mixed "$out/curtain_catch.png"
+echo "pictures: $out/curtain_catch.png"
+du -ch "$out"/*.png | tail -n 1
