@@ -17,6 +17,7 @@ packages=(
     libbenchmark-dev       # benchmarks
     gnuplot-nox            # samples/reports: plots
     clang                  # tests/fuzz: libFuzzer targets (scripts/fuzz.sh)
+    clang-format           # scripts/format.sh: the formatting check of scripts/test.sh
     libclang-rt-14-dev     # tests/fuzz: the libFuzzer and sanitizer runtimes
     # samples/: drape-run turns rendered frames into frames.mp4 (H.264) with ffmpeg; the
     # video test checks it with ffprobe (same package) and scripts/pictures.sh builds the

@@ -67,9 +67,9 @@
 #include "drape/error.hpp"
 #include "drape/strain_limit.hpp"
 
-#include <btBulletDynamicsCommon.h>
 #include <BulletCollision/CollisionDispatch/btGhostObject.h>
 #include <BulletCollision/CollisionShapes/btEmptyShape.h>
+#include <btBulletDynamicsCommon.h>
 
 #include <algorithm>
 #include <chrono>
@@ -83,17 +83,22 @@ namespace {
 
 using detail::Pose;
 
-Vec3 toVec(const btVector3& v) { return Vec3(double(v.x()), double(v.y()), double(v.z())); }
+Vec3 toVec(const btVector3& v) {
+    return Vec3(double(v.x()), double(v.y()), double(v.z()));
+}
 btVector3 toBt(const Vec3& v) {
     return btVector3(btScalar(v.x()), btScalar(v.y()), btScalar(v.z()));
 }
 Eigen::Matrix3d toMat(const btMatrix3x3& m) {
     Eigen::Matrix3d r;
     for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) r(i, j) = double(m[i][j]);
+        for (int j = 0; j < 3; ++j)
+            r(i, j) = double(m[i][j]);
     return r;
 }
-Pose toPose(const btTransform& t) { return Pose{toMat(t.getBasis()), toVec(t.getOrigin())}; }
+Pose toPose(const btTransform& t) {
+    return Pose{toMat(t.getBasis()), toVec(t.getOrigin())};
+}
 
 std::string num(double v) {
     std::ostringstream s;
@@ -110,8 +115,10 @@ void validate(const BulletClothSettings& s) {
     const auto& c = s.contact;
     require(std::isfinite(c.thickness) && c.thickness > 0.0, ErrorCode::InvalidArgument,
             "contact.thickness must be positive and finite, got " + num(c.thickness));
-    require(std::isfinite(c.penaltyBand), ErrorCode::NonFinite, "contact.penaltyBand is not finite");
-    require(std::isfinite(c.penaltyForce), ErrorCode::NonFinite, "contact.penaltyForce is not finite");
+    require(std::isfinite(c.penaltyBand), ErrorCode::NonFinite,
+            "contact.penaltyBand is not finite");
+    require(std::isfinite(c.penaltyForce), ErrorCode::NonFinite,
+            "contact.penaltyForce is not finite");
     require(std::isfinite(c.frictionScale) && c.frictionScale >= 0.0, ErrorCode::InvalidArgument,
             "contact.frictionScale must be >= 0 and finite, got " + num(c.frictionScale));
     require(std::isfinite(c.broadphaseMargin), ErrorCode::NonFinite,
@@ -132,7 +139,7 @@ void validate(const BulletClothSettings& s) {
 /// The proxy's shape: no geometry (Bullet's ray tests and contact queries find nothing in
 /// it), only an AABB that we set.
 class BoundsShape final : public btEmptyShape {
-public:
+  public:
     BT_DECLARE_ALIGNED_ALLOCATOR();
     void getAabb(const btTransform&, btVector3& aabbMin, btVector3& aabbMax) const override {
         aabbMin = min_;
@@ -144,7 +151,7 @@ public:
         max_ = toBt(hi);
     }
 
-private:
+  private:
     btVector3 min_{0, 0, 0};
     btVector3 max_{0, 0, 0};
 };
@@ -153,7 +160,7 @@ private:
 /// refuses narrow-phase with everything (checkCollideWith), so Bullet's dispatcher never
 /// computes contacts for its pairs.
 class ProxyGhost final : public btGhostObject {
-public:
+  public:
     BT_DECLARE_ALIGNED_ALLOCATOR();
     ProxyGhost() { m_checkCollideWith = 1; }
     bool checkCollideWithOverride(const btCollisionObject*) const override { return false; }
@@ -219,8 +226,8 @@ struct ContactRecord {
     /// The body is dynamic: no velocity terms in the force, the rest of the friction cone as
     /// an impulse (see contactForces).
     bool impulses = false;
-    double force = 0.0;               ///< normal force at the last force evaluation [N]
-    Vec3 friction = Vec3::Zero();     ///< friction force at the last evaluation [N]
+    double force = 0.0;           ///< normal force at the last force evaluation [N]
+    Vec3 friction = Vec3::Zero(); ///< friction force at the last evaluation [N]
 };
 
 /// Shared between the stage, the force term the cloth owns, and the handle.
@@ -294,7 +301,9 @@ void contactForces(ContactState& state, const Vec3List& x, const Vec3List& v, Ve
         const double fn = fi.dot(n);
         const double gap = (x[pc.particle] - pc.point).dot(n) - state.thickness;
         const bool touching = gap <= kTouching * state.thickness;
-        const double penalty = pc.cp > 0.0 ? std::max(0.0, pc.cp * penaltyShape(gap, state.band) - pc.damping * vn) : 0.0;
+        const double penalty =
+            pc.cp > 0.0 ? std::max(0.0, pc.cp * penaltyShape(gap, state.band) - pc.damping * vn)
+                        : 0.0;
         double force = 0.0;
         if (!pc.impulses) {
             force = std::max(0.0, -fn - pc.mass * vn * invDt);
@@ -342,7 +351,8 @@ struct BulletCloth::Impl {
         Vec3 from = Vec3::Zero(), to = Vec3::Zero();
     };
     std::shared_ptr<std::vector<Target>> targets = std::make_shared<std::vector<Target>>();
-    std::shared_ptr<std::pair<double, double>> window = std::make_shared<std::pair<double, double>>(0.0, 1.0);
+    std::shared_ptr<std::pair<double, double>> window =
+        std::make_shared<std::pair<double, double>>(0.0, 1.0);
 
     Vec3List prevX; ///< positions at the end of the previous step (after contacts)
     detail::SelfCollider selfCollider;
@@ -355,8 +365,8 @@ struct BulletCloth::Impl {
     std::vector<std::pair<const btCollisionObject*, Pose>> lastPoses;
 
     // Scratch of the contact stage, reused every step.
-    std::vector<unsigned char> touching;  ///< particle touched a body this step
-    std::vector<std::int64_t> recordOf;   ///< per particle: its latest ContactRecord, or -1
+    std::vector<unsigned char> touching; ///< particle touched a body this step
+    std::vector<std::int64_t> recordOf;  ///< per particle: its latest ContactRecord, or -1
     /// Per particle: the friction its contact forces with dynamic bodies had left in the last
     /// step, mu N - |T| [N] (see contactForces); the stage gives it as an impulse.
     std::vector<double> frictionLeft;
@@ -429,12 +439,14 @@ struct BulletCloth::Impl {
     void collideTriangles(Cloth& c, double dt, detail::QueryCounters& counters);
     /// Contact of triangle t with body bi; returns the depth it moved the triangle out by
     /// [m], or -1 without contact.
-    double collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t, double dt, detail::QueryCounters& counters);
+    double collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t, double dt,
+                           detail::QueryCounters& counters);
     /// Per particle: its contact plane this step comes from a triangle contact (a particle
     /// contact's plane replaces it; a later triangle contact may update it). Sized only when
     /// contact.triangles is on.
     std::vector<unsigned char> trianglePlane;
-    std::vector<std::pair<std::uint32_t, std::size_t>> triangleHits; ///< (body, triangle) that touched
+    std::vector<std::pair<std::uint32_t, std::size_t>>
+        triangleHits; ///< (body, triangle) that touched
     /// Per particle: the box collideParticle tests against a body's AABB (the particle, or
     /// its path since the previous step when that is longer than the thickness). Empty for
     /// particles that never collide (zero inverse mass). Kept up to date as contacts move
@@ -463,7 +475,8 @@ struct BulletCloth::Impl {
     std::vector<MovedGroup> movedGroups;
     /// No particle whose box is inside bl can be within the reach of body b.
     bool blockMisses(const BodySnapshot& b, const Block& bl) const {
-        return (bl.hi.array() < b.aabbMin.array()).any() || (bl.lo.array() > b.aabbMax.array()).any() ||
+        return (bl.hi.array() < b.aabbMin.array()).any() ||
+               (bl.lo.array() > b.aabbMax.array()).any() ||
                (b.plane && aboveReach(b, bl.lo, bl.hi));
     }
     void updateBox(std::size_t i, const Vec3& xi, const Vec3& from, bool fixed);
@@ -478,7 +491,7 @@ struct BulletCloth::Impl {
 };
 
 class BulletCloth::Impl::Action final : public btActionInterface {
-public:
+  public:
     explicit Action(Impl& impl) : impl_(impl) {}
     void updateAction(btCollisionWorld*, btScalar dt) override { impl_.step(double(dt)); }
     void debugDraw(btIDebugDraw* drawer) override {
@@ -490,17 +503,17 @@ public:
         }
     }
 
-private:
+  private:
     Impl& impl_;
 };
 
 class BulletCloth::Impl::Stage final : public ClothStage {
-public:
+  public:
     explicit Stage(Impl& impl) : impl_(impl) {}
     std::string name() const override { return "bullet_contacts"; }
     void run(Cloth& c, double dt) override { impl_.resolveContacts(c, dt); }
 
-private:
+  private:
     Impl& impl_;
 };
 
@@ -519,7 +532,8 @@ void BulletCloth::Impl::gatherBodies(double dt) {
     bodies.clear();
     candidates.clear();
     const auto& overlaps = ghost->getOverlappingPairs();
-    for (int k = 0; k < overlaps.size(); ++k) candidates.push_back(overlaps[k]);
+    for (int k = 0; k < overlaps.size(); ++k)
+        candidates.push_back(overlaps[k]);
     // The proxy's box was set at the end of the previous step for the motion expected then.
     // If the cloth will sweep beyond it in this step (a first step, velocities set by the user,
     // a longer step), move the proxy now and ask the broadphase directly (a tree query, not
@@ -540,7 +554,8 @@ void BulletCloth::Impl::gatherBodies(double dt) {
     for (const btCollisionObject* obj : candidates) {
         if (!obj || obj == ghost.get()) continue;
         const int type = obj->getInternalType();
-        if (type != btCollisionObject::CO_RIGID_BODY && type != btCollisionObject::CO_COLLISION_OBJECT) {
+        if (type != btCollisionObject::CO_RIGID_BODY &&
+            type != btCollisionObject::CO_COLLISION_OBJECT) {
             continue; // ghosts (other cloths' proxies, triggers), soft bodies, multibodies
         }
         if (!obj->hasContactResponse() || !obj->getCollisionShape()) continue;
@@ -551,9 +566,10 @@ void BulletCloth::Impl::gatherBodies(double dt) {
         const double mu = double(obj->getFriction());
         if (!(std::isfinite(mu) && mu >= 0.0)) { // (the message is built only then: every step)
             throw Error(ErrorCode::InvalidArgument,
-                        std::string("a body the cloth may touch (") + obj->getCollisionShape()->getName() +
-                            ") has friction " + num(mu) +
-                            ": Coulomb's coefficient (btCollisionObject::setFriction) must be >= 0 and finite");
+                        std::string("a body the cloth may touch (") +
+                            obj->getCollisionShape()->getName() + ") has friction " + num(mu) +
+                            ": Coulomb's coefficient (btCollisionObject::setFriction) must be >= 0 "
+                            "and finite");
         }
         b.friction = mu * settings.contact.frictionScale;
         btVector3 mn, mx;
@@ -595,19 +611,21 @@ void BulletCloth::Impl::wakeForBodies(double dt) {
                                       [&](const auto& p) { return p.first == b.object; });
         if (was == lastPoses.end()) {
             wakeUp = true; // a new candidate
-            continue;     // (the loop ends on wakeUp)
+            continue;      // (the loop ends on wakeUp)
         }
         const Pose& pose = was->second;
         // Turning is measured at the body's extent (its AABB's half diagonal; an infinite
         // plane turns only when its pose changes at all).
         const double radius = 0.5 * (b.aabbMax - b.aabbMin).norm();
         const double turn = (b.pose.R - pose.R).cwiseAbs().maxCoeff();
-        wakeUp = (b.pose.t - pose.t).norm() > tol * dt || (turn > 0.0 && !(turn * radius <= tol * dt)) ||
-                 b.v.norm() > tol || (b.w.norm() > 0.0 && !(b.w.norm() * radius <= tol));
+        wakeUp = (b.pose.t - pose.t).norm() > tol * dt ||
+                 (turn > 0.0 && !(turn * radius <= tol * dt)) || b.v.norm() > tol ||
+                 (b.w.norm() > 0.0 && !(b.w.norm() * radius <= tol));
     }
     if (wakeUp) c.wake();
     lastPoses.resize(bodies.size());
-    for (std::size_t k = 0; k < bodies.size(); ++k) lastPoses[k] = {bodies[k].object, bodies[k].pose};
+    for (std::size_t k = 0; k < bodies.size(); ++k)
+        lastPoses[k] = {bodies[k].object, bodies[k].pose};
 }
 
 inline void BulletCloth::Impl::updateBox(std::size_t i, const Vec3& xi, const Vec3& from,
@@ -633,7 +651,8 @@ inline void BulletCloth::Impl::updateBox(std::size_t i, const Vec3& xi, const Ve
 /// (both its ends when swept) can touch the plane.
 bool BulletCloth::Impl::aboveReach(const BodySnapshot& b, const Vec3& lo, const Vec3& hi) const {
     Vec3 corner; // the box's corner deepest along -normal
-    for (int k = 0; k < 3; ++k) corner[k] = b.planeNormal[k] >= 0.0 ? lo[k] : hi[k];
+    for (int k = 0; k < 3; ++k)
+        corner[k] = b.planeNormal[k] >= 0.0 ? lo[k] : hi[k];
     if (!corner.allFinite()) return false;
     const double reach = settings.contact.thickness + band;
     const double size = b.planeScale + std::max(lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff());
@@ -690,8 +709,8 @@ bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t 
         t1.setOrigin(toBt(xi));
         btCollisionWorld::ClosestRayResultCallback ray(t0.getOrigin(), t1.getOrigin());
         btCollisionWorld::rayTestSingle(t0, t1, const_cast<btCollisionObject*>(b.object),
-                                        b.object->getCollisionShape(), b.object->getWorldTransform(),
-                                        ray);
+                                        b.object->getCollisionShape(),
+                                        b.object->getWorldTransform(), ray);
         if (ray.hasHit()) {
             Vec3 nrm = toVec(ray.m_hitNormalWorld);
             const double len = nrm.norm();
@@ -707,7 +726,8 @@ bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t 
         }
     }
     if (!crossed) {
-        hit = detail::closestSurface(b.object->getCollisionShape(), b.pose, xi, from, h + band, counters);
+        hit = detail::closestSurface(b.object->getCollisionShape(), b.pose, xi, from, h + band,
+                                     counters);
         if (!hit.valid || hit.distance >= h + band) return false;
     }
     // The limiter's walk keeps the particle above the tangent plane of a contact with a static
@@ -718,8 +738,8 @@ bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t 
     if (!b.dynamicBody) {
         if (const std::int32_t was = planes.of[i]; was >= 0 && planeBody[std::size_t(was)] != bi)
             flushPlane(c, std::size_t(was), dt);
-        const std::size_t plane =
-            std::size_t(planes.set(static_cast<Index>(i), hit.normal, hit.normal.dot(hit.point) + h));
+        const std::size_t plane = std::size_t(
+            planes.set(static_cast<Index>(i), hit.normal, hit.normal.dot(hit.point) + h));
         if (!trianglePlane.empty()) trianglePlane[i] = 0;
         if (plane == planeBody.size()) {
             planeBody.push_back(bi);
@@ -796,15 +816,16 @@ bool BulletCloth::Impl::collideParticle(Cloth& c, std::uint32_t bi, std::size_t 
 }
 
 double BulletCloth::Impl::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t, double dt,
-                                        detail::QueryCounters& counters) {
+                                          detail::QueryCounters& counters) {
     BodySnapshot& b = bodies[bi];
     const Triangle& tri = c.topology().triangles()[t];
     Vec3List& x = c.mutablePositions();
     Vec3List& v = c.mutableVelocities();
     const auto& w = c.inverseMasses();
     const double h = settings.contact.thickness;
-    const detail::TriangleHit hit = detail::closestToTriangle(
-        b.object->getCollisionShape(), b.object->getWorldTransform(), x[tri[0]], x[tri[1]], x[tri[2]], h, counters);
+    const detail::TriangleHit hit =
+        detail::closestToTriangle(b.object->getCollisionShape(), b.object->getWorldTransform(),
+                                  x[tri[0]], x[tri[1]], x[tri[2]], h, counters);
     if (!hit.valid || !(hit.distance < h)) return -1.0;
     // The triangle's nearest point moves out by the depth along n: particle k by
     // beta_k w_k / W of it, W = sum beta_k^2 w_k (the least-mass-weighted change that moves the
@@ -812,7 +833,8 @@ double BulletCloth::Impl::collideTriangle(Cloth& c, std::uint32_t bi, std::size_
     // way: the point's inverse mass along n is W.
     const Vec3& beta = hit.barycentric;
     double weight = 0.0;
-    for (int k = 0; k < 3; ++k) weight += beta[k] * beta[k] * w[tri[k]];
+    for (int k = 0; k < 3; ++k)
+        weight += beta[k] * beta[k] * w[tri[k]];
     if (!(weight > 0.0)) return -1.0;
     const Vec3& n = hit.normal;
     const double depth = h - hit.distance;
@@ -827,7 +849,8 @@ double BulletCloth::Impl::collideTriangle(Cloth& c, std::uint32_t bi, std::size_
         // back along n (its own contact's plane, if it has one, comes first), so the strain
         // bound and the triangle's contact hold together, as for particle contacts.
         if (!b.dynamicBody && (planes.of[i] < 0 || trianglePlane[i])) {
-            if (const std::int32_t was = planes.of[i]; was >= 0 && planeBody[std::size_t(was)] != bi)
+            if (const std::int32_t was = planes.of[i];
+                was >= 0 && planeBody[std::size_t(was)] != bi)
                 flushPlane(c, std::size_t(was), dt);
             const auto plane = std::size_t(planes.set(i, n, n.dot(x[i])));
             if (plane == planeBody.size()) {
@@ -841,11 +864,14 @@ double BulletCloth::Impl::collideTriangle(Cloth& c, std::uint32_t bi, std::size_
         }
     }
     ++last.triangleContacts;
-    const Vec3 rel = beta[0] * v[tri[0]] + beta[1] * v[tri[1]] + beta[2] * v[tri[2]] - b.velocityAt(hit.bodyPoint);
+    const Vec3 rel = beta[0] * v[tri[0]] + beta[1] * v[tri[1]] + beta[2] * v[tri[2]] -
+                     b.velocityAt(hit.bodyPoint);
     const double vn = rel.dot(n);
     if (vn >= 0.0) return depth;
-    auto share = [&](const Vec3& j) { // an impulse j at the point: the particles' shares, the body's opposite
-        for (int k = 0; k < 3; ++k) v[tri[k]] += (beta[k] * w[tri[k]]) * j;
+    auto share = [&](const Vec3& j) { // an impulse j at the point: the particles' shares, the
+                                      // body's opposite
+        for (int k = 0; k < 3; ++k)
+            v[tri[k]] += (beta[k] * w[tri[k]]) * j;
         b.applyImpulse(-j, hit.bodyPoint);
         last.impulseOnCloth += j;
         if (b.dynamicBody) last.impulseOnBodies -= j;
@@ -856,7 +882,8 @@ double BulletCloth::Impl::collideTriangle(Cloth& c, std::uint32_t bi, std::size_
     const double vtLen = vt.norm();
     if (vtLen > 0.0 && b.friction > 0.0) {
         const Vec3 tdir = vt / vtLen;
-        const double jt = std::min(vtLen / (weight + b.inverseMassAlong(hit.bodyPoint, tdir)), b.friction * lambda);
+        const double jt = std::min(vtLen / (weight + b.inverseMassAlong(hit.bodyPoint, tdir)),
+                                   b.friction * lambda);
         share(-jt * tdir);
     }
     return depth;
@@ -871,13 +898,15 @@ void BulletCloth::Impl::collideTriangles(Cloth& c, double dt, detail::QueryCount
         const BodySnapshot& b = bodies[bi];
         // Planes have no feature to slip between particles; concave meshes are not queried.
         const btCollisionShape* shape = b.object->getCollisionShape();
-        if (b.plane || !(shape->isConvex() || shape->getShapeType() == COMPOUND_SHAPE_PROXYTYPE)) continue;
+        if (b.plane || !(shape->isConvex() || shape->getShapeType() == COMPOUND_SHAPE_PROXYTYPE))
+            continue;
         for (std::size_t t = 0; t < tris.size(); ++t) {
             const Triangle& tri = tris[t];
             if (w[tri[0]] == 0.0 && w[tri[1]] == 0.0 && w[tri[2]] == 0.0) continue;
             const Vec3 lo = x[tri[0]].cwiseMin(x[tri[1]]).cwiseMin(x[tri[2]]);
             const Vec3 hi = x[tri[0]].cwiseMax(x[tri[1]]).cwiseMax(x[tri[2]]);
-            if ((hi.array() < b.aabbMin.array()).any() || (lo.array() > b.aabbMax.array()).any()) continue;
+            if ((hi.array() < b.aabbMin.array()).any() || (lo.array() > b.aabbMax.array()).any())
+                continue;
             if (collideTriangle(c, bi, t, dt, counters) >= 0.0) triangleHits.emplace_back(bi, t);
         }
     }
@@ -885,7 +914,8 @@ void BulletCloth::Impl::collideTriangles(Cloth& c, double dt, detail::QueryCount
     // them back in: a few more sweeps over the triangles that touched (Gauss-Seidel).
     for (int sweep = 0; sweep < kTriangleSweeps && !triangleHits.empty(); ++sweep) {
         double deepest = 0.0;
-        for (const auto& [bi, t] : triangleHits) deepest = std::max(deepest, collideTriangle(c, bi, t, dt, counters));
+        for (const auto& [bi, t] : triangleHits)
+            deepest = std::max(deepest, collideTriangle(c, bi, t, dt, counters));
         if (deepest <= 1e-9 * settings.contact.thickness) break; // (rounding)
     }
 }
@@ -978,7 +1008,8 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
         }
     }
     if (settings.contact.triangles) collideTriangles(c, dt, counters);
-    for (unsigned char t : touching) anyTouching = anyTouching || t != 0;
+    for (unsigned char t : touching)
+        anyTouching = anyTouching || t != 0;
 
     // The projection may have overstretched springs the limiter had just fixed (a cloth
     // pressed onto a sphere by its hanging sides: projecting along diverging normals lengthens
@@ -987,7 +1018,8 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
     // touching particles fixed instead does not work: springs between two of them could
     // never be shortened.
     const auto& lim = c.settings().limiter;
-    for (int pass = 0; anyTouching && lim.kind != LimiterKind::None && pass < kRelimitPasses; ++pass) {
+    for (int pass = 0; anyTouching && lim.kind != LimiterKind::None && pass < kRelimitPasses;
+         ++pass) {
         StrainLimitStats st;
         {
             ScopedPhase timeLimiter(c.timers(), slotStageLimiter);
@@ -1035,7 +1067,8 @@ void BulletCloth::Impl::resolveContacts(Cloth& c, double dt) {
 
     // What the contact planes held in the limiter's walk: the particle got m push / dt (its
     // velocity follows its position), the body gets the opposite.
-    for (std::size_t k = 0; k < planes.size(); ++k) flushPlane(c, k, dt);
+    for (std::size_t k = 0; k < planes.size(); ++k)
+        flushPlane(c, k, dt);
 
     last.narrowphaseQueries += counters.queries;
     last.triangleQueries += counters.triangleQueries;
@@ -1122,7 +1155,8 @@ void BulletCloth::Impl::step(double dt) {
         // acts for h; the body gets the opposite.
         frictionLeft.assign(c.particleCount(), 0.0);
         for (const auto& pc : penalty->contacts) {
-            if (pc.impulses) frictionLeft[pc.particle] += std::max(0.0, pc.mu * pc.force - pc.friction.norm());
+            if (pc.impulses)
+                frictionLeft[pc.particle] += std::max(0.0, pc.mu * pc.force - pc.friction.norm());
         }
         for (const auto& pc : penalty->contacts) {
             if (pc.force == 0.0) continue;
@@ -1208,7 +1242,8 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
         m.margin = settings.contact.broadphaseMargin;
     } else {
         double sum = 0.0;
-        for (const auto& s : m.cloth->topology().springs()) sum += s.restLength;
+        for (const auto& s : m.cloth->topology().springs())
+            sum += s.restLength;
         const auto count = double(std::max<std::size_t>(1, m.cloth->topology().springCount()));
         m.margin = sum / count + 4.0 * h;
     }
@@ -1226,10 +1261,9 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
     m.penalty->band = m.band;
     // The force term lives as long as the cloth; it reads the contact list, which is empty
     // once this handle is removed.
-    m.cloth->addExternalForce("contact_force", [state = m.penalty](const Vec3List& x, const Vec3List& v,
-                                                                   Vec3List& f) {
-        contactForces(*state, x, v, f);
-    });
+    m.cloth->addExternalForce("contact_force",
+                              [state = m.penalty](const Vec3List& x, const Vec3List& v,
+                                                  Vec3List& f) { contactForces(*state, x, v, f); });
     m.stage = std::make_shared<Impl::Stage>(m);
     m.cloth->addStage(m.stage);
     m.prevX = m.cloth->positions();
@@ -1249,7 +1283,9 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
     m.inWorld = true;
 }
 
-BulletCloth::~BulletCloth() { remove(); }
+BulletCloth::~BulletCloth() {
+    remove();
+}
 
 void BulletCloth::remove() {
     Impl& m = *impl_;
@@ -1258,18 +1294,22 @@ void BulletCloth::remove() {
     m.world->removeCollisionObject(m.ghost.get());
     m.cloth->removeStage(m.stage.get());
     m.penalty->contacts.clear();
-    for (const auto& a : m.attachments) m.cloth->unpin(a.particle);
+    for (const auto& a : m.attachments)
+        m.cloth->unpin(a.particle);
     m.attachments.clear();
     m.targets->clear();
     m.bodies.clear();
     m.inWorld = false;
 }
 
-bool BulletCloth::inWorld() const { return impl_->inWorld; }
+bool BulletCloth::inWorld() const {
+    return impl_->inWorld;
+}
 
 void BulletCloth::attach(Index particle, const btCollisionObject* body, const Vec3& localPoint) {
     Impl& m = *impl_;
-    require(m.inWorld, ErrorCode::InvalidArgument, "attach: the cloth has been removed from its world");
+    require(m.inWorld, ErrorCode::InvalidArgument,
+            "attach: the cloth has been removed from its world");
     require(particle < m.cloth->particleCount(), ErrorCode::IndexOutOfRange,
             "attach: particle " + std::to_string(particle) + " does not exist (the cloth has " +
                 std::to_string(m.cloth->particleCount()) + " particles)");
@@ -1316,7 +1356,8 @@ void BulletCloth::detach(Index particle) {
             m.cloth->setKinematic(pr, [targets = m.targets, window = m.window, r](double t) {
                 const auto& tg = (*targets)[r];
                 const double span = window->second - window->first;
-                const double s = span > 0.0 ? std::clamp((t - window->first) / span, 0.0, 1.0) : 1.0;
+                const double s =
+                    span > 0.0 ? std::clamp((t - window->first) / span, 0.0, 1.0) : 1.0;
                 return Vec3(tg.from + s * (tg.to - tg.from));
             });
             m.cloth->mutableVelocities()[pr] = vr; // detached later, it leaves with it
@@ -1325,15 +1366,33 @@ void BulletCloth::detach(Index particle) {
     }
 }
 
-const std::vector<Attachment>& BulletCloth::attachments() const { return impl_->attachments; }
-Cloth& BulletCloth::cloth() { return *impl_->cloth; }
-const Cloth& BulletCloth::cloth() const { return *impl_->cloth; }
-const std::shared_ptr<Cloth>& BulletCloth::clothPtr() const { return impl_->cloth; }
-const BulletClothSettings& BulletCloth::settings() const { return impl_->settings; }
-const btCollisionObject* BulletCloth::proxyObject() const { return impl_->ghost.get(); }
-const ContactStats& BulletCloth::lastStats() const { return impl_->last; }
-const ContactStats& BulletCloth::totalStats() const { return impl_->total; }
-void BulletCloth::debugDraw(btIDebugDraw* drawer) const { impl_->action->debugDraw(drawer); }
+const std::vector<Attachment>& BulletCloth::attachments() const {
+    return impl_->attachments;
+}
+Cloth& BulletCloth::cloth() {
+    return *impl_->cloth;
+}
+const Cloth& BulletCloth::cloth() const {
+    return *impl_->cloth;
+}
+const std::shared_ptr<Cloth>& BulletCloth::clothPtr() const {
+    return impl_->cloth;
+}
+const BulletClothSettings& BulletCloth::settings() const {
+    return impl_->settings;
+}
+const btCollisionObject* BulletCloth::proxyObject() const {
+    return impl_->ghost.get();
+}
+const ContactStats& BulletCloth::lastStats() const {
+    return impl_->last;
+}
+const ContactStats& BulletCloth::totalStats() const {
+    return impl_->total;
+}
+void BulletCloth::debugDraw(btIDebugDraw* drawer) const {
+    impl_->action->debugDraw(drawer);
+}
 
 void BulletCloth::stepInWorld(double dt) {
     require(std::isfinite(dt) && dt > 0.0, ErrorCode::InvalidArgument,
@@ -1348,6 +1407,8 @@ std::unique_ptr<BulletCloth> addCloth(btDynamicsWorld* world, std::shared_ptr<Cl
     return std::make_unique<BulletCloth>(world, std::move(cloth), settings);
 }
 
-void removeCloth(BulletCloth& cloth) { cloth.remove(); }
+void removeCloth(BulletCloth& cloth) {
+    cloth.remove();
+}
 
 } // namespace drape::bullet

@@ -64,8 +64,8 @@ SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,
         std::size_t contactsThisPass = 0;
         for (std::size_t p = 0; p < n; ++p) {
             const Vec3 xp = x[p];
-            const std::uint64_t key = cellKey(cellCoord(xp.x(), invCell), cellCoord(xp.y(), invCell),
-                                              cellCoord(xp.z(), invCell));
+            const std::uint64_t key = cellKey(
+                cellCoord(xp.x(), invCell), cellCoord(xp.y(), invCell), cellCoord(xp.z(), invCell));
             auto it = std::lower_bound(cells_.begin(), cells_.end(), std::make_pair(key, Index(0)));
             for (; it != cells_.end() && it->first == key; ++it) {
                 const auto& t = tris[it->second];
@@ -84,20 +84,22 @@ SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,
                 face /= len;
                 // Side from the previous step; the current side if the particle was in the plane.
                 const Vec3 facePrev = (xPrev[t[1]] - xPrev[t[0]]).cross(xPrev[t[2]] - xPrev[t[0]]);
-                const Vec3 qPrev = bary[0] * xPrev[t[0]] + bary[1] * xPrev[t[1]] + bary[2] * xPrev[t[2]];
+                const Vec3 qPrev =
+                    bary[0] * xPrev[t[0]] + bary[1] * xPrev[t[1]] + bary[2] * xPrev[t[2]];
                 double side = (xPrev[p] - qPrev).dot(facePrev);
                 if (side == 0.0) side = (x[p] - q).dot(face);
                 const Vec3 nrm = side >= 0.0 ? face : Vec3(-face);
                 const double gap = (x[p] - q).dot(nrm);
                 const double violation = thickness - gap;
                 if (violation <= 0.0) continue;
-                const double denom = wp + bary[0] * bary[0] * w0 + bary[1] * bary[1] * w1 +
-                                     bary[2] * bary[2] * w2;
+                const double denom =
+                    wp + bary[0] * bary[0] * w0 + bary[1] * bary[1] * w1 + bary[2] * bary[2] * w2;
                 if (!(denom > 0.0)) continue;
                 ++contactsThisPass;
                 const double lambda = violation / denom;
                 x[p] += (wp * lambda) * nrm;
-                for (int k = 0; k < 3; ++k) x[t[k]] -= (bary[k] * invMass[t[k]] * lambda) * nrm;
+                for (int k = 0; k < 3; ++k)
+                    x[t[k]] -= (bary[k] * invMass[t[k]] * lambda) * nrm;
                 // Velocity: remove approach along the normal, then Coulomb friction.
                 const Vec3 vTri = bary[0] * v[t[0]] + bary[1] * v[t[1]] + bary[2] * v[t[2]];
                 const Vec3 rel = v[p] - vTri;
@@ -112,7 +114,8 @@ SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,
                         dv -= (jt / vtLen) * vt;
                     }
                     v[p] += wp * dv;
-                    for (int k = 0; k < 3; ++k) v[t[k]] -= (bary[k] * invMass[t[k]]) * dv;
+                    for (int k = 0; k < 3; ++k)
+                        v[t[k]] -= (bary[k] * invMass[t[k]]) * dv;
                 }
             }
         }

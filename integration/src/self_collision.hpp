@@ -23,12 +23,12 @@ struct SelfCollisionCounts {
 /// weighted by inverse mass and barycentric coordinates (momentum is conserved), removes
 /// their approaching normal velocity, and applies Coulomb friction `friction` [-].
 class SelfCollider {
-public:
+  public:
     SelfCollisionCounts run(const ClothTopology& topology, const std::vector<double>& invMass,
                             const Vec3List& xPrev, Vec3List& x, Vec3List& v, double thickness,
                             double friction, int iterations);
 
-private:
+  private:
     std::vector<std::pair<std::uint64_t, Index>> cells_; ///< (cell key, triangle), sorted
 };
 

@@ -1,12 +1,12 @@
 // Closest surface points of Bullet collision shapes (see shape_queries.hpp).
 #include "shape_queries.hpp"
 
-#include <btBulletCollisionCommon.h>
 #include <BulletCollision/CollisionShapes/btTriangleShape.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkEpaPenetrationDepthSolver.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkPairDetector.h>
 #include <BulletCollision/NarrowPhaseCollision/btPointCollector.h>
 #include <BulletCollision/NarrowPhaseCollision/btVoronoiSimplexSolver.h>
+#include <btBulletCollisionCommon.h>
 
 #include <algorithm>
 #include <cmath>
@@ -15,7 +15,9 @@
 namespace drape::bullet::detail {
 namespace {
 
-Vec3 toVec(const btVector3& v) { return Vec3(double(v.x()), double(v.y()), double(v.z())); }
+Vec3 toVec(const btVector3& v) {
+    return Vec3(double(v.x()), double(v.y()), double(v.z()));
+}
 btVector3 toBt(const Vec3& v) {
     return btVector3(btScalar(v.x()), btScalar(v.y()), btScalar(v.z()));
 }
@@ -24,13 +26,15 @@ Pose toPose(const btTransform& t) {
     Pose p;
     const btMatrix3x3& b = t.getBasis();
     for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) p.R(r, c) = double(b[r][c]);
+        for (int c = 0; c < 3; ++c)
+            p.R(r, c) = double(b[r][c]);
     p.t = toVec(t.getOrigin());
     return p;
 }
 
 /// Fills a hit from a local-frame result.
-SurfaceHit makeHit(const Pose& pose, double distance, const Vec3& localNormal, const Vec3& localPoint) {
+SurfaceHit makeHit(const Pose& pose, double distance, const Vec3& localNormal,
+                   const Vec3& localPoint) {
     SurfaceHit h;
     h.valid = true;
     h.distance = distance;
@@ -95,9 +99,9 @@ SurfaceHit cylinderQuery(int axis, double r, double hh, const Vec3& p, const Pos
     const Vec3 u = rho > 0.0 ? Vec3(radial / rho) : Vec3(Vec3::Unit((axis + 1) % 3));
     Vec3 up = Vec3::Zero();
     up[axis] = p[axis] >= 0.0 ? 1.0 : -1.0;
-    const double dr = rho - r;                  // > 0 outside the side wall
-    const double da = std::abs(p[axis]) - hh;   // > 0 beyond a cap
-    if (dr <= 0.0 && da <= 0.0) {               // inside: nearest of wall and cap
+    const double dr = rho - r;                // > 0 outside the side wall
+    const double da = std::abs(p[axis]) - hh; // > 0 beyond a cap
+    if (dr <= 0.0 && da <= 0.0) {             // inside: nearest of wall and cap
         if (dr > da) {
             Vec3 s = r * u;
             s[axis] = p[axis];
@@ -145,7 +149,7 @@ SurfaceHit convexQuery(const btConvexShape* shape, const Vec3& p, const Pose& po
 // belongs to the side its previous position was on, so a point that crossed a triangle
 // within a step gets a negative distance and is pushed back.
 class NearestTriangle : public btTriangleCallback {
-public:
+  public:
     NearestTriangle(const Vec3& p, const Vec3& prev) : p_(p), prev_(prev) {}
     void processTriangle(btVector3* tri, int, int) override {
         const Vec3 a = toVec(tri[0]), b = toVec(tri[1]), c = toVec(tri[2]);
@@ -183,7 +187,7 @@ public:
     Vec3 normal_ = Vec3::UnitY();
     Vec3 point_ = Vec3::Zero();
 
-private:
+  private:
     Vec3 p_, prev_;
 };
 
@@ -238,8 +242,8 @@ namespace {
 
 /// Closest points of segments p0-p1 and q0-q1: s, t in [0, 1] (the usual clamped solution of
 /// the 2 x 2 system, degenerate segments included).
-void closestSegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1, double& s,
-                           double& t) {
+void closestSegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1,
+                           double& s, double& t) {
     const Vec3 d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
     const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
     if (a <= 0.0 && e <= 0.0) {
@@ -329,8 +333,9 @@ TriangleHit capsuleTriangle(const Vec3& p0, const Vec3& p1, double r, const Vec3
 
 } // namespace
 
-TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& transform, const Vec3& a,
-                              const Vec3& b, const Vec3& c, double reach, QueryCounters& counters) {
+TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& transform,
+                              const Vec3& a, const Vec3& b, const Vec3& c, double reach,
+                              QueryCounters& counters) {
     if (shape->getShapeType() == CAPSULE_SHAPE_PROXYTYPE) {
         // Rods: exact, in double precision (GJK in single precision is off by millimetres
         // for a long capsule nearly parallel to a triangle).
@@ -339,7 +344,8 @@ TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& 
         const Pose pose = toPose(transform);
         Vec3 axis = Vec3::Zero();
         axis[cap->getUpAxis()] = double(cap->getHalfHeight());
-        return capsuleTriangle(pose.toWorld(-axis), pose.toWorld(axis), double(cap->getRadius()), a, b, c, reach);
+        return capsuleTriangle(pose.toWorld(-axis), pose.toWorld(axis), double(cap->getRadius()), a,
+                               b, c, reach);
     }
     if (shape->getShapeType() == COMPOUND_SHAPE_PROXYTYPE) {
         const auto* compound = static_cast<const btCompoundShape*>(shape);
@@ -350,8 +356,10 @@ TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& 
             const btTransform t = transform * compound->getChildTransform(k);
             btVector3 mn, mx;
             compound->getChildShape(k)->getAabb(t, mn, mx);
-            if ((toVec(mx).array() < lo.array()).any() || (toVec(mn).array() > hi.array()).any()) continue;
-            const TriangleHit h = closestToTriangle(compound->getChildShape(k), t, a, b, c, reach, counters);
+            if ((toVec(mx).array() < lo.array()).any() || (toVec(mn).array() > hi.array()).any())
+                continue;
+            const TriangleHit h =
+                closestToTriangle(compound->getChildShape(k), t, a, b, c, reach, counters);
             if (h.valid && (!best.valid || h.distance < best.distance)) best = h;
         }
         return best;
@@ -398,13 +406,14 @@ SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const
     }
     case SPHERE_SHAPE_PROXYTYPE: {
         ++counters.queries;
-        return sphereQuery(double(static_cast<const btSphereShape*>(shape)->getRadius()), local, pose);
+        return sphereQuery(double(static_cast<const btSphereShape*>(shape)->getRadius()), local,
+                           pose);
     }
     case CAPSULE_SHAPE_PROXYTYPE: {
         ++counters.queries;
         const auto* cap = static_cast<const btCapsuleShape*>(shape);
-        return capsuleQuery(cap->getUpAxis(), double(cap->getHalfHeight()), double(cap->getRadius()),
-                            local, pose);
+        return capsuleQuery(cap->getUpAxis(), double(cap->getHalfHeight()),
+                            double(cap->getRadius()), local, pose);
     }
     case CYLINDER_SHAPE_PROXYTYPE: {
         ++counters.queries;
@@ -436,7 +445,8 @@ SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const
         }
         return best;
     }
-    default: break;
+    default:
+        break;
     }
     if (shape->isConvex()) {
         ++counters.queries;

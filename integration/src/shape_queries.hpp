@@ -25,14 +25,14 @@ struct Pose {
 /// Nearest surface point of a shape to a query point.
 struct SurfaceHit {
     bool valid = false;
-    double distance = 0.0;    ///< signed distance from the surface, negative inside [m]
+    double distance = 0.0;       ///< signed distance from the surface, negative inside [m]
     Vec3 normal = Vec3::UnitY(); ///< outward unit normal at `point` (world frame)
     Vec3 point = Vec3::Zero();   ///< nearest surface point (world frame) [m]
 };
 
 /// Counters the queries add to.
 struct QueryCounters {
-    std::size_t queries = 0; ///< closest-point queries made (a compound counts each child)
+    std::size_t queries = 0;         ///< closest-point queries made (a compound counts each child)
     std::size_t triangleQueries = 0; ///< triangle-shape queries made (each compound child counts)
 };
 
@@ -46,9 +46,9 @@ SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const
 /// Nearest points of a cloth triangle and a body's surface.
 struct TriangleHit {
     bool valid = false;
-    double distance = 0.0;       ///< signed, negative when they overlap [m]
-    Vec3 normal = Vec3::UnitY(); ///< unit, from the body toward the triangle (world frame)
-    Vec3 bodyPoint = Vec3::Zero(); ///< on the body's surface (world frame) [m]
+    double distance = 0.0;           ///< signed, negative when they overlap [m]
+    Vec3 normal = Vec3::UnitY();     ///< unit, from the body toward the triangle (world frame)
+    Vec3 bodyPoint = Vec3::Zero();   ///< on the body's surface (world frame) [m]
     Vec3 barycentric = Vec3::Zero(); ///< the triangle's nearest point, in its weights
 };
 
@@ -56,8 +56,9 @@ struct TriangleHit {
 /// convex children of a compound, placed at `transform` (Bullet's GJK and EPA, in single
 /// precision, relative to a). Invalid for other shapes (planes, concave meshes), and when
 /// nothing is nearer than `reach` [m].
-TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& transform, const Vec3& a,
-                              const Vec3& b, const Vec3& c, double reach, QueryCounters& counters);
+TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& transform,
+                              const Vec3& a, const Vec3& b, const Vec3& c, double reach,
+                              QueryCounters& counters);
 
 /// Closest point to p on triangle (a, b, c); also returns its barycentric weights.
 Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c,

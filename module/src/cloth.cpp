@@ -23,14 +23,16 @@ std::string num(double v) {
 }
 
 void requireFinite(double v, const std::string& name) {
-    if (!std::isfinite(v)) throw Error(ErrorCode::NonFinite, name + " is not finite (" + num(v) + ")");
+    if (!std::isfinite(v))
+        throw Error(ErrorCode::NonFinite, name + " is not finite (" + num(v) + ")");
 }
 void requireFinite(const Vec3& v, const std::string& name) {
     if (!v.allFinite()) throw Error(ErrorCode::NonFinite, name + " is not finite");
 }
 void requirePositive(double v, const std::string& name) {
     requireFinite(v, name);
-    if (!(v > 0.0)) throw Error(ErrorCode::InvalidArgument, name + " must be positive, got " + num(v));
+    if (!(v > 0.0))
+        throw Error(ErrorCode::InvalidArgument, name + " must be positive, got " + num(v));
 }
 void requireNonNegative(double v, const std::string& name) {
     requireFinite(v, name);
@@ -67,7 +69,8 @@ std::vector<double> buildMasses(const ClothTopology& topo, const ClothSettings& 
     std::vector<double> m(topo.particleCount(), 0.0);
     for (std::size_t t = 0; t < topo.triangleCount(); ++t) {
         const double share = total * topo.triangleRestAreas()[t] / (3.0 * topo.totalRestArea());
-        for (Index v : topo.triangles()[t]) m[v] += share;
+        for (Index v : topo.triangles()[t])
+            m[v] += share;
     }
     return m;
 }
@@ -112,8 +115,9 @@ void validateSettings(const ClothSettings& s) {
     requireNonNegative(s.failure.maxStrain, "failure.maxStrain");
     requireNonNegative(s.failure.maxEnergyGrowth, "failure.maxEnergyGrowth");
     if (s.failure.retrySubsteps < 0 || s.failure.retrySubsteps > 1024) {
-        throw Error(ErrorCode::InvalidArgument, "failure.retrySubsteps must be between 0 and 1024, got " +
-                                                    std::to_string(s.failure.retrySubsteps));
+        throw Error(ErrorCode::InvalidArgument,
+                    "failure.retrySubsteps must be between 0 and 1024, got " +
+                        std::to_string(s.failure.retrySubsteps));
     }
     if (s.threads < 1 || s.threads > 256) {
         throw Error(ErrorCode::InvalidArgument,
@@ -135,17 +139,20 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     validateSettings(settings_);
     mass_ = buildMasses(*topology_, settings_);
     invMass_.resize(mass_.size());
-    for (std::size_t i = 0; i < mass_.size(); ++i) invMass_[i] = 1.0 / mass_[i];
+    for (std::size_t i = 0; i < mass_.size(); ++i)
+        invMass_[i] = 1.0 / mass_[i];
     x_ = topology_->restPositions();
     v_.assign(x_.size(), Vec3::Zero());
     f_.assign(x_.size(), Vec3::Zero());
     pinned_.assign(x_.size(), 0);
-    if (settings_.threads > 1) poolStorage_ = std::make_unique<detail::ThreadPool>(settings_.threads);
+    if (settings_.threads > 1)
+        poolStorage_ = std::make_unique<detail::ThreadPool>(settings_.threads);
     forceModel_ = std::make_unique<ForceModel>(topology_, buildStiffness(*topology_, settings_),
                                                mass_, settings_, timers_, poolStorage_.get());
     integrator_ = makeIntegrator(settings_.integrator, settings_.implicit);
     integrator_->bind(*forceModel_);
-    for (const Stage& st : kStages) stageSlots_.push_back(timers_.slot(st.name));
+    for (const Stage& st : kStages)
+        stageSlots_.push_back(timers_.slot(st.name));
 }
 
 Cloth::~Cloth() = default;
@@ -158,21 +165,24 @@ void Cloth::evaluateForces() {
 void Cloth::checkFinite(const char* where) {
     // A NaN or infinity anywhere makes the sum non-finite; only then look for the particle.
     double sum = 0.0;
-    for (std::size_t i = 0; i < x_.size(); ++i) sum += x_[i].sum() + v_[i].sum() + f_[i].sum();
+    for (std::size_t i = 0; i < x_.size(); ++i)
+        sum += x_[i].sum() + v_[i].sum() + f_[i].sum();
     if (std::isfinite(sum)) return;
     for (std::size_t i = 0; i < x_.size(); ++i) {
         if (!x_[i].allFinite() || !v_[i].allFinite() || !f_[i].allFinite()) {
             throw Error(ErrorCode::SimulationFailure,
                         std::string("state became non-finite at particle ") + std::to_string(i) +
                             " after " + where + " in step " + std::to_string(steps_ + 1) +
-                            " (t = " + num(time_) + " s); the cloth keeps its state from before "
+                            " (t = " + num(time_) +
+                            " s); the cloth keeps its state from before "
                             "the step. Reduce the time step or the stiffness.");
         }
     }
     // Finite values whose sum overflows: the state is out of any sensible range.
     throw Error(ErrorCode::SimulationFailure,
                 std::string("state magnitude overflowed after ") + where + " in step " +
-                    std::to_string(steps_ + 1) + "; the cloth keeps its state from before the step");
+                    std::to_string(steps_ + 1) +
+                    "; the cloth keeps its state from before the step");
 }
 
 void Cloth::step(double dt) {
@@ -200,7 +210,8 @@ void Cloth::step(double dt) {
         const std::uint64_t s0 = steps_;
         const int k = settings_.failure.retrySubsteps;
         try {
-            for (int i = 0; i < k; ++i) stepOnce(dt / k);
+            for (int i = 0; i < k; ++i)
+                stepOnce(dt / k);
         } catch (const Error& again) {
             x_ = x0;
             v_ = v0;
@@ -219,9 +230,11 @@ double Cloth::energyScale() const {
     // Kinetic plus elastic energy, floored by the work gravity does over one mean spring
     // length, so that a cloth at rest still has a finite scale.
     double totalMass = 0.0;
-    for (double m : mass_) totalMass += m;
+    for (double m : mass_)
+        totalMass += m;
     double meanRest = 0.0;
-    for (const auto& s : topology_->springs()) meanRest += s.restLength;
+    for (const auto& s : topology_->springs())
+        meanRest += s.restLength;
     meanRest /= static_cast<double>(std::max<std::size_t>(topology_->springCount(), 1));
     return kineticEnergy() + springEnergy() + totalMass * settings_.gravity.norm() * meanRest;
 }
@@ -249,12 +262,16 @@ struct Cloth::StepContext {
 };
 
 const Cloth::Stage Cloth::kStages[] = {
-    {"forces_refresh", true, [](const Cloth& c) { return !c.forcesValid_; }, &Cloth::stageForcesRefresh},
+    {"forces_refresh", true, [](const Cloth& c) { return !c.forcesValid_; },
+     &Cloth::stageForcesRefresh},
     {"integrate", true, [](const Cloth&) { return true; }, &Cloth::stageIntegrate},
-    {"kinematic", true, [](const Cloth& c) { return !c.kinematic_.empty(); }, &Cloth::stageKinematic},
-    {"strain_limit", true, [](const Cloth& c) { return c.settings_.limiter.kind != LimiterKind::None; },
+    {"kinematic", true, [](const Cloth& c) { return !c.kinematic_.empty(); },
+     &Cloth::stageKinematic},
+    {"strain_limit", true,
+     [](const Cloth& c) { return c.settings_.limiter.kind != LimiterKind::None; },
      &Cloth::stageLimit},
-    {"<stages>", false, [](const Cloth& c) { return !c.stages_.empty(); }, &Cloth::stageCallerStages},
+    {"<stages>", false, [](const Cloth& c) { return !c.stages_.empty(); },
+     &Cloth::stageCallerStages},
     {"forces", false, [](const Cloth&) { return true; }, &Cloth::stageForces},
     {"integrate_finish", true,
      [](const Cloth& c) { return c.settings_.integrator == IntegratorKind::VelocityVerlet; },
@@ -264,7 +281,8 @@ const Cloth::Stage Cloth::kStages[] = {
 
 void Cloth::checkTimeStep(double dt) const {
     if (!std::isfinite(dt)) throw Error(ErrorCode::NonFinite, "time step is not finite");
-    if (!(dt > 0.0)) throw Error(ErrorCode::InvalidArgument, "time step must be positive, got " + num(dt));
+    if (!(dt > 0.0))
+        throw Error(ErrorCode::InvalidArgument, "time step must be positive, got " + num(dt));
     if (settings_.rejectUnstableTimeStep) {
         const double limit = stableTimeStep();
         if (dt > limit) {
@@ -361,7 +379,8 @@ void Cloth::updateSleep(double dt) {
     if (!sl.enabled) return;
     const double d2 = sl.distance * sl.distance;
     bool quiet = !limiterStats_.capHit && anchor_.size() == x_.size();
-    for (std::size_t i = 0; quiet && i < x_.size(); ++i) quiet = (x_[i] - anchor_[i]).squaredNorm() <= d2;
+    for (std::size_t i = 0; quiet && i < x_.size(); ++i)
+        quiet = (x_[i] - anchor_[i]).squaredNorm() <= d2;
     if (!quiet) {
         anchor_ = x_;
         quietTime_ = 0.0;
@@ -386,7 +405,8 @@ void Cloth::stageIntegrate(StepContext& ctx) {
     vScratch_.resize(n);
     if (!kinematic_.empty()) {
         kinematicStart_.clear();
-        for (const auto& k : kinematic_) kinematicStart_.push_back(x_[k.first]);
+        for (const auto& k : kinematic_)
+            kinematicStart_.push_back(x_[k.first]);
     }
     // Integrators that can write the new state to other buffers get the old one swapped out
     // of x_, v_ (no copy); the others work in place on a copy.
@@ -416,7 +436,8 @@ void Cloth::applyLimiterMoves(double dt) {
     const double invDt = 1.0 / dt;
     const auto& moved = limiter_.movedIndex();
     const auto& from = limiter_.movedFrom();
-    for (std::size_t j = 0; j < moved.size(); ++j) v_[moved[j]] += (x_[moved[j]] - from[j]) * invDt;
+    for (std::size_t j = 0; j < moved.size(); ++j)
+        v_[moved[j]] += (x_[moved[j]] - from[j]) * invDt;
 }
 
 void Cloth::stageLimit(StepContext& ctx) {
@@ -429,12 +450,14 @@ void Cloth::stageLimit(StepContext& ctx) {
     }
     // The comparison limiters: displacements from a copy.
     xBeforeLimit_ = x_;
-    limiterStats_ = lim.kind == LimiterKind::Provot
-                        ? limitStrainProvot(*topology_, invMass_, lim, x_)
-                        : limitStrainOneSided(*topology_, invMass_, forceModel_->stiffness(), lim, x_);
+    limiterStats_ =
+        lim.kind == LimiterKind::Provot
+            ? limitStrainProvot(*topology_, invMass_, lim, x_)
+            : limitStrainOneSided(*topology_, invMass_, forceModel_->stiffness(), lim, x_);
     if (limiterStats_.corrections == 0) return;
     const double invDt = 1.0 / ctx.dt;
-    for (std::size_t i = 0; i < x_.size(); ++i) v_[i] += (x_[i] - xBeforeLimit_[i]) * invDt;
+    for (std::size_t i = 0; i < x_.size(); ++i)
+        v_[i] += (x_[i] - xBeforeLimit_[i]) * invDt;
 }
 
 void Cloth::stageCallerStages(StepContext& ctx) {
@@ -447,9 +470,13 @@ void Cloth::stageCallerStages(StepContext& ctx) {
 // For Velocity-Verlet this evaluation leaves out the velocity-dependent terms (damping,
 // aerodynamics): its advance() and finish() apply them at the right velocities, so it stays
 // second order (integrators.cpp). Other integrators get them here.
-void Cloth::stageForces(StepContext&) { evaluateForces(); }
+void Cloth::stageForces(StepContext&) {
+    evaluateForces();
+}
 
-void Cloth::stageFinish(StepContext& ctx) { integrator_->finish(ctx.integrator); }
+void Cloth::stageFinish(StepContext& ctx) {
+    integrator_->finish(ctx.integrator);
+}
 
 void Cloth::stageVerify(StepContext& ctx) {
     // Velocity-Verlet's finish() looked at every value on its way; a full pass is only needed
@@ -469,17 +496,19 @@ void Cloth::stageVerify(StepContext& ctx) {
         const double after = kineticEnergy() + springEnergy() + gravityEnergy();
         if (after - ctx.energyBefore > settings_.failure.maxEnergyGrowth * ctx.scaleBefore) {
             throw Error(ErrorCode::SimulationFailure,
-                        "mechanical energy grew by " + num(after - ctx.energyBefore) + " J in step " +
-                            std::to_string(steps_ + 1) + " (t = " + num(time_) +
+                        "mechanical energy grew by " + num(after - ctx.energyBefore) +
+                            " J in step " + std::to_string(steps_ + 1) + " (t = " + num(time_) +
                             " s), more than failure.maxEnergyGrowth = " +
                             num(settings_.failure.maxEnergyGrowth) + " times the energy scale " +
-                            num(ctx.scaleBefore) + " J, with no energy source; the cloth keeps "
+                            num(ctx.scaleBefore) +
+                            " J, with no energy source; the cloth keeps "
                             "its state from before the step");
         }
     }
 }
 
-StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt, ContactPlanes* planes) {
+StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt,
+                                ContactPlanes* planes) {
     StrainLimitStats st;
     limiter_.clearMoved();
     if (settings_.limiter.kind == LimiterKind::None || touched.empty()) return st;
@@ -506,14 +535,16 @@ StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt, Co
     limiterStats_.corrections += st.corrections;
     limiterStats_.work += st.work;
     limiterStats_.capHit = limiterStats_.capHit || st.capHit;
-    limiterStats_.maxStrainAfter = st.corrections ? st.maxStrainAfter : limiterStats_.maxStrainAfter;
+    limiterStats_.maxStrainAfter =
+        st.corrections ? st.maxStrainAfter : limiterStats_.maxStrainAfter;
     forcesValid_ = false;
     edited();
     return st;
 }
 
 const std::vector<Index>& Cloth::relimitMoved() const {
-    return settings_.limiter.kind == LimiterKind::StressOrdered ? limiter_.movedIndex() : relimitMoved_;
+    return settings_.limiter.kind == LimiterKind::StressOrdered ? limiter_.movedIndex()
+                                                                : relimitMoved_;
 }
 
 std::vector<std::string> Cloth::pipeline() const {
@@ -521,9 +552,11 @@ std::vector<std::string> Cloth::pipeline() const {
     for (const Stage& st : kStages) {
         if (!st.active(*this)) continue;
         if (st.run == &Cloth::stageCallerStages) {
-            for (const auto& s : stages_) p.push_back(s->name());
+            for (const auto& s : stages_)
+                p.push_back(s->name());
         } else if (st.run == &Cloth::stageForces) {
-            for (const auto& t : forceModel_->activeTerms()) p.push_back(t);
+            for (const auto& t : forceModel_->activeTerms())
+                p.push_back(t);
         } else {
             p.push_back(st.name);
         }
@@ -536,9 +569,9 @@ std::vector<std::string> Cloth::pipeline() const {
 namespace {
 void checkIndex(Index i, std::size_t n, const char* what) {
     if (i >= n) {
-        throw Error(ErrorCode::IndexOutOfRange, std::string(what) + ": particle " +
-                                                    std::to_string(i) + " does not exist (the cloth has " +
-                                                    std::to_string(n) + " particles)");
+        throw Error(ErrorCode::IndexOutOfRange,
+                    std::string(what) + ": particle " + std::to_string(i) +
+                        " does not exist (the cloth has " + std::to_string(n) + " particles)");
     }
 }
 } // namespace
@@ -566,7 +599,9 @@ void Cloth::pin(Index i, const Vec3& position) {
 
 void Cloth::setKinematic(Index i, KinematicPath path) {
     checkIndex(i, x_.size(), "setKinematic");
-    if (!path) throw Error(ErrorCode::InvalidArgument, "kinematic path of particle " + std::to_string(i) + " is empty");
+    if (!path)
+        throw Error(ErrorCode::InvalidArgument,
+                    "kinematic path of particle " + std::to_string(i) + " is empty");
     const Vec3 start = path(time_);
     requireFinite(start, "kinematic path of particle " + std::to_string(i));
     pin(i);
@@ -670,11 +705,16 @@ void Cloth::setVelocity(Index i, const Vec3& v) {
 
 // --- diagnostics ----------------------------------------------------------------------------
 
-double Cloth::maxStrain() const { return maxSpringStrain(*topology_, x_); }
-double Cloth::meanStrain() const { return meanSpringStrain(*topology_, x_); }
+double Cloth::maxStrain() const {
+    return maxSpringStrain(*topology_, x_);
+}
+double Cloth::meanStrain() const {
+    return meanSpringStrain(*topology_, x_);
+}
 double Cloth::kineticEnergy() const {
     double e = 0.0;
-    for (std::size_t i = 0; i < v_.size(); ++i) e += 0.5 * mass_[i] * v_[i].squaredNorm();
+    for (std::size_t i = 0; i < v_.size(); ++i)
+        e += 0.5 * mass_[i] * v_[i].squaredNorm();
     return e;
 }
 double Cloth::springEnergy() const {
@@ -682,7 +722,8 @@ double Cloth::springEnergy() const {
 }
 double Cloth::gravityEnergy() const {
     double e = 0.0;
-    for (std::size_t i = 0; i < x_.size(); ++i) e -= mass_[i] * settings_.gravity.dot(x_[i]);
+    for (std::size_t i = 0; i < x_.size(); ++i)
+        e -= mass_[i] * settings_.gravity.dot(x_[i]);
     return e;
 }
 double Cloth::maxAngularFrequency() const {

@@ -7,34 +7,50 @@ namespace drape {
 
 const char* toString(ErrorCode code) noexcept {
     switch (code) {
-    case ErrorCode::InvalidArgument: return "invalid argument";
-    case ErrorCode::NonFinite: return "non-finite value";
-    case ErrorCode::IndexOutOfRange: return "index out of range";
-    case ErrorCode::DegenerateTriangle: return "degenerate triangle";
-    case ErrorCode::InvalidMesh: return "invalid mesh";
-    case ErrorCode::UnstableTimeStep: return "unstable time step";
-    case ErrorCode::SimulationFailure: return "simulation failure";
+    case ErrorCode::InvalidArgument:
+        return "invalid argument";
+    case ErrorCode::NonFinite:
+        return "non-finite value";
+    case ErrorCode::IndexOutOfRange:
+        return "index out of range";
+    case ErrorCode::DegenerateTriangle:
+        return "degenerate triangle";
+    case ErrorCode::InvalidMesh:
+        return "invalid mesh";
+    case ErrorCode::UnstableTimeStep:
+        return "unstable time step";
+    case ErrorCode::SimulationFailure:
+        return "simulation failure";
     }
     return "unknown error";
 }
 
 const char* toString(IntegratorKind kind) noexcept {
     switch (kind) {
-    case IntegratorKind::VelocityVerlet: return "velocity_verlet";
-    case IntegratorKind::ExplicitEuler: return "explicit_euler";
-    case IntegratorKind::SymplecticEuler: return "symplectic_euler";
-    case IntegratorKind::RungeKutta4: return "rk4";
-    case IntegratorKind::ImplicitEuler: return "implicit_euler";
+    case IntegratorKind::VelocityVerlet:
+        return "velocity_verlet";
+    case IntegratorKind::ExplicitEuler:
+        return "explicit_euler";
+    case IntegratorKind::SymplecticEuler:
+        return "symplectic_euler";
+    case IntegratorKind::RungeKutta4:
+        return "rk4";
+    case IntegratorKind::ImplicitEuler:
+        return "implicit_euler";
     }
     return "unknown";
 }
 
 const char* toString(LimiterKind kind) noexcept {
     switch (kind) {
-    case LimiterKind::None: return "none";
-    case LimiterKind::StressOrdered: return "stress_ordered";
-    case LimiterKind::Provot: return "provot";
-    case LimiterKind::StressOrderedOneSided: return "stress_ordered_one_sided";
+    case LimiterKind::None:
+        return "none";
+    case LimiterKind::StressOrdered:
+        return "stress_ordered";
+    case LimiterKind::Provot:
+        return "provot";
+    case LimiterKind::StressOrderedOneSided:
+        return "stress_ordered_one_sided";
     }
     return "unknown";
 }
@@ -57,7 +73,8 @@ LimiterKind limiterFromString(const std::string& name) {
         if (name == toString(k)) return k;
     }
     throw Error(ErrorCode::InvalidArgument,
-                "unknown strain limiter '" + name + "' (expected none, stress_ordered, provot or stress_ordered_one_sided)");
+                "unknown strain limiter '" + name +
+                    "' (expected none, stress_ordered, provot or stress_ordered_one_sided)");
 }
 
 std::size_t PhaseTimers::slot(const std::string& name) {

@@ -27,7 +27,8 @@ inline void addOneSpring(const Spring& sp, double k, const Vec3List& x, Vec3List
 
 void addSpringForces(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
                      const Vec3List& x, Vec3List& f) {
-    for (std::size_t s = 0; s < springs.size(); ++s) addOneSpring(springs[s], stiffness[s], x, f);
+    for (std::size_t s = 0; s < springs.size(); ++s)
+        addOneSpring(springs[s], stiffness[s], x, f);
 }
 
 namespace {
@@ -67,7 +68,8 @@ SpringBlocks makeSpringBlocks(const ClothTopology& topology, const std::vector<I
 
 SpringBlocks makeSpringBlocks(const ClothTopology& topology, std::size_t blocks) {
     std::vector<Index> all(topology.springCount());
-    for (std::size_t s = 0; s < all.size(); ++s) all[s] = static_cast<Index>(s);
+    for (std::size_t s = 0; s < all.size(); ++s)
+        all[s] = static_cast<Index>(s);
     return makeSpringBlocks(topology, all, blocks);
 }
 
@@ -95,8 +97,8 @@ namespace {
 /// addSpringDamping).
 template <bool Forward>
 void sweepSpringDamping(const std::vector<Spring>& springs, std::size_t b, std::size_t e, double c,
-                        double tau, const Vec3List& x, Vec3List& v, const std::vector<double>& invMass,
-                        Vec3List* held) {
+                        double tau, const Vec3List& x, Vec3List& v,
+                        const std::vector<double>& invMass, Vec3List* held) {
     // 1 - e^{-c (w_a + w_b) tau} depends only on w_a + w_b, which is the same for most springs
     // (uniform masses): keep the last one instead of calling expm1 per spring.
     double lastW = -1.0, lastLoss = 0.0;
@@ -125,11 +127,13 @@ void sweepSpringDamping(const std::vector<Spring>& springs, std::size_t b, std::
 } // namespace
 
 void addGravity(const std::vector<double>& mass, const Vec3& g, Vec3List& f) {
-    for (std::size_t i = 0; i < mass.size(); ++i) f[i] += mass[i] * g;
+    for (std::size_t i = 0; i < mass.size(); ++i)
+        f[i] += mass[i] * g;
 }
 
 void addLinearDamping(double cd, const Vec3List& v, Vec3List& f) {
-    for (std::size_t i = 0; i < v.size(); ++i) f[i] -= cd * v[i];
+    for (std::size_t i = 0; i < v.size(); ++i)
+        f[i] -= cd * v[i];
 }
 
 void addAeroForces(const std::vector<Triangle>& triangles, const AeroSettings& aero,
@@ -147,7 +151,8 @@ void addAeroForces(const std::vector<Triangle>& triangles, const AeroSettings& a
         const double un = u.dot(n);
         Vec3 force = (-half * aero.dragCoefficient * area * speed * un) * n;
         if (aero.liftCoefficient != 0.0) {
-            force += (-half * aero.liftCoefficient * area * std::abs(un) / speed) * n.cross(u).cross(u);
+            force +=
+                (-half * aero.liftCoefficient * area * std::abs(un) / speed) * n.cross(u).cross(u);
         }
         force /= 3.0;
         f[t[0]] += force;
@@ -179,16 +184,16 @@ double springEnergy(const std::vector<Spring>& springs, const std::vector<double
 }
 
 ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
-                       std::vector<double> mass, const ClothSettings& settings,
-                       PhaseTimers& timers, detail::ThreadPool* pool)
+                       std::vector<double> mass, const ClothSettings& settings, PhaseTimers& timers,
+                       detail::ThreadPool* pool)
     : topology_(std::move(topology)), stiffness_(std::move(stiffness)), mass_(std::move(mass)),
       settings_(settings), timers_(timers), pool_(pool) {
     // A fixed number of blocks (independent of the thread count, so sums do not change with
     // it): one per 16384 particles, at most 64.
-    const SpringBlocks blocks =
-        makeSpringBlocks(*topology_, std::min<std::size_t>(64, 1 + topology_->particleCount() / 16384));
-    if (!stiffness_.empty() &&
-        std::all_of(stiffness_.begin(), stiffness_.end(), [&](double k) { return k == stiffness_[0]; })) {
+    const SpringBlocks blocks = makeSpringBlocks(
+        *topology_, std::min<std::size_t>(64, 1 + topology_->particleCount() / 16384));
+    if (!stiffness_.empty() && std::all_of(stiffness_.begin(), stiffness_.end(),
+                                           [&](double k) { return k == stiffness_[0]; })) {
         uniformStiffness_ = stiffness_[0];
     }
     const auto& springs = topology_->springs();
@@ -201,7 +206,8 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
     };
     packed_.reserve(springs.size());
     packedStart_.push_back(0);
-    for (const auto& inner : blocks.inner) pack(inner);
+    for (const auto& inner : blocks.inner)
+        pack(inner);
     pack(blocks.crossing);
     // The force pass: family springs by slot, the loose ones packed by block as above.
     const std::size_t blockCount = blocks.inner.size();
@@ -214,7 +220,8 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
         looseStart_.push_back(loosePacked_.size());
     };
     looseStart_.push_back(0);
-    for (const auto& inner : loose.inner) packLoose(inner);
+    for (const auto& inner : loose.inner)
+        packLoose(inner);
     packLoose(loose.crossing);
     {
         const auto& slotSpring = topology_->familySlotSprings();
@@ -246,17 +253,21 @@ void ForceModel::orderDampingSweep() {
         for (std::size_t s = b; s < e; ++s) {
             const std::uint64_t used = taken[packed_[s].a] | taken[packed_[s].b];
             unsigned c = 0;
-            while (c < 63 && ((used >> c) & 1u)) ++c; // more than 63 colours share the last
+            while (c < 63 && ((used >> c) & 1u))
+                ++c; // more than 63 colours share the last
             colour[s - b] = c;
             taken[packed_[s].a] |= std::uint64_t(1) << c;
             taken[packed_[s].b] |= std::uint64_t(1) << c;
         }
-        for (std::size_t s = b; s < e; ++s) taken[packed_[s].a] = taken[packed_[s].b] = 0;
+        for (std::size_t s = b; s < e; ++s)
+            taken[packed_[s].a] = taken[packed_[s].b] = 0;
         order.resize(e - b);
-        for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+        for (std::size_t k = 0; k < order.size(); ++k)
+            order[k] = k;
         std::stable_sort(order.begin(), order.end(),
                          [&](std::size_t p, std::size_t q) { return colour[p] < colour[q]; });
-        for (std::size_t k : order) dampPacked_.push_back(packed_[b + k]);
+        for (std::size_t k : order)
+            dampPacked_.push_back(packed_[b + k]);
     }
 }
 
@@ -281,7 +292,8 @@ void ForceModel::rebuildPipeline() {
 
 std::vector<std::string> ForceModel::activeTerms() const {
     std::vector<std::string> names;
-    for (const auto& e : pipeline_) names.push_back(e.name);
+    for (const auto& e : pipeline_)
+        names.push_back(e.name);
     return names;
 }
 
@@ -298,7 +310,8 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
     const std::size_t n = x.size();
     f.resize(n);
     // Runs a per-particle or per-spring loop on the pool when there is one.
-    auto forRange = [&](std::size_t count, const std::function<void(std::size_t, std::size_t)>& body) {
+    auto forRange = [&](std::size_t count,
+                        const std::function<void(std::size_t, std::size_t)>& body) {
         if (pool_) {
             pool_->parallelFor(count, body);
         } else {
@@ -312,13 +325,17 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
     // results agree to rounding.)
     forRange(n, [&](std::size_t b, std::size_t e) {
         if (gravity && cd > 0.0) {
-            for (std::size_t i = b; i < e; ++i) f[i] = mass_[i] * settings_.gravity - cd * v[i];
+            for (std::size_t i = b; i < e; ++i)
+                f[i] = mass_[i] * settings_.gravity - cd * v[i];
         } else if (gravity) {
-            for (std::size_t i = b; i < e; ++i) f[i] = mass_[i] * settings_.gravity;
+            for (std::size_t i = b; i < e; ++i)
+                f[i] = mass_[i] * settings_.gravity;
         } else if (cd > 0.0) {
-            for (std::size_t i = b; i < e; ++i) f[i] = -cd * v[i];
+            for (std::size_t i = b; i < e; ++i)
+                f[i] = -cd * v[i];
         } else {
-            for (std::size_t i = b; i < e; ++i) f[i].setZero();
+            for (std::size_t i = b; i < e; ++i)
+                f[i].setZero();
         }
     });
     for (const Entry& e : pipeline_) {
@@ -340,7 +357,8 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
                                       looseStart_[block], looseStart_[block + 1], x, f);
             };
             auto blockRange = [&](std::size_t b, std::size_t end) {
-                for (std::size_t k = b; k < end; ++k) range(k);
+                for (std::size_t k = b; k < end; ++k)
+                    range(k);
             };
             if (pool_) {
                 pool_->parallelFor(nb, blockRange, 1);
@@ -353,13 +371,20 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
         case Term::SpringDamping:
             addSpringDamping(topology_->springs(), settings_.springDamping, x, v, f);
             break;
-        case Term::Gravity: break; // applied when f was initialised above
-        case Term::Damping: break; // applied when f was initialised above
-        case Term::Aero: addAeroForces(topology_->triangles(), settings_.aero, x, v, f); break;
-        case Term::User:
-            for (std::size_t k = 0; k < userIndices_.size(); ++k) f[userIndices_[k]] += userForces_[k];
+        case Term::Gravity:
+            break; // applied when f was initialised above
+        case Term::Damping:
+            break; // applied when f was initialised above
+        case Term::Aero:
+            addAeroForces(topology_->triangles(), settings_.aero, x, v, f);
             break;
-        case Term::External: externals_[e.external].second(x, v, f); break;
+        case Term::User:
+            for (std::size_t k = 0; k < userIndices_.size(); ++k)
+                f[userIndices_[k]] += userForces_[k];
+            break;
+        case Term::External:
+            externals_[e.external].second(x, v, f);
+            break;
         }
     }
 }
@@ -370,11 +395,12 @@ namespace {
 // compiler vectorises them without run-time overlap checks.
 
 /// Spring forces of m consecutive slots: a and b are the coordinate runs of the two ends.
-void familySlotForces(std::size_t m, const double* DRAPE_RESTRICT ax, const double* DRAPE_RESTRICT ay,
-                      const double* DRAPE_RESTRICT az, const double* DRAPE_RESTRICT bx,
-                      const double* DRAPE_RESTRICT by, const double* DRAPE_RESTRICT bz,
-                      const double* DRAPE_RESTRICT k, const double* DRAPE_RESTRICT l0,
-                      double* DRAPE_RESTRICT ox, double* DRAPE_RESTRICT oy, double* DRAPE_RESTRICT oz) {
+void familySlotForces(std::size_t m, const double* DRAPE_RESTRICT ax,
+                      const double* DRAPE_RESTRICT ay, const double* DRAPE_RESTRICT az,
+                      const double* DRAPE_RESTRICT bx, const double* DRAPE_RESTRICT by,
+                      const double* DRAPE_RESTRICT bz, const double* DRAPE_RESTRICT k,
+                      const double* DRAPE_RESTRICT l0, double* DRAPE_RESTRICT ox,
+                      double* DRAPE_RESTRICT oy, double* DRAPE_RESTRICT oz) {
     for (std::size_t j = 0; j < m; ++j) {
         const double dx = bx[j] - ax[j], dy = by[j] - ay[j], dz = bz[j] - az[j];
         const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
@@ -388,11 +414,13 @@ void familySlotForces(std::size_t m, const double* DRAPE_RESTRICT ax, const doub
 }
 
 void addRun(std::size_t m, const double* DRAPE_RESTRICT in, double* DRAPE_RESTRICT out) {
-    for (std::size_t j = 0; j < m; ++j) out[j] += in[j];
+    for (std::size_t j = 0; j < m; ++j)
+        out[j] += in[j];
 }
 
 void subtractRun(std::size_t m, const double* DRAPE_RESTRICT in, double* DRAPE_RESTRICT out) {
-    for (std::size_t j = 0; j < m; ++j) out[j] -= in[j];
+    for (std::size_t j = 0; j < m; ++j)
+        out[j] -= in[j];
 }
 
 /// The slot forces of one family on particles [b, e) (one coordinate): + for the particles
@@ -431,10 +459,18 @@ void fusedTerms(std::size_t m, const double* const* run, double* DRAPE_RESTRICT 
 
 void addFusedTerms(std::size_t groupSize, std::size_t m, const double* const* run, double* out) {
     switch (groupSize) {
-    case 1: fusedTerms<1>(m, run, out); break;
-    case 2: fusedTerms<2>(m, run, out); break;
-    case 3: fusedTerms<3>(m, run, out); break;
-    default: fusedTerms<4>(m, run, out); break;
+    case 1:
+        fusedTerms<1>(m, run, out);
+        break;
+    case 2:
+        fusedTerms<2>(m, run, out);
+        break;
+    case 3:
+        fusedTerms<3>(m, run, out);
+        break;
+    default:
+        fusedTerms<4>(m, run, out);
+        break;
     }
 }
 } // namespace
@@ -454,7 +490,8 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, Vec3List& f) {
     soaX_.resize(3 * n);
     soaF_.resize(3 * n);
     slotF_.resize(3 * slots);
-    auto forRange = [&](std::size_t count, const std::function<void(std::size_t, std::size_t)>& body) {
+    auto forRange = [&](std::size_t count,
+                        const std::function<void(std::size_t, std::size_t)>& body) {
         if (pool_) {
             pool_->parallelFor(count, body);
         } else {
@@ -525,8 +562,9 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, Vec3List& f) {
                     const double* run[8];
                     for (std::size_t q = g; q < gEnd; ++q) {
                         const SpringFamily& fam = families[q];
-                        run[2 * (q - g)] = in + fam.slot + (lo - fam.first);                   // starts
-                        run[2 * (q - g) + 1] = in + fam.slot + (lo - fam.first - fam.offset);  // ends
+                        run[2 * (q - g)] = in + fam.slot + (lo - fam.first); // starts
+                        run[2 * (q - g) + 1] =
+                            in + fam.slot + (lo - fam.first - fam.offset); // ends
                     }
                     addFusedTerms(gEnd - g, hi - lo, run, out + lo);
                 }
@@ -562,8 +600,9 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, Vec3List& f) {
 // and V and L time-symmetric, step(-dt)^-1 = step(dt). A consistent self-adjoint one-step
 // method has even order, so the step is second order (local error O(dt^3)); measured 2.000 on
 // the damped breathing triangle. (With aerodynamics V is symmetric only up to O(dt^3), its
-// predicted end velocity, which leaves the order at 2: measured 1.97 on an irregular sheet.) It costs one pass over the springs on each side, two per step
-// (a symmetric forward-and-back sweep on each side would be four).
+// predicted end velocity, which leaves the order at 2: measured 1.97 on an irregular sheet.) It
+// costs one pass over the springs on each side, two per step (a symmetric forward-and-back sweep on
+// each side would be four).
 //
 // Every B_s only shrinks the rate of extension of its spring and conserves momentum, so a sweep
 // never adds kinetic energy, at any tau: unlike the force form (stable only for
@@ -581,8 +620,8 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, Vec3List& f) {
 // them one after the other; forward = the blocks (each front to back), then the crossing
 // springs; backward = the exact reverse. The result is the same for any thread count.
 void ForceModel::applySpringDampingFlow(const Vec3List& x, Vec3List& v,
-                                        const std::vector<double>& invMass, double tau, bool forward,
-                                        Vec3List* heldImpulse) {
+                                        const std::vector<double>& invMass, double tau,
+                                        bool forward, Vec3List* heldImpulse) {
     const double c = settings_.springDamping;
     if (!(c > 0.0)) return;
     std::size_t slot = 0;
@@ -601,7 +640,8 @@ void ForceModel::applySpringDampingFlow(const Vec3List& x, Vec3List& v,
     };
     auto blocks = [&]() {
         auto body = [&](std::size_t b, std::size_t end) {
-            for (std::size_t k = b; k < end; ++k) range(k);
+            for (std::size_t k = b; k < end; ++k)
+                range(k);
         };
         if (pool_) {
             pool_->parallelFor(nb, body, 1);
@@ -671,7 +711,8 @@ void ForceModel::assembleJacobians(const Vec3List& x, bool clampCompression,
         }
     }
     if (settings_.damping > 0.0) {
-        for (Eigen::Index i = 0; i < n3; ++i) kv.emplace_back(i, i, -settings_.damping);
+        for (Eigen::Index i = 0; i < n3; ++i)
+            kv.emplace_back(i, i, -settings_.damping);
     }
     dfdx.resize(n3, n3);
     dfdx.setFromTriplets(kx.begin(), kx.end());

@@ -18,7 +18,8 @@ namespace {
 /// Runs body(i) for every particle, on the context's pool when it has one.
 template <class Body> void forParticles(IntegratorContext& c, Body body) {
     auto range = [&](std::size_t b, std::size_t e) {
-        for (std::size_t i = b; i < e; ++i) body(i);
+        for (std::size_t i = b; i < e; ++i)
+            body(i);
     };
     if (c.pool) {
         c.pool->parallelFor(c.x.size(), range);
@@ -51,7 +52,8 @@ template <class Body> void forRanges(IntegratorContext& c, Body body) {
 ///
 /// Linear particle damping L (eq. (8)) and spring damping S run as their own flows at frozen
 /// positions, dt/2 on each side of the kick-drift-kick:
-///   v <- S_fwd(dt/2) L(dt/2) v;  kick, drift, [limit, collide, f], kick;  v <- L(dt/2) S_bwd(dt/2) v
+///   v <- S_fwd(dt/2) L(dt/2) v;  kick, drift, [limit, collide, f], kick;  v <- L(dt/2) S_bwd(dt/2)
+///   v
 /// The step is symmetric (its own adjoint), so it is second order (local error O(dt^3)). L is
 /// m v' = -C_d v alone, solved exactly: v *= exp(-C_d dt / (2m)) at any dt, with nothing to be
 /// stable about; particles with zero inverse mass get exp(0) = 1. S is the spring damping, a
@@ -73,7 +75,7 @@ template <class Body> void forRanges(IntegratorContext& c, Body body) {
 /// aerodynamic evaluations per step instead of one. Unlike the force sum, an external term that
 /// reads the summed force (the contact penalty's support and static friction) no longer sees A.
 class VelocityVerlet final : public Integrator {
-public:
+  public:
     IntegratorKind kind() const override { return IntegratorKind::VelocityVerlet; }
     void bind(ForceModel& forces) override { forces.setVelocityTermsInIntegrator(true); }
     void advance(IntegratorContext& c) override { advanceFrom(c, c.x, c.v); }
@@ -121,7 +123,8 @@ public:
                 const double v0x = decay * vs[j] + hw * fs[j];
                 const double v0y = decay * vs[j + 1] + hw * fs[j + 1];
                 const double v0z = decay * vs[j + 2] + hw * fs[j + 2];
-                const double x0x = xs[j] + dt * v0x, x0y = xs[j + 1] + dt * v0y, x0z = xs[j + 2] + dt * v0z;
+                const double x0x = xs[j] + dt * v0x, x0y = xs[j + 1] + dt * v0y,
+                             x0z = xs[j + 2] + dt * v0z;
                 vd[j] = v0x;
                 vd[j + 1] = v0y;
                 vd[j + 2] = v0z;
@@ -233,11 +236,12 @@ public:
     }
     bool finishChecksFinite() const override { return true; }
 
-private:
+  private:
     /// Which velocity-dependent terms this step applies itself.
     struct Terms {
         explicit Terms(const IntegratorContext& c)
-            : own(c.forces.velocityTermsInIntegrator()), linear(own && c.forces.linearDamping() > 0.0),
+            : own(c.forces.velocityTermsInIntegrator()),
+              linear(own && c.forces.linearDamping() > 0.0),
               springs(own && c.forces.springDamping() > 0.0), aero(own && c.forces.hasAero()),
               cd(c.forces.linearDamping()), cdh(0.5 * c.dt * cd) {}
         bool own, linear, springs, aero;
@@ -265,7 +269,7 @@ private:
 
 /// x(t+dt) = x + v dt, v(t+dt) = v + a dt: both from the state at t. First order.
 class ExplicitEuler final : public Integrator {
-public:
+  public:
     IntegratorKind kind() const override { return IntegratorKind::ExplicitEuler; }
     void advance(IntegratorContext& c) override { advanceFrom(c, c.x, c.v); }
     bool advanceFrom(IntegratorContext& c, const Vec3List& x0, const Vec3List& v0) override {
@@ -280,7 +284,7 @@ public:
 
 /// v(t+dt) = v + a dt, x(t+dt) = x + v(t+dt) dt. First order, symplectic.
 class SymplecticEuler final : public Integrator {
-public:
+  public:
     IntegratorKind kind() const override { return IntegratorKind::SymplecticEuler; }
     void advance(IntegratorContext& c) override { advanceFrom(c, c.x, c.v); }
     bool advanceFrom(IntegratorContext& c, const Vec3List& x0, const Vec3List& v0) override {
@@ -296,7 +300,7 @@ public:
 /// Classic fourth-order Runge-Kutta on y = (x, v), y' = (v, f(x, v)/m). Four force
 /// evaluations per step, the first of which is the caller's cached f(t).
 class RungeKutta4 final : public Integrator {
-public:
+  public:
     IntegratorKind kind() const override { return IntegratorKind::RungeKutta4; }
     void advance(IntegratorContext& c) override {
         const std::size_t n = c.x.size();
@@ -336,7 +340,7 @@ public:
         }
     }
 
-private:
+  private:
     Vec3List x0_, v0_, xs_, vs_, fs_, accX_, accV_;
 };
 
@@ -346,7 +350,7 @@ private:
 /// zero right-hand side, so they keep their velocity. Compressed springs drop their
 /// transverse stiffness (clampCompression) so the matrix stays symmetric positive definite.
 class ImplicitEuler final : public Integrator {
-public:
+  public:
     explicit ImplicitEuler(const ImplicitSettings& s) : settings_(s) {}
     IntegratorKind kind() const override { return IntegratorKind::ImplicitEuler; }
     int lastIterations() const override { return iterations_; }
@@ -376,7 +380,8 @@ public:
         }
         Eigen::SparseMatrix<double> M(n3, n3);
         M.reserve(Eigen::VectorXi::Constant(n3, 1));
-        for (Eigen::Index i = 0; i < n3; ++i) M.insert(i, i) = diag[i];
+        for (Eigen::Index i = 0; i < n3; ++i)
+            M.insert(i, i) = diag[i];
         A += M;
 
         if (settings_.solver == LinearSolverKind::ConjugateGradient) {
@@ -403,7 +408,7 @@ public:
         }
     }
 
-private:
+  private:
     ImplicitSettings settings_;
     Eigen::SparseMatrix<double> dfdx_, dfdv_;
     Eigen::VectorXd dv_;
@@ -415,11 +420,16 @@ private:
 
 std::unique_ptr<Integrator> makeIntegrator(IntegratorKind kind, const ImplicitSettings& implicit) {
     switch (kind) {
-    case IntegratorKind::VelocityVerlet: return std::make_unique<VelocityVerlet>();
-    case IntegratorKind::ExplicitEuler: return std::make_unique<ExplicitEuler>();
-    case IntegratorKind::SymplecticEuler: return std::make_unique<SymplecticEuler>();
-    case IntegratorKind::RungeKutta4: return std::make_unique<RungeKutta4>();
-    case IntegratorKind::ImplicitEuler: return std::make_unique<ImplicitEuler>(implicit);
+    case IntegratorKind::VelocityVerlet:
+        return std::make_unique<VelocityVerlet>();
+    case IntegratorKind::ExplicitEuler:
+        return std::make_unique<ExplicitEuler>();
+    case IntegratorKind::SymplecticEuler:
+        return std::make_unique<SymplecticEuler>();
+    case IntegratorKind::RungeKutta4:
+        return std::make_unique<RungeKutta4>();
+    case IntegratorKind::ImplicitEuler:
+        return std::make_unique<ImplicitEuler>(implicit);
     }
     throw Error(ErrorCode::InvalidArgument, "unknown integrator kind");
 }

@@ -64,7 +64,8 @@ std::vector<double> areaLumpedMasses(const ClothTopology& topology, double densi
     const double rhoH = density * thickness;
     for (std::size_t t = 0; t < tris.size(); ++t) {
         const double share = rhoH * areas[t] / 3.0;
-        for (int c = 0; c < 3; ++c) m[tris[t][c]] += share;
+        for (int c = 0; c < 3; ++c)
+            m[tris[t][c]] += share;
     }
     for (std::size_t i = 0; i < m.size(); ++i) {
         if (!(m[i] > 0.0)) {

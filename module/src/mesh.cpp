@@ -31,9 +31,9 @@ void checkSizesAndIndices(const TriangleMesh& mesh) {
     if (mesh.triangles.empty()) throw Error(ErrorCode::InvalidMesh, "mesh has no triangles");
     for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
         if (!mesh.vertices[i].allFinite()) {
-            throw Error(ErrorCode::NonFinite,
-                        "vertex " + std::to_string(i) + " has a non-finite coordinate " +
-                            vecStr(mesh.vertices[i]));
+            throw Error(ErrorCode::NonFinite, "vertex " + std::to_string(i) +
+                                                  " has a non-finite coordinate " +
+                                                  vecStr(mesh.vertices[i]));
         }
     }
     for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
@@ -209,14 +209,15 @@ TriangleMesh makeSheet(const SheetSpec& spec) {
                         " particles exceeds the limit of " + std::to_string(kMaxParticles));
     }
     if (!(spec.spacing > 0.0) || !std::isfinite(spec.spacing)) {
-        throw Error(ErrorCode::InvalidArgument,
-                    "sheet spacing must be positive and finite, got " + std::to_string(spec.spacing));
+        throw Error(ErrorCode::InvalidArgument, "sheet spacing must be positive and finite, got " +
+                                                    std::to_string(spec.spacing));
     }
     if (!spec.origin.allFinite() || !spec.uAxis.allFinite() || !spec.vAxis.allFinite()) {
         throw Error(ErrorCode::NonFinite, "sheet origin or axes are not finite");
     }
     const double un = spec.uAxis.norm(), vn = spec.vAxis.norm();
-    if (un == 0.0 || vn == 0.0) throw Error(ErrorCode::InvalidArgument, "sheet axis has zero length");
+    if (un == 0.0 || vn == 0.0)
+        throw Error(ErrorCode::InvalidArgument, "sheet axis has zero length");
     const Vec3 u = spec.uAxis / un, v = spec.vAxis / vn;
     if (u.cross(v).norm() < 1e-6) {
         throw Error(ErrorCode::InvalidArgument, "sheet axes uAxis and vAxis are parallel");

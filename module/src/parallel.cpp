@@ -18,13 +18,15 @@ ThreadPool::~ThreadPool() {
         stop_ = true;
     }
     start_.notify_all();
-    for (auto& w : workers_) w.join();
+    for (auto& w : workers_)
+        w.join();
 }
 
 void ThreadPool::parallelFor(std::size_t n,
                              const std::function<void(std::size_t, std::size_t)>& body,
                              std::size_t grain) {
-    const std::size_t maxChunks = std::min<std::size_t>(threads(), std::max<std::size_t>(1, n / std::max<std::size_t>(grain, 1)));
+    const std::size_t maxChunks = std::min<std::size_t>(
+        threads(), std::max<std::size_t>(1, n / std::max<std::size_t>(grain, 1)));
     if (maxChunks <= 1) {
         if (n > 0) body(0, n);
         return;

@@ -15,7 +15,7 @@
 namespace drape::detail {
 
 class ThreadPool {
-public:
+  public:
     /// `threads` >= 1 is the total number of threads including the caller's.
     explicit ThreadPool(int threads);
     ~ThreadPool();
@@ -33,7 +33,7 @@ public:
     void parallelFor(std::size_t n, const std::function<void(std::size_t, std::size_t)>& body,
                      std::size_t grain = 32768);
 
-private:
+  private:
     void workerLoop(std::size_t index);
 
     std::vector<std::thread> workers_;

@@ -27,7 +27,7 @@ struct Fnv {
 };
 
 class Writer {
-public:
+  public:
     template <class T> void pod(const T& v) {
         const auto* p = reinterpret_cast<const unsigned char*>(&v);
         out.insert(out.end(), p, p + sizeof(T));
@@ -36,7 +36,7 @@ public:
 };
 
 class Reader {
-public:
+  public:
     explicit Reader(const std::vector<unsigned char>& b) : bytes(b) {}
     template <class T> T pod(const char* what) {
         if (pos + sizeof(T) > bytes.size()) {
@@ -56,8 +56,10 @@ public:
 
 std::uint64_t stateHash(const Cloth& cloth) {
     Fnv f;
-    for (const auto& x : cloth.positions()) f.bytes(x.data(), 3 * sizeof(double));
-    for (const auto& v : cloth.velocities()) f.bytes(v.data(), 3 * sizeof(double));
+    for (const auto& x : cloth.positions())
+        f.bytes(x.data(), 3 * sizeof(double));
+    for (const auto& v : cloth.velocities())
+        f.bytes(v.data(), 3 * sizeof(double));
     return f.h;
 }
 
@@ -66,14 +68,17 @@ std::uint64_t topologyFingerprint(const ClothTopology& topology) {
     const std::uint64_t n = topology.particleCount(), t = topology.triangleCount();
     f.pod(n);
     f.pod(t);
-    for (const auto& x : topology.restPositions()) f.bytes(x.data(), 3 * sizeof(double));
-    for (const auto& tri : topology.triangles()) f.bytes(tri.data(), 3 * sizeof(Index));
+    for (const auto& x : topology.restPositions())
+        f.bytes(x.data(), 3 * sizeof(double));
+    for (const auto& tri : topology.triangles())
+        f.bytes(tri.data(), 3 * sizeof(Index));
     return f.h;
 }
 
 std::vector<unsigned char> saveSnapshot(const Cloth& cloth) {
     Writer w;
-    for (char c : kMagic) w.pod(c);
+    for (char c : kMagic)
+        w.pod(c);
     w.pod(kVersion);
     w.pod(topologyFingerprint(cloth.topology()));
     w.pod(static_cast<std::uint64_t>(cloth.particleCount()));
@@ -82,12 +87,14 @@ std::vector<unsigned char> saveSnapshot(const Cloth& cloth) {
     w.pod(static_cast<std::uint8_t>(cloth.forcesValid_ ? 1 : 0));
     for (std::size_t i = 0; i < cloth.particleCount(); ++i) {
         for (const Vec3* v : {&cloth.x_[i], &cloth.v_[i], &cloth.f_[i]})
-            for (int c = 0; c < 3; ++c) w.pod((*v)[c]);
+            for (int c = 0; c < 3; ++c)
+                w.pod((*v)[c]);
         w.pod(static_cast<std::uint8_t>(cloth.pinned_[i]));
     }
     // The limiter's warm start: one value per spring (0 where it has none yet).
     const auto& lambda = cloth.limiter_.warmStartState();
-    for (std::size_t s = 0; s < cloth.topology().springCount(); ++s) w.pod(s < lambda.size() ? lambda[s] : 0.0);
+    for (std::size_t s = 0; s < cloth.topology().springCount(); ++s)
+        w.pod(s < lambda.size() ? lambda[s] : 0.0);
     Fnv sum;
     sum.bytes(w.out.data(), w.out.size());
     w.pod(sum.h);
@@ -121,7 +128,8 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
                                                     std::to_string(cloth.particleCount()));
     }
     const std::size_t ns = cloth.topology().springCount();
-    const std::size_t expected = sizeof(kMagic) + 4 + 8 + 8 + 8 + 8 + 1 + n * (9 * 8 + 1) + ns * 8 + 8;
+    const std::size_t expected =
+        sizeof(kMagic) + 4 + 8 + 8 + 8 + 8 + 1 + n * (9 * 8 + 1) + ns * 8 + 8;
     if (bytes.size() != expected) {
         throw Error(ErrorCode::InvalidArgument,
                     "snapshot is " + std::to_string(bytes.size()) + " bytes, expected " +
@@ -141,7 +149,8 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
     std::vector<unsigned char> pinned(n);
     for (std::size_t i = 0; i < n; ++i) {
         for (Vec3* dst : {&x[i], &v[i], &f[i]})
-            for (int c = 0; c < 3; ++c) (*dst)[c] = r.pod<double>("the particle data");
+            for (int c = 0; c < 3; ++c)
+                (*dst)[c] = r.pod<double>("the particle data");
         pinned[i] = r.pod<std::uint8_t>("the pin flags");
         if (!x[i].allFinite() || !v[i].allFinite() || !f[i].allFinite()) {
             throw Error(ErrorCode::NonFinite,
@@ -152,8 +161,9 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
     for (std::size_t s = 0; s < ns; ++s) {
         lambda[s] = r.pod<double>("the limiter's warm start");
         if (!std::isfinite(lambda[s]) || lambda[s] < 0.0) {
-            throw Error(ErrorCode::NonFinite, "snapshot holds an invalid limiter warm start at spring " +
-                                                  std::to_string(s));
+            throw Error(ErrorCode::NonFinite,
+                        "snapshot holds an invalid limiter warm start at spring " +
+                            std::to_string(s));
         }
     }
     if (!std::isfinite(time)) throw Error(ErrorCode::NonFinite, "snapshot time is not finite");
@@ -176,15 +186,20 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
 void saveSnapshotFile(const Cloth& cloth, const std::string& path) {
     const auto bytes = saveSnapshot(cloth);
     std::ofstream out(path, std::ios::binary);
-    if (!out) throw Error(ErrorCode::InvalidArgument, "cannot open snapshot file '" + path + "' for writing");
-    out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-    if (!out) throw Error(ErrorCode::InvalidArgument, "failed writing snapshot file '" + path + "'");
+    if (!out)
+        throw Error(ErrorCode::InvalidArgument,
+                    "cannot open snapshot file '" + path + "' for writing");
+    out.write(reinterpret_cast<const char*>(bytes.data()),
+              static_cast<std::streamsize>(bytes.size()));
+    if (!out)
+        throw Error(ErrorCode::InvalidArgument, "failed writing snapshot file '" + path + "'");
 }
 
 void loadSnapshotFile(Cloth& cloth, const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw Error(ErrorCode::InvalidArgument, "cannot open snapshot file '" + path + "'");
-    std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
+                                     std::istreambuf_iterator<char>());
     try {
         loadSnapshot(cloth, bytes);
     } catch (const Error& e) {

@@ -28,7 +28,8 @@ double estimateMaxAngularFrequency(const ClothTopology& topology,
         rowBound[sp.b] += k * (w[sp.b] * w[sp.b] + w[sp.a] * w[sp.b]);
     }
     double gershgorin = 0.0;
-    for (double r : rowBound) gershgorin = std::max(gershgorin, r);
+    for (double r : rowBound)
+        gershgorin = std::max(gershgorin, r);
 
     // Power iteration from an alternating-sign start (the highest modes alternate sign
     // between neighbours). B is positive semi-definite, so the Rayleigh quotient converges
@@ -36,7 +37,8 @@ double estimateMaxAngularFrequency(const ClothTopology& topology,
     // and never exceeds the Gershgorin bound.
     std::vector<double> y(n), z(n);
     for (std::size_t i = 0; i < n; ++i) {
-        y[i] = w[i] > 0.0 ? ((i % 2) ? 1.0 : -1.0) * (1.0 + 1e-3 * static_cast<double>(i % 7)) : 0.0;
+        y[i] =
+            w[i] > 0.0 ? ((i % 2) ? 1.0 : -1.0) * (1.0 + 1e-3 * static_cast<double>(i % 7)) : 0.0;
     }
     double lambda = 0.0, previous = 0.0;
     for (int it = 0; it < iterations; ++it) {
@@ -58,7 +60,8 @@ double estimateMaxAngularFrequency(const ClothTopology& topology,
         previous = lambda;
         lambda = yz / yy;
         const double scale = 1.0 / std::sqrt(zz);
-        for (std::size_t i = 0; i < n; ++i) y[i] = z[i] * scale;
+        for (std::size_t i = 0; i < n; ++i)
+            y[i] = z[i] * scale;
     }
     const double change = lambda > 0.0 ? std::abs(lambda - previous) / lambda : 1.0;
     // Pad by ten times the last relative change, and by at least 1e-3: on slowly converging

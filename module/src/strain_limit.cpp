@@ -29,7 +29,8 @@ double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x
 
 double meanSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x) {
     double sum = 0.0;
-    for (const Spring& s : topology.springs()) sum += (x[s.b] - x[s.a]).norm() / s.restLength - 1.0;
+    for (const Spring& s : topology.springs())
+        sum += (x[s.b] - x[s.a]).norm() / s.restLength - 1.0;
     return topology.springCount() ? sum / static_cast<double>(topology.springCount()) : 0.0;
 }
 
@@ -50,13 +51,16 @@ AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Ind
     std::vector<Index> triOff(n + 1, 0), triOf;
     const auto& tris = topology.triangles();
     for (const Triangle& t : tris)
-        for (Index v : t) ++triOff[v + 1];
-    for (std::size_t i = 0; i < n; ++i) triOff[i + 1] += triOff[i];
+        for (Index v : t)
+            ++triOff[v + 1];
+    for (std::size_t i = 0; i < n; ++i)
+        triOff[i + 1] += triOff[i];
     triOf.resize(triOff[n]);
     {
         std::vector<Index> fill(triOff.begin(), triOff.end() - 1);
         for (std::size_t t = 0; t < tris.size(); ++t)
-            for (Index v : tris[t]) triOf[fill[v]++] = static_cast<Index>(t);
+            for (Index v : tris[t])
+                triOf[fill[v]++] = static_cast<Index>(t);
     }
     using Item = std::pair<double, Index>;
     std::priority_queue<Item, std::vector<Item>, std::greater<Item>> front;
@@ -113,7 +117,8 @@ AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Ind
                 const double cross = sx + (cx - sx) * (-sy) / (cy - sy); // where S-c meets y = 0
                 if (cross < 0.0 || cross > e) continue;
                 const double gc = std::hypot(cx - sx, cy - sy);
-                const double pc = std::min(path[a] + (X[c] - X[a]).norm(), path[b] + (X[c] - X[b]).norm());
+                const double pc =
+                    std::min(path[a] + (X[c] - X[a]).norm(), path[b] + (X[c] - X[b]).norm());
                 offer(c, gc, pc, src[a]);
             }
         }
@@ -143,13 +148,15 @@ void StrainLimiter::sortWarmList() {
         return;
     }
     // The springs the last step added come after the sorted ones it kept.
-    const auto mid = warmList_.begin() + static_cast<std::ptrdiff_t>(std::min(warmSorted_, warmList_.size()));
+    const auto mid =
+        warmList_.begin() + static_cast<std::ptrdiff_t>(std::min(warmSorted_, warmList_.size()));
     std::sort(mid, warmList_.end());
     std::inplace_merge(warmList_.begin(), mid, warmList_.end());
 }
 
 void StrainLimiter::clearMoved() {
-    for (Index i : movedIndex_) moved_[i] = 0;
+    for (Index i : movedIndex_)
+        moved_[i] = 0;
     movedIndex_.clear();
     movedFrom_.clear();
 }
@@ -160,13 +167,13 @@ void StrainLimiter::firstMove(Index i, const std::vector<Vec3>& x) {
     movedFrom_.push_back(x[i]);
 }
 
-double StrainLimiter::slidingWeight(Index i, double w, const Vec3& dir,
-                                    const std::vector<Vec3>& x, double eps) const {
+double StrainLimiter::slidingWeight(Index i, double w, const Vec3& dir, const std::vector<Vec3>& x,
+                                    double eps) const {
     const std::int32_t k = planes_->of[i];
     if (k < 0 || w == 0.0) return w;
     const Vec3& n = planes_->normal[std::size_t(k)];
     const double dn = dir.dot(n);
-    if (dn >= 0.0) return w; // away from the plane
+    if (dn >= 0.0) return w;                                           // away from the plane
     if (n.dot(x[i]) - planes_->offset[std::size_t(k)] > eps) return w; // above it: free
     return w * std::max(0.0, 1.0 - dn * dn);
 }
@@ -230,8 +237,10 @@ double StrainLimiter::check(std::size_t si, const ClothTopology& topology,
     if (queued_[si]) return 0.0;
     const Spring& sp = topology.springs()[si];
     ++st.work;
-    const double ratio2 = (x[sp.b] - x[sp.a]).squaredNorm() * topology.inverseSquaredRestLengths()[si];
-    if (needs(si, ratio2) && invMass[sp.a] + invMass[sp.b] != 0.0) queue(si, ratio2, sp.restLength, stiffness);
+    const double ratio2 =
+        (x[sp.b] - x[sp.a]).squaredNorm() * topology.inverseSquaredRestLengths()[si];
+    if (needs(si, ratio2) && invMass[sp.a] + invMass[sp.b] != 0.0)
+        queue(si, ratio2, sp.restLength, stiffness);
     return ratio2;
 }
 
@@ -287,7 +296,9 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
                 ++warmed;
                 const Vec3 d = x[sp.b] - x[sp.a];
                 const double l = d.norm();
-                lam = wsum > 0.0 ? std::min(lam * share, std::max(0.0, l - 0.5 * sp.restLength) / wsum) : 0.0;
+                lam = wsum > 0.0
+                          ? std::min(lam * share, std::max(0.0, l - 0.5 * sp.restLength) / wsum)
+                          : 0.0;
                 lambda[si] = lam;
                 left[si] = lam;
                 if (lam != 0.0) {
@@ -315,7 +326,8 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
         const std::size_t slot = slotOf[si];
         if (slot == kNoSlot || queued_[si] || !(ratio2_[slot] < lower2_)) continue;
         const Spring& sp = springs[si];
-        if (invMass[sp.a] + invMass[sp.b] != 0.0) queue(si, ratio2_[slot], sp.restLength, stiffness);
+        if (invMass[sp.a] + invMass[sp.b] != 0.0)
+            queue(si, ratio2_[slot], sp.restLength, stiffness);
     }
     for (Index si : topology.looseSprings()) {
         worst2 = std::max(worst2, check(si, topology, invMass, stiffness, x, st));
@@ -341,7 +353,8 @@ void slotRatios(std::size_t m, const double* DRAPE_RESTRICT ax, const double* DR
 }
 } // namespace
 
-double StrainLimiter::scanFamilies(const ClothTopology& topology, const std::vector<double>& invMass,
+double StrainLimiter::scanFamilies(const ClothTopology& topology,
+                                   const std::vector<double>& invMass,
                                    const std::vector<double>& stiffness, const std::vector<Vec3>& x,
                                    StrainLimitStats& st) {
     const auto& families = topology.springFamilies();
@@ -387,7 +400,8 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology, const std::vec
         w2 = std::max(w2, r2[j + 2]);
         w3 = std::max(w3, r2[j + 3]);
         if (std::max(std::max(r2[j], r2[j + 1]), std::max(r2[j + 2], r2[j + 3])) > upper2) {
-            for (std::size_t q = j; q < j + 4; ++q) decide(q);
+            for (std::size_t q = j; q < j + 4; ++q)
+                decide(q);
         }
     }
     for (; j < m; ++j) {
@@ -400,18 +414,19 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology, const std::vec
 StrainLimitStats StrainLimiter::relimit(const ClothTopology& topology,
                                         const std::vector<double>& invMass,
                                         const std::vector<double>& stiffness,
-                                        const LimiterSettings& s,
-                                        const std::vector<Index>& touched, std::vector<Vec3>& x,
-                                        ContactPlanes* planes) {
+                                        const LimiterSettings& s, const std::vector<Index>& touched,
+                                        std::vector<Vec3>& x, ContactPlanes* planes) {
     StrainLimitStats st;
     prepare(topology, invMass, s);
-    planes_ = planes != nullptr && planes->size() > 0 && planes->of.size() == x.size() ? planes : nullptr;
+    planes_ =
+        planes != nullptr && planes->size() > 0 && planes->of.size() == x.size() ? planes : nullptr;
     next_.clear();
     const auto& off = topology.adjacencyOffsets();
     const auto& spr = topology.adjacentSprings();
     for (Index i : touched) {
         if (i >= x.size()) continue;
-        for (Index k = off[i]; k < off[i + 1]; ++k) check(spr[k], topology, invMass, stiffness, x, st);
+        for (Index k = off[i]; k < off[i + 1]; ++k)
+            check(spr[k], topology, invMass, stiffness, x, st);
     }
     runWaves(topology, invMass, stiffness, s, x, st);
     planes_ = nullptr;
@@ -424,7 +439,8 @@ void StrainLimiter::finish(const ClothTopology& topology, const std::vector<Vec3
     if (st.capHit) {
         st.maxStrainAfter = maxSpringStrain(topology, x); // what the cap left: measured
     } else if (st.corrections > 0) {
-        st.maxStrainAfter = std::sqrt(upper2_) - 1.0; // every spring passed a check after its last move
+        st.maxStrainAfter =
+            std::sqrt(upper2_) - 1.0; // every spring passed a check after its last move
     } else {
         st.maxStrainAfter = st.maxStrainBefore;
     }
@@ -439,7 +455,8 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
     const auto& nbr = topology.adjacentParticles();
     const auto& inv2 = topology.adjacentInverseSquaredRestLengths();
     const auto& rest = topology.adjacentRestLengths();
-    const std::size_t cap = static_cast<std::size_t>(s.maxRounds) * std::max<std::size_t>(springs.size(), 1);
+    const std::size_t cap =
+        static_cast<std::size_t>(s.maxRounds) * std::max<std::size_t>(springs.size(), 1);
     while (!next_.empty()) {
         if (st.work > cap) {
             st.capHit = true;
@@ -480,7 +497,8 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
                 const Vec3 u = d / l;
                 const double eps = 1e-6 * sp.restLength;
                 const double sgn = excess > 0.0 ? 1.0 : -1.0;
-                wsum = slidingWeight(a, wa, sgn * u, x, eps) + slidingWeight(b, wb, -sgn * u, x, eps);
+                wsum =
+                    slidingWeight(a, wa, sgn * u, x, eps) + slidingWeight(b, wb, -sgn * u, x, eps);
                 if (!(wsum > 0.0)) continue; // both ends held by their planes
             }
             // Provot's rule: to exactly the limit, by inverse-mass shares. A pull adds to the
@@ -535,7 +553,8 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
                     seen[si] = stamp;
                     evaluated += fresh;
                     const std::size_t o = nbrp[k];
-                    const double dx = xp[3 * o] - ex, dy = xp[3 * o + 1] - ey, dz = xp[3 * o + 2] - ez;
+                    const double dx = xp[3 * o] - ex, dy = xp[3 * o + 1] - ey,
+                                 dz = xp[3 * o + 2] - ez;
                     const double ratio2 = (dx * dx + dy * dy + dz * dz) * inv2p[k];
                     // needs(si, ratio2)
                     const std::size_t need = (ratio2 > up) | ((ratio2 < low) & (warm[si] > 0.0));
@@ -546,12 +565,14 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
             st.work += evaluated;
             for (std::size_t c = 0; c < found; ++c) {
                 const Index e = cand[c].particle, k = cand[c].slot;
-                if (invMass[e] + invMass[nbr[k]] != 0.0) queue(spr[k], cand[c].ratio2, rest[k], stiffness);
+                if (invMass[e] + invMass[nbr[k]] != 0.0)
+                    queue(spr[k], cand[c].ratio2, rest[k], stiffness);
             }
         }
         dirty_.clear();
     }
-    for (std::uint32_t si : next_) queued_[si] = 0;
+    for (std::uint32_t si : next_)
+        queued_[si] = 0;
     next_.clear();
 }
 
@@ -590,8 +611,8 @@ StrainLimitStats limitStrainProvot(const ClothTopology& topology,
 
 StrainLimitStats limitStrainOneSided(const ClothTopology& topology,
                                      const std::vector<double>& invMass,
-                                     const std::vector<double>& stiffness,
-                                     const LimiterSettings& s, std::vector<Vec3>& x) {
+                                     const std::vector<double>& stiffness, const LimiterSettings& s,
+                                     std::vector<Vec3>& x) {
     StrainLimitStats stats;
     const double stretchLimit = 1.0 + s.maxStrain;
     const double stopLimit = 1.0 + s.maxStrain + s.tolerance;
@@ -620,7 +641,8 @@ StrainLimitStats limitStrainOneSided(const ClothTopology& topology,
               [&](Index a, Index b) { return key[a] != key[b] ? key[a] > key[b] : a < b; });
     std::vector<unsigned char> fixed(n);
     for (int round = 0; round < s.maxRounds; ++round) {
-        for (std::size_t i = 0; i < n; ++i) fixed[i] = invMass[i] == 0.0;
+        for (std::size_t i = 0; i < n; ++i)
+            fixed[i] = invMass[i] == 0.0;
         for (Index p : order) {
             for (Index k = off[p]; k < off[p + 1]; ++k) {
                 const Index q = nbr[k];

@@ -30,7 +30,8 @@ std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& in
     {
         std::vector<Index> compact(welded.mesh.vertices.size(), kNoParticle);
         for (const auto& t : welded.mesh.triangles)
-            for (Index v : t) compact[v] = 0;
+            for (Index v : t)
+                compact[v] = 0;
         Index next = 0;
         std::vector<Vec3> used;
         used.reserve(welded.mesh.vertices.size());
@@ -42,8 +43,10 @@ std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& in
         if (used.size() != welded.mesh.vertices.size()) {
             welded.mesh.vertices = std::move(used);
             for (auto& t : welded.mesh.triangles)
-                for (Index& v : t) v = compact[v];
-            for (Index& r : welded.remap) r = compact[r];
+                for (Index& v : t)
+                    v = compact[v];
+            for (Index& r : welded.remap)
+                r = compact[r];
         }
     }
 
@@ -61,7 +64,8 @@ std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& in
             std::sort(sorted[t].begin(), sorted[t].end());
         }
         std::vector<std::size_t> idx(sorted.size());
-        for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = i;
+        for (std::size_t i = 0; i < idx.size(); ++i)
+            idx[i] = i;
         std::sort(idx.begin(), idx.end(),
                   [&](std::size_t a, std::size_t b) { return sorted[a] < sorted[b]; });
         for (std::size_t i = 1; i < idx.size(); ++i) {
@@ -91,9 +95,11 @@ std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& in
               [](const Edge& l, const Edge& r) { return l.a != r.a ? l.a < r.a : l.b < r.b; });
     for (std::size_t i = 0; i < edges.size();) {
         std::size_t j = i;
-        while (j < edges.size() && edges[j].a == edges[i].a && edges[j].b == edges[i].b) ++j;
+        while (j < edges.size() && edges[j].a == edges[i].a && edges[j].b == edges[i].b)
+            ++j;
         if (j - i == 1) ++topo->boundaryEdges_;
-        const double len = (topo->restPositions_[edges[i].b] - topo->restPositions_[edges[i].a]).norm();
+        const double len =
+            (topo->restPositions_[edges[i].b] - topo->restPositions_[edges[i].a]).norm();
         topo->springs_.push_back({edges[i].a, edges[i].b, len});
         i = j;
     }
@@ -104,7 +110,8 @@ std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& in
         ++topo->adjOffsets_[s.a + 1];
         ++topo->adjOffsets_[s.b + 1];
     }
-    for (std::size_t i = 0; i < n; ++i) topo->adjOffsets_[i + 1] += topo->adjOffsets_[i];
+    for (std::size_t i = 0; i < n; ++i)
+        topo->adjOffsets_[i + 1] += topo->adjOffsets_[i];
     topo->adjParticles_.resize(topo->adjOffsets_[n]);
     topo->adjSprings_.resize(topo->adjOffsets_[n]);
     std::vector<Index> fill(topo->adjOffsets_.begin(), topo->adjOffsets_.end() - 1);
@@ -154,7 +161,8 @@ void ClothTopology::bakeFamilies() {
     looseSprings_.clear();
     springSlot_.assign(springs_.size(), kNoSlot);
     std::vector<Index> order(springs_.size());
-    for (std::size_t s = 0; s < order.size(); ++s) order[s] = static_cast<Index>(s);
+    for (std::size_t s = 0; s < order.size(); ++s)
+        order[s] = static_cast<Index>(s);
     auto offsetOf = [&](Index s) { return springs_[s].b - springs_[s].a; };
     std::sort(order.begin(), order.end(), [&](Index p, Index q) {
         const Index op = offsetOf(p), oq = offsetOf(q);

@@ -174,9 +174,9 @@ Cloth& preparedCloth(const std::string& key, const ScalingCase& c,
             topology = ClothTopology::build(makeSheet(sheetSpec(c.spec.size)));
             topologySize = c.spec.size;
         }
-        prepared.cloth = makeCloth(
-            c.spec.size, topology,
-            sceneSettings(IntegratorKind::VelocityVerlet, c.limiter, c.threads));
+        prepared.cloth =
+            makeCloth(c.spec.size, topology,
+                      sceneSettings(IntegratorKind::VelocityVerlet, c.limiter, c.threads));
         prepared.cloth->step(kDt); // untimed warm-up step (initial forces, stability estimate)
         prepared.start = saveSnapshot(*prepared.cloth);
         prepared.key = key;
@@ -193,21 +193,23 @@ void restart(Cloth& cloth, const std::vector<unsigned char>& start) {
 }
 
 /// A cloth at rest, awake or asleep: a 35 x 35 sheet of cloth size (0.68 m square, 6 kg,
-/// k = 5 N/m, C_d = 0.05 N s/m, 60 Hz; the limiter carries its weight) hung from its whole top row, settled (untimed) until
-/// it sleeps (ClothSettings::sleep, defaults: 1 mm for 1 s), then stepped. `asleep` = false
-/// runs the same settling with sleeping off: the same state, stepped awake. The ratio of the
-/// two is what a sleeping cloth saves.
+/// k = 5 N/m, C_d = 0.05 N s/m, 60 Hz; the limiter carries its weight) hung from its whole top row,
+/// settled (untimed) until it sleeps (ClothSettings::sleep, defaults: 1 mm for 1 s), then stepped.
+/// `asleep` = false runs the same settling with sleeping off: the same state, stepped awake. The
+/// ratio of the two is what a sleeping cloth saves.
 void runRest(benchmark::State& state, bool asleep) {
     SheetSpec spec = sheetSpec(35);
     spec.spacing = 0.02;
-    ClothSettings settings = sceneSettings(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered, 1);
+    ClothSettings settings =
+        sceneSettings(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered, 1);
     settings.particleMass = 5e-3;
     settings.springStiffness = 5.0;
     settings.damping = 0.05;
     settings.sleep.enabled = true;
     const double dt = 1.0 / 60.0;
     auto cloth = std::make_unique<Cloth>(ClothTopology::build(makeSheet(spec)), settings);
-    for (Index c = 0; c < spec.cols; ++c) cloth->pin(sheetIndex(spec, 0, c));
+    for (Index c = 0; c < spec.cols; ++c)
+        cloth->pin(sheetIndex(spec, 0, c));
     const int maxSettle = 6000; // 100 s simulated
     int settled = 0;
     while (!cloth->isAsleep() && settled < maxSettle) {
@@ -221,7 +223,8 @@ void runRest(benchmark::State& state, bool asleep) {
     if (!asleep) { // the same state, awake and with sleeping off
         settings.sleep.enabled = false;
         auto awake = std::make_unique<Cloth>(ClothTopology::build(makeSheet(spec)), settings);
-        for (Index c = 0; c < spec.cols; ++c) awake->pin(sheetIndex(spec, 0, c));
+        for (Index c = 0; c < spec.cols; ++c)
+            awake->pin(sheetIndex(spec, 0, c));
         loadSnapshot(*awake, saveSnapshot(*cloth));
         cloth = std::move(awake);
     }
@@ -381,11 +384,10 @@ class MedianReporter : public benchmark::ConsoleReporter {
             phases += part;
             const double n = counter(r, "particles");
             char line[1024];
-            std::snprintf(line, sizeof line,
-                          "| %.0f | %s | %d | %.3f | %.3f | %.1f | %s | %.4f | %.0f |\n", n,
-                          toString(row.c.limiter), row.c.threads, wallMs(r), cpuMs(r),
-                          1e6 * cpuMs(r) / n, phases.c_str(), counter(r, "max_strain"),
-                          counter(r, "limit_rounds"));
+            std::snprintf(
+                line, sizeof line, "| %.0f | %s | %d | %.3f | %.3f | %.1f | %s | %.4f | %.0f |\n",
+                n, toString(row.c.limiter), row.c.threads, wallMs(r), cpuMs(r), 1e6 * cpuMs(r) / n,
+                phases.c_str(), counter(r, "max_strain"), counter(r, "limit_rounds"));
             out << line;
         }
 
@@ -462,7 +464,8 @@ int main(int argc, char** argv) {
             for (LimiterKind limiter : limiters) {
                 const std::string name =
                     std::string(scene.name) + "/" + toString(integrator) + "/" + toString(limiter);
-                benchmark::RegisterBenchmark(name.c_str(), runSteps, scene, integrator, limiter, false)
+                benchmark::RegisterBenchmark(name.c_str(), runSteps, scene, integrator, limiter,
+                                             false)
                     ->Iterations(integrator == IntegratorKind::ImplicitEuler ? scene.stepsImplicit
                                                                              : scene.steps)
                     ->Unit(benchmark::kMillisecond);
@@ -478,7 +481,8 @@ int main(int argc, char** argv) {
 
     // A cloth at rest: awake against asleep.
     for (bool asleep : {false, true}) {
-        benchmark::RegisterBenchmark(asleep ? "rest_35x35/asleep" : "rest_35x35/awake", runRest, asleep)
+        benchmark::RegisterBenchmark(asleep ? "rest_35x35/asleep" : "rest_35x35/awake", runRest,
+                                     asleep)
             ->Iterations(1000)
             ->Unit(benchmark::kMicrosecond);
     }

@@ -117,7 +117,8 @@ void runDrape(benchmark::State& state, samples::SceneDesc scene) {
     // steps in which it stopped at its round cap; the contact stage's limiter passes per step.
     state.counters["limiter_rounds_per_step"] = double(rounds) / steps;
     state.counters["limiter_capped_share"] = double(capped) / steps;
-    if (stageLimiter) state.counters["stage_limiter_passes_per_step"] = double(stageLimiter->calls) / steps;
+    if (stageLimiter)
+        state.counters["stage_limiter_passes_per_step"] = double(stageLimiter->calls) / steps;
     state.counters["max_strain"] = cloth.maxStrain();
     state.counters["kinetic_J"] = cloth.kineticEnergy();
     state.counters["particles"] = double(cloth.particleCount());
@@ -200,9 +201,9 @@ class MedianReporter : public benchmark::ConsoleReporter {
                 << " | " << cell(c("strain_limit_us"), "%.1f") << " | "
                 << cell(c("integrate_us"), "%.1f") << " | " << cell(c("springs_us"), "%.1f")
                 << " | " << cell(c("bullet_bodies_us"), "%.1f") << " | "
-                << (c("first400_us") < 0.0 ? std::string("-")
-                                           : cell(c("first400_us"), "%.1f") + " / " +
-                                                 cell(c("last400_us"), "%.1f"))
+                << (c("first400_us") < 0.0
+                        ? std::string("-")
+                        : cell(c("first400_us"), "%.1f") + " / " + cell(c("last400_us"), "%.1f"))
                 << " | " << cell(c("max_strain"), "%.4f") << " |\n";
         }
     }
@@ -263,7 +264,9 @@ int main(int argc, char** argv) {
         }
     }
 #else
-    if (softBody) std::fprintf(stderr, "drape-bench-bullet: built without drape::reports: no btSoftBody cases\n");
+    if (softBody)
+        std::fprintf(stderr,
+                     "drape-bench-bullet: built without drape::reports: no btSoftBody cases\n");
 #endif
     int n = static_cast<int>(args.size());
     benchmark::AddCustomContext("cpu_model", cpuModel());

@@ -60,7 +60,8 @@ double lowestPoint(const Cloth& c) {
     const Vec3 g = c.settings().gravity;
     const Vec3 up = g.norm() > 0.0 ? Vec3(-g.normalized()) : Vec3(Vec3::UnitY());
     double low = std::numeric_limits<double>::infinity();
-    for (const Vec3& x : c.positions()) low = std::min(low, x.dot(up));
+    for (const Vec3& x : c.positions())
+        low = std::min(low, x.dot(up));
     return low;
 }
 
@@ -71,7 +72,8 @@ Row runOnce(const samples::SceneDesc& base, const Variant& v, bool measure) {
     Row r;
     r.name = v.name;
     const Cloth& c = sim.cloth();
-    const double springs = static_cast<double>(std::max<std::size_t>(c.topology().springCount(), 1));
+    const double springs =
+        static_cast<double>(std::max<std::size_t>(c.topology().springCount(), 1));
     double e = measure ? clothEnergy(c) : 0.0;
     const std::size_t steps = scene.stepCount();
     double work = 0.0, seconds = 0.0;
@@ -110,8 +112,10 @@ std::string fmt(const char* f, double v) {
 } // namespace
 
 int main(int argc, char** argv) {
-    CLI::App app{"drape-bench-limiter: the strain limiter's work, strain, energy and shape on a scene"};
-    std::string scenePath = std::string(DRAPE_BENCH_SCENES_DIR) + "/experiment1_suspended_sheet.json";
+    CLI::App app{
+        "drape-bench-limiter: the strain limiter's work, strain, energy and shape on a scene"};
+    std::string scenePath =
+        std::string(DRAPE_BENCH_SCENES_DIR) + "/experiment1_suspended_sheet.json";
     std::string out;
     int repeat = 3;
     bool reference = false;
@@ -121,7 +125,8 @@ int main(int argc, char** argv) {
     app.add_option("--out", out, "also write the Markdown table to this file");
     double warm = -1.0, slack = -1.0;
     bool onlyDefault = false;
-    app.add_option("--warm-start", warm, "warm start of the default row (LimiterSettings::warmStart)");
+    app.add_option("--warm-start", warm,
+                   "warm start of the default row (LimiterSettings::warmStart)");
     app.add_option("--slack", slack, "long-range slack of the default row");
     app.add_flag("--default-only", onlyDefault, "run the default row only");
     CLI11_PARSE(app, argc, argv);
@@ -164,7 +169,8 @@ int main(int argc, char** argv) {
         p.limiter.longRangeAttachments = false;
         variants.push_back(p);
         Variant s = d;
-        s.name = "attachments at the plain geodesic (slack 1), warm start " + fmt("%.1f", d.limiter.warmStart);
+        s.name = "attachments at the plain geodesic (slack 1), warm start " +
+                 fmt("%.1f", d.limiter.warmStart);
         s.limiter.longRangeSlack = 1.0;
         variants.push_back(s);
         Variant pv = d;
@@ -188,7 +194,8 @@ int main(int argc, char** argv) {
             r = runOnce(scene, v, true);
             std::vector<double> times{r.msPerStep};
             const int timed = v.limiter.maxRounds > 100000 ? 1 : repeat;
-            for (int k = 1; k < timed; ++k) times.push_back(runOnce(scene, v, false).msPerStep);
+            for (int k = 1; k < timed; ++k)
+                times.push_back(runOnce(scene, v, false).msPerStep);
             std::sort(times.begin(), times.end());
             r.msPerStep = times[times.size() / 2];
         } catch (const std::exception& e) {
@@ -200,7 +207,8 @@ int main(int argc, char** argv) {
     std::ostringstream md;
     md << "Scene: `" << scene.name << "` (" << scene.stepCount() << " steps of " << scene.timeStep
        << " s), limit " << shipped.maxStrain << " + tolerance " << shipped.tolerance << ".  \n"
-       << "Machine: " << bench::cpuModel() << ", load average at start " << bench::loadAverage() << ".  \n"
+       << "Machine: " << bench::cpuModel() << ", load average at start " << bench::loadAverage()
+       << ".  \n"
        << "Time per step: median of " << repeat << " whole runs, one thread.\n\n"
        << "| limiter | work mean | work max | peak strain | energy rise [J] | largest rise in "
           "one step [J] | dissipated [J] | final lowest point | cap hits | ms/step |\n"

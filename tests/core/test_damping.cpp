@@ -130,8 +130,9 @@ TEST_CASE("Velocity-Verlet stays second order with damping", "[damping][converge
     }
 }
 
-TEST_CASE("Velocity-Verlet with damping and aerodynamics converges at second order on an irregular sheet",
-          "[damping][convergence]") {
+TEST_CASE(
+    "Velocity-Verlet with damping and aerodynamics converges at second order on an irregular sheet",
+    "[damping][convergence]") {
     // Unequal (area-lumped) masses, a pinned particle, gravity, both dampings, drag and lift
     // in a wind:
     // no closed form, so the order comes from the differences of runs at dt and dt/2, which
@@ -152,8 +153,9 @@ TEST_CASE("Velocity-Verlet with damping and aerodynamics converges at second ord
         auto cloth = std::make_unique<Cloth>(topo, s);
         Rng rng(11);
         for (Index i = 0; i < cloth->particleCount(); ++i) {
-            cloth->setPosition(i, cloth->positions()[i] +
-                                      0.1 * Vec3(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)));
+            cloth->setPosition(i, cloth->positions()[i] + 0.1 * Vec3(rng.uniform(-1, 1),
+                                                                     rng.uniform(-1, 1),
+                                                                     rng.uniform(-1, 1)));
             cloth->setVelocity(i, Vec3(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)));
         }
         cloth->pin(0);
@@ -235,7 +237,8 @@ TEST_CASE("Velocity-Verlet: damping leaves pinned and kinematic particles alone"
     CHECK(cloth.velocities()[2].norm() > 0.0);
 }
 
-TEST_CASE("Velocity-Verlet: spring damping passes its reaction on to a held particle", "[damping]") {
+TEST_CASE("Velocity-Verlet: spring damping passes its reaction on to a held particle",
+          "[damping]") {
     // Spring damping alone (no stiffness to speak of, no gravity): the damping impulses between
     // particles cancel, so the free particles' momentum changes only by what the held particle
     // takes, which the step reports as that particle's force (held f times dt): Newton's third
@@ -262,7 +265,6 @@ TEST_CASE("Velocity-Verlet: spring damping passes its reaction on to a held part
         CHECK(cloth.kineticEnergy() <= keBefore * (1.0 + 1e-12));
     }
     CHECK(cloth.kineticEnergy() < 0.5 * ke0); // and it did take some away
-
 }
 
 namespace {
@@ -326,7 +328,8 @@ TEST_CASE("Velocity-Verlet stays second order with aerodynamic drag", "[aero][co
     ClothSettings s = fallingPlateSettings();
     const double vt = std::sqrt(2.0 * 0.03 * 9.81 / (1.2 * 1.0 * 0.5)), tau = vt / 9.81;
     const double T = 1.5 * tau;
-    const double vExact = vt * std::tanh(T / tau), dropExact = vt * tau * std::log(std::cosh(T / tau));
+    const double vExact = vt * std::tanh(T / tau),
+                 dropExact = vt * tau * std::log(std::cosh(T / tau));
     std::vector<double> dts, errs;
     for (int N : {20, 40, 80, 160}) {
         Cloth cloth(ClothTopology::build(m), s);

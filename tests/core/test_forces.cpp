@@ -308,10 +308,12 @@ TEST_CASE("Spring families: every spring in one slot or loose, and the family ke
         // Forces: springs stretched and compressed, one spring's ends made to coincide.
         Rng rng(seed);
         std::vector<double> k;
-        for (std::size_t i = 0; i < topo->springCount(); ++i) k.push_back(rng.uniform(5.0, 50.0));
+        for (std::size_t i = 0; i < topo->springCount(); ++i)
+            k.push_back(rng.uniform(5.0, 50.0));
         Vec3List x;
         for (const Vec3& p : topo->restPositions())
-            x.push_back(p + Vec3(rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.2)));
+            x.push_back(
+                p + Vec3(rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.2)));
         const Spring& sp = topo->springs()[topo->springCount() / 2];
         x[sp.b] = x[sp.a];
         Vec3List expected(x.size(), Vec3::Zero());
@@ -338,5 +340,7 @@ TEST_CASE("Spring families: every spring in one slot or loose, and the family ke
         spec.spacing = 0.1;
         checkMesh(makeSheet(spec), 3, true);
     }
-    SECTION("an irregular mesh: some springs loose") { checkMesh(irregularMesh(4, 4, 7, true), 5, false); }
+    SECTION("an irregular mesh: some springs loose") {
+        checkMesh(irregularMesh(4, 4, 7, true), 5, false);
+    }
 }

@@ -198,7 +198,7 @@ namespace {
 /// A stage that does nothing: its presence alone makes the step check the strain limit in its
 /// own pass instead of inside the force evaluation.
 class IdleStage final : public ClothStage {
-public:
+  public:
     std::string name() const override { return "idle"; }
     void run(Cloth&, double) override {}
 };

@@ -69,7 +69,8 @@ TEST_CASE("a cloth at rest falls asleep frozen, and a sleeping step does no work
     CHECK_FALSE(b->isAsleep());
     // At rest: over the last second the sheet (never sleeping) stays within sleep.distance.
     const Vec3List rest = b->positions();
-    for (int k = 0; k < 240; ++k) b->step(kDt);
+    for (int k = 0; k < 240; ++k)
+        b->step(kDt);
     for (std::size_t i = 0; i < rest.size(); ++i) {
         CHECK((b->positions()[i] - rest[i]).norm() <= a->settings().sleep.distance);
     }
@@ -77,7 +78,8 @@ TEST_CASE("a cloth at rest falls asleep frozen, and a sleeping step does no work
     const auto frozen = stateHash(*a);
     const std::uint64_t integrations = calls(*a, "integrate"), stepsBefore = a->stepCount();
     const double timeBefore = a->time();
-    for (int k = 0; k < 1000; ++k) a->step(kDt);
+    for (int k = 0; k < 1000; ++k)
+        a->step(kDt);
     CHECK(a->isAsleep());
     CHECK(stateHash(*a) == frozen);
     CHECK(calls(*a, "integrate") == integrations); // no stage ran
@@ -97,7 +99,8 @@ TEST_CASE("waking continues exactly as a cloth restored from the frozen state", 
     const std::vector<Edit> edits = {
         {"wake()", [](Cloth& c) { c.wake(); }},
         {"setVelocity", [](Cloth& c) { c.setVelocity(60, Vec3(0.0, 0.0, 0.5)); }},
-        {"setPosition", [](Cloth& c) { c.setPosition(61, c.positions()[61] + Vec3(0.0, 0.0, 0.05)); }},
+        {"setPosition",
+         [](Cloth& c) { c.setPosition(61, c.positions()[61] + Vec3(0.0, 0.0, 0.05)); }},
         {"setUserForce", [](Cloth& c) { c.setUserForce(63, Vec3(0.05, 0.0, 0.0)); }},
         {"setGravity", [](Cloth& c) { c.setGravity(Vec3(1.0, -9.81, 0.0)); }},
         {"setWind", [](Cloth& c) { c.setWind(Vec3(0.0, 0.0, 3.0)); }},
@@ -113,7 +116,8 @@ TEST_CASE("waking continues exactly as a cloth restored from the frozen state", 
         const auto frozen = saveSnapshot(*a);
         auto b = hangingCloth(false);
         loadSnapshot(*b, frozen);
-        for (int k = 0; k < 500; ++k) a->step(kDt); // asleep all along
+        for (int k = 0; k < 500; ++k)
+            a->step(kDt); // asleep all along
         REQUIRE(a->isAsleep());
 
         edit.apply(*a);
@@ -142,15 +146,18 @@ TEST_CASE("a kinematic particle that starts moving wakes the sleeping cloth", "[
     REQUIRE(c->isAsleep());
     REQUIRE(c->time() < start - 1.0);
     const Vec3List frozen = c->positions();
-    while (c->time() + kDt <= start) c->step(kDt);
+    while (c->time() + kDt <= start)
+        c->step(kDt);
     CHECK(c->isAsleep());
     CHECK(c->positions() == frozen);
 
     c->step(kDt); // the path leaves p0 in this step
     CHECK_FALSE(c->isAsleep());
-    for (int k = 0; k < 120; ++k) c->step(kDt);
+    for (int k = 0; k < 120; ++k)
+        c->step(kDt);
     CHECK_FALSE(c->isAsleep());
-    CHECK((c->positions()[corner] - (p0 + (c->time() - start) * Vec3(0.3, 0.0, 0.0))).norm() < 1e-9);
+    CHECK((c->positions()[corner] - (p0 + (c->time() - start) * Vec3(0.3, 0.0, 0.0))).norm() <
+          1e-9);
     // The rest of the cloth follows the pin.
     const Index free = sheetIndex(hangingSpec(), 7, 7);
     CHECK(c->positions()[free].x() - frozen[free].x() > 0.02);
@@ -158,7 +165,8 @@ TEST_CASE("a kinematic particle that starts moving wakes the sleeping cloth", "[
 
 TEST_CASE("sleeping is off by default, validated, and not stored in snapshots", "[sleep]") {
     auto off = hangingCloth(false);
-    for (int k = 0; k < 20 * 240; ++k) off->step(kDt);
+    for (int k = 0; k < 20 * 240; ++k)
+        off->step(kDt);
     CHECK_FALSE(off->isAsleep());
     CHECK(off->sleptSteps() == 0);
     CHECK_FALSE(ClothSettings{}.sleep.enabled);

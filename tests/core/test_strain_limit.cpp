@@ -16,7 +16,8 @@ using namespace drape_test;
 namespace {
 
 /// Unequal particle masses in [0.5, 2] kg drawn from rng, and their inverses.
-void randomMasses(Rng& rng, std::size_t n, std::vector<double>& mass, std::vector<double>& invMass) {
+void randomMasses(Rng& rng, std::size_t n, std::vector<double>& mass,
+                  std::vector<double>& invMass) {
     mass.resize(n);
     invMass.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
@@ -166,7 +167,9 @@ TEST_CASE("Experiment I, 10 s with damping: bound every step, no energy source",
     Cloth cloth(ClothTopology::build(makeSheet(spec)), s);
     cloth.pin(sheetIndex(spec, 0, 0));
     cloth.pin(sheetIndex(spec, 0, 34));
-    auto energy = [&] { return cloth.kineticEnergy() + cloth.gravityEnergy() + cloth.springEnergy(); };
+    auto energy = [&] {
+        return cloth.kineticEnergy() + cloth.gravityEnergy() + cloth.springEnergy();
+    };
     double e = energy(), rise = 0.0, maxRise = 0.0, dissipated = 0.0, worst = 0.0;
     for (int n = 0; n < 1000; ++n) {
         cloth.step(0.01);
@@ -182,7 +185,8 @@ TEST_CASE("Experiment I, 10 s with damping: bound every step, no energy source",
     }
     std::printf("[measured] Experiment I 10 s, C_d 0.05: peak strain %.6f, energy rise %.2f J "
                 "(largest step %.2f J), dissipated %.4g J, cap hits %llu\n",
-                worst, rise, maxRise, dissipated, static_cast<unsigned long long>(cloth.limiterCapHits()));
+                worst, rise, maxRise, dissipated,
+                static_cast<unsigned long long>(cloth.limiterCapHits()));
     CHECK(worst <= 0.1 + s.limiter.tolerance + 1e-12);
     CHECK(cloth.limiterCapHits() == 0);
     CHECK(dissipated > 1e5); // the sheet falls ~200 m under 6 kN: most of it is dissipated
@@ -301,7 +305,8 @@ TEST_CASE("The worklist sets a spring to exactly the limit and warm-starts the n
         CHECK(limiter.movedFrom()[0] == Vec3(1.0 + strain, 0, 0));
         // lambda: the end moved by w lambda = strain - 0.1.
         double lambda = 0.0;
-        for (double l : limiter.warmStartState()) lambda = std::max(lambda, l);
+        for (double l : limiter.warmStartState())
+            lambda = std::max(lambda, l);
         CHECK(2.0 * lambda == Approx(strain - 0.1).epsilon(1e-9));
         // Next step from the same stretched state: the warm start moves particle 1 by half of
         // the last correction first; the walk then finishes at exactly the limit, and lambda
@@ -310,7 +315,8 @@ TEST_CASE("The worklist sets a spring to exactly the limit and warm-starts the n
         limiter.limit(*topo, invMass, k, s, x);
         CHECK((x[1] - x[0]).norm() == Approx(1.1).epsilon(1e-12));
         double lambda2 = 0.0;
-        for (double l : limiter.warmStartState()) lambda2 = std::max(lambda2, l);
+        for (double l : limiter.warmStartState())
+            lambda2 = std::max(lambda2, l);
         CHECK(2.0 * lambda2 == Approx(strain - 0.1).epsilon(1e-9));
         // A warm start larger than needed is let out, never turned into a push: the spring,
         // now at its rest length, is pulled in by the warm start (at most to half its rest
@@ -318,7 +324,8 @@ TEST_CASE("The worklist sets a spring to exactly the limit and warm-starts the n
         x[1] = Vec3(1.0, 0, 0);
         limiter.limit(*topo, invMass, k, s, x);
         CHECK((x[1] - x[0]).norm() == Approx(1.0).epsilon(1e-12));
-        for (double l : limiter.warmStartState()) CHECK(l >= 0.0);
+        for (double l : limiter.warmStartState())
+            CHECK(l >= 0.0);
     }
 }
 
@@ -382,7 +389,8 @@ TEST_CASE("relimit keeps particles above their contact planes and reaches the bo
     LimiterSettings s = limiterSettings();
     s.longRangeAttachments = false;
     double xMid = 0.0;
-    for (const Vec3& p : topo->restPositions()) xMid += p.x() / double(n);
+    for (const Vec3& p : topo->restPositions())
+        xMid += p.x() / double(n);
     for (const Vec3& normal : {Vec3(0, 1, 0), Vec3(Vec3(0.3, 1, 0.2).normalized())}) {
         std::vector<Vec3> x = topo->restPositions();
         ContactPlanes planes;
@@ -407,7 +415,8 @@ TEST_CASE("relimit keeps particles above their contact planes and reaches the bo
         CHECK(maxSpringStrain(*topo, x) <= s.maxStrain + s.tolerance + 1e-12);
         Vec3 dp = Vec3::Zero(), pushed = Vec3::Zero();
         double totalPush = 0.0;
-        for (std::size_t i = 0; i < n; ++i) dp += mass[i] * (x[i] - before[i]);
+        for (std::size_t i = 0; i < n; ++i)
+            dp += mass[i] * (x[i] - before[i]);
         for (std::size_t p = 0; p < planes.size(); ++p) {
             const Index i = planes.particle(p);
             CHECK(normal.dot(x[i]) >= -1e-12);
@@ -572,7 +581,14 @@ TEST_CASE("The strain bound holds for any pin set and stiffness", "[limiter][bou
         {"20 x 20, k 2, one corner", 20, 20, 0.05, 0.005, 2.0, 1.0 / 60.0, {{0, 0}}},
         {"20 x 20, k 2, pinned top row", 20, 20, 0.05, 0.005, 2.0, 1.0 / 60.0, {}, true},
         {"2 x 30 strip, k 2, top pair", 30, 2, 0.05, 0.005, 2.0, 1.0 / 60.0, {{0, 0}, {0, 1}}},
-        {"25 x 25, k 2000, two corners", 25, 25, 0.04, 0.01, 2000.0, 1.0 / 1000.0, {{0, 0}, {0, 24}}},
+        {"25 x 25, k 2000, two corners",
+         25,
+         25,
+         0.04,
+         0.01,
+         2000.0,
+         1.0 / 1000.0,
+         {{0, 0}, {0, 24}}},
         {"35 x 35 paper sheet, one corner", 35, 35, 10.0, 0.5, 20.0, 0.01, {{0, 0}}},
     };
     for (const PinCase& pc : cases) {
@@ -585,13 +601,18 @@ TEST_CASE("The strain bound holds for any pin set and stiffness", "[limiter][bou
         s.particleMass = pc.mass;
         s.springStiffness = pc.k;
         Cloth cloth(ClothTopology::build(makeSheet(spec)), s);
-        for (const auto& p : pc.pins) cloth.pin(sheetIndex(spec, p.first, p.second));
+        for (const auto& p : pc.pins)
+            cloth.pin(sheetIndex(spec, p.first, p.second));
         if (pc.pinTopRow)
-            for (Index c = 0; c < pc.cols; ++c) cloth.pin(sheetIndex(spec, 0, c));
-        auto energy = [&] { return cloth.kineticEnergy() + cloth.gravityEnergy() + cloth.springEnergy(); };
+            for (Index c = 0; c < pc.cols; ++c)
+                cloth.pin(sheetIndex(spec, 0, c));
+        auto energy = [&] {
+            return cloth.kineticEnergy() + cloth.gravityEnergy() + cloth.springEnergy();
+        };
         const double e0 = energy();
         double totalMass = 0.0;
-        for (double m : cloth.masses()) totalMass += m;
+        for (double m : cloth.masses())
+            totalMass += m;
         const double scale = totalMass * 9.81 * pc.spacing * (pc.rows - 1);
         double e = e0, rise = 0.0, dissipated = 0.0, worst = 0.0, work = 0.0, excess = 0.0;
         const int steps = 600;
@@ -605,11 +626,12 @@ TEST_CASE("The strain bound holds for any pin set and stiffness", "[limiter][bou
             e = e2;
             excess = std::max(excess, e2 - e0);
         }
-        std::printf("[measured] %s: peak strain %.6f, energy above the start %.3g J (scale %.3g J), "
-                    "step-to-step rises %.3g J of %.3g J dissipated, work %.2f sweeps/step, "
-                    "cap hits %llu\n",
-                    pc.name, worst, excess, scale, rise, dissipated, work / steps,
-                    static_cast<unsigned long long>(cloth.limiterCapHits()));
+        std::printf(
+            "[measured] %s: peak strain %.6f, energy above the start %.3g J (scale %.3g J), "
+            "step-to-step rises %.3g J of %.3g J dissipated, work %.2f sweeps/step, "
+            "cap hits %llu\n",
+            pc.name, worst, excess, scale, rise, dissipated, work / steps,
+            static_cast<unsigned long long>(cloth.limiterCapHits()));
         INFO(pc.name);
         CHECK(worst <= 0.1 + s.limiter.tolerance + 1e-12);
         CHECK(cloth.limiterCapHits() == 0);

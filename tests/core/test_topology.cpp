@@ -274,10 +274,11 @@ TEST_CASE("Vertices no triangle uses are not particles", "[topology]") {
 }
 
 TEST_CASE("dropUnusableTriangles removes degenerate and duplicate triangles, keeping the rest in "
-          "order", "[topology][mesh]") {
+          "order",
+          "[topology][mesh]") {
     TriangleMesh m;
-    m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0), Vec3(2, 0, 0),
-                  Vec3(1e-6, 1e-6, 0)};
+    m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0),
+                  Vec3(0, 1, 0), Vec3(2, 0, 0), Vec3(1e-6, 1e-6, 0)};
     m.triangles = {
         {0, 1, 2}, // 0 kept
         {0, 0, 3}, // 1 repeats a vertex

@@ -37,7 +37,8 @@ bool meshesAllowed(const samples::SceneDesc& scene, const ScenePaths& paths) {
 }
 
 std::size_t particleEstimate(const samples::SceneDesc& scene) {
-    if (scene.sheet) return static_cast<std::size_t>(scene.sheet->spec.rows) * scene.sheet->spec.cols;
+    if (scene.sheet)
+        return static_cast<std::size_t>(scene.sheet->spec.rows) * scene.sheet->spec.cols;
     return 0; // the shipped meshes are all small
 }
 
@@ -56,7 +57,8 @@ Outcome runSceneInput(const std::uint8_t* data, std::size_t size, const ScenePat
         }
         samples::Simulation sim(scene);
         if (sim.cloth().particleCount() <= kMaxSteppedParticles) {
-            for (int i = 0; i < kStepsTaken; ++i) sim.step();
+            for (int i = 0; i < kStepsTaken; ++i)
+                sim.step();
             (void)sim.stats();
         }
         out.accepted = true;
@@ -75,7 +77,8 @@ Outcome runMeshInput(const std::uint8_t* data, std::size_t size,
         out.message = "empty input";
         return out;
     }
-    const auto file = workDir / (std::string("input") + kMeshExtensions[data[0] % kMeshFormatCount]);
+    const auto file =
+        workDir / (std::string("input") + kMeshExtensions[data[0] % kMeshFormatCount]);
     {
         std::ofstream f(file, std::ios::binary | std::ios::trunc);
         f.write(reinterpret_cast<const char*>(data + 1), static_cast<std::streamsize>(size - 1));

@@ -47,7 +47,8 @@ Outcome runSceneInput(const std::uint8_t* data, std::size_t size, const ScenePat
 /// Mesh formats of the mesh target, chosen by the first byte of an input modulo the count.
 inline constexpr const char* kMeshExtensions[] = {".obj", ".ply", ".stl", ".3ds", ".gltf",
                                                   ".glb", ".off", ".fbx", ".dae"};
-inline constexpr std::size_t kMeshFormatCount = sizeof(kMeshExtensions) / sizeof(kMeshExtensions[0]);
+inline constexpr std::size_t kMeshFormatCount =
+    sizeof(kMeshExtensions) / sizeof(kMeshExtensions[0]);
 
 /// The first byte picks a file extension (kMeshExtensions[data[0] % kMeshFormatCount]); the
 /// rest is written to a file with that extension in `workDir`, read with

@@ -7,8 +7,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <cstdint>
+#include <cstdio>
 #include <functional>
 #include <limits>
 
@@ -22,7 +22,9 @@ constexpr double kStep = 1.0 / 240.0;
 
 /// Where eq. (7)'s band holds a particle's weight with the default C_p = 2 m g:
 /// phi(g) = (exp(1 - g/w) - 1) / (e - 1) = m g / C_p = 1/2  =>  g = w (1 - ln(1 + (e - 1)/2)).
-double restingGap(double band) { return band * (1.0 - std::log(1.0 + (std::exp(1.0) - 1.0) / 2.0)); }
+double restingGap(double band) {
+    return band * (1.0 - std::log(1.0 + (std::exp(1.0) - 1.0) / 2.0));
+}
 
 ClothSettings smallCloth() {
     ClothSettings s;
@@ -41,24 +43,35 @@ void run(TestWorld& w, int steps, const std::function<void()>& afterStep = {}) {
 
 } // namespace
 
-TEST_CASE("a small cloth comes to rest on every supported shape at the contact distance", "[contacts][shapes]") {
+TEST_CASE("a small cloth comes to rest on every supported shape at the contact distance",
+          "[contacts][shapes]") {
     struct Case {
         const char* name;
         std::function<btCollisionShape*(TestWorld&)> make;
-        double top;  ///< height of the shape's top surface above the origin [m]
-        bool flat;   ///< flat top: every particle rests at the band's equilibrium gap
+        double top; ///< height of the shape's top surface above the origin [m]
+        bool flat;  ///< flat top: every particle rests at the band's equilibrium gap
     };
     const std::vector<Case> cases = {
-        {"box", [](TestWorld& w) { return w.shape<btBoxShape>(btVector3(0.3f, 0.1f, 0.3f)); }, 0.1, true},
+        {"box", [](TestWorld& w) { return w.shape<btBoxShape>(btVector3(0.3f, 0.1f, 0.3f)); }, 0.1,
+         true},
         {"sphere", [](TestWorld& w) { return w.shape<btSphereShape>(btScalar(0.2)); }, 0.2, false},
-        {"capsule", [](TestWorld& w) { return w.shape<btCapsuleShapeX>(btScalar(0.1), btScalar(0.4)); }, 0.1, false},
-        {"cylinder", [](TestWorld& w) { return w.shape<btCylinderShape>(btVector3(0.3f, 0.1f, 0.3f)); }, 0.1, true},
-        {"plane", [](TestWorld& w) { return w.shape<btStaticPlaneShape>(btVector3(0, 1, 0), btScalar(0.05)); }, 0.05, true},
+        {"capsule",
+         [](TestWorld& w) { return w.shape<btCapsuleShapeX>(btScalar(0.1), btScalar(0.4)); }, 0.1,
+         false},
+        {"cylinder",
+         [](TestWorld& w) { return w.shape<btCylinderShape>(btVector3(0.3f, 0.1f, 0.3f)); }, 0.1,
+         true},
+        {"plane",
+         [](TestWorld& w) {
+             return w.shape<btStaticPlaneShape>(btVector3(0, 1, 0), btScalar(0.05));
+         },
+         0.05, true},
         {"convex hull",
          [](TestWorld& w) {
              auto* hull = w.shape<btConvexHullShape>();
              for (int k = 0; k < 8; ++k) {
-                 hull->addPoint(btVector3((k & 1) ? 0.3f : -0.3f, (k & 2) ? 0.1f : -0.1f, (k & 4) ? 0.3f : -0.3f));
+                 hull->addPoint(btVector3((k & 1) ? 0.3f : -0.3f, (k & 2) ? 0.1f : -0.1f,
+                                          (k & 4) ? 0.3f : -0.3f));
              }
              hull->setMargin(0.0f); // top at exactly 0.1 (Bullet's default margin would add 0.04)
              return hull;
@@ -68,7 +81,8 @@ TEST_CASE("a small cloth comes to rest on every supported shape at the contact d
          [](TestWorld& w) {
              auto* hull = w.shape<btConvexHullShape>();
              for (int k = 0; k < 8; ++k) {
-                 hull->addPoint(btVector3((k & 1) ? 0.3f : -0.3f, (k & 2) ? 0.1f : -0.1f, (k & 4) ? 0.3f : -0.3f));
+                 hull->addPoint(btVector3((k & 1) ? 0.3f : -0.3f, (k & 2) ? 0.1f : -0.1f,
+                                          (k & 4) ? 0.3f : -0.3f));
              }
              return hull; // margin 0.04: rigid bodies and the cloth meet its surface at 0.14
          },
@@ -86,8 +100,10 @@ TEST_CASE("a small cloth comes to rest on every supported shape at the contact d
         {"static triangle mesh",
          [](TestWorld& w) {
              auto* tm = new btTriangleMesh(); // owned by the test (leaked deliberately: tiny)
-             tm->addTriangle(btVector3(-1, 0.02f, -1), btVector3(1, 0.02f, -1), btVector3(1, 0.02f, 1));
-             tm->addTriangle(btVector3(-1, 0.02f, -1), btVector3(1, 0.02f, 1), btVector3(-1, 0.02f, 1));
+             tm->addTriangle(btVector3(-1, 0.02f, -1), btVector3(1, 0.02f, -1),
+                             btVector3(1, 0.02f, 1));
+             tm->addTriangle(btVector3(-1, 0.02f, -1), btVector3(1, 0.02f, 1),
+                             btVector3(-1, 0.02f, 1));
              static std::vector<std::unique_ptr<btTriangleMesh>> keep;
              keep.emplace_back(tm);
              return w.shape<btBvhTriangleMeshShape>(tm, true);
@@ -106,7 +122,8 @@ TEST_CASE("a small cloth comes to rest on every supported shape at the contact d
             double lowest = std::numeric_limits<double>::infinity();
             run(w, 360, [&] { lowest = std::min(lowest, cloth->positions()[centre].y() - c.top); });
             const double gap = cloth->positions()[centre].y() - c.top;
-            INFO("shape " << c.name << ": centre particle " << gap << " m above the top, lowest " << lowest);
+            INFO("shape " << c.name << ": centre particle " << gap << " m above the top, lowest "
+                          << lowest);
             // Never below the surface, never below the thickness by more than float noise
             // (Bullet's dimensions are single precision: 1e-6 m at this scale).
             CHECK(lowest >= kThickness - 1e-6);
@@ -139,7 +156,8 @@ TEST_CASE("a cloth drapes over a static sphere", "[contacts][drape]") {
     w.add(cloth, bs);
     double deepest = std::numeric_limits<double>::infinity(); // min of |x - c| - R over the run
     run(w, 720, [&] {
-        for (const auto& x : cloth->positions()) deepest = std::min(deepest, x.norm() - radius);
+        for (const auto& x : cloth->positions())
+            deepest = std::min(deepest, x.norm() - radius);
     });
     INFO("closest approach to the sphere surface " << deepest << " m");
     CHECK(deepest >= kThickness - 1e-6);
@@ -180,7 +198,8 @@ TEST_CASE("a cloth drapes over a static triangle mesh (a roof ridge)", "[contact
     auto roofDistance = [](const Vec3& p) {
         auto segment = [&](double ax, double ay, double bx, double by) {
             const double dx = bx - ax, dy = by - ay;
-            const double t = std::clamp(((p.x() - ax) * dx + (p.y() - ay) * dy) / (dx * dx + dy * dy), 0.0, 1.0);
+            const double t =
+                std::clamp(((p.x() - ax) * dx + (p.y() - ay) * dy) / (dx * dx + dy * dy), 0.0, 1.0);
             return std::hypot(p.x() - (ax + t * dx), p.y() - (ay + t * dy));
         };
         const double d = std::min(segment(-1, 0, 0, 0.5), segment(0, 0.5, 1, 0));
@@ -188,7 +207,8 @@ TEST_CASE("a cloth drapes over a static triangle mesh (a roof ridge)", "[contact
     };
     double deepest = std::numeric_limits<double>::infinity();
     run(w, 720, [&] {
-        for (const auto& x : cloth->positions()) deepest = std::min(deepest, roofDistance(x));
+        for (const auto& x : cloth->positions())
+            deepest = std::min(deepest, roofDistance(x));
     });
     INFO("closest approach to the roof " << deepest << " m");
     CHECK(deepest >= kThickness - 1e-6); // within float noise of the thickness
@@ -200,7 +220,8 @@ TEST_CASE("a cloth drapes over a static triangle mesh (a roof ridge)", "[contact
     // At rest: RMS particle speed below 1 cm/s (a fifth of the 5 cm spacing per second).
     // Measured 1.5 mm/s (Release) to 4.5 mm/s (sanitizer build, different rounding).
     double totalMass = 0.0;
-    for (double m : cloth->masses()) totalMass += m;
+    for (double m : cloth->masses())
+        totalMass += m;
     CHECK(std::sqrt(2.0 * cloth->kineticEnergy() / totalMass) < 0.01);
     w.cloths.clear(); // before the mesh goes
 }
@@ -217,14 +238,16 @@ std::size_t particlesThroughThinBox(double speed, bool continuous) {
     s.particleMass = 0.01;
     s.springStiffness = 20.0;
     auto cloth = makeCloth(horizontalSheet(11, 11, 0.1, 0.5), s);
-    for (Index i = 0; i < cloth->particleCount(); ++i) cloth->setVelocity(i, Vec3(0.0, -speed, 0.0));
+    for (Index i = 0; i < cloth->particleCount(); ++i)
+        cloth->setVelocity(i, Vec3(0.0, -speed, 0.0));
     bullet::BulletClothSettings bs;
     bs.contact.thickness = 0.01;
     bs.contact.continuous = continuous;
     w.add(cloth, bs);
     const double dt = 0.01;
     const int steps = int(std::ceil(0.6 / (speed * dt))) + 20; // well past the box
-    for (int k = 0; k < steps; ++k) w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
+    for (int k = 0; k < steps; ++k)
+        w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
     return std::size_t(std::count_if(cloth->positions().begin(), cloth->positions().end(),
                                      [](const Vec3& x) { return x.y() < 0.0; }));
 }
@@ -250,7 +273,9 @@ TEST_CASE("a fast cloth does not tunnel through a thin static box", "[contacts][
             break;
         }
     }
-    std::printf("tunnelling without the swept test starts at %.2f m/s (dt 0.01 s, box 2 cm, thickness 1 cm)\n", firstLeak);
+    std::printf("tunnelling without the swept test starts at %.2f m/s (dt 0.01 s, box 2 cm, "
+                "thickness 1 cm)\n",
+                firstLeak);
     CHECK(firstLeak >= 1.0);
     CHECK(firstLeak <= 4.1);
     // And at 20 m/s it does leak: the swept test is what prevents it.
@@ -274,7 +299,8 @@ DrapeOverBox drapeOverBox(double tolerance) {
     s.springStiffness = 5.0; // omega_max ~ 3 sqrt(k/m) = 240 rad/s: stable at 240 Hz
     s.damping = 0.001;
     s.limiter.tolerance = tolerance;
-    auto cloth = std::make_shared<Cloth>(ClothTopology::build(horizontalSheet(25, 25, 0.025, 0.45)), s);
+    auto cloth =
+        std::make_shared<Cloth>(ClothTopology::build(horizontalSheet(25, 25, 0.025, 0.45)), s);
     bullet::BulletClothSettings bs;
     bs.contact.thickness = 0.005;
     w.add(cloth, bs);
@@ -307,8 +333,7 @@ TEST_CASE("a sheet draped over a box stays outside the box in every step", "[con
 // pushes them out, the limiter's walk keeps each touching particle above its contact's tangent
 // plane (ContactPlanes), so the bound and the contact hold together; alternating the projection
 // and the walk (the earlier design) left 0.199 after 8 passes and 0.1055 after 64.
-TEST_CASE("a sheet draped over a box keeps the strain bound in every step",
-          "[contacts][limiter]") {
+TEST_CASE("a sheet draped over a box keeps the strain bound in every step", "[contacts][limiter]") {
     const DrapeOverBox r = drapeOverBox(1e-3);
     CHECK(r.peakStrain <= 0.1 + 1e-3 + 1e-12);
 }

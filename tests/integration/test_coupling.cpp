@@ -18,12 +18,14 @@ namespace {
 constexpr double kStep = 1.0 / 240.0;
 
 void stepWorld(TestWorld& w, int steps = 1) {
-    for (int s = 0; s < steps; ++s) w.world.stepSimulation(btScalar(kStep), 1, btScalar(kStep));
+    for (int s = 0; s < steps; ++s)
+        w.world.stepSimulation(btScalar(kStep), 1, btScalar(kStep));
 }
 
 Vec3 clothMomentum(const Cloth& c) {
     Vec3 p = Vec3::Zero();
-    for (std::size_t i = 0; i < c.particleCount(); ++i) p += c.masses()[i] * c.velocities()[i];
+    for (std::size_t i = 0; i < c.particleCount(); ++i)
+        p += c.masses()[i] * c.velocities()[i];
     return p;
 }
 
@@ -35,7 +37,8 @@ TEST_CASE("contacts with a dynamic body conserve momentum (zero gravity)", "[cou
     // 1e-5 of the initial 1 kg m/s covers float round-off over the 240 steps.
     TestWorld w(Vec3::Zero());
     const double ballMass = 0.5, radius = 0.1;
-    btRigidBody* ball = w.body(w.shape<btSphereShape>(btScalar(radius)), ballMass, Vec3(0.0, 0.3, 0.0));
+    btRigidBody* ball =
+        w.body(w.shape<btSphereShape>(btScalar(radius)), ballMass, Vec3(0.0, 0.3, 0.0));
     ball->setLinearVelocity(btVector3(0, -2, 0));
     ball->setActivationState(DISABLE_DEACTIVATION);
     ClothSettings s;
@@ -54,12 +57,15 @@ TEST_CASE("contacts with a dynamic body conserve momentum (zero gravity)", "[cou
     CHECK(pCloth.y() < -0.2 * std::abs(p0.y()));
     CHECK(pBall.y() > 0.8 * p0.y());
     // Impulses: what the cloth got from the ball is what the ball got, reversed.
-    CHECK((handle.totalStats().impulseOnBodies + handle.totalStats().impulseOnCloth).norm() <= 1e-9);
+    CHECK((handle.totalStats().impulseOnBodies + handle.totalStats().impulseOnCloth).norm() <=
+          1e-9);
     // No particle inside the ball deeper than the thickness.
-    for (const auto& x : cloth->positions()) CHECK((x - eig(ball->getCenterOfMassPosition())).norm() >= radius);
+    for (const auto& x : cloth->positions())
+        CHECK((x - eig(ball->getCenterOfMassPosition())).norm() >= radius);
 }
 
-TEST_CASE("a ball dropped on a trampoline stretches it and bounces back", "[coupling][trampoline]") {
+TEST_CASE("a ball dropped on a trampoline stretches it and bounces back",
+          "[coupling][trampoline]") {
     TestWorld w;
     const double ballMass = 0.5, radius = 0.2, dropHeight = 0.5;
     ClothSettings s;
@@ -107,7 +113,8 @@ TEST_CASE("a ball dropped on a trampoline stretches it and bounces back", "[coup
     const double t = 480 * kStep;
     const double expectedDv = -9.81 * t + handle.totalStats().impulseOnBodies.y() / ballMass;
     const double dv = double(ball->getLinearVelocity().y()) - vy0;
-    std::printf("trampoline: ball lowest %.3f m, cloth lowest %.3f m, closest particle %.4f m from the ball, rebound top %.3f m, impact speed %.2f m/s\n",
+    std::printf("trampoline: ball lowest %.3f m, cloth lowest %.3f m, closest particle %.4f m from "
+                "the ball, rebound top %.3f m, impact speed %.2f m/s\n",
                 lowestBall, lowestCloth, deepest, topAfterBounce, -minVy);
     INFO("ball lowest " << lowestBall << ", cloth lowest " << lowestCloth << ", closest " << deepest
                         << ", top after bounce " << topAfterBounce);
@@ -125,13 +132,15 @@ TEST_CASE("a ball dropped on a trampoline stretches it and bounces back", "[coup
     CHECK(dv == Approx(expectedDv).margin(1e-4));
 }
 
-TEST_CASE("a cloth dropped on a light box pushes it down with the cloth's weight", "[coupling][box]") {
+TEST_CASE("a cloth dropped on a light box pushes it down with the cloth's weight",
+          "[coupling][box]") {
     // A 0.05 kg box stands on a static ground; a 1 kg cloth falls on it and hangs from it
     // without reaching the ground. At rest the box must carry the cloth's whole weight: the
     // impulse the cloth gives it per second is M_cloth g (and the box stays put on the ground).
     TestWorld w;
     w.body(w.shape<btStaticPlaneShape>(btVector3(0, 1, 0), btScalar(0.0)), 0.0, Vec3::Zero());
-    btRigidBody* box = w.body(w.shape<btBoxShape>(btVector3(0.15f, 0.3f, 0.15f)), 0.05, Vec3(0, 0.3, 0));
+    btRigidBody* box =
+        w.body(w.shape<btBoxShape>(btVector3(0.15f, 0.3f, 0.15f)), 0.05, Vec3(0, 0.3, 0));
     box->setActivationState(DISABLE_DEACTIVATION);
     ClothSettings s;
     s.particleMass = 1.0 / 121.0;
@@ -149,19 +158,24 @@ TEST_CASE("a cloth dropped on a light box pushes it down with the cloth's weight
         impulse += handle.lastStats().impulseOnBodies;
     }
     const double weight = 9.81 * 121.0 * s.particleMass;
-    const double lowest = std::min_element(cloth->positions().begin(), cloth->positions().end(),
-                                           [](const Vec3& a, const Vec3& b) { return a.y() < b.y(); })->y();
-    INFO("mean force on the box " << (impulse / (window * kStep)).transpose() << " N, cloth weight " << weight
-                                  << " N, lowest particle " << lowest);
+    const double lowest =
+        std::min_element(cloth->positions().begin(), cloth->positions().end(),
+                         [](const Vec3& a, const Vec3& b) { return a.y() < b.y(); })
+            ->y();
+    INFO("mean force on the box " << (impulse / (window * kStep)).transpose() << " N, cloth weight "
+                                  << weight << " N, lowest particle " << lowest);
     REQUIRE(lowest > 0.05); // hangs free of the ground
     // 2 %: what is left of the cloth's sway after 2 s of damping.
     CHECK(impulse.y() / (window * kStep) == Approx(-weight).epsilon(0.02));
-    CHECK(std::abs(eig(box->getCenterOfMassPosition()).y() - 0.3) < 0.01); // still standing on the ground
+    CHECK(std::abs(eig(box->getCenterOfMassPosition()).y() - 0.3) <
+          0.01); // still standing on the ground
 }
 
-TEST_CASE("a cloth attached to a moving kinematic pole follows it", "[coupling][attach][kinematic]") {
+TEST_CASE("a cloth attached to a moving kinematic pole follows it",
+          "[coupling][attach][kinematic]") {
     TestWorld w;
-    btRigidBody* pole = w.kinematic(w.shape<btCapsuleShapeX>(btScalar(0.02), btScalar(0.6)), Vec3(0, 1, 0));
+    btRigidBody* pole =
+        w.kinematic(w.shape<btCapsuleShapeX>(btScalar(0.02), btScalar(0.6)), Vec3(0, 1, 0));
     ClothSettings s;
     s.particleMass = 0.005;
     s.springStiffness = 40.0;
@@ -173,19 +187,22 @@ TEST_CASE("a cloth attached to a moving kinematic pole follows it", "[coupling][
     spec.origin = Vec3(-0.15, 0.97, 0.0);
     auto cloth = makeCloth(makeSheet(spec), s);
     auto& handle = w.add(cloth);
-    for (Index c = 0; c < spec.cols; ++c) handle.attachHere(c, pole);
+    for (Index c = 0; c < spec.cols; ++c)
+        handle.attachHere(c, pole);
     // The pole moves along z at 1 m/s and turns about x (a waved flag), driven through its
     // motion state as Bullet expects for kinematic bodies.
     const int steps = 240;
     double worstFollow = 0.0;
     for (int k = 1; k <= steps; ++k) {
         const double t = k * kStep;
-        btTransform tr(btQuaternion(btVector3(1, 0, 0), btScalar(0.5 * t)), btVector3(0, 1, btScalar(t)));
+        btTransform tr(btQuaternion(btVector3(1, 0, 0), btScalar(0.5 * t)),
+                       btVector3(0, 1, btScalar(t)));
         pole->getMotionState()->setWorldTransform(tr);
         stepWorld(w);
         for (const auto& a : handle.attachments()) {
             const btVector3 target = pole->getWorldTransform() * bt(a.localPoint);
-            worstFollow = std::max(worstFollow, (cloth->positions()[a.particle] - eig(target)).norm());
+            worstFollow =
+                std::max(worstFollow, (cloth->positions()[a.particle] - eig(target)).norm());
         }
     }
     INFO("largest distance of an attached particle from its point on the pole " << worstFollow);
@@ -193,7 +210,8 @@ TEST_CASE("a cloth attached to a moving kinematic pole follows it", "[coupling][
     CHECK(worstFollow < 1e-5);
     // The whole flag came along: its mean z moved ~1 m (it trails the pole a little).
     double meanZ = 0.0;
-    for (const auto& x : cloth->positions()) meanZ += x.z();
+    for (const auto& x : cloth->positions())
+        meanZ += x.z();
     meanZ /= double(cloth->particleCount());
     CHECK(meanZ > 0.8);
     CHECK(meanZ < 1.0 + 1e-6);
@@ -202,7 +220,8 @@ TEST_CASE("a cloth attached to a moving kinematic pole follows it", "[coupling][
 
 TEST_CASE("a kinematic paddle pushes a hanging cloth", "[coupling][kinematic]") {
     TestWorld w;
-    btRigidBody* paddle = w.kinematic(w.shape<btBoxShape>(btVector3(0.1f, 0.1f, 0.02f)), Vec3(0, 0.6, -0.2));
+    btRigidBody* paddle =
+        w.kinematic(w.shape<btBoxShape>(btVector3(0.1f, 0.1f, 0.02f)), Vec3(0, 0.6, -0.2));
     ClothSettings s;
     s.particleMass = 0.005;
     s.springStiffness = 40.0;
@@ -213,17 +232,20 @@ TEST_CASE("a kinematic paddle pushes a hanging cloth", "[coupling][kinematic]") 
     spec.spacing = 0.05;
     spec.origin = Vec3(-0.25, 1.0, 0.0);
     auto cloth = makeCloth(makeSheet(spec), s);
-    for (Index c = 0; c < spec.cols; ++c) cloth->pin(c);
+    for (Index c = 0; c < spec.cols; ++c)
+        cloth->pin(c);
     bullet::BulletClothSettings bs;
     bs.contact.thickness = 0.01;
     auto& handle = w.add(cloth, bs);
     double deepest = std::numeric_limits<double>::infinity();
     for (int k = 1; k <= 240; ++k) { // the paddle moves 0.4 m through the curtain's plane
         const double z = -0.2 + 0.4 * k / 240.0;
-        paddle->getMotionState()->setWorldTransform(btTransform(btQuaternion::getIdentity(), btVector3(0, 0.6f, btScalar(z))));
+        paddle->getMotionState()->setWorldTransform(
+            btTransform(btQuaternion::getIdentity(), btVector3(0, 0.6f, btScalar(z))));
         stepWorld(w);
         for (const auto& x : cloth->positions()) {
-            const Vec3 d = (x - eig(paddle->getCenterOfMassPosition())).cwiseAbs() - Vec3(0.1, 0.1, 0.02);
+            const Vec3 d =
+                (x - eig(paddle->getCenterOfMassPosition())).cwiseAbs() - Vec3(0.1, 0.1, 0.02);
             deepest = std::min(deepest, d.cwiseMax(0.0).norm() + std::min(d.maxCoeff(), 0.0));
         }
     }
@@ -251,15 +273,18 @@ TEST_CASE("a dynamic box hanging from a cloth is held up", "[coupling][attach][s
     spec.spacing = 0.05;
     spec.origin = Vec3(-0.125, 1.0, 0.0);
     auto cloth = makeCloth(makeSheet(spec), s);
-    for (Index c = 0; c < spec.cols; ++c) cloth->pin(c);
+    for (Index c = 0; c < spec.cols; ++c)
+        cloth->pin(c);
     bullet::BulletClothSettings bs;
     bs.substeps = 2; // this cloth's stable step is below 1/240 s
     auto& handle = w.add(cloth, bs);
     const double boxMass = 0.2;
     const double bottom = 1.0 - 10 * 0.05;
-    btRigidBody* box = w.body(w.shape<btBoxShape>(btVector3(0.15f, 0.05f, 0.05f)), boxMass, Vec3(0, bottom - 0.05 - 0.011, 0));
+    btRigidBody* box = w.body(w.shape<btBoxShape>(btVector3(0.15f, 0.05f, 0.05f)), boxMass,
+                              Vec3(0, bottom - 0.05 - 0.011, 0));
     box->setActivationState(DISABLE_DEACTIVATION);
-    for (Index c = 0; c < spec.cols; ++c) handle.attach(10 * spec.cols + c, box, Vec3(-0.125 + 0.05 * c, 0.05, 0.0));
+    for (Index c = 0; c < spec.cols; ++c)
+        handle.attach(10 * spec.cols + c, box, Vec3(-0.125 + 0.05 * c, 0.05, 0.0));
     stepWorld(w, 720);
     Vec3 impulse = Vec3::Zero();
     const int window = 240;
@@ -271,7 +296,8 @@ TEST_CASE("a dynamic box hanging from a cloth is held up", "[coupling][attach][s
         drift = std::max(drift, std::abs(eig(box->getCenterOfMassPosition()).y() - y0));
     }
     const double boxY = eig(box->getCenterOfMassPosition()).y();
-    INFO("box centre at y = " << boxY << ", mean pull " << (impulse / (window * kStep)).transpose() << " N");
+    INFO("box centre at y = " << boxY << ", mean pull " << (impulse / (window * kStep)).transpose()
+                              << " N");
     // Held: it stays within the cloth's reach (10 springs of 0.05 at most 20 % stretched)
     // and over the last second only sways (5 mm), it does not fall.
     CHECK(boxY > bottom - 0.05 - 0.1 - 0.011);

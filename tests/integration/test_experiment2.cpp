@@ -64,14 +64,16 @@ TEST_CASE("Experiment II: a 30 x 60 cloth drops onto a desk and settles", "[expe
     bool touched = false;
     for (int step = 1; step <= kSteps; ++step) {
         w.world.stepSimulation(btScalar(kDt), 1, btScalar(kDt));
-        for (const auto& x : cloth->positions()) deepest = std::min(deepest, boxDistance(x, deskCentre, deskHalf));
+        for (const auto& x : cloth->positions())
+            deepest = std::min(deepest, boxDistance(x, deskCentre, deskHalf));
         worstStrain = std::max(worstStrain, cloth->maxStrain());
         touched = touched || handle.lastStats().contacts > 0;
         const bool settled = touched && cloth->kineticEnergy() < settledEnergy;
         if (settled && settleTime < 0.0) settleTime = step * kDt;
         if (!settled) settleTime = -1.0; // must stay settled to the end
     }
-    std::printf("experiment II: deepest %.4f (thickness %.2f), worst strain %.4f, settled at %.2f s, KE %.3f J\n",
+    std::printf("experiment II: deepest %.4f (thickness %.2f), worst strain %.4f, settled at %.2f "
+                "s, KE %.3f J\n",
                 deepest, kThickness, worstStrain, settleTime, cloth->kineticEnergy());
     INFO("closest approach to the desk " << deepest << ", worst strain " << worstStrain
                                          << ", settled from t = " << settleTime << " s");
@@ -86,9 +88,9 @@ TEST_CASE("Experiment II: a 30 x 60 cloth drops onto a desk and settles", "[expe
     CHECK(worstStrain <= s.limiter.maxStrain + s.limiter.tolerance + 1e-12);
     // Hangs over the edges: the middle of every border row and column, and the corners, are
     // well below the desk top (the overhang is 20; at least half of it hangs down).
-    for (Index idx : {at(0, kCols / 2), at(kRows - 1, kCols / 2),
-                      at(kRows / 2, 0), at(kRows / 2, kCols - 1),
-                      Index(0), Index(kCols - 1), Index(kRows * kCols - 1)}) {
+    for (Index idx :
+         {at(0, kCols / 2), at(kRows - 1, kCols / 2), at(kRows / 2, 0), at(kRows / 2, kCols - 1),
+          Index(0), Index(kCols - 1), Index(kRows * kCols - 1)}) {
         CHECK(cloth->positions()[idx].y() < -10.0);
     }
     // And the middle of the cloth lies on the desk, within the contact band.

@@ -35,7 +35,7 @@ struct Slope {
     btRigidBody* box = nullptr;
     std::shared_ptr<Cloth> cloth;
     bullet::BulletCloth* handle = nullptr;
-    Vec3 normal = Vec3::UnitY();   ///< the top face's outward normal
+    Vec3 normal = Vec3::UnitY();    ///< the top face's outward normal
     Vec3 downhill = -Vec3::UnitX(); ///< unit vector down the slope, in the face
 
     Slope(double degrees, double mu, double penaltyForce) {
@@ -64,19 +64,22 @@ struct Slope {
     /// Mean position of the particles.
     Vec3 centre() const {
         Vec3 c = Vec3::Zero();
-        for (const auto& x : cloth->positions()) c += x;
+        for (const auto& x : cloth->positions())
+            c += x;
         return c / double(cloth->particleCount());
     }
     void step(double dt, int steps) {
-        for (int k = 0; k < steps; ++k) w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
+        for (int k = 0; k < steps; ++k)
+            w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
     }
 };
 
 } // namespace
 
-TEST_CASE("kinetic friction: a sheet slides g (sin - mu cos) t^2 / 2 down a slope", "[contacts][friction]") {
+TEST_CASE("kinetic friction: a sheet slides g (sin - mu cos) t^2 / 2 down a slope",
+          "[contacts][friction]") {
     const double degrees = 30.0, mu = 0.2, dt = 1.0 / 240.0;
-    const int steps = 120; // 0.5 s
+    const int steps = 120;                     // 0.5 s
     for (const double penalty : {-1.0, 0.0}) { // eq. (7) with the automatic C_p, and off
         DYNAMIC_SECTION("penalty force " << penalty) {
             Slope s(degrees, mu, penalty);
@@ -114,9 +117,10 @@ TEST_CASE("static friction: a sheet on a slope below tan(theta) = mu does not cr
                 const Vec3 c2 = s.centre();
                 const double g = s.cloth->settings().gravity.norm();
                 const double first = (c1 - c0).norm(), creep = (c2 - c1).norm();
-                std::printf("[measured] slope %.0f deg, mu %.2f, penalty %g, dt %.3f s: moved %.3g m "
-                            "while settling, then %.3g m in 1 s\n",
-                            degrees, mu, penalty, dt, first, creep);
+                std::printf(
+                    "[measured] slope %.0f deg, mu %.2f, penalty %g, dt %.3f s: moved %.3g m "
+                    "while settling, then %.3g m in 1 s\n",
+                    degrees, mu, penalty, dt, first, creep);
                 // Before the first contact is found the first step is free fall: at most
                 // g dt^2 / 2, which the projection takes back along the normal.
                 CHECK(first <= 0.5 * g * dt * dt);
@@ -135,7 +139,8 @@ TEST_CASE("a cloth dragged across a box needs a pull of mu M g and, let go, stop
           "[contacts][friction][kinematic]") {
     const double mu = 0.3, speed = 1.0, dt = 1.0 / 240.0;
     TestWorld w;
-    btRigidBody* table = w.body(w.shape<btBoxShape>(btVector3(2.0f, 0.1f, 1.0f)), 0.0, Vec3::Zero());
+    btRigidBody* table =
+        w.body(w.shape<btBoxShape>(btVector3(2.0f, 0.1f, 1.0f)), 0.0, Vec3::Zero());
     table->setFriction(btScalar(mu));
     // A 7 x 7 sheet (spacing 5 cm) on the table, its leading column (largest x) held by a
     // kinematic bar that moves along +x.
@@ -154,10 +159,13 @@ TEST_CASE("a cloth dragged across a box needs a pull of mu M g and, let go, stop
     bs.sleep = false;
     auto& handle = w.add(cloth, bs);
     std::vector<Index> held;
-    for (Index r = 0; r < n; ++r) held.push_back(r * n + n - 1);
-    for (Index i : held) handle.attachHere(i, bar);
+    for (Index r = 0; r < n; ++r)
+        held.push_back(r * n + n - 1);
+    for (Index i : held)
+        handle.attachHere(i, bar);
     double freeMass = 0.0;
-    for (Index i = 0; i < cloth->particleCount(); ++i) freeMass += cloth->isPinned(i) ? 0.0 : cloth->masses()[i];
+    for (Index i = 0; i < cloth->particleCount(); ++i)
+        freeMass += cloth->isPinned(i) ? 0.0 : cloth->masses()[i];
     const double g = cloth->settings().gravity.norm();
 
     // Drag at 1 m/s for 1 s (the bar starts at once; the sheet catches up and its stick-slip
@@ -167,15 +175,18 @@ TEST_CASE("a cloth dragged across a box needs a pull of mu M g and, let go, stop
     Vec3 barAt = eig(bar->getWorldTransform().getOrigin());
     for (int k = 1; k <= dragSteps; ++k) {
         barAt.x() += speed * dt;
-        bar->getMotionState()->setWorldTransform(btTransform(btQuaternion::getIdentity(), bt(barAt)));
+        bar->getMotionState()->setWorldTransform(
+            btTransform(btQuaternion::getIdentity(), bt(barAt)));
         w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
         if (k > dragSteps - averaged) {
-            for (Index i : held) pull -= cloth->forces()[i].x(); // what the bar pulls with
+            for (Index i : held)
+                pull -= cloth->forces()[i].x(); // what the bar pulls with
         }
     }
     pull /= averaged;
     // Let go: the sheet slides on and stops.
-    for (Index i : held) handle.detach(i);
+    for (Index i : held)
+        handle.detach(i);
     double mass = 0.0;
     Vec3 momentum = Vec3::Zero(), start = Vec3::Zero();
     for (Index i = 0; i < cloth->particleCount(); ++i) {
@@ -186,9 +197,11 @@ TEST_CASE("a cloth dragged across a box needs a pull of mu M g and, let go, stop
     const double v0 = momentum.x() / mass;
     start /= mass;
     w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
-    for (int k = 0; k < int(1.0 / dt); ++k) w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
+    for (int k = 0; k < int(1.0 / dt); ++k)
+        w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
     Vec3 end = Vec3::Zero();
-    for (Index i = 0; i < cloth->particleCount(); ++i) end += cloth->masses()[i] * cloth->positions()[i];
+    for (Index i = 0; i < cloth->particleCount(); ++i)
+        end += cloth->masses()[i] * cloth->positions()[i];
     end /= mass;
     const double slid = end.x() - start.x();
     const double expectedSlide = v0 * v0 / (2.0 * mu * g);
@@ -207,7 +220,8 @@ TEST_CASE("a cloth placed at the contact distance is not pushed away and rests e
         DYNAMIC_SECTION("penalty force " << penalty) {
             const double dt = 1.0 / 240.0;
             TestWorld w;
-            w.body(w.shape<btBoxShape>(btVector3(1.0f, 0.1f, 1.0f)), 0.0, Vec3::Zero()); // top at 0.1
+            w.body(w.shape<btBoxShape>(btVector3(1.0f, 0.1f, 1.0f)), 0.0,
+                   Vec3::Zero()); // top at 0.1
             auto cloth = makeCloth(horizontalSheet(9, 9, 0.05, 0.1 + kThickness), lightCloth());
             bullet::BulletClothSettings bs;
             bs.contact.thickness = kThickness;
@@ -223,14 +237,16 @@ TEST_CASE("a cloth placed at the contact distance is not pushed away and rests e
                     lowest = std::min(lowest, x.y());
                 }
                 peakEnergy = std::max(peakEnergy, cloth->kineticEnergy());
-                if (!cloth->isAsleep()) fewestContacts = std::min(fewestContacts, handle.lastStats().contacts);
+                if (!cloth->isAsleep())
+                    fewestContacts = std::min(fewestContacts, handle.lastStats().contacts);
                 if (asleepAt < 0 && cloth->isAsleep()) asleepAt = k;
             }
-            std::printf("[measured] sheet placed at the contact distance, penalty %g: height %.9f..%.9f m "
-                        "(contact distance %.3f), peak KE %.3g J, fewest contacts %zu of %zu, asleep after "
-                        "step %d\n",
-                        penalty, lowest, highest, 0.1 + kThickness, peakEnergy, fewestContacts,
-                        cloth->particleCount(), asleepAt);
+            std::printf(
+                "[measured] sheet placed at the contact distance, penalty %g: height %.9f..%.9f m "
+                "(contact distance %.3f), peak KE %.3g J, fewest contacts %zu of %zu, asleep after "
+                "step %d\n",
+                penalty, lowest, highest, 0.1 + kThickness, peakEnergy, fewestContacts,
+                cloth->particleCount(), asleepAt);
             // Neither pushed up nor let in: at the contact distance after every step (the box's
             // top is a float: 1e-7 m).
             CHECK(highest <= 0.1 + kThickness + 1e-7);
@@ -252,13 +268,15 @@ TEST_CASE("a cloth dropped on a box settles to rest exactly, where its contacts 
             w.body(w.shape<btBoxShape>(btVector3(0.3f, 0.1f, 0.3f)), 0.0, Vec3::Zero());
             ClothSettings cs = lightCloth();
             cs.damping = 0.01;
-            auto cloth = makeCloth(horizontalSheet(9, 9, 0.05, top + 0.05), cs); // 4 cm above the band
+            auto cloth =
+                makeCloth(horizontalSheet(9, 9, 0.05, top + 0.05), cs); // 4 cm above the band
             bullet::BulletClothSettings bs;
             bs.contact.thickness = kThickness;
             bs.contact.penaltyForce = penalty;
             bs.sleep = false; // the state itself must come to rest, not be frozen
             auto& handle = w.add(cloth, bs);
-            for (int k = 0; k < 240; ++k) w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
+            for (int k = 0; k < 240; ++k)
+                w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
             double lowest = 1.0, highest = 0.0;
             for (const auto& x : cloth->positions()) {
                 lowest = std::min(lowest, x.y() - top);
@@ -269,13 +287,17 @@ TEST_CASE("a cloth dropped on a box settles to rest exactly, where its contacts 
             // height where it can: at or just below the equilibrium C_p phi(g) = m g,
             // phi(g) = 1/2 => g = w (1 - ln(1 + (e - 1)/2)). Without it, at the thickness.
             const double e = std::exp(1.0);
-            const double equilibrium = kThickness + (penalty < 0.0 ? kThickness * (1.0 - std::log(1.0 + (e - 1.0) / 2.0)) : 0.0);
-            std::printf("[measured] sheet dropped on a box, penalty %g: rests %.7f..%.7f m above the top "
-                        "(eq. (7) equilibrium %.7f), KE %.3g J after 1 s, %zu of %zu particles in contact\n",
-                        penalty, lowest, highest, equilibrium, cloth->kineticEnergy(), handle.lastStats().contacts,
-                        cloth->particleCount());
-            CHECK(highest - lowest <= 1e-9);              // flat, all at one height
-            CHECK(highest <= equilibrium + 1e-7);         // float box: 1e-7 m
+            const double equilibrium =
+                kThickness +
+                (penalty < 0.0 ? kThickness * (1.0 - std::log(1.0 + (e - 1.0) / 2.0)) : 0.0);
+            std::printf(
+                "[measured] sheet dropped on a box, penalty %g: rests %.7f..%.7f m above the top "
+                "(eq. (7) equilibrium %.7f), KE %.3g J after 1 s, %zu of %zu particles in "
+                "contact\n",
+                penalty, lowest, highest, equilibrium, cloth->kineticEnergy(),
+                handle.lastStats().contacts, cloth->particleCount());
+            CHECK(highest - lowest <= 1e-9);      // flat, all at one height
+            CHECK(highest <= equilibrium + 1e-7); // float box: 1e-7 m
             CHECK(lowest >= kThickness - 1e-7);
             if (penalty < 0.0) CHECK(lowest >= equilibrium - 0.05 * kThickness); // caught near it
             CHECK(cloth->kineticEnergy() <= 1e-25);
@@ -293,15 +315,20 @@ TEST_CASE("Coulomb on a dynamic body: a sheet on a heavy slab slides g (sin - mu
     for (const double degrees : {30.0, 10.0}) {
         for (const double penalty : {-1.0, 0.0}) {
             DYNAMIC_SECTION(degrees << " deg, penalty force " << penalty) {
-                const double a = degrees * kPi / 180.0, mu = degrees > 20.0 ? 0.2 : 0.5, dt = 1.0 / 240.0;
+                const double a = degrees * kPi / 180.0, mu = degrees > 20.0 ? 0.2 : 0.5,
+                             dt = 1.0 / 240.0;
                 TestWorld w(Vec3(9.81 * std::sin(a), -9.81 * std::cos(a), 0.0));
-                w.body(w.shape<btBoxShape>(btVector3(3.0f, 0.1f, 3.0f)), 0.0, Vec3(0, -0.3, 0))->setFriction(10.0f);
-                btRigidBody* slab = w.body(w.shape<btBoxShape>(btVector3(1.0f, 0.1f, 1.0f)), 100.0, Vec3(0, -0.1, 0));
+                w.body(w.shape<btBoxShape>(btVector3(3.0f, 0.1f, 3.0f)), 0.0, Vec3(0, -0.3, 0))
+                    ->setFriction(10.0f);
+                btRigidBody* slab = w.body(w.shape<btBoxShape>(btVector3(1.0f, 0.1f, 1.0f)), 100.0,
+                                           Vec3(0, -0.1, 0));
                 slab->setFriction(btScalar(mu));
                 slab->setActivationState(DISABLE_DEACTIVATION);
-                for (int k = 0; k < 60; ++k) w.world.stepSimulation(btScalar(dt), 1, btScalar(dt)); // the slab settles
+                for (int k = 0; k < 60; ++k)
+                    w.world.stepSimulation(btScalar(dt), 1, btScalar(dt)); // the slab settles
                 const double top = double(slab->getCenterOfMassPosition().y()) + 0.1;
-                auto cloth = makeCloth(horizontalSheet(5, 5, 0.04, top + kThickness, -0.5), lightCloth());
+                auto cloth =
+                    makeCloth(horizontalSheet(5, 5, 0.04, top + kThickness, -0.5), lightCloth());
                 bullet::BulletClothSettings bs;
                 bs.contact.thickness = kThickness;
                 bs.contact.penaltyForce = penalty;
@@ -309,27 +336,36 @@ TEST_CASE("Coulomb on a dynamic body: a sheet on a heavy slab slides g (sin - mu
                 w.add(cloth, bs);
                 auto relative = [&] { // the sheet's centre relative to the slab
                     Vec3 c = Vec3::Zero();
-                    for (const auto& x : cloth->positions()) c += x;
-                    return Vec3(c / double(cloth->particleCount()) - eig(slab->getCenterOfMassPosition()));
+                    for (const auto& x : cloth->positions())
+                        c += x;
+                    return Vec3(c / double(cloth->particleCount()) -
+                                eig(slab->getCenterOfMassPosition()));
                 };
                 const Vec3 r0 = relative();
                 const double g = cloth->settings().gravity.norm();
                 if (degrees > 20.0) {
-                    for (int k = 0; k < 120; ++k) w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
+                    for (int k = 0; k < 120; ++k)
+                        w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
                     const double slid = (relative() - r0).x(), t = 0.5;
                     const double expected = g * (std::sin(a) - mu * std::cos(a)) * t * t / 2.0;
-                    std::printf("[measured] on a dynamic slab, %.0f deg, mu %.2f, penalty %g: slid %.5f m, Coulomb "
+                    std::printf("[measured] on a dynamic slab, %.0f deg, mu %.2f, penalty %g: slid "
+                                "%.5f m, Coulomb "
                                 "%.5f m (%+.2f %%)\n",
-                                degrees, mu, penalty, slid, expected, 100.0 * (slid / expected - 1.0));
+                                degrees, mu, penalty, slid, expected,
+                                100.0 * (slid / expected - 1.0));
                     CHECK(slid == Approx(expected).epsilon(0.02));
                 } else {
-                    for (int k = 0; k < 24; ++k) w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
+                    for (int k = 0; k < 24; ++k)
+                        w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
                     const Vec3 r1 = relative();
-                    for (int k = 0; k < 240; ++k) w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
+                    for (int k = 0; k < 240; ++k)
+                        w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
                     const Vec3 d = relative() - r1;
-                    std::printf("[measured] on a dynamic slab, %.0f deg, mu %.2f, penalty %g: moved %.3g m along, "
+                    std::printf("[measured] on a dynamic slab, %.0f deg, mu %.2f, penalty %g: "
+                                "moved %.3g m along, "
                                 "%.3g m across the slab in 1 s, KE %.3g J\n",
-                                degrees, mu, penalty, std::abs(d.x()), std::abs(d.y()), cloth->kineticEnergy());
+                                degrees, mu, penalty, std::abs(d.x()), std::abs(d.y()),
+                                cloth->kineticEnergy());
                     // Sticks: no slip along the slab beyond a micrometre in a second (the slab's
                     // own single-precision jitter; the static-body creep this replaced was mm).
                     CHECK(std::abs(d.x()) < 1e-6);

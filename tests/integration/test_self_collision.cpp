@@ -26,13 +26,15 @@ constexpr double kBottom = 0.014; // bottom layer height: resting on the ground'
 /// 0 fold).
 TriangleMesh foldedStrip(std::vector<int>& layerOfRow) {
     std::vector<Vec3> path; // centre line of the strip in the y-z plane, spaced kSpacing apart
-    for (Index r = 0; r < kLayerRows; ++r) path.emplace_back(0.0, kBottom, r * kSpacing);
+    for (Index r = 0; r < kLayerRows; ++r)
+        path.emplace_back(0.0, kBottom, r * kSpacing);
     layerOfRow.assign(kLayerRows, -1);
     const double zEnd = (kLayerRows - 1) * kSpacing, radius = kGap / 2.0;
     const int foldSteps = int(std::round(M_PI * radius / kSpacing)); // 3 arcs of ~0.052
     for (int k = 1; k < foldSteps; ++k) {
         const double a = M_PI * k / foldSteps;
-        path.emplace_back(0.0, kBottom + radius - radius * std::cos(a), zEnd + radius * std::sin(a));
+        path.emplace_back(0.0, kBottom + radius - radius * std::cos(a),
+                          zEnd + radius * std::sin(a));
         layerOfRow.push_back(0);
     }
     for (Index r = 0; r < kLayerRows; ++r) {
@@ -45,7 +47,8 @@ TriangleMesh foldedStrip(std::vector<int>& layerOfRow) {
     TriangleMesh m;
     const auto rows = Index(path.size());
     for (Index r = 0; r < rows; ++r)
-        for (Index c = 0; c < kCols; ++c) m.vertices.push_back(path[r] + Vec3((c - 0.5 * (kCols - 1)) * kSpacing, 0, 0));
+        for (Index c = 0; c < kCols; ++c)
+            m.vertices.push_back(path[r] + Vec3((c - 0.5 * (kCols - 1)) * kSpacing, 0, 0));
     for (Index r = 0; r + 1 < rows; ++r) {
         for (Index c = 0; c + 1 < kCols; ++c) {
             const Index a = r * kCols + c, b = a + 1, d = a + kCols, e = d + 1;
@@ -108,10 +111,12 @@ TEST_CASE("a cloth folded onto itself keeps its layers apart with self-collision
     const double thickness = 0.01;
     const FoldResult on = dropFold(true, thickness);
     const FoldResult off = dropFold(false, thickness);
-    std::printf("self-collision: layer separation on %.4f m (worst %.4f), off %.4f m; %zu contacts, %zu pair tests\n",
-                on.finalSeparation, on.worstSeparation, off.finalSeparation, on.selfContacts, on.selfPairTests);
+    std::printf("self-collision: layer separation on %.4f m (worst %.4f), off %.4f m; %zu "
+                "contacts, %zu pair tests\n",
+                on.finalSeparation, on.worstSeparation, off.finalSeparation, on.selfContacts,
+                on.selfPairTests);
     INFO("separation with self-collision " << on.finalSeparation << " (worst " << on.worstSeparation
-                                            << "), without " << off.finalSeparation);
+                                           << "), without " << off.finalSeparation);
     // With it: the top layer lies on the bottom one and never crosses it. Every particle is
     // kept `thickness` from the triangles of the other layer; the measure compares the lowest
     // top particle with the highest bottom particle anywhere, which undercounts that local

@@ -23,12 +23,14 @@ ClothSettings smallCloth() {
 }
 
 void run(TestWorld& w, int steps) {
-    for (int s = 0; s < steps; ++s) w.world.stepSimulation(btScalar(kStep), 1, btScalar(kStep));
+    for (int s = 0; s < steps; ++s)
+        w.world.stepSimulation(btScalar(kStep), 1, btScalar(kStep));
 }
 
 /// Steps until the cloth sleeps (at most 10 s of world time); returns whether it does.
 bool runUntilAsleep(TestWorld& w, const Cloth& c) {
-    for (int s = 0; s < 10 * 240 && !c.isAsleep(); ++s) run(w, 1);
+    for (int s = 0; s < 10 * 240 && !c.isAsleep(); ++s)
+        run(w, 1);
     return c.isAsleep();
 }
 
@@ -39,7 +41,8 @@ std::uint64_t integrations(const Cloth& c) {
 
 double maxMove(const Vec3List& a, const Vec3List& b) {
     double m = 0.0;
-    for (std::size_t i = 0; i < a.size(); ++i) m = std::max(m, (a[i] - b[i]).norm());
+    for (std::size_t i = 0; i < a.size(); ++i)
+        m = std::max(m, (a[i] - b[i]).norm());
     return m;
 }
 
@@ -85,9 +88,11 @@ TEST_CASE("a cloth resting on a box sleeps, and a ball dropped on it wakes it", 
     CHECK_FALSE(cloth->isAsleep());
 }
 
-TEST_CASE("a hanging cloth sleeps and wakes when its body moves or gravity changes", "[world][sleep]") {
+TEST_CASE("a hanging cloth sleeps and wakes when its body moves or gravity changes",
+          "[world][sleep]") {
     TestWorld w;
-    btRigidBody* bar = w.kinematic(w.shape<btBoxShape>(btVector3(0.3f, 0.02f, 0.02f)), Vec3(0, 1.0, 0));
+    btRigidBody* bar =
+        w.kinematic(w.shape<btBoxShape>(btVector3(0.3f, 0.02f, 0.02f)), Vec3(0, 1.0, 0));
     auto cloth = makeCloth(horizontalSheet(7, 7, 0.05, 0.97), smallCloth());
     auto& handle = w.add(cloth);
     handle.attachHere(0, bar);

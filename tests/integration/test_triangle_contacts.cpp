@@ -1,8 +1,9 @@
 // Triangle-body contacts (ContactSettings::triangles): a body feature thinner than the
 // particle spacing, which particle contacts alone let through between two particles, is caught
 // by the cloth's triangles: a thin rod holds up a falling sheet, a thin rod swept through a
-// hanging curtain pushes it, and a box's knife edge stays under a sheet dropped on it. Each check also runs without triangle contacts, where the rod
-// must pass (so the check can fail), and the mode costs nothing when it is off.
+// hanging curtain pushes it, and a box's knife edge stays under a sheet dropped on it. Each check
+// also runs without triangle contacts, where the rod must pass (so the check can fail), and the
+// mode costs nothing when it is off.
 #include "world_fixture.hpp"
 
 #include <catch2/catch.hpp>
@@ -24,13 +25,14 @@ constexpr double kThickness = 0.005;
 double segmentDistance2d(double pu, double pv, double au, double av, double bu, double bv) {
     const double du = bu - au, dv = bv - av;
     const double len2 = du * du + dv * dv;
-    const double t = len2 > 0.0 ? std::clamp(((pu - au) * du + (pv - av) * dv) / len2, 0.0, 1.0) : 0.0;
+    const double t =
+        len2 > 0.0 ? std::clamp(((pu - au) * du + (pv - av) * dv) / len2, 0.0, 1.0) : 0.0;
     return std::hypot(pu - (au + t * du), pv - (av + t * dv));
 }
 
 struct RodDrop {
-    double lowest = 0.0;       ///< lowest particle at the end [m]
-    double closest = 0.0;      ///< closest spring to the rod's axis (x-y plane) [m]
+    double lowest = 0.0;  ///< lowest particle at the end [m]
+    double closest = 0.0; ///< closest spring to the rod's axis (x-y plane) [m]
     std::size_t triangleQueries = 0, triangleContacts = 0;
 };
 
@@ -45,15 +47,18 @@ RodDrop dropOnRod(bool triangles) {
     s.particleMass = 0.002;
     s.springStiffness = 5.0;
     s.damping = 0.01;
-    auto cloth = makeCloth(horizontalSheet(9, 9, 0.05, 0.4, 0.025), s); // columns at x = +-0.025, ...
+    auto cloth =
+        makeCloth(horizontalSheet(9, 9, 0.05, 0.4, 0.025), s); // columns at x = +-0.025, ...
     bullet::BulletClothSettings bs;
     bs.contact.thickness = kThickness;
     bs.contact.triangles = triangles;
     auto& handle = w.add(cloth, bs);
-    for (int k = 0; k < 360; ++k) w.world.stepSimulation(btScalar(kStep), 1, btScalar(kStep));
+    for (int k = 0; k < 360; ++k)
+        w.world.stepSimulation(btScalar(kStep), 1, btScalar(kStep));
     RodDrop r;
     r.lowest = std::numeric_limits<double>::infinity();
-    for (const auto& x : cloth->positions()) r.lowest = std::min(r.lowest, x.y());
+    for (const auto& x : cloth->positions())
+        r.lowest = std::min(r.lowest, x.y());
     r.closest = std::numeric_limits<double>::infinity();
     for (const auto& sp : cloth->topology().springs()) {
         const Vec3& a = cloth->positions()[sp.a];
@@ -63,16 +68,18 @@ RodDrop dropOnRod(bool triangles) {
     }
     r.triangleQueries = handle.totalStats().triangleQueries;
     r.triangleContacts = handle.totalStats().triangleContacts;
-    std::printf("[measured] sheet dropped on a rod of radius 1 cm (spacing 5 cm), triangle contacts %s: "
-                "lowest particle %.4f m, closest spring to the axis %.5f m (radius + thickness %.3f), "
-                "%zu triangle queries\n",
-                triangles ? "on" : "off", r.lowest, r.closest, radius + kThickness, r.triangleQueries);
+    std::printf(
+        "[measured] sheet dropped on a rod of radius 1 cm (spacing 5 cm), triangle contacts %s: "
+        "lowest particle %.4f m, closest spring to the axis %.5f m (radius + thickness %.3f), "
+        "%zu triangle queries\n",
+        triangles ? "on" : "off", r.lowest, r.closest, radius + kThickness, r.triangleQueries);
     return r;
 }
 
 } // namespace
 
-TEST_CASE("a thin rod under a falling sheet holds it up with triangle contacts", "[contacts][triangles]") {
+TEST_CASE("a thin rod under a falling sheet holds it up with triangle contacts",
+          "[contacts][triangles]") {
     const RodDrop off = dropOnRod(false);
     // Particles alone: every particle is 2.5 cm from the axis, beyond the reach of the
     // 1 cm rod (radius + thickness + band = 2 cm): the sheet falls through onto the floor.
@@ -90,7 +97,8 @@ TEST_CASE("a thin rod under a falling sheet holds it up with triangle contacts",
 namespace {
 
 struct Sweep {
-    double worstLead = 0.0; ///< smallest (cloth z - rod z) at the rod's height over the rod's length
+    double worstLead =
+        0.0; ///< smallest (cloth z - rod z) at the rod's height over the rod's length
     double peakStrain = 0.0;
 };
 
@@ -101,7 +109,8 @@ Sweep sweepRod(bool triangles) {
     TestWorld w;
     const double radius = 0.01, rodY = 0.725, speed = 2.0;
     double rodZ = -0.05;
-    btRigidBody* rod = w.kinematic(w.shape<btCapsuleShapeX>(btScalar(radius), btScalar(0.3)), Vec3(0, rodY, rodZ));
+    btRigidBody* rod =
+        w.kinematic(w.shape<btCapsuleShapeX>(btScalar(radius), btScalar(0.3)), Vec3(0, rodY, rodZ));
     ClothSettings s;
     s.particleMass = 0.005;
     s.springStiffness = 40.0;
@@ -112,7 +121,8 @@ Sweep sweepRod(bool triangles) {
     spec.spacing = 0.05;
     spec.origin = Vec3(-0.25, 1.0, 0.0);
     auto cloth = makeCloth(makeSheet(spec), s);
-    for (Index c = 0; c < spec.cols; ++c) cloth->pin(c);
+    for (Index c = 0; c < spec.cols; ++c)
+        cloth->pin(c);
     bullet::BulletClothSettings bs;
     bs.contact.thickness = kThickness;
     bs.contact.triangles = triangles;
@@ -122,7 +132,8 @@ Sweep sweepRod(bool triangles) {
     const int steps = int(std::lround(0.15 / speed / kStep));
     for (int k = 1; k <= steps; ++k) {
         rodZ += speed * kStep;
-        rod->getMotionState()->setWorldTransform(btTransform(btQuaternion::getIdentity(), btVector3(0, btScalar(rodY), btScalar(rodZ))));
+        rod->getMotionState()->setWorldTransform(
+            btTransform(btQuaternion::getIdentity(), btVector3(0, btScalar(rodY), btScalar(rodZ))));
         w.world.stepSimulation(btScalar(kStep), 1, btScalar(kStep));
         r.peakStrain = std::max(r.peakStrain, cloth->maxStrain());
     }
@@ -138,7 +149,8 @@ Sweep sweepRod(bool triangles) {
             break;
         }
     }
-    std::printf("[measured] rod swept through a curtain at 2 m/s, triangle contacts %s: cloth %.4f m in front "
+    std::printf("[measured] rod swept through a curtain at 2 m/s, triangle contacts %s: cloth %.4f "
+                "m in front "
                 "of the rod's axis at its height (worst column), peak strain %.4f\n",
                 triangles ? "on" : "off", r.worstLead, r.peakStrain);
     return r;
@@ -169,7 +181,8 @@ struct RodHit {
 RodHit rodThroughFreeSheet(bool triangles) {
     TestWorld w(Vec3::Zero());
     const double rodMass = 0.2;
-    btRigidBody* rod = w.body(w.shape<btCapsuleShapeZ>(btScalar(0.01), btScalar(0.6)), rodMass, Vec3(0, 0.1, 0));
+    btRigidBody* rod =
+        w.body(w.shape<btCapsuleShapeZ>(btScalar(0.01), btScalar(0.6)), rodMass, Vec3(0, 0.1, 0));
     rod->setLinearVelocity(btVector3(0, -2, 0));
     rod->setActivationState(DISABLE_DEACTIVATION);
     ClothSettings s;
@@ -182,10 +195,13 @@ RodHit rodThroughFreeSheet(bool triangles) {
     w.add(cloth, bs);
     RodHit r;
     r.total0 = rodMass * -2.0;
-    for (int k = 0; k < 120; ++k) w.world.stepSimulation(btScalar(kStep), 1, btScalar(kStep));
-    for (std::size_t i = 0; i < cloth->particleCount(); ++i) r.cloth += cloth->masses()[i] * cloth->velocities()[i].y();
+    for (int k = 0; k < 120; ++k)
+        w.world.stepSimulation(btScalar(kStep), 1, btScalar(kStep));
+    for (std::size_t i = 0; i < cloth->particleCount(); ++i)
+        r.cloth += cloth->masses()[i] * cloth->velocities()[i].y();
     r.rod = rodMass * double(rod->getLinearVelocity().y());
-    std::printf("[measured] dynamic rod through a free sheet, triangle contacts %s: momentum cloth %.6f, rod %.6f, "
+    std::printf("[measured] dynamic rod through a free sheet, triangle contacts %s: momentum cloth "
+                "%.6f, rod %.6f, "
                 "total %.6f (before %.6f) N s\n",
                 triangles ? "on" : "off", r.cloth, r.rod, r.cloth + r.rod, r.total0);
     return r;
@@ -193,7 +209,8 @@ RodHit rodThroughFreeSheet(bool triangles) {
 
 } // namespace
 
-TEST_CASE("triangle contacts with a dynamic rod exchange momentum and conserve it", "[contacts][triangles][coupling]") {
+TEST_CASE("triangle contacts with a dynamic rod exchange momentum and conserve it",
+          "[contacts][triangles][coupling]") {
     const RodHit off = rodThroughFreeSheet(false);
     CHECK(off.cloth == Approx(0.0).margin(1e-9)); // it passed between the particles untouched
     const RodHit on = rodThroughFreeSheet(true);
@@ -206,7 +223,8 @@ TEST_CASE("triangle contacts with a dynamic rod exchange momentum and conserve i
 namespace {
 
 struct EdgeDrop {
-    double worstClearance = 0.0; ///< smallest height of a spring above the ridge where it crosses it [m]
+    double worstClearance =
+        0.0; ///< smallest height of a spring above the ridge where it crosses it [m]
     double finalClearance = 0.0; ///< the same in the last step [m]
     double lowest = 0.0;         ///< lowest particle at the end [m]
 };
@@ -219,7 +237,8 @@ EdgeDrop dropOnEdge(bool triangles) {
     const double half = 0.05, ridgeY = 0.3;
     const double centreY = ridgeY - half * std::sqrt(2.0);
     w.body(w.shape<btBoxShape>(btVector3(btScalar(half), btScalar(half), btScalar(0.3))), 0.0,
-           Vec3(0, centreY, 0), btQuaternion(btVector3(0, 0, 1), btScalar(0.25 * 3.14159265358979323846)));
+           Vec3(0, centreY, 0),
+           btQuaternion(btVector3(0, 0, 1), btScalar(0.25 * 3.14159265358979323846)));
     ClothSettings s;
     s.particleMass = 0.002;
     s.springStiffness = 5.0;
@@ -249,11 +268,13 @@ EdgeDrop dropOnEdge(bool triangles) {
         }
     }
     r.lowest = std::numeric_limits<double>::infinity();
-    for (const auto& x : cloth->positions()) r.lowest = std::min(r.lowest, x.y());
-    std::printf("[measured] sheet dropped on a knife-edge box ridge (spacing 5 cm), triangle contacts %s: "
-                "smallest height of a spring above the ridge %.5f m over the run, %.5f m at the end "
-                "(thickness %.3f), lowest particle %.4f m\n",
-                triangles ? "on" : "off", r.worstClearance, r.finalClearance, kThickness, r.lowest);
+    for (const auto& x : cloth->positions())
+        r.lowest = std::min(r.lowest, x.y());
+    std::printf(
+        "[measured] sheet dropped on a knife-edge box ridge (spacing 5 cm), triangle contacts %s: "
+        "smallest height of a spring above the ridge %.5f m over the run, %.5f m at the end "
+        "(thickness %.3f), lowest particle %.4f m\n",
+        triangles ? "on" : "off", r.worstClearance, r.finalClearance, kThickness, r.lowest);
     return r;
 }
 

@@ -81,13 +81,15 @@ TEST_CASE("bad input gets a drape::Error naming the problem", "[world][errors]")
     auto* under = w.body(w.shape<btBoxShape>(btVector3(0.5f, 0.1f, 0.5f)), 0.0, Vec3(0, 0.85, 0));
     under->setFriction(-0.2f);
     const Vec3List before = cloth->positions();
-    CHECK_THROWS_WITH(handle.stepInWorld(0.005), Catch::Contains("friction -0.2") && Catch::Contains("Box"));
+    CHECK_THROWS_WITH(handle.stepInWorld(0.005),
+                      Catch::Contains("friction -0.2") && Catch::Contains("Box"));
     CHECK(cloth->positions() == before);
     under->setFriction(0.5f);
     CHECK_NOTHROW(handle.stepInWorld(0.005));
 }
 
-TEST_CASE("the cloth's candidates come from the broadphase: far bodies cost nothing", "[world][broadphase]") {
+TEST_CASE("the cloth's candidates come from the broadphase: far bodies cost nothing",
+          "[world][broadphase]") {
     // Same cloth, same fall, in three worlds: empty; with 1000 static and dynamic bodies far
     // away; with one box right under it. The counts of narrow-phase work must be identical
     // for the first two (zero: no rigid collider near, no collision work) and non-zero for
@@ -137,32 +139,34 @@ TEST_CASE("the cloth's candidates come from the broadphase: far bodies cost noth
 TEST_CASE("the README example runs as written", "[world][readme]") {
     TestWorld w;
     btDiscreteDynamicsWorld* world = &w.world;
-    btRigidBody* pole = w.kinematic(w.shape<btCapsuleShapeX>(btScalar(0.02), btScalar(1.0)), Vec3(0, 1.5, 0));
+    btRigidBody* pole =
+        w.kinematic(w.shape<btCapsuleShapeX>(btScalar(0.02), btScalar(1.0)), Vec3(0, 1.5, 0));
 
     // --- README: "Putting a cloth into a Bullet world" ---------------------------------
-    drape::SheetSpec sheet;              // a 1 m x 1 m curtain in the x-y plane
+    drape::SheetSpec sheet; // a 1 m x 1 m curtain in the x-y plane
     sheet.rows = 21;
     sheet.cols = 21;
-    sheet.spacing = 0.05;                // m
-    sheet.origin = {-0.5, 1.5, 0.0};     // top-left corner, m
+    sheet.spacing = 0.05;            // m
+    sheet.origin = {-0.5, 1.5, 0.0}; // top-left corner, m
     drape::ClothSettings settings;
-    settings.totalMass = 0.3;            // kg
-    settings.springStiffness = 20.0;     // N/m
+    settings.totalMass = 0.3;        // kg
+    settings.springStiffness = 20.0; // N/m
     auto cloth = std::make_shared<drape::Cloth>(
         drape::ClothTopology::build(drape::makeSheet(sheet)), settings);
 
     drape::bullet::BulletClothSettings options;
-    options.contact.thickness = 0.005;   // m
-    options.substeps = 2;                // cloth steps per Bullet sub-step
-    auto handle = drape::bullet::addCloth(world, cloth, options);   // one call in
-    for (drape::Index c = 0; c < sheet.cols; ++c) handle->attachHere(c, pole); // hang it
+    options.contact.thickness = 0.005;                            // m
+    options.substeps = 2;                                         // cloth steps per Bullet sub-step
+    auto handle = drape::bullet::addCloth(world, cloth, options); // one call in
+    for (drape::Index c = 0; c < sheet.cols; ++c)
+        handle->attachHere(c, pole); // hang it
 
     for (int frame = 0; frame < 60; ++frame) {
-        world->stepSimulation(1.0f / 60.0f, 10, 1.0f / 240.0f);   // bodies and cloth together
-        const std::vector<drape::Vec3>& x = cloth->positions();    // render from here
+        world->stepSimulation(1.0f / 60.0f, 10, 1.0f / 240.0f); // bodies and cloth together
+        const std::vector<drape::Vec3>& x = cloth->positions(); // render from here
         (void)x;
     }
-    drape::bullet::removeCloth(*handle);                           // one call out
+    drape::bullet::removeCloth(*handle); // one call out
     // -------------------------------------------------------------------------------------
     CHECK(cloth->stepCount() == 60 * 4 * 2);
     CHECK(cloth->positions()[20 * 21].y() < 1.5 - 0.9); // the curtain hangs down ~1 m
@@ -170,7 +174,8 @@ TEST_CASE("the README example runs as written", "[world][readme]") {
 
 TEST_CASE("two cloths in one world, and a collider removed while the cloth lies on it", "[world]") {
     TestWorld w;
-    btRigidBody* table = w.body(w.shape<btBoxShape>(btVector3(1, 0.05f, 1)), 0.0, Vec3(0, -0.05, 0));
+    btRigidBody* table =
+        w.body(w.shape<btBoxShape>(btVector3(1, 0.05f, 1)), 0.0, Vec3(0, -0.05, 0));
     ClothSettings s = softCloth();
     s.damping = 0.01;
     auto a = makeCloth(horizontalSheet(5, 5, 0.1, 0.1, -0.5), s);
@@ -179,7 +184,8 @@ TEST_CASE("two cloths in one world, and a collider removed while the cloth lies 
     bs.substeps = 2;
     auto& ha = w.add(a, bs);
     auto& hb = w.add(b, bs);
-    for (int k = 0; k < 120; ++k) w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    for (int k = 0; k < 120; ++k)
+        w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
     // Each lies on the table (top at y = 0) in its contact band; neither sees the other's
     // proxy as a collider (only the table is a candidate).
     CHECK(a->positions()[12].y() > 0.0);
@@ -189,7 +195,8 @@ TEST_CASE("two cloths in one world, and a collider removed while the cloth lies 
     CHECK(hb.lastStats().candidateBodies == 1);
     // Take the table away: the broadphase drops it from both proxies, the cloths fall.
     w.world.removeRigidBody(table);
-    for (int k = 0; k < 30; ++k) w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    for (int k = 0; k < 30; ++k)
+        w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
     CHECK(ha.lastStats().candidateBodies == 0);
     CHECK(a->positions()[12].y() < -0.5); // 0.5 s of free fall: 1.2 m
     w.world.addRigidBody(table);          // back, so the fixture can remove it
@@ -199,7 +206,8 @@ TEST_CASE("same scene, same result: two runs are bit-identical", "[world][determ
     auto run = [] {
         TestWorld w;
         w.body(w.shape<btSphereShape>(btScalar(0.2)), 0.0, Vec3(0, 0, 0));
-        btRigidBody* ball = w.body(w.shape<btSphereShape>(btScalar(0.1)), 0.3, Vec3(0.05, 0.6, 0.0));
+        btRigidBody* ball =
+            w.body(w.shape<btSphereShape>(btScalar(0.1)), 0.3, Vec3(0.05, 0.6, 0.0));
         ball->setActivationState(DISABLE_DEACTIVATION);
         ClothSettings s = softCloth();
         auto cloth = makeCloth(horizontalSheet(9, 9, 0.05, 0.3), s);
@@ -207,7 +215,8 @@ TEST_CASE("same scene, same result: two runs are bit-identical", "[world][determ
         bs.substeps = 3;
         bs.selfCollision.enabled = true;
         w.add(cloth, bs);
-        for (int k = 0; k < 90; ++k) w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+        for (int k = 0; k < 90; ++k)
+            w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
         std::vector<Vec3> state = cloth->positions();
         state.push_back(eig(ball->getCenterOfMassPosition()));
         return state;
@@ -215,5 +224,6 @@ TEST_CASE("same scene, same result: two runs are bit-identical", "[world][determ
     const auto a = run();
     const auto b = run();
     REQUIRE(a.size() == b.size());
-    for (std::size_t i = 0; i < a.size(); ++i) CHECK(a[i] == b[i]); // exact equality
+    for (std::size_t i = 0; i < a.size(); ++i)
+        CHECK(a[i] == b[i]); // exact equality
 }

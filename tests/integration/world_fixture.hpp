@@ -14,8 +14,12 @@
 
 namespace drape::testing {
 
-inline btVector3 bt(const Vec3& v) { return btVector3(btScalar(v.x()), btScalar(v.y()), btScalar(v.z())); }
-inline Vec3 eig(const btVector3& v) { return Vec3(double(v.x()), double(v.y()), double(v.z())); }
+inline btVector3 bt(const Vec3& v) {
+    return btVector3(btScalar(v.x()), btScalar(v.y()), btScalar(v.z()));
+}
+inline Vec3 eig(const btVector3& v) {
+    return Vec3(double(v.x()), double(v.y()), double(v.z()));
+}
 
 struct TestWorld {
     btDefaultCollisionConfiguration config;
@@ -34,12 +38,13 @@ struct TestWorld {
     TestWorld& operator=(const TestWorld&) = delete;
     ~TestWorld() {
         cloths.clear();
-        for (auto& b : bodies) world.removeRigidBody(b.get());
-        for (auto& o : objects) world.removeCollisionObject(o.get());
+        for (auto& b : bodies)
+            world.removeRigidBody(b.get());
+        for (auto& o : objects)
+            world.removeCollisionObject(o.get());
     }
 
-    template <class Shape, class... Args>
-    Shape* shape(Args&&... args) {
+    template <class Shape, class... Args> Shape* shape(Args&&... args) {
         auto s = std::make_unique<Shape>(std::forward<Args>(args)...);
         Shape* raw = s.get();
         shapes.push_back(std::move(s));
@@ -69,7 +74,8 @@ struct TestWorld {
         return b;
     }
 
-    bullet::BulletCloth& add(std::shared_ptr<Cloth> cloth, const bullet::BulletClothSettings& s = {}) {
+    bullet::BulletCloth& add(std::shared_ptr<Cloth> cloth,
+                             const bullet::BulletClothSettings& s = {}) {
         cloths.push_back(bullet::addCloth(&world, std::move(cloth), s));
         return *cloths.back();
     }
@@ -77,8 +83,8 @@ struct TestWorld {
 
 /// A horizontal sheet (in the x-z plane at height y) of rows x cols particles, centred on
 /// (cx, cz). Row r runs along z, column c along x.
-inline TriangleMesh horizontalSheet(Index rows, Index cols, double spacing, double y, double cx = 0.0,
-                                    double cz = 0.0) {
+inline TriangleMesh horizontalSheet(Index rows, Index cols, double spacing, double y,
+                                    double cx = 0.0, double cz = 0.0) {
     SheetSpec spec;
     spec.rows = rows;
     spec.cols = cols;

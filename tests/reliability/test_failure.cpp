@@ -48,7 +48,8 @@ TEST_CASE("energy growth is detected before the state turns non-finite", "[blowu
         }
     }
     REQUIRE(failedAt >= 0);
-    for (const auto& x : cloth->positions()) CHECK(x.allFinite());
+    for (const auto& x : cloth->positions())
+        CHECK(x.allFinite());
     // The energy at the failure is still moderate (the check fired early, not at overflow).
     CHECK(cloth->kineticEnergy() + cloth->springEnergy() < 1e6);
 }
@@ -60,7 +61,8 @@ TEST_CASE("the same cloth below the stability limit passes the energy check", "[
     auto cloth = kickedSheet(s);
     const double dt = 0.5 * cloth->stableTimeStep();
     const double e0 = cloth->kineticEnergy() + cloth->springEnergy();
-    for (int i = 0; i < 5000; ++i) cloth->step(dt);
+    for (int i = 0; i < 5000; ++i)
+        cloth->step(dt);
     // Velocity-Verlet is symplectic: the energy stays within a few percent at half the limit.
     CHECK(cloth->kineticEnergy() + cloth->springEnergy() == Approx(e0).epsilon(0.05));
 }
@@ -73,11 +75,13 @@ TEST_CASE("a failed step retried as sub-steps keeps the run alive", "[blowup]") 
     auto cloth = kickedSheet(s);
     const double dt = 1.5 * cloth->stableTimeStep();
     const double e0 = cloth->kineticEnergy() + cloth->springEnergy();
-    for (int i = 0; i < 2000; ++i) cloth->step(dt);
+    for (int i = 0; i < 2000; ++i)
+        cloth->step(dt);
     CHECK(cloth->retriedSteps() > 0);
     CHECK(cloth->stepCount() == 2000);
     CHECK(cloth->time() == Approx(2000 * dt));
-    for (const auto& x : cloth->positions()) CHECK(x.allFinite());
+    for (const auto& x : cloth->positions())
+        CHECK(x.allFinite());
     // Each accepted step grows the energy by at most half the scale; the run stays bounded.
     CHECK(cloth->kineticEnergy() + cloth->springEnergy() < 100.0 * e0);
 }

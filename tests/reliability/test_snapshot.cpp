@@ -68,7 +68,8 @@ TEST_CASE("a run restored from a snapshot at step k continues bit-identically", 
             }
             loadSnapshot(*resumed, snap);
             CHECK(resumed->stepCount() == 60);
-            for (int i = 60; i < 150; ++i) resumed->step(0.002);
+            for (int i = 60; i < 150; ++i)
+                resumed->step(0.002);
             CHECK(stateHash(*resumed) == stateHash(*full));
             CHECK(resumed->time() == full->time());
         }
@@ -77,7 +78,8 @@ TEST_CASE("a run restored from a snapshot at step k continues bit-identically", 
 
 TEST_CASE("snapshot files round-trip and corrupt or truncated ones are refused", "[snapshot]") {
     auto cloth = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
-    for (int i = 0; i < 20; ++i) cloth->step(0.002);
+    for (int i = 0; i < 20; ++i)
+        cloth->step(0.002);
     const std::string path = "drape_test_snapshot.bin";
     saveSnapshotFile(*cloth, path);
     auto other = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
@@ -144,7 +146,8 @@ TEST_CASE("a step that blows up throws and leaves the last good state", "[blowup
         }
     }
     CHECK(threw);
-    for (const auto& x : cloth.positions()) CHECK(x.allFinite());
+    for (const auto& x : cloth.positions())
+        CHECK(x.allFinite());
 }
 
 TEST_CASE("one and two threads give bit-identical states", "[determinism][threads]") {
@@ -167,7 +170,8 @@ TEST_CASE("one and two threads give bit-identical states", "[determinism][thread
             Cloth cloth(topo, s);
             cloth.pin(sheetIndex(spec, 0, 0));
             cloth.pin(sheetIndex(spec, 0, spec.cols - 1));
-            for (int i = 0; i < 20; ++i) cloth.step(1e-3);
+            for (int i = 0; i < 20; ++i)
+                cloth.step(1e-3);
             hashes[threads - 1] = stateHash(cloth);
         }
         INFO(toString(integrator));

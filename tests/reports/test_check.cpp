@@ -40,7 +40,8 @@ std::unique_ptr<Cloth> oscillator(IntegratorKind kind, double k, double m, doubl
 bool bounded(Cloth& c, double dt, int n) {
     c.setPosition(2, c.positions()[2] + Vec3(0.01, 0.01, 0.0));
     try {
-        for (int i = 0; i < n; ++i) c.step(dt);
+        for (int i = 0; i < n; ++i)
+            c.step(dt);
     } catch (const Error& e) {
         REQUIRE(e.code() == ErrorCode::SimulationFailure);
         return false;

@@ -46,7 +46,8 @@ TEST_CASE("compare report: rows, links, strain limit, iterations stiffen btSoftB
         INFO(scene);
         const double p1 = byKey.at(scene + "|btSoftBody|piterations 1, 1 sub-step")->peakMaxStrain;
         const double p4 = byKey.at(scene + "|btSoftBody|piterations 4, 1 sub-step")->peakMaxStrain;
-        const double p16 = byKey.at(scene + "|btSoftBody|piterations 16, 1 sub-step")->peakMaxStrain;
+        const double p16 =
+            byKey.at(scene + "|btSoftBody|piterations 16, 1 sub-step")->peakMaxStrain;
         const double s4 = byKey.at(scene + "|btSoftBody|piterations 1, 4 sub-steps")->peakMaxStrain;
         CHECK(p4 < p1);
         CHECK(p16 < p4);

@@ -34,13 +34,18 @@ TEST_CASE("error report: orders of convergence, references, Table 1") {
     auto ratios = [&](const std::string& key) {
         std::vector<double> q;
         const auto& s = series.at(key);
-        for (std::size_t i = 1; i < s.size(); ++i) q.push_back(s[i - 1]->error / s[i]->error);
+        for (std::size_t i = 1; i < s.size(); ++i)
+            q.push_back(s[i - 1]->error / s[i]->error);
         return q;
     };
-    for (double q : ratios("experiment1 explicit_euler")) CHECK(q == Approx(2.0).epsilon(0.25));
-    for (double q : ratios("experiment1 symplectic_euler")) CHECK(q == Approx(2.0).epsilon(0.25));
-    for (double q : ratios("experiment1 implicit_euler")) CHECK(q == Approx(2.0).epsilon(0.25));
-    for (double q : ratios("experiment1 velocity_verlet")) CHECK(q == Approx(4.0).epsilon(0.25));
+    for (double q : ratios("experiment1 explicit_euler"))
+        CHECK(q == Approx(2.0).epsilon(0.25));
+    for (double q : ratios("experiment1 symplectic_euler"))
+        CHECK(q == Approx(2.0).epsilon(0.25));
+    for (double q : ratios("experiment1 implicit_euler"))
+        CHECK(q == Approx(2.0).epsilon(0.25));
+    for (double q : ratios("experiment1 velocity_verlet"))
+        CHECK(q == Approx(4.0).epsilon(0.25));
     {
         const auto q = ratios("experiment1 rk4");
         // Once in the asymptotic range (the last two halvings), the ratio is ~16.
@@ -55,8 +60,10 @@ TEST_CASE("error report: orders of convergence, references, Table 1") {
     for (const ReferenceCheck& c : r.references) {
         INFO(c.scene << (c.limiter ? " limiter" : ""));
         CHECK(std::isfinite(c.selfError));
-        if (!c.limiter) CHECK(c.selfError < 0.25 * c.smallestSweepError);
-        else CHECK(c.selfError < c.smallestSweepError);
+        if (!c.limiter)
+            CHECK(c.selfError < 0.25 * c.smallestSweepError);
+        else
+            CHECK(c.selfError < c.smallestSweepError);
     }
     REQUIRE(r.table1.size() == 5);
     for (const Table1Row& t : r.table1) {

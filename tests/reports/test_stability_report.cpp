@@ -37,7 +37,8 @@ TEST_CASE("stability report: limits against 2 / omega_max, extreme cases, files"
         CHECK(p.omegaRest <= p.omegaBound * (1.0 + 1e-9));
         // omega scales as sqrt(k) (same masses, same topology).
         CHECK(p.omegaBound / std::sqrt(p.stiffness) ==
-              Approx(r.sweep.front().omegaBound / std::sqrt(r.sweep.front().stiffness)).epsilon(0.02));
+              Approx(r.sweep.front().omegaBound / std::sqrt(r.sweep.front().stiffness))
+                  .epsilon(0.02));
         switch (p.integrator) {
         case IntegratorKind::ImplicitEuler:
             // A-stable: no instability found anywhere in the search, up to 100 x 2 / omega.
@@ -54,8 +55,11 @@ TEST_CASE("stability report: limits against 2 / omega_max, extreme cases, files"
             // And not beyond the exact limit of the state it ran in by more than the search's
             // resolution: 2 / omega_exact (2 sqrt 2 for RK4) with a 5 % margin.
             {
-                const double c = p.integrator == IntegratorKind::RungeKutta4 ? 2.0 * std::sqrt(2.0) : 2.0;
-                CHECK(p.measured <= 1.05 * c / std::min(p.omegaRest, p.omegaFinal > 0 ? p.omegaFinal : p.omegaRest) );
+                const double c =
+                    p.integrator == IntegratorKind::RungeKutta4 ? 2.0 * std::sqrt(2.0) : 2.0;
+                CHECK(p.measured <=
+                      1.05 * c /
+                          std::min(p.omegaRest, p.omegaFinal > 0 ? p.omegaFinal : p.omegaRest));
             }
             break;
         case IntegratorKind::ExplicitEuler:
@@ -72,7 +76,8 @@ TEST_CASE("stability report: limits against 2 / omega_max, extreme cases, files"
         INFO(c.name << ": " << c.outcome << " - " << c.detail);
         CHECK(c.stateFinite);
         CHECK(c.ok);
-        CHECK((c.outcome == "stable" || c.outcome == "detected failure" || c.outcome == "rejected"));
+        CHECK(
+            (c.outcome == "stable" || c.outcome == "detected failure" || c.outcome == "rejected"));
     }
     // Files: the tables have every row, the report names the machine.
     const Table sweep = readCsv(o.outDir / "stability_vs_stiffness.csv");

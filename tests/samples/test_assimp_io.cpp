@@ -63,8 +63,7 @@ TEST_CASE("GuardedIOSystem reads regular files like fread and fseek", "[io]") {
     CHECK(io.ComparePaths(file.c_str(), (dir() / "." / "ten.bin").c_str()));
 }
 
-TEST_CASE("GuardedIOSystem refuses what is not a regular file, too large, or for writing",
-          "[io]") {
+TEST_CASE("GuardedIOSystem refuses what is not a regular file, too large, or for writing", "[io]") {
     GuardedIOSystem io(8, 12);
     const fs::path fifo = dir() / "pipe";
     fs::remove(fifo);

@@ -39,14 +39,15 @@ TEST_CASE("golden: Experiment II's state hash after 200 steps is pinned", "[scen
 #if !defined(DRAPE_GOLDEN_TOOLCHAIN)
     WARN("skipped: not the reference toolchain (GCC, x86-64, no -march=native)");
 #else
-    const SceneDesc scene =
-        loadScene(std::filesystem::path(DRAPE_SAMPLES_DIR) / "scenes" / "experiment2_tablecloth.json");
+    const SceneDesc scene = loadScene(std::filesystem::path(DRAPE_SAMPLES_DIR) / "scenes" /
+                                      "experiment2_tablecloth.json");
     if (scene.needsBullet() && !rigidBodiesAvailable()) {
         WARN("skipped: no Bullet integration in this build");
         return;
     }
     Simulation sim(scene);
-    for (int k = 0; k < kGoldenSteps; ++k) sim.step();
+    for (int k = 0; k < kGoldenSteps; ++k)
+        sim.step();
     const std::uint64_t hash = stateHash(sim.cloth());
     INFO("state hash after " << kGoldenSteps << " steps: " << hex(hash) << " (pinned: "
                              << hex(kGoldenHash) << "; see the top of this file before updating)");

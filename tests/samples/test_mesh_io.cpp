@@ -311,7 +311,8 @@ TEST_CASE("files a mesh names that are devices or folders are not read", "[mesh]
     writeText(dir / "folder_mtl.obj", "mtllib folder.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
     m = importMesh(dir / "folder_mtl.obj");
     REQUIRE(m.warnings.size() == 1);
-    CHECK_THAT(m.warnings[0], Contains("folder.mtl, which it names: not a regular file (a folder)"));
+    CHECK_THAT(m.warnings[0],
+               Contains("folder.mtl, which it names: not a regular file (a folder)"));
     // A plain mesh has no warnings.
     writeText(dir / "plain.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
     CHECK(importMesh(dir / "plain.obj").warnings.empty());
@@ -326,14 +327,14 @@ TEST_CASE("header counts larger than the file can hold are refused, naming the c
     // Binary STL: 80-byte header, a triangle count, 50 bytes per triangle.
     const std::string facet = floats({0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0}) + std::string(2, '\0');
     writeBytes(dir / "huge.stl", std::string(80, ' ') + le32(4000000000u) + facet + facet);
-    CHECK_THAT(importError(dir / "huge.stl"),
-               Contains("huge.stl: binary STL header claims 4000000000 triangles, which need "
-                        "200000000084 bytes (84 + 50 per triangle), but the file has only 184 bytes"));
+    CHECK_THAT(
+        importError(dir / "huge.stl"),
+        Contains("huge.stl: binary STL header claims 4000000000 triangles, which need "
+                 "200000000084 bytes (84 + 50 per triangle), but the file has only 184 bytes"));
     writeBytes(dir / "three.stl", std::string(80, ' ') + le32(3u) + facet + facet);
     CHECK_THAT(importError(dir / "three.stl"),
                Contains("binary STL header claims 3 triangles, which need 234 bytes"));
-    const std::string facet2 =
-        floats({0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 0}) + std::string(2, '\0');
+    const std::string facet2 = floats({0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 0}) + std::string(2, '\0');
     writeBytes(dir / "two.stl", std::string(80, ' ') + le32(2u) + facet + facet2);
     const ImportedMesh two = importMesh(dir / "two.stl");
     CHECK(two.mesh.triangles.size() == 2);
@@ -344,16 +345,17 @@ TEST_CASE("header counts larger than the file can hold are refused, naming the c
               "ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\n"
               "property float y\nproperty float z\nelement face 1\n"
               "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
-    CHECK_THAT(importError(dir / "huge_ascii.ply"),
-               Contains("huge_ascii.ply: PLY header claims 4000000000 \"vertex\" elements, at least "
-                        "6 bytes each, but the file has only 26 bytes after its header"));
+    CHECK_THAT(
+        importError(dir / "huge_ascii.ply"),
+        Contains("huge_ascii.ply: PLY header claims 4000000000 \"vertex\" elements, at least "
+                 "6 bytes each, but the file has only 26 bytes after its header"));
     // Binary PLY: the face count is the hostile one.
     writeBytes(dir / "huge_binary.ply",
                "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
                "property float y\nproperty float z\nelement face 3000000000\n"
                "property list uchar int vertex_indices\nend_header\n" +
-                   floats({0, 0, 0, 1, 0, 0, 0, 1, 0}) + std::string(1, '\3') + le32(0) +
-                   le32(1) + le32(2));
+                   floats({0, 0, 0, 1, 0, 0, 0, 1, 0}) + std::string(1, '\3') + le32(0) + le32(1) +
+                   le32(2));
     CHECK_THAT(importError(dir / "huge_binary.ply"),
                Contains("PLY header claims 3000000000 \"face\" elements, at least 1 byte each"));
     // A count beyond 64 bits is named as written.
@@ -363,12 +365,14 @@ TEST_CASE("header counts larger than the file can hold are refused, naming the c
                Contains("PLY header claims 123456789012345678901234 \"vertex\" elements"));
     // OFF.
     writeText(dir / "huge.off", "OFF\n3 4000000000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
-    CHECK_THAT(importError(dir / "huge.off"),
-               Contains("huge.off: OFF header claims 3 vertices and 4000000000 faces, which need at "
-                        "least 8000000017 bytes, but the file has only 45 bytes"));
+    CHECK_THAT(
+        importError(dir / "huge.off"),
+        Contains("huge.off: OFF header claims 3 vertices and 4000000000 faces, which need at "
+                 "least 8000000017 bytes, but the file has only 45 bytes"));
     // Collada arrays.
-    writeText(dir / "huge.dae",
-              R"(<?xml version="1.0"?><COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1"><library_geometries><geometry id="g"><mesh>
+    writeText(
+        dir / "huge.dae",
+        R"(<?xml version="1.0"?><COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1"><library_geometries><geometry id="g"><mesh>
 <source id="p"><float_array id="pa" count="3000000000">0 0 0 1 0 0 0 1 0</float_array></source>
 </mesh></geometry></library_geometries></COLLADA>)");
     CHECK_THAT(importError(dir / "huge.dae"),
@@ -396,8 +400,10 @@ std::string gridObj(const std::string& extraVertices, const std::string& extraFa
     for (int r = 0; r < 2; ++r)
         for (int c = 0; c < 2; ++c) {
             const int a = 1 + r * 3 + c, b = a + 1, d = a + 3, e = d + 1;
-            s += "f " + std::to_string(a) + " " + std::to_string(b) + " " + std::to_string(e) + "\n";
-            s += "f " + std::to_string(a) + " " + std::to_string(e) + " " + std::to_string(d) + "\n";
+            s +=
+                "f " + std::to_string(a) + " " + std::to_string(b) + " " + std::to_string(e) + "\n";
+            s +=
+                "f " + std::to_string(a) + " " + std::to_string(e) + " " + std::to_string(d) + "\n";
         }
     return s + extraFaces;
 }
@@ -488,8 +494,7 @@ TEST_CASE("a binary STL with a few collapsed facets loads, as assimp's spider do
     CHECK(m.droppedDegenerate == 2);
     REQUIRE(m.warnings.size() == 1);
     CHECK_THAT(m.warnings[0], Contains("collapsed.stl: dropped 2 degenerate triangles") &&
-                                  Contains("faces 6, 7") &&
-                                  Contains("6 of 8 triangles kept"));
+                                  Contains("faces 6, 7") && Contains("6 of 8 triangles kept"));
 }
 
 TEST_CASE("a scene's mesh with degenerate triangles runs, or is refused when asked",
@@ -505,8 +510,8 @@ TEST_CASE("a scene's mesh with degenerate triangles runs, or is refused when ask
     Simulation sim(parseScene(cloth + rest, "degenerate.json", dir));
     CHECK(sim.cloth().topology().triangleCount() == 8);
     REQUIRE(sim.warnings().size() == 1);
-    CHECK_THAT(sim.warnings()[0], Contains("dropped 1 degenerate triangle") &&
-                                      Contains("1 duplicate triangle"));
+    CHECK_THAT(sim.warnings()[0],
+               Contains("dropped 1 degenerate triangle") && Contains("1 duplicate triangle"));
     sim.step();
     CHECK_THROWS_WITH(Simulation(parseScene(cloth + R"(, "degenerate_triangles": "refuse")" + rest,
                                             "degenerate.json", dir)),

@@ -219,7 +219,8 @@ TEST_CASE("an unknown key is reported, with the key it resembles, before any mis
     CHECK_THAT(stiff, !Contains("no stiffness"));
     const std::string mass = errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
                                          "particle_mas": 0.01, "stiffness": 50.0}})");
-    CHECK_THAT(mass, Contains("cloth.particle_mas: unknown field (did you mean \"particle_mass\"?"));
+    CHECK_THAT(mass,
+               Contains("cloth.particle_mas: unknown field (did you mean \"particle_mass\"?"));
     CHECK_THAT(mass, !Contains("no mass"));
     // A misspelt required field: the typo, not "required field is missing".
     CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacng": 0.1},
@@ -229,8 +230,9 @@ TEST_CASE("an unknown key is reported, with the key it resembles, before any mis
                Contains("test.json: clth: unknown field (did you mean \"cloth\"?"));
     CHECK_THAT(errorOf(withCloth(R"("simulation": {"Time_Step": 0.01})")),
                Contains("simulation.Time_Step: unknown field (did you mean \"time_step\"?"));
-    CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "sphere", "raduis": 1}}])")),
-               Contains("rigid_bodies[0].shape.raduis: unknown field (did you mean \"radius\"?"));
+    CHECK_THAT(
+        errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "sphere", "raduis": 1}}])")),
+        Contains("rigid_bodies[0].shape.raduis: unknown field (did you mean \"radius\"?"));
     // Nothing close: no suggestion, the list of allowed fields.
     CHECK_THAT(errorOf(withCloth(R"("camera": {"zoom": 2})")),
                Contains("camera.zoom: unknown field (fields allowed here: fov_deg, height, "
@@ -249,10 +251,9 @@ TEST_CASE("every number is checked against its physical range, named in the mess
                Contains("simulation.gravity[1]: must be in [-10000, 10000] m/s^2, got -1e+45"));
     CHECK_THAT(errorOf(withCloth(R"("simulation": {"gravity": [1e308, 0, 0]})")),
                Contains("simulation.gravity[0]: must be in [-10000, 10000] m/s^2, got 1e+308"));
-    CHECK_THAT(
-        errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "plane"}}],
+    CHECK_THAT(errorOf(withCloth(R"("rigid_bodies": [{"shape": {"type": "plane"}}],
                              "collision": {"thickness": 1e300})")),
-        Contains("collision.thickness: must be in [1e-06, 100000] m, got 1e+300"));
+               Contains("collision.thickness: must be in [1e-06, 100000] m, got 1e+300"));
     CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 1e300},
                            "particle_mass": 0.01, "stiffness": 50.0}})"),
                Contains("cloth.sheet.spacing: must be in [1e-06, 100000] m, got 1e+300"));
@@ -321,9 +322,11 @@ TEST_CASE("simulation.substeps: an integer or \"auto\", given once", "[scene][su
 
 TEST_CASE("collision.triangle_contacts: off by default, a boolean", "[scene][contacts]") {
     using Catch::Matchers::Contains;
-    const std::string body = R"("rigid_bodies": [{"shape": {"type": "capsule", "radius": 0.01, "height": 0.5}}], )";
+    const std::string body =
+        R"("rigid_bodies": [{"shape": {"type": "capsule", "radius": 0.01, "height": 0.5}}], )";
     CHECK_FALSE(parse(withCloth(body + R"("collision": {})")).collision->triangleContacts);
-    CHECK(parse(withCloth(body + R"("collision": {"triangle_contacts": true})")).collision->triangleContacts);
+    CHECK(parse(withCloth(body + R"("collision": {"triangle_contacts": true})"))
+              .collision->triangleContacts);
     CHECK_THAT(errorOf(withCloth(body + R"("collision": {"triangle_contacts": "yes"})")),
                Contains("collision.triangle_contacts"));
 }

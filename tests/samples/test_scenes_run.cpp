@@ -200,7 +200,8 @@ TEST_CASE("overrides replace the scene's integrator, time step and length", "[sc
     // The command line's numbers have the scene file's ranges.
     RunOptions hugeDt;
     hugeDt.timeStep = 1e300;
-    CHECK_THROWS_WITH(applyOverrides(s, hugeDt), Catch::Matchers::Contains("--dt: must be in [1e-09, 10] s"));
+    CHECK_THROWS_WITH(applyOverrides(s, hugeDt),
+                      Catch::Matchers::Contains("--dt: must be in [1e-09, 10] s"));
     RunOptions hugeSeconds;
     hugeSeconds.seconds = 1e300;
     CHECK_THROWS_WITH(applyOverrides(s, hugeSeconds),
@@ -352,11 +353,12 @@ bool holdsNonFinite(const fs::path& file) {
         for (const char* bad : {"inf", "nan"}) {
             std::size_t at = 0;
             while ((at = word.find(bad, at)) != std::string::npos) {
-                const bool leftOk = at == 0 || !std::isalpha(static_cast<unsigned char>(word[at - 1]));
+                const bool leftOk =
+                    at == 0 || !std::isalpha(static_cast<unsigned char>(word[at - 1]));
                 const std::size_t end = at + 3;
-                const bool rightOk =
-                    end >= word.size() || !std::isalpha(static_cast<unsigned char>(word[end])) ||
-                    word.compare(at, 8, "infinity") == 0;
+                const bool rightOk = end >= word.size() ||
+                                     !std::isalpha(static_cast<unsigned char>(word[end])) ||
+                                     word.compare(at, 8, "infinity") == 0;
                 if (leftOk && rightOk) return true;
                 ++at;
             }
@@ -367,7 +369,8 @@ bool holdsNonFinite(const fs::path& file) {
 
 } // namespace
 
-TEST_CASE("statistics that are not finite stop the run with the value named", "[scenes][overflow]") {
+TEST_CASE("statistics that are not finite stop the run with the value named",
+          "[scenes][overflow]") {
     using Catch::Matchers::Contains;
     const SceneDesc scene = parseScene(R"({
       "cloth": {"sheet": {"rows": 3, "cols": 3, "spacing": 0.1}, "particle_mass": 0.01,
@@ -426,9 +429,9 @@ TEST_CASE("export refuses vertices beyond single precision", "[mesh][overflow]")
     m.triangles = {Triangle{0, 1, 2}};
     const fs::path file = fs::path(DRAPE_TEST_OUT_DIR) / "overflow.obj";
     fs::remove(file);
-    CHECK_THROWS_WITH(exportMesh(m, file),
-                      Catch::Matchers::Contains("overflow.obj: vertex 2 is not finite or beyond the "
-                                                "single-precision range"));
+    CHECK_THROWS_WITH(exportMesh(m, file), Catch::Matchers::Contains(
+                                               "overflow.obj: vertex 2 is not finite or beyond the "
+                                               "single-precision range"));
     CHECK_FALSE(fs::exists(file));
 }
 
@@ -450,8 +453,8 @@ TEST_CASE("simulation.substeps \"auto\" picks the sub-steps from the stability e
     const double limit = sim.cloth().stableTimeStep();
     const int n = sim.substeps();
     CHECK(n == static_cast<int>(std::ceil(0.01 / (kAutoSubstepMargin * limit))));
-    CHECK(0.01 / n <= kAutoSubstepMargin * limit);        // each sub-step is stable, with margin
-    CHECK(0.01 / (n - 1) > kAutoSubstepMargin * limit);   // and no more of them than needed
+    CHECK(0.01 / n <= kAutoSubstepMargin * limit);      // each sub-step is stable, with margin
+    CHECK(0.01 / (n - 1) > kAutoSubstepMargin * limit); // and no more of them than needed
     CHECK(n > 100);
     for (int k = 0; k < 3; ++k)
         sim.step();
@@ -467,8 +470,9 @@ TEST_CASE("simulation.substeps \"auto\" picks the sub-steps from the stability e
                                "easy.json", kScenes));
     CHECK(easy.substeps() == 1);
     // implicit Euler has no limit: one step.
-    Simulation implicit(parseScene(cloth + R"(, "substeps": "auto", "integrator": "implicit_euler"}})",
-                                   "implicit.json", kScenes));
+    Simulation implicit(
+        parseScene(cloth + R"(, "substeps": "auto", "integrator": "implicit_euler"}})",
+                   "implicit.json", kScenes));
     CHECK(implicit.substeps() == 1);
 
     // More than kMaxSubsteps needed: refused before the run, naming the field and the numbers.
@@ -483,10 +487,11 @@ TEST_CASE("simulation.substeps \"auto\" picks the sub-steps from the stability e
 
 TEST_CASE("an integer simulation.substeps steps the cloth that many times per step",
           "[scenes][substeps]") {
-    const SceneDesc scene = parseScene(R"({"cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.1},
+    const SceneDesc scene =
+        parseScene(R"({"cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.1},
                                                      "particle_mass": 0.01, "stiffness": 5},
                                            "simulation": {"time_step": 0.01, "substeps": 4}})",
-                                       "four.json", kScenes);
+                   "four.json", kScenes);
     Simulation sim(scene);
     CHECK(sim.substeps() == 4);
     sim.step();

@@ -53,7 +53,7 @@ bool face(const Vec3List& xs, const Triangle& t, const Vec3& x, double& dist) {
 }
 
 class LayerWatch {
-public:
+  public:
     explicit LayerWatch(const ClothTopology& topo) : topo_(topo) {
         const auto& off = topo.adjacencyOffsets();
         const auto& adj = topo.adjacentParticles();
@@ -102,14 +102,14 @@ public:
         std::size_t n = 0;
         for (const Facing& f : before) {
             double d = 0.0;
-            if (face(xs, topo_.triangles()[f.triangle], xs[f.particle], d) &&
-                std::abs(d) < kBand && (d > 0.0) != f.positive)
+            if (face(xs, topo_.triangles()[f.triangle], xs[f.particle], d) && std::abs(d) < kBand &&
+                (d > 0.0) != f.positive)
                 ++n;
         }
         return n;
     }
 
-private:
+  private:
     bool nearP(Index p, const Triangle& t) const {
         for (Index c : t)
             if (std::binary_search(ring_[p].begin(), ring_[p].end(), c)) return true;

@@ -8,11 +8,11 @@
 // same table; timers() reports each stage's calls and seconds.
 //
 // Sleeping (settings.sleep, off by default): after settings.sleep.time seconds in which no
-// particle strayed farther than settings.sleep.distance (see SleepSettings) the cloth falls asleep with its state frozen exactly; a step of
-// a sleeping cloth only checks dt, evaluates the kinematic paths and advances time() and
-// stepCount(). Anything that could change the motion wakes it before the next step: the
-// state edits below (setPosition, setVelocity, mutablePositions/Velocities, pin, unpin,
-// setKinematic), forces (setUserForce, clearUserForces, setWind, setGravity,
+// particle strayed farther than settings.sleep.distance (see SleepSettings) the cloth falls asleep
+// with its state frozen exactly; a step of a sleeping cloth only checks dt, evaluates the kinematic
+// paths and advances time() and stepCount(). Anything that could change the motion wakes it before
+// the next step: the state edits below (setPosition, setVelocity, mutablePositions/Velocities, pin,
+// unpin, setKinematic), forces (setUserForce, clearUserForces, setWind, setGravity,
 // addExternalForce), stages (addStage, removeStage), setSleep, loadSnapshot, wake(), and a
 // kinematic path whose target for the step differs from where its particle is. Waking
 // restarts the quiet count and continues from the frozen state: the trajectory after waking
@@ -44,7 +44,7 @@ class ThreadPool;
 /// A stage the caller plugs into the step after strain limiting (a collision stage, for
 /// example). It may move particles (Cloth::mutablePositions()) and change velocities.
 class ClothStage {
-public:
+  public:
     virtual ~ClothStage() = default;
     /// Name used for the stage's timer.
     virtual std::string name() const = 0;
@@ -56,7 +56,7 @@ public:
 using KinematicPath = std::function<Vec3(double t)>;
 
 class Cloth {
-public:
+  public:
     /// Builds masses and stiffnesses from the settings and validates everything; throws
     /// drape::Error naming the bad parameter.
     Cloth(TopologyPtr topology, const ClothSettings& settings);
@@ -97,8 +97,8 @@ public:
     // --- forces ---------------------------------------------------------------------------
     void setUserForce(Index i, const Vec3& force); ///< persistent until cleared [N]
     void clearUserForces();
-    void setWind(const Vec3& wind);    ///< [m/s]; needs aero.airDensity > 0 to have effect
-    void setGravity(const Vec3& g);    ///< [m/s^2]
+    void setWind(const Vec3& wind); ///< [m/s]; needs aero.airDensity > 0 to have effect
+    void setGravity(const Vec3& g); ///< [m/s^2]
     /// Adds a force term from outside the core (for example contact penalties).
     void addExternalForce(std::string name, ForceModel::ExternalForce force);
 
@@ -111,8 +111,8 @@ public:
     const TopologyPtr& topologyPtr() const { return topology_; }
     const ClothSettings& settings() const { return settings_; }
     std::size_t particleCount() const { return x_.size(); }
-    const Vec3List& positions() const { return x_; }      ///< [m]
-    const Vec3List& velocities() const { return v_; }     ///< [m/s]
+    const Vec3List& positions() const { return x_; }  ///< [m]
+    const Vec3List& velocities() const { return v_; } ///< [m/s]
     /// Last evaluated forces [N]. With Velocity-Verlet the velocity-dependent terms (linear and
     /// spring damping, aerodynamics) of free particles are not in it (the integrator applies
     /// them itself, see integrators.hpp); held particles' entries include them.
@@ -123,18 +123,18 @@ public:
     Vec3List& mutableVelocities();
     void setPosition(Index i, const Vec3& x);
     void setVelocity(Index i, const Vec3& v);
-    const std::vector<double>& masses() const { return mass_; }       ///< [kg]
+    const std::vector<double>& masses() const { return mass_; }           ///< [kg]
     const std::vector<double>& inverseMasses() const { return invMass_; } ///< 0 if pinned
     const std::vector<double>& stiffness() const { return forceModel_->stiffness(); } ///< [N/m]
     double time() const { return time_; } ///< simulated time [s]
     std::uint64_t stepCount() const { return steps_; }
 
     // --- diagnostics ----------------------------------------------------------------------
-    double maxStrain() const;       ///< largest (l - L0) / L0 [-]
-    double meanStrain() const;      ///< mean (l - L0) / L0 [-]
-    double kineticEnergy() const;   ///< sum m v^2 / 2 [J]
-    double springEnergy() const;    ///< sum k (l - L0)^2 / 2 [J]
-    double gravityEnergy() const;   ///< -sum m g . x [J]
+    double maxStrain() const;     ///< largest (l - L0) / L0 [-]
+    double meanStrain() const;    ///< mean (l - L0) / L0 [-]
+    double kineticEnergy() const; ///< sum m v^2 / 2 [J]
+    double springEnergy() const;  ///< sum k (l - L0)^2 / 2 [J]
+    double gravityEnergy() const; ///< -sum m g . x [J]
     /// Upper bound on the largest angular frequency of the spring network [rad/s].
     double maxAngularFrequency() const;
     /// Largest stable time step of the cloth's integrator [s].
@@ -162,7 +162,7 @@ public:
     std::vector<std::string> pipeline() const;
     const Integrator& integrator() const { return *integrator_; }
 
-private:
+  private:
     friend std::vector<unsigned char> saveSnapshot(const Cloth&);
     friend void loadSnapshot(Cloth&, const std::vector<unsigned char>&);
     struct StepContext;

@@ -9,9 +9,9 @@ namespace drape {
 
 /// What went wrong, for callers that want to react by kind rather than parse the message.
 enum class ErrorCode {
-    InvalidArgument,    ///< a parameter is out of its valid range (negative mass, zero stiffness...)
-    NonFinite,          ///< a NaN or infinity in an input or in the simulated state
-    IndexOutOfRange,    ///< a particle, vertex or triangle index beyond the array it indexes
+    InvalidArgument, ///< a parameter is out of its valid range (negative mass, zero stiffness...)
+    NonFinite,       ///< a NaN or infinity in an input or in the simulated state
+    IndexOutOfRange, ///< a particle, vertex or triangle index beyond the array it indexes
     DegenerateTriangle, ///< a triangle with repeated vertices or (near) zero area
     InvalidMesh,        ///< a mesh that cannot be a cloth (no triangles, too large...)
     UnstableTimeStep,   ///< the time step is beyond the integrator's stability limit
@@ -23,13 +23,12 @@ const char* toString(ErrorCode code) noexcept;
 
 /// The exception thrown by every drape entry point on bad input or a failed step.
 class Error : public std::runtime_error {
-public:
-    Error(ErrorCode code, const std::string& message)
-        : std::runtime_error(message), code_(code) {}
+  public:
+    Error(ErrorCode code, const std::string& message) : std::runtime_error(message), code_(code) {}
     /// The kind of problem.
     ErrorCode code() const noexcept { return code_; }
 
-private:
+  private:
     ErrorCode code_;
 };
 

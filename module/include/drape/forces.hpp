@@ -71,7 +71,7 @@ double springEnergy(const std::vector<Spring>& springs, const std::vector<double
 /// Sum of the force terms a cloth uses, each one timed as its own phase. Terms a cloth does
 /// not use (zero damping, no aerodynamics, no user forces) are not in the list and cost nothing.
 class ForceModel {
-public:
+  public:
     /// Extra per-particle forces from outside the core (contact penalties from a collision
     /// stage, for example): called with (x, v, f) and adds to f.
     using ExternalForce = std::function<void(const Vec3List& x, const Vec3List& v, Vec3List& f)>;
@@ -135,7 +135,7 @@ public:
     /// Number of active terms that cannot add energy (springs, damping, gravity).
     std::size_t passiveTermCount() const;
 
-private:
+  private:
     enum class Term { Springs, SpringDamping, Gravity, Damping, Aero, User, External };
     struct Entry {
         Term term;

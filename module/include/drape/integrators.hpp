@@ -25,8 +25,8 @@ namespace drape {
 
 /// What an integrator reads and writes during one step.
 struct IntegratorContext {
-    Vec3List& x;                        ///< positions [m], updated in place
-    Vec3List& v;                        ///< velocities [m/s], updated in place
+    Vec3List& x; ///< positions [m], updated in place
+    Vec3List& v; ///< velocities [m/s], updated in place
     /// Forces at the start of the step [N]; read only, except that Velocity-Verlet's finish()
     /// adds the damping of held particles to f(t+dt) (see integrators.cpp).
     Vec3List& f;
@@ -41,7 +41,7 @@ struct IntegratorContext {
 
 /// One time integrator; holds its own scratch buffers, so one instance per cloth.
 class Integrator {
-public:
+  public:
     virtual ~Integrator() = default;
     virtual IntegratorKind kind() const = 0;
     /// Called once with the cloth's force model before any force is evaluated, so an

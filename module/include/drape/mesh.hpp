@@ -65,12 +65,12 @@ double triangleArea(const TriangleMesh& mesh, std::size_t t);
 /// A rectangular sheet of rows x cols particles with spacing s in the plane spanned by two
 /// unit axes. Particle (r, c) sits at origin + c s uAxis + r s vAxis and has index r cols + c.
 struct SheetSpec {
-    Index rows = 2;                ///< particles along vAxis (>= 2)
-    Index cols = 2;                ///< particles along uAxis (>= 2)
-    double spacing = 1.0;          ///< distance between neighbouring particles [m]
-    Vec3 origin = Vec3::Zero();    ///< position of particle (0, 0) [m]
-    Vec3 uAxis = Vec3::UnitX();    ///< direction of increasing column (normalised internally)
-    Vec3 vAxis = -Vec3::UnitY();   ///< direction of increasing row (normalised internally)
+    Index rows = 2;              ///< particles along vAxis (>= 2)
+    Index cols = 2;              ///< particles along uAxis (>= 2)
+    double spacing = 1.0;        ///< distance between neighbouring particles [m]
+    Vec3 origin = Vec3::Zero();  ///< position of particle (0, 0) [m]
+    Vec3 uAxis = Vec3::UnitX();  ///< direction of increasing column (normalised internally)
+    Vec3 vAxis = -Vec3::UnitY(); ///< direction of increasing row (normalised internally)
 };
 
 /// Generates the sheet. Each grid cell is split along alternating diagonals (a checkerboard

@@ -47,10 +47,10 @@ LimiterKind limiterFromString(const std::string& name);
 
 /// Aerodynamic drag and lift per triangle, against the wind. Off unless airDensity > 0.
 struct AeroSettings {
-    double airDensity = 0.0;       ///< rho_air [kg/m^3]; 1.2 for air at sea level; 0 = off
-    double dragCoefficient = 1.0;  ///< C_d, drag along the triangle normal [-]
-    double liftCoefficient = 0.0;  ///< C_l, lift across the relative flow [-]
-    Vec3 wind = Vec3::Zero();      ///< wind velocity [m/s]
+    double airDensity = 0.0;      ///< rho_air [kg/m^3]; 1.2 for air at sea level; 0 = off
+    double dragCoefficient = 1.0; ///< C_d, drag along the triangle normal [-]
+    double liftCoefficient = 0.0; ///< C_l, lift across the relative flow [-]
+    Vec3 wind = Vec3::Zero();     ///< wind velocity [m/s]
 };
 
 /// Strain limiter settings.
@@ -135,8 +135,8 @@ struct ClothSettings {
     IntegratorKind integrator = IntegratorKind::VelocityVerlet;
 
     // Mass: particleMass if > 0, else totalMass if > 0, else material density and thickness.
-    double particleMass = 0.0;                 ///< mass of every particle [kg]
-    double totalMass = 0.0;                    ///< mass of the whole cloth [kg]
+    double particleMass = 0.0;                  ///< mass of every particle [kg]
+    double totalMass = 0.0;                     ///< mass of the whole cloth [kg]
     MassLumping lumping = MassLumping::Uniform; ///< how totalMass or material mass is spread
     // Stiffness: springStiffness if > 0, else (M1) from the material.
     double springStiffness = 0.0; ///< k of every spring [N/m] (the paper's C_e)

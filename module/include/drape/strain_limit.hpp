@@ -18,10 +18,10 @@ struct LimiterSettings;
 
 /// What a limiter did in one step (or in one call of StrainLimiter::relimit).
 struct StrainLimitStats {
-    int rounds = 0;               ///< worklist waves (stress-ordered) or sweeps (Provot)
-    std::size_t corrections = 0;  ///< spring corrections applied
-    std::size_t work = 0;         ///< spring (and attachment) length evaluations
-    bool capHit = false;          ///< stopped by LimiterSettings::maxRounds: bound not promised
+    int rounds = 0;              ///< worklist waves (stress-ordered) or sweeps (Provot)
+    std::size_t corrections = 0; ///< spring corrections applied
+    std::size_t work = 0;        ///< spring (and attachment) length evaluations
+    bool capHit = false;         ///< stopped by LimiterSettings::maxRounds: bound not promised
     /// Largest (l - L0) / L0 the first scan saw (stress-ordered: after the attachments and
     /// the warm start) [-].
     double maxStrainBefore = 0.0;
@@ -50,7 +50,8 @@ struct ContactPlanes {
     /// Forgets every plane; `of` gets one entry per particle.
     void reset(std::size_t particles) {
         if (of.size() != particles) of.assign(particles, -1);
-        for (std::size_t k = 0; k < normal.size(); ++k) of[particle_[k]] = -1;
+        for (std::size_t k = 0; k < normal.size(); ++k)
+            of[particle_[k]] = -1;
         normal.clear();
         offset.clear();
         push.clear();
@@ -75,7 +76,7 @@ struct ContactPlanes {
     Index particle(std::size_t k) const { return particle_[k]; }
     std::size_t size() const { return normal.size(); }
 
-private:
+  private:
     std::vector<Index> particle_;
 };
 
@@ -140,7 +141,7 @@ AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Ind
 /// Both sets are convex (|x_a - x_b| <= l and n . x >= c), so the projections converge to a
 /// point of both when there is one.
 class StrainLimiter {
-public:
+  public:
     /// Runs one step's limiter on x. The long-range attachments are recomputed whenever the
     /// set of zero-inverse-mass particles differs from the last call's.
     StrainLimitStats limit(const ClothTopology& topology, const std::vector<double>& invMass,
@@ -175,7 +176,7 @@ public:
     // (warmLeft_ needs no saving: it is rebuilt at the start of every step.)
     const AnchorField& anchors() const { return anchors_; }
 
-private:
+  private:
     void prepare(const ClothTopology& topology, const std::vector<double>& invMass,
                  const LimiterSettings& s);
     void move(Index i, const Vec3& dx, std::vector<Vec3>& x) {
@@ -203,29 +204,31 @@ private:
     /// Queues spring si if it needs a correction at the current x; returns its (l / L0)^2
     /// (0 if it was queued already).
     double check(std::size_t si, const ClothTopology& topology, const std::vector<double>& invMass,
-               const std::vector<double>& stiffness, const std::vector<Vec3>& x,
-               StrainLimitStats& st);
+                 const std::vector<double>& stiffness, const std::vector<Vec3>& x,
+                 StrainLimitStats& st);
 
     /// Spring si at (l / L0)^2 = ratio2 is beyond the band, or a warm-started spring below it.
     bool needs(std::size_t si, double ratio2) const {
         return ratio2 > upper2_ || (warmLeft_[si] > 0.0 && ratio2 < lower2_);
     }
     /// Puts spring si into the next wave, keyed by its tension k (l - L0).
-    void queue(std::size_t si, double ratio2, double restLength, const std::vector<double>& stiffness) {
+    void queue(std::size_t si, double ratio2, double restLength,
+               const std::vector<double>& stiffness) {
         key_[si] = stiffness[si] * restLength * (std::sqrt(ratio2) - 1.0);
         queued_[si] = 1;
         next_.push_back(static_cast<std::uint32_t>(si));
     }
     /// Fills maxStrainAfter (see StrainLimitStats).
-    void finish(const ClothTopology& topology, const std::vector<Vec3>& x, StrainLimitStats& st) const;
+    void finish(const ClothTopology& topology, const std::vector<Vec3>& x,
+                StrainLimitStats& st) const;
 
     struct Queued {
         double key;
         std::uint32_t spring;
     };
-    std::vector<Queued> order_;         ///< the wave being walked, most stressed first
-    std::vector<double> lambda_;        ///< accumulated correction per spring
-    std::vector<double> warmLeft_;      ///< warm start a let-out may still undo this step
+    std::vector<Queued> order_;    ///< the wave being walked, most stressed first
+    std::vector<double> lambda_;   ///< accumulated correction per spring
+    std::vector<double> warmLeft_; ///< warm start a let-out may still undo this step
     /// The springs whose lambda may be nonzero (each once: inWarmList_); the first
     /// warmSorted_ are in index order, the rest were added by this step's walks. Rebuilt from
     /// lambda_ when !warmListValid_ (after a restore or reset).
@@ -237,9 +240,9 @@ private:
     void sortWarmList();
     std::vector<unsigned char> queued_; ///< spring is in the next wave
     std::vector<std::uint32_t> wave_, next_;
-    std::vector<double> key_;           ///< stress of each queued spring
+    std::vector<double> key_;                        ///< stress of each queued spring
     std::vector<std::uint32_t> checkedAt_, dirtyAt_; ///< wave stamp of a spring's check / a move
-    std::vector<Index> dirty_;          ///< particles the current wave moved
+    std::vector<Index> dirty_;                       ///< particles the current wave moved
     /// A spring the checks after a wave found in need of a correction: its (l / L0)^2, its
     /// adjacency entry and the moved particle it was reached from.
     struct Candidate {
@@ -253,8 +256,8 @@ private:
     std::vector<Index> movedIndex_;
     std::vector<Vec3> movedFrom_;
     AnchorField anchors_;
-    std::vector<double> soa_;    ///< scan scratch: x of every particle, then y, then z
-    std::vector<double> ratio2_; ///< scan scratch: (l / L0)^2 per family slot
+    std::vector<double> soa_;         ///< scan scratch: x of every particle, then y, then z
+    std::vector<double> ratio2_;      ///< scan scratch: (l / L0)^2 per family slot
     ContactPlanes* planes_ = nullptr; ///< during relimit() only
     std::vector<Index> anchorList_, anchorScratch_;
     bool anchorsValid_ = false;
@@ -277,8 +280,8 @@ StrainLimitStats limitStrainProvot(const ClothTopology& topology,
 /// momentum: on Experiment I the sheet blows up whatever the order.
 StrainLimitStats limitStrainOneSided(const ClothTopology& topology,
                                      const std::vector<double>& invMass,
-                                     const std::vector<double>& stiffness,
-                                     const LimiterSettings& s, std::vector<Vec3>& x);
+                                     const std::vector<double>& stiffness, const LimiterSettings& s,
+                                     std::vector<Vec3>& x);
 
 /// Largest strain (l - L0) / L0 over all springs (negative if all are compressed).
 double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x);

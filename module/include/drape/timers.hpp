@@ -17,7 +17,7 @@ struct PhaseTimer {
 
 /// A set of named counters; phases register once and are then addressed by slot number.
 class PhaseTimers {
-public:
+  public:
     /// Returns the slot of `name`, registering it on first use.
     std::size_t slot(const std::string& name);
     void add(std::size_t slot, double seconds) {
@@ -29,13 +29,13 @@ public:
     const PhaseTimer* find(const std::string& name) const;
     void reset();
 
-private:
+  private:
     std::vector<PhaseTimer> timers_;
 };
 
 /// Times a scope into one slot of a PhaseTimers.
 class ScopedPhase {
-public:
+  public:
     ScopedPhase(PhaseTimers& timers, std::size_t slot)
         : timers_(timers), slot_(slot), start_(std::chrono::steady_clock::now()) {}
     ~ScopedPhase() {
@@ -45,7 +45,7 @@ public:
     ScopedPhase(const ScopedPhase&) = delete;
     ScopedPhase& operator=(const ScopedPhase&) = delete;
 
-private:
+  private:
     PhaseTimers& timers_;
     std::size_t slot_;
     std::chrono::steady_clock::time_point start_;

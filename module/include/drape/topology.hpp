@@ -25,10 +25,10 @@ struct Spring {
 /// and strain kernels then read both ends from contiguous memory instead of through an index
 /// list, and the compiler can vectorise them.
 struct SpringFamily {
-    Index offset;      ///< b - a of every spring in the family (> 0)
-    Index first;       ///< first end a of slot 0
-    Index count;       ///< slots; slot j has a = first + j
-    std::size_t slot;  ///< where the family's slots start in the per-slot arrays
+    Index offset;     ///< b - a of every spring in the family (> 0)
+    Index first;      ///< first end a of slot 0
+    Index count;      ///< slots; slot j has a = first + j
+    std::size_t slot; ///< where the family's slots start in the per-slot arrays
 };
 
 /// ClothTopology::springSlots() entry of a spring in no family.
@@ -47,7 +47,7 @@ struct TopologyOptions {
 /// Immutable cloth topology: particles (mesh vertices), springs (unique triangle edges with
 /// rest lengths), triangles and particle adjacency in compressed rows.
 class ClothTopology {
-public:
+  public:
     /// Welds duplicate vertices, validates the mesh and extracts the linked springs.
     /// Throws drape::Error on any invalid input.
     static std::shared_ptr<const ClothTopology> build(const TriangleMesh& mesh,
@@ -95,7 +95,7 @@ public:
     /// Edges used by exactly one triangle (the cloth's border).
     std::size_t boundaryEdgeCount() const { return boundaryEdges_; }
 
-private:
+  private:
     ClothTopology() = default;
     std::vector<Vec3> restPositions_;
     std::vector<Spring> springs_;

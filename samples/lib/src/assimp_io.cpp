@@ -61,7 +61,8 @@ int openRegular(const char* file, struct stat& st, std::string& why, bool& missi
 /// 0, cannot make it read forever), and every byte counts against its IO system's budget.
 class GuardedStream final : public Assimp::IOStream {
   public:
-    GuardedStream(int fd, std::uint64_t size, GuardedIOSystem& io) : fd_(fd), size_(size), io_(io) {}
+    GuardedStream(int fd, std::uint64_t size, GuardedIOSystem& io)
+        : fd_(fd), size_(size), io_(io) {}
     ~GuardedStream() override { ::close(fd_); }
 
     size_t Read(void* buffer, size_t size, size_t count) override {

@@ -289,8 +289,8 @@ class JsonObject {
                      (v.is_array() ? "an array of " + std::to_string(v.size()) : typeName(v)));
         Vec3 r;
         for (int i = 0; i < 3; ++i)
-            r[i] = toNumber(v[static_cast<std::size_t>(i)], path + "[" + std::to_string(i) + "]",
-                            l);
+            r[i] =
+                toNumber(v[static_cast<std::size_t>(i)], path + "[" + std::to_string(i) + "]", l);
         return r;
     }
     Vec3 vec3(const std::string& key, const Vec3& def, const Limits& l) {

@@ -147,10 +147,11 @@ void checkHeaderCounts(const std::filesystem::path& file, const std::string& ext
         while (i < 80 && std::isspace(static_cast<unsigned char>(head[i])))
             ++i;
         if (std::string(head + i, std::min<std::size_t>(5, 80 - i)) == "solid") return; // ASCII
-        const std::uint64_t count = static_cast<std::uint64_t>(static_cast<unsigned char>(head[80])) |
-                                    static_cast<std::uint64_t>(static_cast<unsigned char>(head[81])) << 8 |
-                                    static_cast<std::uint64_t>(static_cast<unsigned char>(head[82])) << 16 |
-                                    static_cast<std::uint64_t>(static_cast<unsigned char>(head[83])) << 24;
+        const std::uint64_t count =
+            static_cast<std::uint64_t>(static_cast<unsigned char>(head[80])) |
+            static_cast<std::uint64_t>(static_cast<unsigned char>(head[81])) << 8 |
+            static_cast<std::uint64_t>(static_cast<unsigned char>(head[82])) << 16 |
+            static_cast<std::uint64_t>(static_cast<unsigned char>(head[83])) << 24;
         const std::uint64_t need = 84 + 50 * count;
         if (need > size)
             meshFail(file, "binary STL header claims " + std::to_string(count) +
@@ -242,9 +243,11 @@ void checkHeaderCounts(const std::filesystem::path& file, const std::string& ext
     if (ext == ".dae") {
         // Collada: count="N" of arrays, accessors and primitives counts items written in the
         // file itself, at least a byte each.
-        const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+        const std::string text{std::istreambuf_iterator<char>(in),
+                               std::istreambuf_iterator<char>()};
         const std::string key = "count=\"";
-        for (std::size_t at = text.find(key); at != std::string::npos; at = text.find(key, at + 1)) {
+        for (std::size_t at = text.find(key); at != std::string::npos;
+             at = text.find(key, at + 1)) {
             if (at == 0 || !std::isspace(static_cast<unsigned char>(text[at - 1]))) continue;
             const std::size_t start = at + key.size();
             const std::size_t end = text.find('"', start);
@@ -256,9 +259,9 @@ void checkHeaderCounts(const std::filesystem::path& file, const std::string& ext
             std::size_t nameEnd = open == std::string::npos ? open : open + 1;
             while (nameEnd < at && !std::isspace(static_cast<unsigned char>(text[nameEnd])))
                 ++nameEnd;
-            const std::string element =
-                open == std::string::npos ? std::string("an element")
-                                          : "<" + text.substr(open + 1, nameEnd - open - 1) + ">";
+            const std::string element = open == std::string::npos
+                                            ? std::string("an element")
+                                            : "<" + text.substr(open + 1, nameEnd - open - 1) + ">";
             meshFail(file, "Collada " + element + " claims count=\"" + c.text +
                                "\", more items than the file (" + bytesText(size) + ") can hold");
         }
@@ -289,7 +292,8 @@ void checkHeaderCounts(const std::filesystem::path& file, const std::string& ext
             }
         }
         Count nv, nf;
-        if (at + 1 >= tokens.size() || !parseCount(tokens[at], nv) || !parseCount(tokens[at + 1], nf))
+        if (at + 1 >= tokens.size() || !parseCount(tokens[at], nv) ||
+            !parseCount(tokens[at + 1], nf))
             return;
         // A vertex is at least dims numbers of one digit and their separators; a face at
         // least a number and a line break.
@@ -344,8 +348,8 @@ void gather(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent,
         for (unsigned f = 0; f < m.mNumFaces; ++f) {
             const aiFace& face = m.mFaces[f];
             if (face.mNumIndices != 3) {
-                const bool collapsed = mask != wasTriangle.end() && f < mask->second.size() &&
-                                       mask->second[f];
+                const bool collapsed =
+                    mask != wasTriangle.end() && f < mask->second.size() && mask->second[f];
                 if (collapsed)
                     out.collapsed.emplace_back(meshIndex, f);
                 else
@@ -442,8 +446,9 @@ ImportedMesh importMesh(const std::filesystem::path& file, const MeshImportOptio
             why = "it runs out of memory (" + why +
                   "): a count in the file is larger than the file can hold";
         const std::string refused = refusedFiles();
-        meshFail(file, "assimp cannot read it: " + why +
-                           (refused.empty() ? std::string() : " (refused to open " + refused + ")"));
+        meshFail(file,
+                 "assimp cannot read it: " + why +
+                     (refused.empty() ? std::string() : " (refused to open " + refused + ")"));
     }
     ImportedMesh out;
     for (const auto& r : io->refusals())
@@ -464,7 +469,8 @@ ImportedMesh importMesh(const std::filesystem::path& file, const MeshImportOptio
         // triangulating.
         if (!(m.mPrimitiveTypes & aiPrimitiveType_POLYGON)) continue;
         bool polygon = false;
-        for (unsigned f = 0; f < m.mNumFaces && !polygon; ++f) polygon = m.mFaces[f].mNumIndices > 3;
+        for (unsigned f = 0; f < m.mNumFaces && !polygon; ++f)
+            polygon = m.mFaces[f].mNumIndices > 3;
         if (!polygon)
             meshFail(file, "mesh \"" + std::string(m.mName.C_Str()) +
                                "\" declares polygons but has none (the file is malformed)");
@@ -513,9 +519,9 @@ ImportedMesh importMesh(const std::filesystem::path& file, const MeshImportOptio
             present = scene->mMeshes[j] == meshTriangles[i].first;
         if (present || meshTriangles[i].second == 0) continue;
         collapsedMeshTriangles += meshTriangles[i].second;
-        collapsedMeshes += (collapsedMeshes.empty() ? "" : ", ") +
-                           (meshNames[i].empty() ? "mesh " + std::to_string(i)
-                                                 : "mesh \"" + meshNames[i] + "\"");
+        collapsedMeshes +=
+            (collapsedMeshes.empty() ? "" : ", ") +
+            (meshNames[i].empty() ? "mesh " + std::to_string(i) : "mesh \"" + meshNames[i] + "\"");
     }
     // Mesh indices changed if a mesh was deleted: name meshes by the scene as it is now.
     std::vector<std::string> names(scene->mNumMeshes);
@@ -667,8 +673,9 @@ void exportMesh(const TriangleMesh& mesh, const std::filesystem::path& file) {
     constexpr double kFloatMax = static_cast<double>(std::numeric_limits<float>::max());
     for (std::size_t i = 0; i < mesh.vertices.size(); ++i)
         if (!(mesh.vertices[i].cwiseAbs().maxCoeff() <= kFloatMax))
-            meshFail(file, "vertex " + std::to_string(i) + " is not finite or beyond the "
-                           "single-precision range of the file; nothing written");
+            meshFail(file, "vertex " + std::to_string(i) +
+                               " is not finite or beyond the "
+                               "single-precision range of the file; nothing written");
 
     // Area-weighted vertex normals, so that other tools shade the mesh smoothly.
     std::vector<Vec3> normals(mesh.vertices.size(), Vec3::Zero());

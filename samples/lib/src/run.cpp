@@ -319,18 +319,19 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
         << "max strain (final)  " << r.finalMaxStrain << "\n"
         << "max strain (peak)   " << r.peakMaxStrain << " (over the frames)\n"
         << "limiter cap hits    " << cloth.limiterCapHits()
-        << (cloth.limiterCapHits() == 0
-                ? std::string(" (the strain bound held in every step)")
-                : " steps stopped at the safety cap (limiter.maxRounds = " +
-                      std::to_string(cloth.settings().limiter.maxRounds) +
-                      "): the strain bound was not promised in them")
+        << (cloth.limiterCapHits() == 0 ? std::string(" (the strain bound held in every step)")
+                                        : " steps stopped at the safety cap (limiter.maxRounds = " +
+                                              std::to_string(cloth.settings().limiter.maxRounds) +
+                                              "): the strain bound was not promised in them")
         << "\n"
         << "kinetic energy      " << finalEnergy << " J (final)\n"
-        << "state hash          " << [&] {
-               char buf[32];
-               std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(r.stateHash));
-               return std::string(buf);
-           }() << " (drape::stateHash of the final state)\n"
+        << "state hash          " <<
+        [&] {
+            char buf[32];
+            std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(r.stateHash));
+            return std::string(buf);
+        }()
+        << " (drape::stateHash of the final state)\n"
         << "frames              " << r.frames
         << (render ? " PNG in " + framesDir.string() : std::string(" (not rendered)")) << "\n"
         << "video               " << r.video << "\n";

@@ -61,8 +61,8 @@ constexpr Limits kFps{kMinFps, kMaxFps, "1/s"};
 constexpr Limits kWeldTolerance{0.0, 1e5, "m"};
 
 MeshDesc parseMeshDesc(JsonObject o, const std::filesystem::path& baseDir) {
-    o.keys({"file", "scale", "rotation_deg", "translation", "weld_tolerance",
-            "degenerate_triangles"});
+    o.keys(
+        {"file", "scale", "rotation_deg", "translation", "weld_tolerance", "degenerate_triangles"});
     MeshDesc m;
     const std::string file = o.requireString("file");
     if (file.empty()) o.failKey("file", "must not be empty");
@@ -79,7 +79,8 @@ MeshDesc parseMeshDesc(JsonObject o, const std::filesystem::path& baseDir) {
     if (const Json* w = o.find("weld_tolerance")) {
         // Negative: automatic (documented as -1); else a distance.
         const bool automatic = w->is_number() && w->get<double>() < 0.0;
-        if (!automatic) m.weldTolerance = o.toNumber(*w, o.pathOf("weld_tolerance"), kWeldTolerance);
+        if (!automatic)
+            m.weldTolerance = o.toNumber(*w, o.pathOf("weld_tolerance"), kWeldTolerance);
     }
     m.refuseDegenerate = o.choice("degenerate_triangles", "drop", {"drop", "refuse"}) == "refuse";
     o.finish();
@@ -127,8 +128,8 @@ ParticleSelector parseSelector(JsonObject& o, bool isSheet) {
 }
 
 void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDir) {
-    o.keys({"sheet", "mesh", "particle_mass", "total_mass", "mass_lumping", "stiffness",
-            "material", "damping", "spring_damping", "air", "front_color", "back_color"});
+    o.keys({"sheet", "mesh", "particle_mass", "total_mass", "mass_lumping", "stiffness", "material",
+            "damping", "spring_damping", "air", "front_color", "back_color"});
     const bool hasSheet = o.has("sheet");
     const bool hasMesh = o.has("mesh");
     if (hasSheet == hasMesh)
@@ -223,9 +224,8 @@ void parseSimulation(JsonObject o, SceneDesc& sc) {
     if (const Json* n = o.find("substeps")) {
         if (n->is_string()) {
             if (n->get<std::string>() != "auto")
-                o.failKey("substeps", "expected an integer in [1, " +
-                                          std::to_string(kMaxSubsteps) + "] or \"auto\", got \"" +
-                                          n->get<std::string>() + "\"");
+                o.failKey("substeps", "expected an integer in [1, " + std::to_string(kMaxSubsteps) +
+                                          "] or \"auto\", got \"" + n->get<std::string>() + "\"");
             sc.autoSubsteps = true;
         } else {
             sc.substeps = static_cast<int>(o.toInteger(*n, o.pathOf("substeps"), 1, kMaxSubsteps));
@@ -429,8 +429,8 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
         throw SceneError(origin + ": not usable JSON: " + e.what());
     }
     JsonObject top(root, "", origin);
-    top.keys({"name", "description", "cloth", "simulation", "strain_limit", "pins",
-              "attachments", "wind", "rigid_bodies", "collision", "camera", "output"});
+    top.keys({"name", "description", "cloth", "simulation", "strain_limit", "pins", "attachments",
+              "wind", "rigid_bodies", "collision", "camera", "output"});
     SceneDesc sc;
     sc.name = top.string("name", "");
     sc.description = top.string("description", "");

@@ -248,8 +248,8 @@ std::size_t Simulation::contactCount() const {
 }
 
 void Simulation::overflow(const std::string& what) const {
-    throw StepError(origin(scene_) + ": step " + std::to_string(steps_) + " (t = " +
-                    num(time()) + " s): " + what +
+    throw StepError(origin(scene_) + ": step " + std::to_string(steps_) + " (t = " + num(time()) +
+                    " s): " + what +
                     "; the simulation overflowed (the state grew without bound: a time step "
                     "beyond the stability limit, or forces far too large), and nothing "
                     "non-finite is written");

@@ -15,7 +15,8 @@ double explicitEulerLimit(double omegaMax, double particleDamping, double spring
                           double maxMass, double maxStiffness) {
     if (omegaMax <= 0.0) return std::numeric_limits<double>::infinity();
     double limit = 0.0;
-    if (particleDamping > 0.0 && maxMass > 0.0) limit += particleDamping / (maxMass * omegaMax * omegaMax);
+    if (particleDamping > 0.0 && maxMass > 0.0)
+        limit += particleDamping / (maxMass * omegaMax * omegaMax);
     if (springDamping > 0.0 && maxStiffness > 0.0) limit += springDamping / maxStiffness;
     return limit;
 }
@@ -42,7 +43,8 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
             if (cloth.inverseMasses()[i] > 0.0) maxMass = std::max(maxMass, cloth.masses()[i]);
         }
         double maxK = 0.0;
-        for (double k : cloth.stiffness()) maxK = std::max(maxK, k);
+        for (double k : cloth.stiffness())
+            maxK = std::max(maxK, k);
         c.limit = explicitEulerLimit(c.omegaMax, cloth.settings().damping,
                                      cloth.settings().springDamping, maxMass, maxK);
     } else {
@@ -52,19 +54,24 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
     if (!std::isfinite(c.limit)) {
         c.suggestedTimeStep = dt;
         c.substeps = 1;
-        c.message = name + " at dt = " + fmt(dt) + " s: stable (" +
-                    (c.omegaMax > 0.0 ? std::string("implicit Euler has no stability limit")
-                                      : std::string("nothing can oscillate: every particle is pinned or there are no springs")) +
-                    "; accuracy, not stability, bounds the time step).";
+        c.message =
+            name + " at dt = " + fmt(dt) + " s: stable (" +
+            (c.omegaMax > 0.0
+                 ? std::string("implicit Euler has no stability limit")
+                 : std::string(
+                       "nothing can oscillate: every particle is pinned or there are no springs")) +
+            "; accuracy, not stability, bounds the time step).";
         return c;
     }
     if (c.limit <= 0.0) {
         c.stable = false;
         c.suggestedTimeStep = 0.0;
         c.substeps = 0;
-        c.message = name + " at dt = " + fmt(dt) + " s: unstable at every time step: without "
+        c.message = name + " at dt = " + fmt(dt) +
+                    " s: unstable at every time step: without "
                     "damping explicit Euler adds energy to each spring mode (amplification "
-                    "sqrt(1 + (omega dt)^2) > 1 per step, omega_max = " + fmt(c.omegaMax) +
+                    "sqrt(1 + (omega dt)^2) > 1 per step, omega_max = " +
+                    fmt(c.omegaMax) +
                     " rad/s). Use symplectic_euler or velocity_verlet with dt <= " +
                     fmt(0.9 * 2.0 / c.omegaMax) + " s, or implicit_euler.";
         return c;
@@ -72,17 +79,18 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
     c.suggestedTimeStep = 0.9 * c.limit;
     c.substeps = static_cast<int>(std::ceil(dt / c.suggestedTimeStep - 1e-12));
     c.substeps = c.stable ? 1 : std::max(c.substeps, 1);
-    const std::string why = "omega_max = " + fmt(c.omegaMax) + " rad/s, limit " + fmt(c.limit) +
-                            " s";
+    const std::string why =
+        "omega_max = " + fmt(c.omegaMax) + " rad/s, limit " + fmt(c.limit) + " s";
     if (!c.stable && integrator == IntegratorKind::ExplicitEuler) {
         // |1 + lambda dt|^2 = 1 - 2 gamma dt + (omega dt)^2 = 1 + omega^2 dt (dt - limit): the
         // stiffest mode's growth per step. Say how fast, since it can pass unnoticed.
         const double w2 = c.omegaMax * c.omegaMax;
         const double rate = 0.5 * std::log1p(w2 * dt * (dt - c.limit)) / dt;
         c.message = name + " at dt = " + fmt(dt) + " s: UNSTABLE (" + why + ", dt is " +
-                    fmt(dt / c.limit, 3) + "x the limit; the stiffest mode grows by a factor e every " +
-                    fmt(1.0 / rate, 3) + " s). Use dt <= " + fmt(c.suggestedTimeStep) + " s, i.e. " +
-                    std::to_string(c.substeps) +
+                    fmt(dt / c.limit, 3) +
+                    "x the limit; the stiffest mode grows by a factor e every " +
+                    fmt(1.0 / rate, 3) + " s). Use dt <= " + fmt(c.suggestedTimeStep) +
+                    " s, i.e. " + std::to_string(c.substeps) +
                     " sub-steps per step, or better velocity_verlet or implicit_euler.";
         return c;
     }

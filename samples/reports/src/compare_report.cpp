@@ -48,9 +48,10 @@ btVector3 bt(const Vec3& v) {
 using Engine = ClothEngine;
 
 class DrapeEngine : public Engine {
-public:
+  public:
     DrapeEngine(const ClothScene& sc, LimiterKind limiter)
-        : world_(sc, clothSettings(sc, IntegratorKind::VelocityVerlet, limiter)), dt_(sc.timeStep) {}
+        : world_(sc, clothSettings(sc, IntegratorKind::VelocityVerlet, limiter)), dt_(sc.timeStep) {
+    }
     void step() override { world_.step(dt_); }
     void state(std::vector<Vec3>& x, std::vector<Vec3>& v) const override {
         x = world_.cloth().positions();
@@ -58,7 +59,7 @@ public:
     }
     std::size_t links() const override { return world_.cloth().topology().springCount(); }
 
-private:
+  private:
     DrapeWorld world_;
     double dt_;
 };
@@ -92,7 +93,8 @@ struct Colliders {
         }
     }
     void remove(btDynamicsWorld* world) {
-        for (auto& b : bodies) world->removeRigidBody(b.get());
+        for (auto& b : bodies)
+            world->removeRigidBody(b.get());
     }
 };
 
@@ -106,12 +108,15 @@ btSoftBody* makeSoftBody(btSoftBodyWorldInfo& info, const ClothScene& sc) {
     }
     std::vector<int> tris;
     for (const Triangle& t : sc.mesh.triangles) {
-        for (Index i : t) tris.push_back(static_cast<int>(i));
+        for (Index i : t)
+            tris.push_back(static_cast<int>(i));
     }
     btSoftBody* psb = btSoftBodyHelpers::CreateFromTriMesh(
         info, verts.data(), tris.data(), static_cast<int>(sc.mesh.triangles.size()), false);
-    for (int i = 0; i < psb->m_nodes.size(); ++i) psb->setMass(i, btScalar(sc.particleMass));
-    for (Index p : sc.pins) psb->setMass(static_cast<int>(p), 0.0f);
+    for (int i = 0; i < psb->m_nodes.size(); ++i)
+        psb->setMass(i, btScalar(sc.particleMass));
+    for (Index p : sc.pins)
+        psb->setMass(static_cast<int>(p), 0.0f);
     psb->m_materials[0]->m_kLST = 1.0f;
     psb->getCollisionShape()->setMargin(btScalar(sc.thickness));
     psb->m_cfg.kCHR = 1.0f;
@@ -131,7 +136,7 @@ void softState(const btSoftBody* psb, std::vector<Vec3>& x, std::vector<Vec3>& v
 }
 
 class SoftBodyEngine : public Engine {
-public:
+  public:
     SoftBodyEngine(const ClothScene& sc, int piterations, int substeps)
         : substeps_(substeps), dt_(sc.timeStep) {
         config_ = std::make_unique<btSoftBodyRigidBodyCollisionConfiguration>();
@@ -161,12 +166,15 @@ public:
     }
     void step() override {
         const btScalar h = btScalar(dt_ / substeps_);
-        for (int i = 0; i < substeps_; ++i) world_->stepSimulation(h, 0);
+        for (int i = 0; i < substeps_; ++i)
+            world_->stepSimulation(h, 0);
     }
-    void state(std::vector<Vec3>& x, std::vector<Vec3>& v) const override { softState(body_.get(), x, v); }
+    void state(std::vector<Vec3>& x, std::vector<Vec3>& v) const override {
+        softState(body_.get(), x, v);
+    }
     std::size_t links() const override { return static_cast<std::size_t>(body_->m_links.size()); }
 
-private:
+  private:
     int substeps_;
     double dt_;
     std::unique_ptr<btSoftBodyRigidBodyCollisionConfiguration> config_;
@@ -179,7 +187,7 @@ private:
 };
 
 class DeformableEngine : public Engine {
-public:
+  public:
     explicit DeformableEngine(const ClothScene& sc) : dt_(sc.timeStep) {
         config_ = std::make_unique<btSoftBodyRigidBodyCollisionConfiguration>();
         dispatcher_ = std::make_unique<btCollisionDispatcher>(config_.get());
@@ -220,10 +228,12 @@ public:
         world_.reset();
     }
     void step() override { world_->stepSimulation(btScalar(dt_), 0); }
-    void state(std::vector<Vec3>& x, std::vector<Vec3>& v) const override { softState(body_.get(), x, v); }
+    void state(std::vector<Vec3>& x, std::vector<Vec3>& v) const override {
+        softState(body_.get(), x, v);
+    }
     std::size_t links() const override { return static_cast<std::size_t>(body_->m_links.size()); }
 
-private:
+  private:
     double dt_;
     std::unique_ptr<btSoftBodyRigidBodyCollisionConfiguration> config_;
     std::unique_ptr<btCollisionDispatcher> dispatcher_;
@@ -312,12 +322,15 @@ CompareRow runOne(const Config& c, const SceneRun& sr, int repeats, std::vector<
                 engine->state(x, v);
                 if (!finiteAll(x) || !finiteAll(v)) {
                     row.blewUp = true;
-                    row.note = "non-finite state at t = " + fmt(static_cast<double>(i + 1) * sc.timeStep, 3) + " s";
+                    row.note = "non-finite state at t = " +
+                               fmt(static_cast<double>(i + 1) * sc.timeStep, 3) + " s";
                     break;
                 }
                 double ke = 0.0;
-                for (std::size_t p = 0; p < v.size(); ++p) ke += 0.5 * sc.particleMass * v[p].squaredNorm();
-                for (Index p : sc.pins) ke -= 0.5 * sc.particleMass * v[p].squaredNorm();
+                for (std::size_t p = 0; p < v.size(); ++p)
+                    ke += 0.5 * sc.particleMass * v[p].squaredNorm();
+                for (Index p : sc.pins)
+                    ke -= 0.5 * sc.particleMass * v[p].squaredNorm();
                 kinetic.push_back(ke);
                 const double maxS = maxSpringStrain(*topo, x), meanS = meanSpringStrain(*topo, x);
                 row.peakMaxStrain = std::max(row.peakMaxStrain, maxS);
@@ -326,10 +339,13 @@ CompareRow runOne(const Config& c, const SceneRun& sr, int repeats, std::vector<
                 row.peakPenetration = std::max(row.peakPenetration, pen.depth);
                 row.peakInside = std::max(row.peakInside, pen.inside);
                 double far = 0.0;
-                for (std::size_t p = 0; p < x.size(); ++p) far = std::max(far, (x[p] - sc.mesh.vertices[p]).norm());
+                for (std::size_t p = 0; p < x.size(); ++p)
+                    far = std::max(far, (x[p] - sc.mesh.vertices[p]).norm());
                 if (far > 20.0 * diameter) {
                     row.blewUp = true;
-                    row.note = "diverged at t = " + fmt(static_cast<double>(i + 1) * sc.timeStep, 3) + " s";
+                    row.note =
+                        "diverged at t = " + fmt(static_cast<double>(i + 1) * sc.timeStep, 3) +
+                        " s";
                     break;
                 }
             }
@@ -348,7 +364,8 @@ CompareRow runOne(const Config& c, const SceneRun& sr, int repeats, std::vector<
         } else {
             row.finalMaxStrain = row.finalMeanStrain = std::numeric_limits<double>::quiet_NaN();
         }
-        row.finalKinetic = kinetic.empty() ? std::numeric_limits<double>::quiet_NaN() : kinetic.back();
+        row.finalKinetic =
+            kinetic.empty() ? std::numeric_limits<double>::quiet_NaN() : kinetic.back();
         row.settleTime = kInf;
         if (!row.blewUp && !kinetic.empty()) {
             const double peak = *std::max_element(kinetic.begin(), kinetic.end());
@@ -359,7 +376,8 @@ CompareRow runOne(const Config& c, const SceneRun& sr, int repeats, std::vector<
                     break;
                 }
             }
-            if (last + 1 < kinetic.size()) row.settleTime = static_cast<double>(last + 1) * sc.timeStep;
+            if (last + 1 < kinetic.size())
+                row.settleTime = static_cast<double>(last + 1) * sc.timeStep;
         }
         if (row.blewUp) break; // no point in timing a blow-up again
     }
@@ -371,7 +389,9 @@ CompareRow runOne(const Config& c, const SceneRun& sr, int repeats, std::vector<
     return row;
 }
 
-std::string yesNo(bool b) { return b ? "yes" : "no"; }
+std::string yesNo(bool b) {
+    return b ? "yes" : "no";
+}
 
 } // namespace
 
@@ -402,11 +422,12 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
     std::vector<Config> configs;
     configs.push_back({"drape", "Velocity-Verlet, stress-ordered limiter 10 %", "drape_vv_so", 0, 1,
                        LimiterKind::StressOrdered, true});
-    configs.push_back({"drape", "Velocity-Verlet, no limiter", "drape_vv", 0, 1, LimiterKind::None, true});
+    configs.push_back(
+        {"drape", "Velocity-Verlet, no limiter", "drape_vv", 0, 1, LimiterKind::None, true});
     for (auto [p, s] : std::vector<std::pair<int, int>>{{1, 1}, {4, 1}, {16, 1}, {1, 4}, {4, 4}}) {
         configs.push_back({"btSoftBody",
-                           "piterations " + std::to_string(p) + ", " + std::to_string(s) + " sub-step" +
-                               (s > 1 ? "s" : ""),
+                           "piterations " + std::to_string(p) + ", " + std::to_string(s) +
+                               " sub-step" + (s > 1 ? "s" : ""),
                            "softbody_p" + std::to_string(p) + "_s" + std::to_string(s), p, s,
                            LimiterKind::None, (p == 1 && s == 1) || (p == 4 && s == 4)});
     }
@@ -415,10 +436,10 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
 
     const auto& dir = options.outDir;
     std::filesystem::create_directories(dir);
-    Table table({"scene", "engine", "config", "particles", "links", "ms_per_step", "peak_max_strain",
-                 "peak_mean_strain", "final_max_strain", "final_mean_strain", "peak_penetration",
-                 "peak_particles_inside", "final_particles_inside", "settle_time_s", "final_kinetic_J",
-                 "blew_up", "note"});
+    Table table({"scene", "engine", "config", "particles", "links", "ms_per_step",
+                 "peak_max_strain", "peak_mean_strain", "final_max_strain", "final_mean_strain",
+                 "peak_penetration", "peak_particles_inside", "final_particles_inside",
+                 "settle_time_s", "final_kinetic_J", "blew_up", "note"});
     std::ostringstream sections;
     const bool render = options.render && samples::renderingAvailable();
     for (const SceneRun& sr : scenes) {
@@ -431,9 +452,9 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
             if (c.render) finals.emplace_back(c.engine + ": " + c.config, finalX);
             table.add({row.scene, row.engine, row.config, std::to_string(row.particles),
                        std::to_string(row.links), fmt(row.msPerStep, 4), fmt(row.peakMaxStrain, 4),
-                       fmt(row.peakMeanStrain, 4), fmt(row.finalMaxStrain, 4), fmt(row.finalMeanStrain, 4),
-                       fmt(row.peakPenetration, 4), std::to_string(row.peakInside),
-                       std::to_string(row.finalInside),
+                       fmt(row.peakMeanStrain, 4), fmt(row.finalMaxStrain, 4),
+                       fmt(row.finalMeanStrain, 4), fmt(row.peakPenetration, 4),
+                       std::to_string(row.peakInside), std::to_string(row.finalInside),
                        std::isfinite(row.settleTime) ? fmt(row.settleTime, 4) : "not settled",
                        fmt(row.finalKinetic, 4), yesNo(row.blewUp), row.note});
             result.rows.push_back(row);
@@ -450,29 +471,36 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
                 std::vector<samples::DrawMesh> meshes;
                 if (finiteAll(f.second) && !f.second.empty()) {
                     meshes.push_back(samples::toDrawMesh(f.second, sr.scene.mesh.triangles,
-                                                         {0.80f, 0.18f, 0.16f}, {0.95f, 0.75f, 0.30f}));
+                                                         {0.80f, 0.18f, 0.16f},
+                                                         {0.95f, 0.75f, 0.30f}));
                 }
                 auto cm = colliderMeshes(sr.scene.colliders, sr.scene.camera.target);
                 meshes.insert(meshes.end(), cm.begin(), cm.end());
                 images.push_back(renderer.render(sr.scene.camera, meshes, {0.93f, 0.94f, 0.96f}));
                 strip.width += images.back().width + (images.size() > 1 ? 4 : 0);
             }
-            strip.rgb.assign(static_cast<std::size_t>(strip.width) * static_cast<std::size_t>(strip.height) * 3u, 40);
+            strip.rgb.assign(static_cast<std::size_t>(strip.width) *
+                                 static_cast<std::size_t>(strip.height) * 3u,
+                             40);
             int x0 = 0;
             for (const auto& im : images) {
                 for (int y = 0; y < im.height; ++y) {
-                    std::copy_n(im.rgb.begin() + static_cast<std::ptrdiff_t>(y) * im.width * 3, im.width * 3,
-                                strip.rgb.begin() + (static_cast<std::ptrdiff_t>(y) * strip.width + x0) * 3);
+                    std::copy_n(im.rgb.begin() + static_cast<std::ptrdiff_t>(y) * im.width * 3,
+                                im.width * 3,
+                                strip.rgb.begin() +
+                                    (static_cast<std::ptrdiff_t>(y) * strip.width + x0) * 3);
                 }
                 x0 += im.width + 4;
             }
             const std::string png = "final_" + sr.scene.name + ".png";
             samples::writePng(dir / png, strip);
             sections << "![" << sr.scene.title << "](" << png << ")\n\nLeft to right: ";
-            for (std::size_t i = 0; i < finals.size(); ++i) sections << (i ? "; " : "") << finals[i].first;
+            for (std::size_t i = 0; i < finals.size(); ++i)
+                sections << (i ? "; " : "") << finals[i].first;
             sections << ".\n\n";
         } else {
-            sections << "(renders skipped: " << (options.render ? "this build has no OSMesa renderer" : "--no-render")
+            sections << "(renders skipped: "
+                     << (options.render ? "this build has no OSMesa renderer" : "--no-render")
                      << ")\n\n";
         }
     }
@@ -484,7 +512,8 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
     {
         std::ostringstream dat;
         dat << "config";
-        for (const SceneRun& sr : scenes) dat << "," << sr.scene.name;
+        for (const SceneRun& sr : scenes)
+            dat << "," << sr.scene.name;
         dat << "\n";
         for (const Config& c : configs) {
             std::string label = c.engine + " " + c.config;
@@ -502,33 +531,45 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
         writeText(dir / "ms_per_step.csv", dat.str());
         std::ostringstream g;
         g << "set terminal pngcairo size 1100,620 font 'sans,10'\nset output 'ms_per_step.png'\n"
-          << "set datafile separator ','\nset style data histograms\nset style histogram clustered gap 1\n"
-          << "set style fill solid 0.85 border -1\nset logscale y\nset ylabel 'wall time per 0.01 s step [ms]'\n"
-          << "set title 'Time per step (median of repeated runs)'\nset key outside right top font ',9'\n"
+          << "set datafile separator ','\nset style data histograms\nset style histogram clustered "
+             "gap 1\n"
+          << "set style fill solid 0.85 border -1\nset logscale y\nset ylabel 'wall time per 0.01 "
+             "s step [ms]'\n"
+          << "set title 'Time per step (median of repeated runs)'\nset key outside right top font "
+             "',9'\n"
           << "set xtics rotate by -20\nset grid ytics\n"
-          << "plot for [i=2:" << scenes.size() + 1 << "] 'ms_per_step.csv' using i:xtic(1) title columnhead(i)\n";
+          << "plot for [i=2:" << scenes.size() + 1
+          << "] 'ms_per_step.csv' using i:xtic(1) title columnhead(i)\n";
         // Transposed: one cluster per configuration, one bar per scene.
         plotted = runGnuplot(dir, "ms_per_step", g.str(), plotWhy);
     }
 
     std::ostringstream md;
     md << "# drape against Bullet's soft bodies\n\n"
-       << "Regenerate with `drape-report-compare" << (quick ? " --quick" : "") << "` (writes this folder "
+       << "Regenerate with `drape-report-compare" << (quick ? " --quick" : "")
+       << "` (writes this folder "
        << "from scratch).\n\n"
-       << machineMarkdown(machine)
-       << "## Set-up\n\n"
-       << "Every engine gets the same triangle mesh (vertex i is particle i is node i), the same particle "
-          "mass (0.5), the same pinned particles, gravity 9.8 and the same static colliders; the paper's "
+       << machineMarkdown(machine) << "## Set-up\n\n"
+       << "Every engine gets the same triangle mesh (vertex i is particle i is node i), the same "
+          "particle "
+          "mass (0.5), the same pinned particles, gravity 9.8 and the same static colliders; the "
+          "paper's "
           "units (spacing 10, k 20 N/m). Frame dt 0.01 s.\n\n"
-       << "- **drape**: Velocity-Verlet, with and without the stress-ordered strain limiter (10 %), "
+       << "- **drape**: Velocity-Verlet, with and without the stress-ordered strain limiter (10 "
+          "%), "
           "particle damping C_d = 0.05 N s/m, contacts through drape::bullet (thickness 1).\n"
-       << "- **btSoftBody** (btSoftRigidDynamicsWorld): btSoftBodyHelpers::CreateFromTriMesh on the same "
-          "vertices and triangles; its links are the unique triangle edges, the same set as drape's springs "
+       << "- **btSoftBody** (btSoftRigidDynamicsWorld): btSoftBodyHelpers::CreateFromTriMesh on "
+          "the same "
+          "vertices and triangles; its links are the unique triangle edges, the same set as "
+          "drape's springs "
           "(the link counts below match). Node masses set one by one, pins by setMass(node, 0), "
           "m_kLST = 1, kDP = C_d dt / m per sub-step (its velocity damping), margin 1, kCHR 1, "
-          "kDF = the collider's friction. Sweeps of m_cfg.piterations (1, 4, 16) and of sub-steps (1, 4). "
-          "**Its stiffness is not a spring constant**: kLST is a unitless [0, 1] factor of a position "
-          "correction, so the k = 20 N/m of the paper has no counterpart; how far the cloth stretches "
+          "kDF = the collider's friction. Sweeps of m_cfg.piterations (1, 4, 16) and of sub-steps "
+          "(1, 4). "
+          "**Its stiffness is not a spring constant**: kLST is a unitless [0, 1] factor of a "
+          "position "
+          "correction, so the k = 20 N/m of the paper has no counterpart; how far the cloth "
+          "stretches "
           "depends on piterations and sub-steps instead.\n"
        << "- **btDeformable** (btDeformableMultiBodyDynamicsWorld, implicit solve): "
           "btDeformableMassSpringForce(k = 20 N/m, damping 0.05 along the springs) and "
@@ -536,28 +577,39 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
           "default Lagrange-multiplier path the implicit solve does not move the nodes at all: a "
           "two-triangle cloth under gravity stays put).\n\n"
        << "Measured each step (outside the timed part): max and mean spring strain (l - L0) / L0, "
-          "deepest penetration into a collider (signed distance < 0, without any thickness) and the "
-          "number of particles inside, kinetic energy. 'Settle time' = from the step after which the "
-          "kinetic energy stays below 0.1 % of its peak until the end of the run ('not settled' if it "
-          "never does). 'Blew up' = a non-finite state, a particle more than 20 cloth sizes away, or a "
-          "failure drape detected. Time per step = wall time of the engine's step alone, median over "
+          "deepest penetration into a collider (signed distance < 0, without any thickness) and "
+          "the "
+          "number of particles inside, kinetic energy. 'Settle time' = from the step after which "
+          "the "
+          "kinetic energy stays below 0.1 % of its peak until the end of the run ('not settled' if "
+          "it "
+          "never does). 'Blew up' = a non-finite state, a particle more than 20 cloth sizes away, "
+          "or a "
+          "failure drape detected. Time per step = wall time of the engine's step alone, median "
+          "over "
           "the repeated runs.\n\n"
        << "Reduced to keep the whole report under 10 minutes on this 2-core machine: ";
     for (const SceneRun& sr : scenes) {
         md << sr.scene.title << " " << fmt(sr.duration) << " s x " << sr.repeats << " run(s)"
-           << (sr.deformableDuration < sr.duration ? " (deformable world " + fmt(sr.deformableDuration) + " s)" : "")
+           << (sr.deformableDuration < sr.duration
+                   ? " (deformable world " + fmt(sr.deformableDuration) + " s)"
+                   : "")
            << "; ";
     }
     md << "\n\n## Results\n\n";
-    if (plotted) md << "![time per step](ms_per_step.png)\n\n";
-    else md << "(time plot not drawn: " << plotWhy << ")\n\n";
-    md << "| scene | engine | config | ms/step | max strain peak / end | mean strain peak / end | deepest penetration | inside peak / end | settle [s] | final KE [J] | blew up |\n"
+    if (plotted)
+        md << "![time per step](ms_per_step.png)\n\n";
+    else
+        md << "(time plot not drawn: " << plotWhy << ")\n\n";
+    md << "| scene | engine | config | ms/step | max strain peak / end | mean strain peak / end | "
+          "deepest penetration | inside peak / end | settle [s] | final KE [J] | blew up |\n"
        << "|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (const CompareRow& r : result.rows) {
-        md << "| " << r.scene << " | " << r.engine << " | " << r.config << " | " << fmt(r.msPerStep, 3) << " | "
-           << fmt(r.peakMaxStrain, 3) << " / " << fmt(r.finalMaxStrain, 3) << " | " << fmt(r.peakMeanStrain, 3)
-           << " / " << fmt(r.finalMeanStrain, 3) << " | " << fmt(r.peakPenetration, 3) << " | " << r.peakInside
-           << " / " << r.finalInside << " | "
+        md << "| " << r.scene << " | " << r.engine << " | " << r.config << " | "
+           << fmt(r.msPerStep, 3) << " | " << fmt(r.peakMaxStrain, 3) << " / "
+           << fmt(r.finalMaxStrain, 3) << " | " << fmt(r.peakMeanStrain, 3) << " / "
+           << fmt(r.finalMeanStrain, 3) << " | " << fmt(r.peakPenetration, 3) << " | "
+           << r.peakInside << " / " << r.finalInside << " | "
            << (std::isfinite(r.settleTime) ? fmt(r.settleTime, 3) : "not settled") << " | "
            << fmt(r.finalKinetic, 3) << " | " << (r.blewUp ? "**yes** " + r.note : "no") << " |\n";
     }
@@ -568,10 +620,13 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
                       "speed_ratio_btSoftBody_over_drape", "btSoftBody_peak_max_strain",
                       "drape_peak_max_strain", "drape_strain_le_btSoftBody", "btSoftBody_blew_up"});
         md << "\n## Speed ratio, drape against btSoftBody\n\n"
-           << "drape = Velocity-Verlet with the stress-ordered limiter (10 %). Ratio = btSoftBody's "
+           << "drape = Velocity-Verlet with the stress-ordered limiter (10 %). Ratio = "
+              "btSoftBody's "
               "time per step / drape's (above 1: drape is faster), both medians of the runs above, "
-              "measured in this run. Peak max strain = the largest spring strain seen in the run.\n\n"
-           << "| scene | btSoftBody config | btSoftBody ms/step | drape ms/step | ratio (x faster) | "
+              "measured in this run. Peak max strain = the largest spring strain seen in the "
+              "run.\n\n"
+           << "| scene | btSoftBody config | btSoftBody ms/step | drape ms/step | ratio (x faster) "
+              "| "
               "peak max strain btSoftBody / drape | drape's strain <= btSoftBody's |\n"
            << "|---|---|---|---|---|---|---|\n";
         for (const SceneRun& sr : scenes) {
@@ -587,13 +642,13 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
                 if (r.scene != sr.scene.name || r.engine != "btSoftBody") continue;
                 const double ratio = dr->msPerStep > 0.0 ? r.msPerStep / dr->msPerStep : kInf;
                 const bool lower = dr->peakMaxStrain <= r.peakMaxStrain;
-                md << "| " << r.scene << " | " << r.config << (r.blewUp ? " (blew up)" : "") << " | "
-                   << fmt(r.msPerStep, 3) << " | " << fmt(dr->msPerStep, 3) << " | " << fmt(ratio, 3)
-                   << " | " << fmt(r.peakMaxStrain, 3) << " / " << fmt(dr->peakMaxStrain, 3) << " | "
-                   << yesNo(lower) << " |\n";
-                ratios.add({r.scene, r.config, fmt(r.msPerStep, 5), fmt(dr->msPerStep, 5), fmt(ratio, 5),
-                            fmt(r.peakMaxStrain, 5), fmt(dr->peakMaxStrain, 5), yesNo(lower),
-                            yesNo(r.blewUp)});
+                md << "| " << r.scene << " | " << r.config << (r.blewUp ? " (blew up)" : "")
+                   << " | " << fmt(r.msPerStep, 3) << " | " << fmt(dr->msPerStep, 3) << " | "
+                   << fmt(ratio, 3) << " | " << fmt(r.peakMaxStrain, 3) << " / "
+                   << fmt(dr->peakMaxStrain, 3) << " | " << yesNo(lower) << " |\n";
+                ratios.add({r.scene, r.config, fmt(r.msPerStep, 5), fmt(dr->msPerStep, 5),
+                            fmt(ratio, 5), fmt(r.peakMaxStrain, 5), fmt(dr->peakMaxStrain, 5),
+                            yesNo(lower), yesNo(r.blewUp)});
             }
         }
         ratios.writeCsv(dir / "speed_ratio.csv");
@@ -608,11 +663,13 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
             const CompareRow* deform = nullptr;
             for (const CompareRow& r : result.rows) {
                 if (r.scene != sr.scene.name) continue;
-                if (r.engine == "drape" && r.config.find("stress-ordered") != std::string::npos) dr = &r;
+                if (r.engine == "drape" && r.config.find("stress-ordered") != std::string::npos)
+                    dr = &r;
                 if (r.engine == "btDeformable") deform = &r;
                 if (r.engine == "btSoftBody" && !r.blewUp) {
                     // Fastest among the set-ups that stay a cloth (under 50 % stretch).
-                    if (r.peakMaxStrain <= 0.5 && (!fastSoft || r.msPerStep < fastSoft->msPerStep)) fastSoft = &r;
+                    if (r.peakMaxStrain <= 0.5 && (!fastSoft || r.msPerStep < fastSoft->msPerStep))
+                        fastSoft = &r;
                     if (!stiffSoft || r.peakMaxStrain < stiffSoft->peakMaxStrain) stiffSoft = &r;
                 }
             }
@@ -621,23 +678,28 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
             const std::string name = sr.scene.title;
             if (fastSoft->msPerStep < dr->msPerStep) {
                 soft << "- " << name << ": btSoftBody (" << fastSoft->config << ") steps in "
-                     << fmt(fastSoft->msPerStep, 3) << " ms against drape's " << fmt(dr->msPerStep, 3)
-                     << " ms with the limiter (" << fmt(dr->msPerStep / fastSoft->msPerStep, 2)
-                     << " x faster; the fastest btSoftBody set-up that stays under 50 % stretch), peak stretch " << fmt(100 * fastSoft->peakMaxStrain, 3) << " %.\n";
+                     << fmt(fastSoft->msPerStep, 3) << " ms against drape's "
+                     << fmt(dr->msPerStep, 3) << " ms with the limiter ("
+                     << fmt(dr->msPerStep / fastSoft->msPerStep, 2)
+                     << " x faster; the fastest btSoftBody set-up that stays under 50 % stretch), "
+                        "peak stretch "
+                     << fmt(100 * fastSoft->peakMaxStrain, 3) << " %.\n";
             } else {
-                drape << "- " << name << ": drape with the limiter steps in " << fmt(dr->msPerStep, 3)
-                      << " ms, faster than the fastest btSoftBody set-up under 50 % stretch (" << fastSoft->config << ", "
-                      << fmt(fastSoft->msPerStep, 3) << " ms).\n";
+                drape << "- " << name << ": drape with the limiter steps in "
+                      << fmt(dr->msPerStep, 3)
+                      << " ms, faster than the fastest btSoftBody set-up under 50 % stretch ("
+                      << fastSoft->config << ", " << fmt(fastSoft->msPerStep, 3) << " ms).\n";
             }
             if (stiffSoft->peakMaxStrain < dr->peakMaxStrain) {
-                soft << "- " << name << ": btSoftBody (" << stiffSoft->config << ") never stretches more than "
-                     << fmt(100 * stiffSoft->peakMaxStrain, 3) << " % (drape's limiter allows "
-                     << fmt(100 * dr->peakMaxStrain, 3) << " %): an inextensible look, at "
-                     << fmt(stiffSoft->msPerStep, 3) << " ms per step.\n";
+                soft << "- " << name << ": btSoftBody (" << stiffSoft->config
+                     << ") never stretches more than " << fmt(100 * stiffSoft->peakMaxStrain, 3)
+                     << " % (drape's limiter allows " << fmt(100 * dr->peakMaxStrain, 3)
+                     << " %): an inextensible look, at " << fmt(stiffSoft->msPerStep, 3)
+                     << " ms per step.\n";
             }
             if (fastSoft->peakInside < dr->peakInside) {
-                soft << "- " << name << ": fewer particles inside colliders (" << fastSoft->peakInside
-                     << " against drape's " << dr->peakInside << ").\n";
+                soft << "- " << name << ": fewer particles inside colliders ("
+                     << fastSoft->peakInside << " against drape's " << dr->peakInside << ").\n";
             } else if (dr->peakInside < fastSoft->peakInside) {
                 drape << "- " << name << ": no deeper contact trouble: " << dr->peakInside
                       << " particles inside colliders at worst against " << fastSoft->peakInside
@@ -646,10 +708,12 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
             }
             bool drapeFailed = false;
             for (const CompareRow& r : result.rows) {
-                drapeFailed = drapeFailed || (r.scene == sr.scene.name && r.engine == "drape" && r.blewUp);
+                drapeFailed =
+                    drapeFailed || (r.scene == sr.scene.name && r.engine == "drape" && r.blewUp);
             }
             for (const CompareRow& r : result.rows) {
-                if (r.scene == sr.scene.name && r.engine == "btSoftBody" && r.blewUp && !drapeFailed) {
+                if (r.scene == sr.scene.name && r.engine == "btSoftBody" && r.blewUp &&
+                    !drapeFailed) {
                     drape << "- " << name << ": btSoftBody (" << r.config << ") blew up (" << r.note
                           << "); both drape configurations ran to the end.\n";
                 }
@@ -657,20 +721,24 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
             if (deform && (deform->blewUp || deform->peakInside > dr->peakInside)) {
                 drape << "- " << name << ": Bullet's deformable world at the same k: "
                       << (deform->blewUp ? "blew up (" + deform->note + ")"
-                                         : std::to_string(deform->peakInside) + " particles inside colliders, deepest " +
+                                         : std::to_string(deform->peakInside) +
+                                               " particles inside colliders, deepest " +
                                                fmt(deform->peakPenetration, 3))
                       << ", at " << fmt(deform->msPerStep, 3) << " ms per step.\n";
             }
         }
-        md << "\n## Where btSoftBody wins\n\n" << (soft.str().empty() ? "- nowhere in these runs\n" : soft.str())
+        md << "\n## Where btSoftBody wins\n\n"
+           << (soft.str().empty() ? "- nowhere in these runs\n" : soft.str())
            << "\nbtSoftBody's strength is its position solver: a few iterations of kLST = 1 "
               "make links nearly inextensible at a low cost, and its stretch falls with every "
               "extra iteration or sub-step. What it does not offer is a physical stiffness: "
               "kLST has no unit, and the same cloth stretches differently at another "
               "piterations or time step, so its 'material' cannot be set from N/m or Young's "
               "modulus as the paper asks.\n\n"
-           << "## Where drape wins\n\n" << (drape.str().empty() ? "- nowhere in these runs\n" : drape.str())
-           << "\ndrape's springs are physical (N/m, from the fabric's E and thickness); its stretch "
+           << "## Where drape wins\n\n"
+           << (drape.str().empty() ? "- nowhere in these runs\n" : drape.str())
+           << "\ndrape's springs are physical (N/m, from the fabric's E and thickness); its "
+              "stretch "
               "is bounded by the limiter's 10 % whatever the time step, and the strain it "
               "reports is the strain of the material law; a step that would blow up is refused "
               "or detected and rolled back.\n";
@@ -683,12 +751,13 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
         particles[r.scene] = r.particles;
     }
     for (auto& [scene, c] : counts) {
-        md << scene << " " << particles[scene] << " particles, " << c["drape"] << " / " << c["btSoftBody"]
-           << " / " << c["btDeformable"] << "; ";
+        md << scene << " " << particles[scene] << " particles, " << c["drape"] << " / "
+           << c["btSoftBody"] << " / " << c["btDeformable"] << "; ";
     }
     md << "\n\nData: [compare.csv](compare.csv), [ms_per_step.csv](ms_per_step.csv), "
           "[speed_ratio.csv](speed_ratio.csv).\n\n"
-       << "## Final states\n\n" << sections.str();
+       << "## Final states\n\n"
+       << sections.str();
     writeText(dir / "report.md", md.str());
     return result;
 }

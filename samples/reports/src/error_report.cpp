@@ -36,7 +36,8 @@ Run runTo(const ClothScene& scene, IntegratorKind kind, LimiterKind limiter, dou
     DrapeWorld world(scene, clothSettings(scene, kind, limiter));
     const auto steps = static_cast<long>(std::llround(endTime / dt));
     std::vector<long> checkSteps;
-    for (double t : checkTimes) checkSteps.push_back(std::lround(t / dt));
+    for (double t : checkTimes)
+        checkSteps.push_back(std::lround(t / dt));
     std::size_t next = 0;
     const double diameter = scene.sheet.spacing * (scene.sheet.rows + scene.sheet.cols);
     try {
@@ -103,8 +104,10 @@ std::string plotScript(const std::string& name, const std::string& csv, const st
       << "set key bottom left font ',10'\nset grid\n"
       << "set yrange [*:" << unstableY * 4 << "]\n";
     // columns: integrator,dt,wall_s,error,rel_error,unstable
-    const char* names[] = {"explicit_euler", "symplectic_euler", "velocity_verlet", "rk4", "implicit_euler"};
-    const char* labels[] = {"explicit Euler", "symplectic Euler", "Velocity-Verlet", "RK4", "implicit Euler"};
+    const char* names[] = {"explicit_euler", "symplectic_euler", "velocity_verlet", "rk4",
+                           "implicit_euler"};
+    const char* labels[] = {"explicit Euler", "symplectic Euler", "Velocity-Verlet", "RK4",
+                            "implicit Euler"};
     const char* colors[] = {"#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e"};
     const int pts[] = {11, 5, 7, 9, 13};
     g << "plot ";
@@ -140,7 +143,8 @@ ErrorResult runErrorReport(const ErrorOptions& options, const Machine& machine) 
     // Dyadic time steps from 0.1 s down.
     const int levels = quick ? 4 : 8;
     std::vector<double> dts;
-    for (int i = 0; i < levels; ++i) dts.push_back(0.1 / std::pow(2.0, i));
+    for (int i = 0; i < levels; ++i)
+        dts.push_back(0.1 / std::pow(2.0, i));
     const double dtRef = 0.1 / std::pow(2.0, quick ? 8 : 10);
 
     std::ostringstream md;
@@ -151,7 +155,8 @@ ErrorResult runErrorReport(const ErrorOptions& options, const Machine& machine) 
 
     const auto& dir = options.outDir;
     std::filesystem::create_directories(dir);
-    Table all({"scene", "limiter", "integrator", "dt_s", "wall_s", "error", "rel_error", "unstable", "note"});
+    Table all({"scene", "limiter", "integrator", "dt_s", "wall_s", "error", "rel_error", "unstable",
+               "note"});
     Table refs({"scene", "limiter", "reference", "dt_ref_s", "self_error_vs_2dt", "cross_error",
                 "smallest_sweep_error"});
     std::vector<Run> table1Refs; // Experiment II references (off, on) for Table 1
@@ -159,16 +164,20 @@ ErrorResult runErrorReport(const ErrorOptions& options, const Machine& machine) 
     md << "## Method\n\n"
        << "Scenes in the paper's units (spacing 10, particle mass 0.5, k 20, C_d 0.05, g 9.8): "
        << setups[0].scene.title << ", checked at t = " << fmt(setups[0].checkTimes[0]) << " and "
-       << fmt(setups[0].checkTimes[1]) << " s; " << setups[1].scene.title << ", checked at t = "
-       << fmt(setups[1].checkTimes[0]) << " and " << fmt(setups[1].checkTimes[1])
-       << " s (after it meets the desk at about 3.35 s). Time steps 0.1 s / 2^i, i = 0.." << levels - 1
+       << fmt(setups[0].checkTimes[1]) << " s; " << setups[1].scene.title
+       << ", checked at t = " << fmt(setups[1].checkTimes[0]) << " and "
+       << fmt(setups[1].checkTimes[1])
+       << " s (after it meets the desk at about 3.35 s). Time steps 0.1 s / 2^i, i = 0.."
+       << levels - 1
        << ", so that every check time falls on a step. Error = RMS distance over particles between "
-       << "the run and the reference at each check time, the larger of the two, divided by the grid "
+       << "the run and the reference at each check time, the larger of the two, divided by the "
+          "grid "
        << "spacing. Wall time = time spent in the steps of the whole run (nothing else). A run is "
        << "marked unstable when drape detects a non-finite state (SimulationFailure) or a particle "
        << "moves farther than ten cloth sizes plus the free-fall distance; unstable points sit on "
        << "the top line of each plot.\n\n"
-       << "Reference: without the limiter, RK4 at dt_ref = " << fmt(dtRef) << " s (the ODE is smooth "
+       << "Reference: without the limiter, RK4 at dt_ref = " << fmt(dtRef)
+       << " s (the ODE is smooth "
        << "until contact); with the limiter, Velocity-Verlet at dt_ref (the limiter's projection "
        << "makes every method first order in dt, so a higher-order reference buys nothing). "
        << "Convergence is shown by the distance between the reference and the same method at "
@@ -183,8 +192,10 @@ ErrorResult runErrorReport(const ErrorOptions& options, const Machine& machine) 
         for (std::size_t si = 0; si < setups.size(); ++si) {
             const SceneSetup& su = setups[si];
             const LimiterKind lim = limiter ? LimiterKind::StressOrdered : LimiterKind::None;
-            const IntegratorKind refKind = limiter ? IntegratorKind::VelocityVerlet : IntegratorKind::RungeKutta4;
-            const IntegratorKind crossKind = limiter ? IntegratorKind::RungeKutta4 : IntegratorKind::VelocityVerlet;
+            const IntegratorKind refKind =
+                limiter ? IntegratorKind::VelocityVerlet : IntegratorKind::RungeKutta4;
+            const IntegratorKind crossKind =
+                limiter ? IntegratorKind::RungeKutta4 : IntegratorKind::VelocityVerlet;
             const std::string label = su.scene.name + (limiter ? ", limiter on" : ", limiter off");
             progress("error: reference for " + label);
             Run ref = runTo(su.scene, refKind, lim, dtRef, su.checkTimes, su.endTime);
@@ -215,14 +226,16 @@ ErrorResult runErrorReport(const ErrorOptions& options, const Machine& machine) 
                     p.relError = p.error / su.scene.sheet.spacing;
                     p.unstable = run.failed;
                     p.note = run.note;
-                    if (!p.unstable) rc.smallestSweepError = std::min(rc.smallestSweepError, p.relError);
+                    if (!p.unstable)
+                        rc.smallestSweepError = std::min(rc.smallestSweepError, p.relError);
                     result.points.push_back(p);
-                    const std::vector<std::string> row = {toString(kind), fmt(dt, 6), fmt(run.wall, 4),
-                                                          fmt(p.error, 4), fmt(p.relError, 4),
-                                                          p.unstable ? "yes" : "no", p.note};
+                    const std::vector<std::string> row = {
+                        toString(kind),  fmt(dt, 6),         fmt(run.wall, 4),
+                        fmt(p.error, 4), fmt(p.relError, 4), p.unstable ? "yes" : "no",
+                        p.note};
                     t.add(row);
-                    all.add({su.scene.name, limiter ? "stress_ordered" : "none", row[0], row[1], row[2],
-                             row[3], row[4], row[5], row[6]});
+                    all.add({su.scene.name, limiter ? "stress_ordered" : "none", row[0], row[1],
+                             row[2], row[3], row[4], row[5], row[6]});
                 }
             }
             result.references.push_back(rc);
@@ -230,32 +243,41 @@ ErrorResult runErrorReport(const ErrorOptions& options, const Machine& machine) 
                       std::string(toString(refKind)), fmt(dtRef), fmt(rc.selfError, 3),
                       fmt(rc.crossError, 3) + " (" + toString(crossKind) + ")",
                       fmt(rc.smallestSweepError, 3)});
-            const std::string name = "error_" + su.scene.name + (limiter ? "_limiter" : "_nolimiter");
+            const std::string name =
+                "error_" + su.scene.name + (limiter ? "_limiter" : "_nolimiter");
             t.writeCsv(dir / (name + ".csv"));
             std::string why;
             const bool plotted = runGnuplot(
                 dir, name,
                 plotScript(name, name + ".csv",
-                           su.scene.title + (limiter ? ", stress-ordered limiter" : ", no limiter"), 30.0),
+                           su.scene.title + (limiter ? ", stress-ordered limiter" : ", no limiter"),
+                           30.0),
                 why);
-            md << "## " << su.scene.title << (limiter ? ", strain limiter on" : ", no strain limiter")
-               << "\n\n";
-            if (plotted) md << "![" << name << "](" << name << ".png)\n\n";
-            else md << "(plot not drawn: " << why << ")\n\n";
-            md << "Reference " << toString(refKind) << " at " << fmt(dtRef) << " s: distance to itself at "
-               << "2 dt_ref " << fmt(rc.selfError, 3) << ", to " << toString(crossKind) << " at dt_ref "
-               << fmt(rc.crossError, 3) << " (grid spacings); smallest error in the sweep "
-               << fmt(rc.smallestSweepError, 3) << ".\n\n";
+            md << "## " << su.scene.title
+               << (limiter ? ", strain limiter on" : ", no strain limiter") << "\n\n";
+            if (plotted)
+                md << "![" << name << "](" << name << ".png)\n\n";
+            else
+                md << "(plot not drawn: " << why << ")\n\n";
+            md << "Reference " << toString(refKind) << " at " << fmt(dtRef)
+               << " s: distance to itself at "
+               << "2 dt_ref " << fmt(rc.selfError, 3) << ", to " << toString(crossKind)
+               << " at dt_ref " << fmt(rc.crossError, 3)
+               << " (grid spacings); smallest error in the sweep " << fmt(rc.smallestSweepError, 3)
+               << ".\n\n";
             if (limiter && rc.selfError > 0.3 * rc.smallestSweepError) {
                 md << "**The limited trajectory does not converge as dt shrinks**: the reference "
-                      "moves by " << fmt(rc.selfError, 3) << " grid spacings when its dt is doubled, "
+                      "moves by "
+                   << fmt(rc.selfError, 3)
+                   << " grid spacings when its dt is doubled, "
                       "as much as the sweep's errors. The limiter's correction (positions "
                       "projected each step, v += dx / dt, rounds stopped at a strain tolerance) "
                       "depends on the step itself, so these errors measure how much the result "
                       "depends on dt, not an integration error; every integrator lands on the "
                       "same plateau.\n\n";
             }
-            md << "| integrator | dt [s] | wall [s] | error / spacing | unstable |\n|---|---|---|---|---|\n";
+            md << "| integrator | dt [s] | wall [s] | error / spacing | unstable "
+                  "|\n|---|---|---|---|---|\n";
             for (const auto& r : t.rows()) {
                 md << "| " << r[0] << " | " << r[1] << " | " << r[2] << " | " << r[4] << " | "
                    << (r[5] == "yes" ? "**yes** (" + r[6] + ")" : "no") << " |\n";
@@ -270,7 +292,11 @@ ErrorResult runErrorReport(const ErrorOptions& options, const Machine& machine) 
     {
         const SceneSetup& su = setups[1];
         const double cap = quick ? 6.0 : 15.0;
-        struct Paper { IntegratorKind kind; double dt; double seconds; };
+        struct Paper {
+            IntegratorKind kind;
+            double dt;
+            double seconds;
+        };
         const std::vector<Paper> paper = {{IntegratorKind::ExplicitEuler, 0.001, 85.46},
                                           {IntegratorKind::ImplicitEuler, 0.01, 17.32},
                                           {IntegratorKind::RungeKutta4, 0.01, 19.67},
@@ -281,7 +307,8 @@ ErrorResult runErrorReport(const ErrorOptions& options, const Machine& machine) 
         for (const Paper& p : paper) {
             progress(std::string("error: Table 1 ") + toString(p.kind));
             // The paper's pipeline: stress-ordered limiting; the check-time states feed the error.
-            Run run = runTo(su.scene, p.kind, LimiterKind::StressOrdered, p.dt, su.checkTimes, cap, true);
+            Run run =
+                runTo(su.scene, p.kind, LimiterKind::StressOrdered, p.dt, su.checkTimes, cap, true);
             Table1Row row;
             row.integrator = p.kind;
             row.dt = p.dt;
@@ -308,21 +335,30 @@ ErrorResult runErrorReport(const ErrorOptions& options, const Machine& machine) 
             }
             result.table1.push_back(row);
             t1.add({toString(p.kind), fmt(p.dt), std::isnan(p.seconds) ? "-" : fmt(p.seconds),
-                    fmt(row.oursWall, 4), std::isfinite(row.settleTime) ? fmt(row.settleTime, 4) : "not by " + fmt(cap),
-                    fmt(run.wall, 4), fmt(row.error, 3), row.unstable ? "yes (" + run.note + ")" : "no"});
+                    fmt(row.oursWall, 4),
+                    std::isfinite(row.settleTime) ? fmt(row.settleTime, 4) : "not by " + fmt(cap),
+                    fmt(run.wall, 4), fmt(row.error, 3),
+                    row.unstable ? "yes (" + run.note + ")" : "no"});
         }
         t1.writeCsv(dir / "table1.csv");
         md << "## The paper's Table 1, reproduced\n\n"
-           << su.scene.title << ", stress-ordered limiter on (the paper's pipeline), run to " << fmt(cap)
-           << " s of simulated time. 'Settled' = from the step after which the cloth's kinetic energy "
-           << "stays below 0.1 % of its peak (the paper does not define its 'steady state'); our time "
-           << "is the wall time of the steps up to then. The paper measured on an AMD Athlon II X2 240 "
-           << "(2.8 GHz, 2011) with rendering; we time the physics alone. Error = RMS distance to the "
-           << "limiter-on reference at t = 3.5 and 4 s, in grid spacings: the column the paper lacks. "
+           << su.scene.title << ", stress-ordered limiter on (the paper's pipeline), run to "
+           << fmt(cap)
+           << " s of simulated time. 'Settled' = from the step after which the cloth's kinetic "
+              "energy "
+           << "stays below 0.1 % of its peak (the paper does not define its 'steady state'); our "
+              "time "
+           << "is the wall time of the steps up to then. The paper measured on an AMD Athlon II X2 "
+              "240 "
+           << "(2.8 GHz, 2011) with rendering; we time the physics alone. Error = RMS distance to "
+              "the "
+           << "limiter-on reference at t = 3.5 and 4 s, in grid spacings: the column the paper "
+              "lacks. "
            << "Symplectic Euler is added for comparison.\n\n"
            << t1.markdown() << "\nData: [table1.csv](table1.csv).\n\n";
     }
-    md << "## Reference convergence\n\n" << refs.markdown()
+    md << "## Reference convergence\n\n"
+       << refs.markdown()
        << "\nData: [reference_convergence.csv](reference_convergence.csv), all sweep points: "
           "[error_all.csv](error_all.csv).\n\n";
     writeText(dir / "report.md", md.str());

@@ -97,20 +97,24 @@ void Table::writeCsv(const std::filesystem::path& file) const {
         o << '\n';
     };
     line(columns_);
-    for (const auto& r : rows_) line(r);
+    for (const auto& r : rows_)
+        line(r);
     writeText(file, o.str());
 }
 
 std::string Table::markdown() const {
     std::ostringstream o;
     o << '|';
-    for (const auto& c : columns_) o << ' ' << c << " |";
+    for (const auto& c : columns_)
+        o << ' ' << c << " |";
     o << "\n|";
-    for (std::size_t i = 0; i < columns_.size(); ++i) o << "---|";
+    for (std::size_t i = 0; i < columns_.size(); ++i)
+        o << "---|";
     o << '\n';
     for (const auto& r : rows_) {
         o << '|';
-        for (const auto& c : r) o << ' ' << c << " |";
+        for (const auto& c : r)
+            o << ' ' << c << " |";
         o << '\n';
     }
     return o.str();
@@ -123,7 +127,8 @@ Table readCsv(const std::filesystem::path& file) {
         std::vector<std::string> cells;
         std::string cell;
         std::istringstream ss(s);
-        while (std::getline(ss, cell, ',')) cells.push_back(cell);
+        while (std::getline(ss, cell, ','))
+            cells.push_back(cell);
         if (!s.empty() && s.back() == ',') cells.emplace_back();
         return cells;
     };

@@ -55,8 +55,9 @@ ClothScene hanging(const std::string& name, const std::string& title, Index rows
 } // namespace
 
 ClothScene experiment1(Index rows, Index cols) {
-    ClothScene s = hanging("experiment1", "Experiment I (" + std::to_string(rows) + " x " +
-                                              std::to_string(cols) + " suspended sheet)",
+    ClothScene s = hanging("experiment1",
+                           "Experiment I (" + std::to_string(rows) + " x " + std::to_string(cols) +
+                               " suspended sheet)",
                            rows, cols);
     return s;
 }
@@ -196,12 +197,12 @@ ClothSettings clothSettings(const ClothScene& scene, IntegratorKind integrator,
     return s;
 }
 
-Penetration measurePenetration(const std::vector<Collider>& colliders,
-                               const std::vector<Vec3>& x) {
+Penetration measurePenetration(const std::vector<Collider>& colliders, const std::vector<Vec3>& x) {
     Penetration p;
     for (const Vec3& xi : x) {
         double deepest = 0.0;
-        for (const Collider& c : colliders) deepest = std::max(deepest, -c.signedDistance(xi));
+        for (const Collider& c : colliders)
+            deepest = std::max(deepest, -c.signedDistance(xi));
         if (deepest > 0.0) {
             ++p.inside;
             p.depth = std::max(p.depth, deepest);
@@ -215,8 +216,8 @@ std::vector<samples::DrawMesh> colliderMeshes(const std::vector<Collider>& colli
     std::vector<samples::DrawMesh> out;
     for (const Collider& c : colliders) {
         if (c.kind == Collider::Kind::Plane) {
-            auto planes = samples::makePlaneMeshes(c.normal, c.offset, around, 1500.0,
-                                                   {0.78f, 0.80f, 0.82f});
+            auto planes =
+                samples::makePlaneMeshes(c.normal, c.offset, around, 1500.0, {0.78f, 0.80f, 0.82f});
             out.insert(out.end(), planes.begin(), planes.end());
             continue;
         }
@@ -231,7 +232,8 @@ std::vector<samples::DrawMesh> colliderMeshes(const std::vector<Collider>& colli
 
 double rmsDistance(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
     double sum = 0.0;
-    for (std::size_t i = 0; i < a.size(); ++i) sum += (a[i] - b[i]).squaredNorm();
+    for (std::size_t i = 0; i < a.size(); ++i)
+        sum += (a[i] - b[i]).squaredNorm();
     return a.empty() ? 0.0 : std::sqrt(sum / static_cast<double>(a.size()));
 }
 
@@ -250,14 +252,16 @@ struct DrapeWorld::Impl {
 
     ~Impl() {
         handle.reset();
-        for (auto& b : bodies) world->removeRigidBody(b.get());
+        for (auto& b : bodies)
+            world->removeRigidBody(b.get());
     }
 };
 
 DrapeWorld::DrapeWorld(const ClothScene& scene, const ClothSettings& settings)
     : impl_(std::make_unique<Impl>()) {
     impl_->cloth = std::make_shared<Cloth>(ClothTopology::build(scene.mesh), settings);
-    for (Index p : scene.pins) impl_->cloth->pin(p);
+    for (Index p : scene.pins)
+        impl_->cloth->pin(p);
     // Every scene gets a world (an empty one costs nothing per step) so that all runs share
     // the same code path.
     Impl& m = *impl_;
@@ -279,13 +283,13 @@ DrapeWorld::DrapeWorld(const ClothScene& scene, const ClothSettings& settings)
             shape = std::make_unique<btBoxShape>(btVector3(btScalar(c.halfExtents.x()),
                                                            btScalar(c.halfExtents.y()),
                                                            btScalar(c.halfExtents.z())));
-            t.setOrigin(btVector3(btScalar(c.center.x()), btScalar(c.center.y()),
-                                  btScalar(c.center.z())));
+            t.setOrigin(
+                btVector3(btScalar(c.center.x()), btScalar(c.center.y()), btScalar(c.center.z())));
             break;
         case Collider::Kind::Sphere:
             shape = std::make_unique<btSphereShape>(btScalar(c.radius));
-            t.setOrigin(btVector3(btScalar(c.center.x()), btScalar(c.center.y()),
-                                  btScalar(c.center.z())));
+            t.setOrigin(
+                btVector3(btScalar(c.center.x()), btScalar(c.center.y()), btScalar(c.center.z())));
             break;
         case Collider::Kind::Plane:
             shape = std::make_unique<btStaticPlaneShape>(
@@ -321,7 +325,11 @@ void DrapeWorld::step(double dt) {
     impl_->handle->stepInWorld(dt);
 }
 
-Cloth& DrapeWorld::cloth() { return *impl_->cloth; }
-const Cloth& DrapeWorld::cloth() const { return *impl_->cloth; }
+Cloth& DrapeWorld::cloth() {
+    return *impl_->cloth;
+}
+const Cloth& DrapeWorld::cloth() const {
+    return *impl_->cloth;
+}
 
 } // namespace drape::reports

@@ -24,8 +24,7 @@ namespace drape::reports {
 const std::vector<IntegratorKind>& allIntegrators() {
     static const std::vector<IntegratorKind> all = {
         IntegratorKind::ExplicitEuler, IntegratorKind::SymplecticEuler,
-        IntegratorKind::VelocityVerlet, IntegratorKind::RungeKutta4,
-        IntegratorKind::ImplicitEuler};
+        IntegratorKind::VelocityVerlet, IntegratorKind::RungeKutta4, IntegratorKind::ImplicitEuler};
     return all;
 }
 
@@ -60,7 +59,8 @@ double exactOmega(const Cloth& cloth, const std::vector<Vec3>& x) {
         if (l <= 0.0) continue;
         const Vec3 u = d / l;
         const Eigen::Matrix3d nn = u * u.transpose();
-        const Eigen::Matrix3d B = cloth.stiffness()[s] *
+        const Eigen::Matrix3d B =
+            cloth.stiffness()[s] *
             (nn + (1.0 - sp.restLength / l) * (Eigen::Matrix3d::Identity() - nn));
         const int a = slot[sp.a], b = slot[sp.b];
         const double wa = std::sqrt(inv[sp.a]), wb = std::sqrt(inv[sp.b]);
@@ -102,7 +102,8 @@ Trial trial(const ClothScene& scene, IntegratorKind kind, double k, double dt, i
     ClothSettings s = clothSettings(scene, kind, LimiterKind::None);
     s.springStiffness = k;
     Cloth cloth(ClothTopology::build(scene.mesh), s);
-    for (Index p : scene.pins) cloth.pin(p);
+    for (Index p : scene.pins)
+        cloth.pin(p);
     perturb(cloth, 1e-3 * scene.sheet.spacing);
     const double T = dt * steps;
     const double g = scene.gravity.norm();
@@ -134,7 +135,8 @@ StabilityPoint measure(const ClothScene& scene, IntegratorKind kind, double k, i
     ClothSettings s = clothSettings(scene, kind, LimiterKind::None);
     s.springStiffness = k;
     Cloth probe(ClothTopology::build(scene.mesh), s);
-    for (Index i : scene.pins) probe.pin(i);
+    for (Index i : scene.pins)
+        probe.pin(i);
     p.omegaBound = probe.maxAngularFrequency();
     p.omegaRest = exactOmega(probe, probe.positions());
     if (kind == IntegratorKind::ExplicitEuler) {
@@ -146,12 +148,12 @@ StabilityPoint measure(const ClothScene& scene, IntegratorKind kind, double k, i
         p.theoryLimit = stableTimeStep(kind, p.omegaBound);
     }
     // Bracket [lo stable, hi unstable] around a guess, then bisect in log(dt).
-    const double guess = kind == IntegratorKind::ExplicitEuler
-                             ? p.horizonLimit
-                             : stableTimeStep(IntegratorKind::RungeKutta4 == kind
-                                                  ? kind
-                                                  : IntegratorKind::VelocityVerlet,
-                                              p.omegaBound);
+    const double guess =
+        kind == IntegratorKind::ExplicitEuler
+            ? p.horizonLimit
+            : stableTimeStep(IntegratorKind::RungeKutta4 == kind ? kind
+                                                                 : IntegratorKind::VelocityVerlet,
+                             p.omegaBound);
     double lo = guess / 4.0, hi = guess * 4.0;
     std::vector<Vec3> lastStable;
     int guard = 0;
@@ -229,12 +231,17 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         ClothScene sc = metreSheet(n, 1.0, 0.2, 1e6);
         {
             ExtremeCase c{"k = 1e6 N/m, Velocity-Verlet at 1/60 s (check on)",
-                          std::to_string(n) + "x" + std::to_string(n) + ", 1 m, 200 g, 2 corners pinned",
-                          "", "", true, false};
+                          std::to_string(n) + "x" + std::to_string(n) +
+                              ", 1 m, 200 g, 2 corners pinned",
+                          "",
+                          "",
+                          true,
+                          false};
             ClothSettings s = clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::None);
             s.rejectUnstableTimeStep = true;
             Cloth cloth(ClothTopology::build(sc.mesh), s);
-            for (Index p : sc.pins) cloth.pin(p);
+            for (Index p : sc.pins)
+                cloth.pin(p);
             try {
                 cloth.step(frame);
                 c.outcome = "stable";
@@ -249,14 +256,20 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         }
         {
             ExtremeCase c{"k = 1e6 N/m, Velocity-Verlet at 1/60 s (check off)",
-                          "same sheet, rejectUnstableTimeStep = false", "", "", true, false};
+                          "same sheet, rejectUnstableTimeStep = false",
+                          "",
+                          "",
+                          true,
+                          false};
             ClothSettings s = clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::None);
             Cloth cloth(ClothTopology::build(sc.mesh), s);
-            for (Index p : sc.pins) cloth.pin(p);
+            for (Index p : sc.pins)
+                cloth.pin(p);
             perturb(cloth, 1e-6);
             int step = 0;
             try {
-                for (; step < 600; ++step) cloth.step(frame);
+                for (; step < 600; ++step)
+                    cloth.step(frame);
                 c.outcome = "stable";
                 c.detail = "600 steps, max strain " + fmt(cloth.maxStrain());
             } catch (const Error& e) {
@@ -271,16 +284,22 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         {
             ClothSettings s = clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::None);
             Cloth cloth(ClothTopology::build(sc.mesh), s);
-            for (Index p : sc.pins) cloth.pin(p);
+            for (Index p : sc.pins)
+                cloth.pin(p);
             const TimeStepCheck chk = checkTimeStep(cloth, frame);
             const int frames = quick ? 3 : 15;
             ExtremeCase c{"k = 1e6 N/m, Velocity-Verlet with the sub-steps drape-check suggests",
-                          std::to_string(chk.substeps) + " sub-steps of " + fmt(frame / chk.substeps) +
-                              " s per 1/60 s frame, " + std::to_string(frames) + " frames",
-                          "", "", true, false};
+                          std::to_string(chk.substeps) + " sub-steps of " +
+                              fmt(frame / chk.substeps) + " s per 1/60 s frame, " +
+                              std::to_string(frames) + " frames",
+                          "",
+                          "",
+                          true,
+                          false};
             try {
                 for (int f = 0; f < frames; ++f) {
-                    for (int i = 0; i < chk.substeps; ++i) cloth.step(frame / chk.substeps);
+                    for (int i = 0; i < chk.substeps; ++i)
+                        cloth.step(frame / chk.substeps);
                 }
                 c.outcome = "stable";
                 c.detail = "max strain " + fmt(cloth.maxStrain()) + " (weight / k gives ~1e-5)";
@@ -294,13 +313,19 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         }
         {
             ExtremeCase c{"k = 1e6 N/m, implicit Euler at 1/60 s",
-                          "same sheet, 60 steps (1 s)", "", "", true, false};
+                          "same sheet, 60 steps (1 s)",
+                          "",
+                          "",
+                          true,
+                          false};
             ClothSettings s = clothSettings(sc, IntegratorKind::ImplicitEuler, LimiterKind::None);
             s.rejectUnstableTimeStep = true;
             Cloth cloth(ClothTopology::build(sc.mesh), s);
-            for (Index p : sc.pins) cloth.pin(p);
+            for (Index p : sc.pins)
+                cloth.pin(p);
             try {
-                for (int i = 0; i < 60; ++i) cloth.step(frame);
+                for (int i = 0; i < 60; ++i)
+                    cloth.step(frame);
                 c.outcome = "stable";
                 c.detail = "max strain " + fmt(cloth.maxStrain()) + ", kinetic energy " +
                            fmt(cloth.kineticEnergy()) + " J";
@@ -318,8 +343,8 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
     // at one corner; area-lumped masses.
     {
         TriangleMesh mesh;
-        mesh.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, -1, 0), Vec3(0, -1, 0),
-                         Vec3(1.01, 0, 0), Vec3(1.0, 0.01, 0)};
+        mesh.vertices = {Vec3(0, 0, 0),  Vec3(1, 0, 0),    Vec3(1, -1, 0),
+                         Vec3(0, -1, 0), Vec3(1.01, 0, 0), Vec3(1.0, 0.01, 0)};
         mesh.triangles = {{0, 3, 2}, {0, 2, 1}, {1, 4, 5}};
         ClothSettings s;
         s.totalMass = 0.2;
@@ -336,7 +361,8 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
                 ratio = std::max(ratio, std::max(m[sp.a] / m[sp.b], m[sp.b] / m[sp.a]));
             }
         }
-        for (IntegratorKind kind : {IntegratorKind::VelocityVerlet, IntegratorKind::ImplicitEuler}) {
+        for (IntegratorKind kind :
+             {IntegratorKind::VelocityVerlet, IntegratorKind::ImplicitEuler}) {
             s.integrator = kind;
             Cloth cloth(topo, s);
             cloth.pin(0);
@@ -344,13 +370,18 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
             ExtremeCase c{std::string("mass ratio ") + fmt(ratio, 3) + " between neighbours, " +
                               toString(kind),
                           "1 m square + 1 cm triangle, area-lumped 200 g, k 100 N/m; dt " +
-                              std::string(kind == IntegratorKind::ImplicitEuler ? "0.01 s" :
-                                          "0.01 s in the suggested sub-steps"),
-                          "", "", true, false};
+                              std::string(kind == IntegratorKind::ImplicitEuler
+                                              ? "0.01 s"
+                                              : "0.01 s in the suggested sub-steps"),
+                          "",
+                          "",
+                          true,
+                          false};
             const int sub = kind == IntegratorKind::ImplicitEuler ? 1 : chk.substeps;
             try {
                 for (int i = 0; i < 100; ++i) {
-                    for (int j = 0; j < sub; ++j) cloth.step(0.01 / sub);
+                    for (int j = 0; j < sub; ++j)
+                        cloth.step(0.01 / sub);
                 }
                 c.outcome = "stable";
                 c.detail = chk.message + " After 1 s: max strain " + fmt(cloth.maxStrain()) + ".";
@@ -368,19 +399,26 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
     {
         const Index n = quick ? 12 : 35;
         ClothScene sc = experiment1(n, n);
-        ClothSettings s = clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+        ClothSettings s =
+            clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
         Cloth cloth(ClothTopology::build(sc.mesh), s);
-        for (Index p : sc.pins) cloth.pin(p);
+        for (Index p : sc.pins)
+            cloth.pin(p);
         const double dt = 50.0 * cloth.stableTimeStep();
         ExtremeCase c{"dt = 50 x the limit (Experiment I, Velocity-Verlet, limiter on)",
                       "dt = " + fmt(dt) + " s, rejectUnstableTimeStep = false, 2000 steps",
-                      "", "", true, false};
+                      "",
+                      "",
+                      true,
+                      false};
         int step = 0;
         try {
-            for (; step < 2000; ++step) cloth.step(dt);
+            for (; step < 2000; ++step)
+                cloth.step(dt);
             c.outcome = "stable";
             c.detail = "the strain limiter held the sheet together: max strain " +
-                       fmt(cloth.maxStrain()) + ", kinetic energy " + fmt(cloth.kineticEnergy()) + " J";
+                       fmt(cloth.maxStrain()) + ", kinetic energy " + fmt(cloth.kineticEnergy()) +
+                       " J";
             c.ok = std::isfinite(cloth.kineticEnergy());
         } catch (const Error& e) {
             c.outcome = "detected failure";
@@ -391,8 +429,12 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         c.ok = c.ok && c.stateFinite;
         out.push_back(c);
 
-        ExtremeCase r{"dt = 50 x the limit, default settings", "rejectUnstableTimeStep = true",
-                      "", "", true, false};
+        ExtremeCase r{"dt = 50 x the limit, default settings",
+                      "rejectUnstableTimeStep = true",
+                      "",
+                      "",
+                      true,
+                      false};
         ClothSettings s2 = s;
         s2.rejectUnstableTimeStep = true;
         Cloth c2(ClothTopology::build(sc.mesh), s2);
@@ -422,7 +464,8 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         desk.halfExtents = Vec3(0.4, 0.02, 0.3);
         sc.colliders = {desk};
         sc.thickness = 0.005;
-        ClothSettings s = clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+        ClothSettings s =
+            clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
         DrapeWorld w(sc, s);
         for (std::size_t i = 0; i < w.cloth().particleCount(); ++i) {
             w.cloth().setVelocity(static_cast<Index>(i), Vec3(0.0, -50.0, 0.0));
@@ -431,7 +474,10 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         ExtremeCase c{"50 m/s impact on a desk",
                       "0.95 m sheet, 200 g, k 10 N/m, falls at 50 m/s onto a 2 cm desk top; "
                       "Velocity-Verlet dt 1/600 s (8 cm per step), limiter on, 0.5 s",
-                      "", "", true, false};
+                      "",
+                      "",
+                      true,
+                      false};
         Penetration worst;
         try {
             for (int i = 0; i < 300; ++i) {
@@ -465,12 +511,16 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
             sc.sheet.origin *= scale;
             sc.mesh = makeSheet(sc.sheet);
             sc.gravity *= scale;
-            ClothSettings s = clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+            ClothSettings s =
+                clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
             Cloth cloth(ClothTopology::build(sc.mesh), s);
-            for (Index p : sc.pins) cloth.pin(p);
-            for (int i = 0; i < 200; ++i) cloth.step(0.01);
+            for (Index p : sc.pins)
+                cloth.pin(p);
+            for (int i = 0; i < 200; ++i)
+                cloth.step(0.01);
             x = cloth.positions();
-            for (Vec3& v : x) v /= scale;
+            for (Vec3& v : x)
+                v /= scale;
         };
         std::vector<Vec3> ref;
         run(1.0, ref);
@@ -478,12 +528,16 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
             ExtremeCase c{"scene scale " + fmt(scale),
                           "Experiment I " + std::to_string(n) + "x" + std::to_string(n) +
                               " with lengths and g times " + fmt(scale) + ", 2 s, limiter on",
-                          "", "", true, false};
+                          "",
+                          "",
+                          true,
+                          false};
             std::vector<Vec3> x;
             try {
                 run(scale, x);
                 double worst = 0.0;
-                for (std::size_t i = 0; i < x.size(); ++i) worst = std::max(worst, (x[i] - ref[i]).norm());
+                for (std::size_t i = 0; i < x.size(); ++i)
+                    worst = std::max(worst, (x[i] - ref[i]).norm());
                 c.outcome = "stable";
                 c.detail = "largest difference from the unit-scale run, in unit-scale lengths: " +
                            fmt(worst) + " (spacing 10)";
@@ -505,7 +559,8 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
             const int rows = 10, cols = 10;
             double y = 0.0;
             for (int r = 0; r < rows; ++r) {
-                for (int c = 0; c < cols; ++c) m.vertices.emplace_back(0.1 * c, -y, 0.0);
+                for (int c = 0; c < cols; ++c)
+                    m.vertices.emplace_back(0.1 * c, -y, 0.0);
                 y += (r % 2 == 0) ? 0.1 : thin;
             }
             for (int r = 0; r + 1 < rows; ++r) {
@@ -519,10 +574,15 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
             return m;
         };
         for (double thin : {1e-5, 1e-13}) {
-            ExtremeCase c{"sliver triangles, aspect ratio " + fmt(thin / 0.1),
-                          "10x10 sheet, every other row " + fmt(thin) + " m high; k 10 N/m, "
-                          "2 g per particle, Velocity-Verlet at the checked dt, limiter on, 1 s",
-                          "", "", true, false};
+            ExtremeCase c{
+                "sliver triangles, aspect ratio " + fmt(thin / 0.1),
+                "10x10 sheet, every other row " + fmt(thin) +
+                    " m high; k 10 N/m, "
+                    "2 g per particle, Velocity-Verlet at the checked dt, limiter on, 1 s",
+                "",
+                "",
+                true,
+                false};
             try {
                 ClothSettings s;
                 s.particleMass = 0.002;
@@ -533,12 +593,17 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
                 cloth.pin(0);
                 cloth.pin(9);
                 const TimeStepCheck chk = checkTimeStep(cloth, 0.01);
-                for (int i = 0; i < 100 * chk.substeps; ++i) cloth.step(0.01 / chk.substeps);
+                for (int i = 0; i < 100 * chk.substeps; ++i)
+                    cloth.step(0.01 / chk.substeps);
                 c.outcome = "stable";
                 const StrainLimitStats& ls = cloth.lastLimiterStats();
-                c.detail = std::to_string(chk.substeps) + " sub-step(s) of 0.01 s; bounded, but max "
-                           "strain " + fmt(cloth.maxStrain()) + " at the end: the limiter stopped "
-                           "after " + std::to_string(ls.rounds) + " rounds (cap " +
+                c.detail = std::to_string(chk.substeps) +
+                           " sub-step(s) of 0.01 s; bounded, but max "
+                           "strain " +
+                           fmt(cloth.maxStrain()) +
+                           " at the end: the limiter stopped "
+                           "after " +
+                           std::to_string(ls.rounds) + " rounds (cap " +
                            std::to_string(s.limiter.maxRounds) + ") with strain " +
                            fmt(ls.maxStrainAfter) + " left on the short springs";
                 c.ok = std::isfinite(cloth.maxStrain()) && stateFinite(cloth);
@@ -563,12 +628,17 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         right.origin = Vec3(0.3, 0.0, 0.0);
         TriangleMesh a = makeSheet(left), b = makeSheet(right);
         const Index offset = static_cast<Index>(a.vertices.size());
-        for (const Vec3& v : b.vertices) a.vertices.push_back(v);
-        for (const Triangle& t : b.triangles) a.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+        for (const Vec3& v : b.vertices)
+            a.vertices.push_back(v);
+        for (const Triangle& t : b.triangles)
+            a.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
         ExtremeCase c{"coincident vertices along a seam",
                       "two 6x4 sheets whose touching columns coincide (" +
                           std::to_string(a.vertices.size()) + " vertices)",
-                      "", "", true, false};
+                      "",
+                      "",
+                      true,
+                      false};
         try {
             auto topo = ClothTopology::build(a);
             ClothSettings s;
@@ -578,7 +648,8 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
             Cloth cloth(topo, s);
             cloth.pin(0);
             cloth.pin(sheetIndex(left, 0, 3));
-            for (int i = 0; i < 200; ++i) cloth.step(0.005);
+            for (int i = 0; i < 200; ++i)
+                cloth.step(0.005);
             c.outcome = "stable";
             c.detail = "welded to " + std::to_string(topo->particleCount()) + " particles (" +
                        std::to_string(a.vertices.size() - topo->particleCount()) +
@@ -598,8 +669,11 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         bad.triangles.push_back({0, static_cast<Index>(bad.vertices.size() - 2),
                                  static_cast<Index>(bad.vertices.size() - 1)});
         ExtremeCase d{"a triangle with two coincident corners",
-                      "6x4 sheet plus a triangle whose corners 0 and a copy of 0 coincide", "", "",
-                      true, false};
+                      "6x4 sheet plus a triangle whose corners 0 and a copy of 0 coincide",
+                      "",
+                      "",
+                      true,
+                      false};
         try {
             TopologyOptions o;
             o.weldTolerance = 0.0;
@@ -617,19 +691,26 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
     // 8. Every particle pinned; 9. zero gravity; 10. a single triangle.
     {
         ClothScene sc = experiment1(8, 8);
-        ClothSettings s = clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+        ClothSettings s =
+            clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
         s.rejectUnstableTimeStep = true;
         Cloth cloth(ClothTopology::build(sc.mesh), s);
-        for (std::size_t i = 0; i < cloth.particleCount(); ++i) cloth.pin(static_cast<Index>(i));
+        for (std::size_t i = 0; i < cloth.particleCount(); ++i)
+            cloth.pin(static_cast<Index>(i));
         const std::vector<Vec3> before = cloth.positions();
-        ExtremeCase c{"every particle pinned", "8x8 Experiment I sheet, 100 steps of 0.01 s", "", "",
-                      true, false};
+        ExtremeCase c{"every particle pinned",
+                      "8x8 Experiment I sheet, 100 steps of 0.01 s",
+                      "",
+                      "",
+                      true,
+                      false};
         try {
-            for (int i = 0; i < 100; ++i) cloth.step(0.01);
+            for (int i = 0; i < 100; ++i)
+                cloth.step(0.01);
             const double moved = rmsDistance(before, cloth.positions());
             c.outcome = "stable";
-            c.detail = "RMS motion " + fmt(moved) + ", omega_max " + fmt(cloth.maxAngularFrequency()) +
-                       ", " + checkTimeStep(cloth, 0.01).message;
+            c.detail = "RMS motion " + fmt(moved) + ", omega_max " +
+                       fmt(cloth.maxAngularFrequency()) + ", " + checkTimeStep(cloth, 0.01).message;
             c.ok = moved == 0.0;
         } catch (const Error& e) {
             c.outcome = "detected failure";
@@ -641,16 +722,21 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
     {
         ClothScene sc = experiment1(8, 8);
         sc.gravity = Vec3::Zero();
-        ClothSettings s = clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+        ClothSettings s =
+            clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
         Cloth cloth(ClothTopology::build(sc.mesh), s);
-        for (Index p : sc.pins) cloth.pin(p);
+        for (Index p : sc.pins)
+            cloth.pin(p);
         const std::vector<Vec3> before = cloth.positions();
-        ExtremeCase c{"zero gravity", "8x8 Experiment I sheet, g = 0, 100 steps", "", "", true, false};
+        ExtremeCase c{"zero gravity", "8x8 Experiment I sheet, g = 0, 100 steps", "", "", true,
+                      false};
         try {
-            for (int i = 0; i < 100; ++i) cloth.step(0.01);
+            for (int i = 0; i < 100; ++i)
+                cloth.step(0.01);
             const double moved = rmsDistance(before, cloth.positions());
             c.outcome = "stable";
-            c.detail = "RMS motion " + fmt(moved) + ", kinetic energy " + fmt(cloth.kineticEnergy()) +
+            c.detail = "RMS motion " + fmt(moved) + ", kinetic energy " +
+                       fmt(cloth.kineticEnergy()) +
                        " J (a sheet at rest with no force stays at rest)";
             c.ok = moved == 0.0 && cloth.kineticEnergy() == 0.0;
         } catch (const Error& e) {
@@ -670,16 +756,22 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         s.gravity = Vec3(0, -9.81, 0);
         s.rejectUnstableTimeStep = true;
         Cloth cloth(ClothTopology::build(tri), s);
-        ExtremeCase c{"a cloth of a single triangle", "3 particles, free fall for 1 s, dt 0.01",
-                      "", "", true, false};
+        ExtremeCase c{"a cloth of a single triangle",
+                      "3 particles, free fall for 1 s, dt 0.01",
+                      "",
+                      "",
+                      true,
+                      false};
         try {
-            for (int i = 0; i < 100; ++i) cloth.step(0.01);
+            for (int i = 0; i < 100; ++i)
+                cloth.step(0.01);
             const double drop = -cloth.positions()[0].y();
             const double expected = 0.5 * 9.81 * cloth.time() * cloth.time();
             c.outcome = "stable";
             c.detail = "fell " + fmt(drop, 8) + " m; g t^2 / 2 = " + fmt(expected, 8) +
                        " m; max strain " + fmt(cloth.maxStrain());
-            c.ok = std::abs(drop - expected) < 1e-9 * expected && std::abs(cloth.maxStrain()) < 1e-12;
+            c.ok =
+                std::abs(drop - expected) < 1e-9 * expected && std::abs(cloth.maxStrain()) < 1e-12;
         } catch (const Error& e) {
             c.outcome = "detected failure";
             c.detail = errorText(e);
@@ -687,7 +779,8 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         c.stateFinite = stateFinite(cloth);
         out.push_back(c);
     }
-    for (auto& c : out) c.ok = c.ok && c.stateFinite;
+    for (auto& c : out)
+        c.ok = c.ok && c.stateFinite;
     return out;
 }
 
@@ -702,16 +795,27 @@ std::string plotScript(const std::string& csv, bool quick) {
       << "hanging sheet, m = 0.5, spacing 10)'\n"
       << "set key below maxcols 2 font ',10'\nset grid\n"
       // columns: integrator,k,omega_bound,omega_rest,omega_final,theory,horizon,measured,all
-      << "plot '" << csv << "' using 2:(strcol(1) eq 'symplectic_euler' ? $8 : 1/0) w lp pt 5 lc rgb '#1f77b4' t 'symplectic Euler, measured', \\\n"
-      << " '' using 2:(strcol(1) eq 'velocity_verlet' ? $8 : 1/0) w lp pt 7 lc rgb '#2ca02c' t 'Velocity-Verlet, measured', \\\n"
-      << " '' using 2:(strcol(1) eq 'rk4' ? $8 : 1/0) w lp pt 9 lc rgb '#9467bd' t 'RK4, measured', \\\n"
-      << " '' using 2:(strcol(1) eq 'explicit_euler' ? $8 : 1/0) w lp pt 11 lc rgb '#d62728' t 'explicit Euler, measured', \\\n"
-      << " '' using 2:(strcol(1) eq 'implicit_euler' ? $8 : 1/0) w p pt 8 ps 1.6 lc rgb '#ff7f0e' t 'implicit Euler: stable at every dt tried (largest shown)', \\\n"
-      << " '' using 2:(strcol(1) eq 'velocity_verlet' ? 2/$3 : 1/0) w l dt 2 lw 2 lc rgb '#2ca02c' t '2 / omega_{max} (drape bound)', \\\n"
-      << " '' using 2:(strcol(1) eq 'velocity_verlet' ? 2/$4 : 1/0) w l dt 3 lw 2 lc rgb '#000000' t '2 / omega_{max} (exact, at rest)', \\\n"
-      << " '' using 2:(strcol(1) eq 'rk4' ? 2.785/$3 : 1/0) w l dt 2 lw 2 lc rgb '#9467bd' t '2.785 / omega_{max} (RK4, bound)', \\\n"
-      << " '' using 2:(strcol(1) eq 'explicit_euler' ? $6 : 1/0) w l dt 4 lw 2 lc rgb '#d62728' t 'explicit Euler C_d / (m omega^2) (asymptotic)', \\\n"
-      << " '' using 2:(strcol(1) eq 'explicit_euler' ? $7 : 1/0) w l dt 5 lw 1 lc rgb '#d62728' t 'explicit Euler, 10^6 growth within the run'\n";
+      << "plot '" << csv
+      << "' using 2:(strcol(1) eq 'symplectic_euler' ? $8 : 1/0) w lp pt 5 lc rgb '#1f77b4' t "
+         "'symplectic Euler, measured', \\\n"
+      << " '' using 2:(strcol(1) eq 'velocity_verlet' ? $8 : 1/0) w lp pt 7 lc rgb '#2ca02c' t "
+         "'Velocity-Verlet, measured', \\\n"
+      << " '' using 2:(strcol(1) eq 'rk4' ? $8 : 1/0) w lp pt 9 lc rgb '#9467bd' t 'RK4, "
+         "measured', \\\n"
+      << " '' using 2:(strcol(1) eq 'explicit_euler' ? $8 : 1/0) w lp pt 11 lc rgb '#d62728' t "
+         "'explicit Euler, measured', \\\n"
+      << " '' using 2:(strcol(1) eq 'implicit_euler' ? $8 : 1/0) w p pt 8 ps 1.6 lc rgb '#ff7f0e' "
+         "t 'implicit Euler: stable at every dt tried (largest shown)', \\\n"
+      << " '' using 2:(strcol(1) eq 'velocity_verlet' ? 2/$3 : 1/0) w l dt 2 lw 2 lc rgb '#2ca02c' "
+         "t '2 / omega_{max} (drape bound)', \\\n"
+      << " '' using 2:(strcol(1) eq 'velocity_verlet' ? 2/$4 : 1/0) w l dt 3 lw 2 lc rgb '#000000' "
+         "t '2 / omega_{max} (exact, at rest)', \\\n"
+      << " '' using 2:(strcol(1) eq 'rk4' ? 2.785/$3 : 1/0) w l dt 2 lw 2 lc rgb '#9467bd' t "
+         "'2.785 / omega_{max} (RK4, bound)', \\\n"
+      << " '' using 2:(strcol(1) eq 'explicit_euler' ? $6 : 1/0) w l dt 4 lw 2 lc rgb '#d62728' t "
+         "'explicit Euler C_d / (m omega^2) (asymptotic)', \\\n"
+      << " '' using 2:(strcol(1) eq 'explicit_euler' ? $7 : 1/0) w l dt 5 lw 1 lc rgb '#d62728' t "
+         "'explicit Euler, 10^6 growth within the run'\n";
     return g.str();
 }
 
@@ -740,19 +844,24 @@ StabilityResult runStabilityReport(const StabilityOptions& options, const Machin
     // checkTimeStep examples on the paper's scenes.
     {
         ClothScene e1 = experiment1();
-        for (auto [kind, dt] : std::vector<std::pair<IntegratorKind, double>>{
-                 {IntegratorKind::VelocityVerlet, 0.01}, {IntegratorKind::VelocityVerlet, 0.2},
-                 {IntegratorKind::RungeKutta4, 0.1}, {IntegratorKind::ExplicitEuler, 0.001},
-                 {IntegratorKind::ImplicitEuler, 0.1}}) {
-            Cloth cloth(ClothTopology::build(e1.mesh), clothSettings(e1, kind, LimiterKind::StressOrdered));
-            for (Index p : e1.pins) cloth.pin(p);
+        for (auto [kind, dt] :
+             std::vector<std::pair<IntegratorKind, double>>{{IntegratorKind::VelocityVerlet, 0.01},
+                                                            {IntegratorKind::VelocityVerlet, 0.2},
+                                                            {IntegratorKind::RungeKutta4, 0.1},
+                                                            {IntegratorKind::ExplicitEuler, 0.001},
+                                                            {IntegratorKind::ImplicitEuler, 0.1}}) {
+            Cloth cloth(ClothTopology::build(e1.mesh),
+                        clothSettings(e1, kind, LimiterKind::StressOrdered));
+            for (Index p : e1.pins)
+                cloth.pin(p);
             result.checkExamples.push_back("Experiment I (35 x 35, k 20, m 0.5, C_d 0.05): " +
                                            checkTimeStep(cloth, dt).message);
         }
         ClothScene stiff = metreSheet(20, 1.0, 0.2, 1e6);
         ClothSettings s = clothSettings(stiff, IntegratorKind::VelocityVerlet, LimiterKind::None);
         Cloth cloth(ClothTopology::build(stiff.mesh), s);
-        for (Index p : stiff.pins) cloth.pin(p);
+        for (Index p : stiff.pins)
+            cloth.pin(p);
         result.checkExamples.push_back("1 m sheet 20 x 20, 200 g, k 1e6 N/m: " +
                                        checkTimeStep(cloth, 1.0 / 60.0).message);
     }
@@ -764,29 +873,33 @@ StabilityResult runStabilityReport(const StabilityOptions& options, const Machin
                  "omega_exact_final_rad_s", "theory_limit_s", "horizon_limit_s", "measured_limit_s",
                  "stable_at_all_tested", "measured_over_theory"});
     for (const auto& p : result.sweep) {
-        sweep.add({toString(p.integrator), fmt(p.stiffness), fmt(p.omegaBound, 6), fmt(p.omegaRest, 6),
-                   fmt(p.omegaFinal, 6), fmt(p.theoryLimit, 6), fmt(p.horizonLimit, 6),
-                   fmt(p.measured, 6), p.stableAtAllTested ? "yes" : "no",
-                   std::isfinite(p.theoryLimit) && p.theoryLimit > 0 ? fmt(p.measured / p.theoryLimit, 4) : "-"});
+        sweep.add({toString(p.integrator), fmt(p.stiffness), fmt(p.omegaBound, 6),
+                   fmt(p.omegaRest, 6), fmt(p.omegaFinal, 6), fmt(p.theoryLimit, 6),
+                   fmt(p.horizonLimit, 6), fmt(p.measured, 6), p.stableAtAllTested ? "yes" : "no",
+                   std::isfinite(p.theoryLimit) && p.theoryLimit > 0
+                       ? fmt(p.measured / p.theoryLimit, 4)
+                       : "-"});
     }
     sweep.writeCsv(dir / "stability_vs_stiffness.csv");
     Table ext({"case", "setup", "outcome", "state_finite", "as_expected", "detail"});
     for (const auto& c : result.extremes) {
-        ext.add({c.name, c.setup, c.outcome, c.stateFinite ? "yes" : "NO", c.ok ? "yes" : "NO", c.detail});
+        ext.add({c.name, c.setup, c.outcome, c.stateFinite ? "yes" : "NO", c.ok ? "yes" : "NO",
+                 c.detail});
     }
     ext.writeCsv(dir / "extreme_cases.csv");
 
     std::string plotWhy;
-    const bool plotted = runGnuplot(dir, "stability_vs_stiffness",
-                                    plotScript("stability_vs_stiffness.csv", options.quick), plotWhy);
+    const bool plotted =
+        runGnuplot(dir, "stability_vs_stiffness",
+                   plotScript("stability_vs_stiffness.csv", options.quick), plotWhy);
 
     std::ostringstream md;
     md << "# Stability on stiff and extreme cases\n\n"
        << "Regenerate with `drape-report-stability" << (options.quick ? " --quick" : "")
        << "` (writes this folder from scratch).\n\n"
-       << machineMarkdown(machine)
-       << "## 1. Largest stable time step against stiffness\n\n"
-       << "Scene: a " << n << " x " << n << " sheet of the paper's parameters (spacing 10, particle "
+       << machineMarkdown(machine) << "## 1. Largest stable time step against stiffness\n\n"
+       << "Scene: a " << n << " x " << n
+       << " sheet of the paper's parameters (spacing 10, particle "
        << "mass 0.5, particle damping C_d = 0.05, g = 9.8) hanging from its two top corners, no "
        << "strain limiter, every free particle displaced by a fixed pseudo-random 0.001 spacing so "
        << "that every mode starts at a known size. A time step counts as stable when " << steps
@@ -796,9 +909,12 @@ StabilityResult runStabilityReport(const StabilityOptions& options, const Machin
        << "Theory: omega_max is the square root of the largest eigenvalue of M^-1 K. drape uses an "
        << "upper bound (the mass-weighted spring Laplacian, valid for any stretched state); the "
        << "exact value at rest and at the end of the last stable run come from a dense "
-       << "eigen-decomposition of the 3D stiffness. Velocity-Verlet and symplectic Euler are stable "
-       << "for dt < 2 / omega_max, RK4 for dt < 2.785 / omega_max, implicit Euler for every dt, and "
-       << "explicit Euler only thanks to damping: dt < C_d / (m omega_max^2) (see check.hpp for the "
+       << "eigen-decomposition of the 3D stiffness. Velocity-Verlet and symplectic Euler are "
+          "stable "
+       << "for dt < 2 / omega_max, RK4 for dt < 2.785 / omega_max, implicit Euler for every dt, "
+          "and "
+       << "explicit Euler only thanks to damping: dt < C_d / (m omega_max^2) (see check.hpp for "
+          "the "
        << "derivation). Below that, explicit Euler's growth per step is so slow that a finite run "
        << "only sees it when (1 + (omega dt)^2)^(N/2) is large: the measured explicit Euler limit "
        << "is a property of the run's length, shown by the 'growth within the run' line.\n\n";
@@ -807,14 +923,17 @@ StabilityResult runStabilityReport(const StabilityOptions& options, const Machin
     } else {
         md << "(plot not drawn: " << plotWhy << ")\n\n";
     }
-    md << "| integrator | k [N/m] | omega bound | omega exact (rest) | omega exact (final) | theory limit [s] | measured [s] | measured / theory |\n"
+    md << "| integrator | k [N/m] | omega bound | omega exact (rest) | omega exact (final) | "
+          "theory limit [s] | measured [s] | measured / theory |\n"
        << "|---|---|---|---|---|---|---|---|\n";
     for (const auto& p : result.sweep) {
         md << "| " << toString(p.integrator) << " | " << fmt(p.stiffness) << " | "
            << fmt(p.omegaBound, 4) << " | " << fmt(p.omegaRest, 4) << " | " << fmt(p.omegaFinal, 4)
            << " | " << fmt(p.theoryLimit, 4) << " | " << (p.stableAtAllTested ? ">= " : "")
            << fmt(p.measured, 4) << " | "
-           << (std::isfinite(p.theoryLimit) && p.theoryLimit > 0 ? fmt(p.measured / p.theoryLimit, 3) : "-")
+           << (std::isfinite(p.theoryLimit) && p.theoryLimit > 0
+                   ? fmt(p.measured / p.theoryLimit, 3)
+                   : "-")
            << " |\n";
     }
     // Summary of ratios for the conditionally stable methods: against drape's bound, and
@@ -822,7 +941,9 @@ StabilityResult runStabilityReport(const StabilityOptions& options, const Machin
     // imaginary-axis limits 2 (symplectic Euler, Velocity-Verlet) and 2 sqrt 2 (RK4).
     double rmin = kInf, rmax = 0.0, emin = kInf, emax = 0.0;
     for (const auto& p : result.sweep) {
-        if (p.integrator == IntegratorKind::ExplicitEuler || p.integrator == IntegratorKind::ImplicitEuler) continue;
+        if (p.integrator == IntegratorKind::ExplicitEuler ||
+            p.integrator == IntegratorKind::ImplicitEuler)
+            continue;
         const double r = p.measured / p.theoryLimit;
         rmin = std::min(rmin, r);
         rmax = std::max(rmax, r);
@@ -843,7 +964,8 @@ StabilityResult runStabilityReport(const StabilityOptions& options, const Machin
        << "gravity, and their transverse stiffness k (1 - L0 / l) raises omega_max above its rest "
        << "value: that is why the final-state eigenvalue matters at k = 1 and 10. Explicit Euler "
        << "follows the 'growth within the run' line, orders of magnitude above its asymptotic "
-       << "limit: its instability is real but slow, and a run of " << steps << " steps does not see it "
+       << "limit: its instability is real but slow, and a run of " << steps
+       << " steps does not see it "
        << "below that line. Implicit Euler showed no instability at any dt tried (up to 100 x 2 / "
        << "omega_max, " << steps / 4 << " steps).\n\n";
     md << "Data: [stability_vs_stiffness.csv](stability_vs_stiffness.csv).\n\n";
@@ -852,19 +974,25 @@ StabilityResult runStabilityReport(const StabilityOptions& options, const Machin
        << "Each case must end in a bounded state or a clear, detected failure; after any failure "
        << "the cloth's state is checked to hold no NaN or infinity (drape restores the state from "
        << "before the failed step).\n\n"
-       << "| case | setup | outcome | state finite | as expected | detail |\n|---|---|---|---|---|---|\n";
+       << "| case | setup | outcome | state finite | as expected | detail "
+          "|\n|---|---|---|---|---|---|\n";
     for (const auto& c : result.extremes) {
         md << "| " << c.name << " | " << c.setup << " | " << c.outcome << " | "
-           << (c.stateFinite ? "yes" : "NO") << " | " << (c.ok ? "yes" : "NO") << " | " << c.detail << " |\n";
+           << (c.stateFinite ? "yes" : "NO") << " | " << (c.ok ? "yes" : "NO") << " | " << c.detail
+           << " |\n";
     }
     md << "\nData: [extreme_cases.csv](extreme_cases.csv).\n\n";
     md << "## 3. Checking a time step before a run\n\n"
-       << "`drape::reports::checkTimeStep(cloth, dt)` (samples/reports/include/drape_reports/check.hpp) "
-       << "returns whether dt is stable for the cloth's integrator, stiffness, masses, damping and pins, "
+       << "`drape::reports::checkTimeStep(cloth, dt)` "
+          "(samples/reports/include/drape_reports/check.hpp) "
+       << "returns whether dt is stable for the cloth's integrator, stiffness, masses, damping and "
+          "pins, "
        << "the limit, a safe dt and the number of sub-steps, with a message for the user. "
-       << "`drape-check` does the same from the command line, for a scene file or sheet parameters. "
+       << "`drape-check` does the same from the command line, for a scene file or sheet "
+          "parameters. "
        << "What it says for some cases:\n\n";
-    for (const auto& e : result.checkExamples) md << "- " << e << "\n";
+    for (const auto& e : result.checkExamples)
+        md << "- " << e << "\n";
     md << "\n";
     writeText(dir / "report.md", md.str());
     return result;

@@ -1,8 +1,8 @@
 // drape-check: says, before a run, whether a time step is stable for a cloth's integrator and
 // stiffness, and which time step or how many sub-steps would be.
 //
-//   drape-check --scene samples/scenes/experiment1_suspended_sheet.json [--dt 0.05] [--integrator rk4]
-//   drape-check --rows 35 --cols 35 --spacing 10 --mass 0.5 --stiffness 20 --damping 0.05
+//   drape-check --scene samples/scenes/experiment1_suspended_sheet.json [--dt 0.05] [--integrator
+//   rk4] drape-check --rows 35 --cols 35 --spacing 10 --mass 0.5 --stiffness 20 --damping 0.05
 //               --pins top-corners --integrator velocity_verlet --dt 0.01
 // Exit status: 0 stable, 3 unstable, 1 bad input, 2 usage.
 #include <drape_reports/check.hpp>
@@ -48,15 +48,18 @@ int main(int argc, char** argv) {
         if (it == opt.end()) return def;
         std::size_t used = 0;
         const double v = std::stod(it->second, &used);
-        if (used != it->second.size()) throw std::invalid_argument("--" + key + ": not a number: " + it->second);
+        if (used != it->second.size())
+            throw std::invalid_argument("--" + key + ": not a number: " + it->second);
         return v;
     };
     try {
         for (const auto& [k, v] : opt) {
-            static const char* known[] = {"scene", "dt", "integrator", "rows", "cols", "spacing", "mass",
-                                          "stiffness", "damping", "spring-damping", "pins"};
+            static const char* known[] = {
+                "scene", "dt",        "integrator", "rows",           "cols", "spacing",
+                "mass",  "stiffness", "damping",    "spring-damping", "pins"};
             bool ok = false;
-            for (const char* n : known) ok = ok || k == n;
+            for (const char* n : known)
+                ok = ok || k == n;
             if (!ok) throw std::invalid_argument("unknown option --" + k);
         }
         std::optional<IntegratorKind> integrator;

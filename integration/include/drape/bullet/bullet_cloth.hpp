@@ -25,9 +25,9 @@
 //    Cloth::isAsleep() describes and then costs a broadphase-overlap scan per sub-step. It
 //    wakes before it steps when a candidate body (a broadphase overlap of its proxy) is new,
 //    has left, moves faster than v = sleep.distance / sleep.time (1 mm/s by default) or
-//    has moved or turned by more than v times the step since the last sub-step; when an attachment's body moves; when the
-//    world's gravity changes. It stays awake while it pushes an active dynamic body (a body
-//    resting on a sleeping cloth would lose its support).
+//    has moved or turned by more than v times the step since the last sub-step; when an
+//    attachment's body moves; when the world's gravity changes. It stays awake while it pushes an
+//    active dynamic body (a body resting on a sleeping cloth would lose its support).
 //
 // Units are the world's (metres, kilograms, seconds when the scene is in SI). Bullet is
 // single precision; drape is double precision; values are converted at this boundary.
@@ -97,8 +97,8 @@ struct BulletClothSettings {
     /// changes). drape's default gravity is -9.81 m/s^2 along y, Bullet's is -10.
     bool useWorldGravity = true;
     /// Broadphase filter group and mask of the cloth's proxy (Bullet's collision filtering).
-    int collisionGroup = 1;  ///< btBroadphaseProxy::DefaultFilter
-    int collisionMask = -1;  ///< btBroadphaseProxy::AllFilter
+    int collisionGroup = 1; ///< btBroadphaseProxy::DefaultFilter
+    int collisionMask = -1; ///< btBroadphaseProxy::AllFilter
     /// Turn the cloth's sleeping on when it is added (with the thresholds of its
     /// ClothSettings::sleep); false leaves the cloth's own setting.
     bool sleep = true;
@@ -107,19 +107,19 @@ struct BulletClothSettings {
 /// Work done in the last Bullet sub-step (all cloth sub-steps summed). Counts, not times, so
 /// tests can check that the broadphase is used.
 struct ContactStats {
-    std::size_t candidateBodies = 0;     ///< bodies among the proxy's broadphase overlaps
-    std::size_t particleBoxTests = 0;    ///< particle against body-AABB rejection tests
-    std::size_t narrowphaseQueries = 0;  ///< closest-point queries against body shapes
-    std::size_t rayQueries = 0;          ///< continuous (swept) ray tests
-    std::size_t triangleQueries = 0;     ///< triangle-body GJK queries (contact.triangles)
-    std::size_t triangleContacts = 0;    ///< triangle-body contacts that moved a triangle
+    std::size_t candidateBodies = 0;    ///< bodies among the proxy's broadphase overlaps
+    std::size_t particleBoxTests = 0;   ///< particle against body-AABB rejection tests
+    std::size_t narrowphaseQueries = 0; ///< closest-point queries against body shapes
+    std::size_t rayQueries = 0;         ///< continuous (swept) ray tests
+    std::size_t triangleQueries = 0;    ///< triangle-body GJK queries (contact.triangles)
+    std::size_t triangleContacts = 0;   ///< triangle-body contacts that moved a triangle
     /// Particle-body contacts: particles touching a body (projected, or resting at the
     /// thickness) or, with eq. (7) on, inside its band; once per particle and body per cloth
     /// step, summed over the sub-steps.
     std::size_t contacts = 0;
-    std::size_t projections = 0;         ///< contacts that moved a particle out of a body
-    std::size_t selfContacts = 0;        ///< particle-triangle self contacts resolved
-    std::size_t selfPairTests = 0;       ///< particle-triangle pairs tested by self-collision
+    std::size_t projections = 0;   ///< contacts that moved a particle out of a body
+    std::size_t selfContacts = 0;  ///< particle-triangle self contacts resolved
+    std::size_t selfPairTests = 0; ///< particle-triangle pairs tested by self-collision
     /// Total linear impulse the cloth gave dynamic bodies, through contacts and through
     /// attachments [N s].
     Vec3 impulseOnBodies = Vec3::Zero();
@@ -127,7 +127,7 @@ struct ContactStats {
     /// contacts: velocity response, friction and contact forces over the step [N s]. With only
     /// dynamic bodies and no attachments it is exactly -impulseOnBodies.
     Vec3 impulseOnCloth = Vec3::Zero();
-    std::uint64_t steps = 0;             ///< cloth steps taken by this handle since it was added
+    std::uint64_t steps = 0; ///< cloth steps taken by this handle since it was added
     /// Sub-steps in which the cloth would have swept out of its proxy, so the proxy was moved
     /// and the broadphase queried directly (btBroadphaseInterface::aabbTest).
     std::size_t proxyRefreshes = 0;
@@ -145,7 +145,7 @@ struct Attachment {
 /// particles from a body before removing that body from the world. Stepping the cloth
 /// directly (Cloth::step) while it is in a world runs no contacts: the world steps it.
 class BulletCloth {
-public:
+  public:
     /// Prefer addCloth(). Throws drape::Error on a null world or cloth or bad settings.
     BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
                 const BulletClothSettings& settings);
@@ -190,7 +190,7 @@ public:
 
     struct Impl;
 
-private:
+  private:
     std::unique_ptr<Impl> impl_;
 };
 

@@ -5,10 +5,10 @@
 
 #include "drape_samples/scene.hpp"
 
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <iosfwd>
-#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -44,7 +44,7 @@ struct RunResult {
     double peakMaxStrain = 0.0;
     std::size_t particles = 0;
     std::size_t springs = 0;
-    std::string video; ///< path of the MP4, or why there is none
+    std::string video;                 ///< path of the MP4, or why there is none
     std::vector<std::string> warnings; ///< Simulation::warnings() of the run
     /// drape::stateHash of the final cloth state: equal for two runs of the same scene with
     /// the same build (and any thread count), printed in the summary.

@@ -128,10 +128,10 @@ struct RigidBodyDesc {
 
 /// Cloth-versus-rigid contact parameters (see drape::bullet::ContactSettings).
 struct CollisionDesc {
-    double thickness = -1.0;     ///< contact distance [m]; negative = a tenth of the mean edge
-    double frictionScale = 1.0;  ///< multiplies each body's friction [-]
-    double penaltyForce = -1.0;  ///< eq. (7)'s C_p [N]; negative = automatic, 0 = off
-    bool continuous = true;      ///< swept tests for fast particles
+    double thickness = -1.0;       ///< contact distance [m]; negative = a tenth of the mean edge
+    double frictionScale = 1.0;    ///< multiplies each body's friction [-]
+    double penaltyForce = -1.0;    ///< eq. (7)'s C_p [N]; negative = automatic, 0 = off
+    bool continuous = true;        ///< swept tests for fast particles
     bool triangleContacts = false; ///< triangle-body contacts too (ContactSettings::triangles)
     int substeps = 1;            ///< cloth steps per world step (older name of SceneDesc::substeps)
     bool selfCollision = false;  ///< particle-triangle self-collision

@@ -24,13 +24,13 @@ namespace drape::reports {
 /// The verdict on one (cloth, integrator, dt).
 struct TimeStepCheck {
     IntegratorKind integrator = IntegratorKind::VelocityVerlet;
-    double timeStep = 0.0;       ///< the dt asked about [s]
-    double omegaMax = 0.0;       ///< upper bound on the largest angular frequency [rad/s]
-    double limit = 0.0;          ///< largest stable dt of the integrator [s]; inf if none
-    bool stable = false;         ///< timeStep <= limit
+    double timeStep = 0.0;          ///< the dt asked about [s]
+    double omegaMax = 0.0;          ///< upper bound on the largest angular frequency [rad/s]
+    double limit = 0.0;             ///< largest stable dt of the integrator [s]; inf if none
+    bool stable = false;            ///< timeStep <= limit
     double suggestedTimeStep = 0.0; ///< a stable dt with a 10 % margin [s] (0: none exists)
-    int substeps = 1;            ///< sub-steps of timeStep that make it stable (0: none do)
-    std::string message;         ///< the verdict in one or two sentences, for a user
+    int substeps = 1;               ///< sub-steps of timeStep that make it stable (0: none do)
+    std::string message;            ///< the verdict in one or two sentences, for a user
 };
 
 /// Checks dt for the cloth's integrator (or `integrator` when given), stiffness, masses,

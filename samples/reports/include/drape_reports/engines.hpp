@@ -14,7 +14,7 @@ namespace drape::reports {
 
 /// One engine running one scene.
 class ClothEngine {
-public:
+  public:
     virtual ~ClothEngine() = default;
     virtual void step() = 0; ///< one frame of the scene's dt (throws on a detected failure)
     virtual void state(std::vector<Vec3>& x, std::vector<Vec3>& v) const = 0;

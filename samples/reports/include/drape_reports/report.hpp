@@ -29,7 +29,7 @@ std::string machineMarkdown(const Machine& m);
 
 /// A table of strings with a header: written as CSV (for comparing) and as Markdown (for reading).
 class Table {
-public:
+  public:
     explicit Table(std::vector<std::string> columns) : columns_(std::move(columns)) {}
     void add(std::vector<std::string> row);
     const std::vector<std::string>& columns() const { return columns_; }
@@ -37,7 +37,7 @@ public:
     void writeCsv(const std::filesystem::path& file) const;
     std::string markdown() const;
 
-private:
+  private:
     std::vector<std::string> columns_;
     std::vector<std::vector<std::string>> rows_;
 };

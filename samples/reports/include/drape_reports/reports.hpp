@@ -27,13 +27,13 @@ struct StabilityOptions {
 /// Largest stable dt of one integrator at one stiffness.
 struct StabilityPoint {
     IntegratorKind integrator;
-    double stiffness = 0.0;     ///< k [N/m]
-    double omegaBound = 0.0;    ///< drape's bound on omega_max (spring Laplacian) [rad/s]
-    double omegaRest = 0.0;     ///< exact omega_max of the 3D stiffness at rest [rad/s]
-    double omegaFinal = 0.0;    ///< exact omega_max at the end of a stable run [rad/s]
-    double theoryLimit = 0.0;   ///< the integrator's limit from omegaBound [s] (inf: none)
-    double horizonLimit = 0.0;  ///< explicit Euler only: growth limit over the run's horizon [s]
-    double measured = 0.0;      ///< largest dt found stable [s]
+    double stiffness = 0.0;    ///< k [N/m]
+    double omegaBound = 0.0;   ///< drape's bound on omega_max (spring Laplacian) [rad/s]
+    double omegaRest = 0.0;    ///< exact omega_max of the 3D stiffness at rest [rad/s]
+    double omegaFinal = 0.0;   ///< exact omega_max at the end of a stable run [rad/s]
+    double theoryLimit = 0.0;  ///< the integrator's limit from omegaBound [s] (inf: none)
+    double horizonLimit = 0.0; ///< explicit Euler only: growth limit over the run's horizon [s]
+    double measured = 0.0;     ///< largest dt found stable [s]
     bool stableAtAllTested = false; ///< no instability found up to `measured` (implicit)
 };
 
@@ -41,10 +41,10 @@ struct StabilityPoint {
 struct ExtremeCase {
     std::string name;
     std::string setup;
-    std::string outcome;   ///< "stable", "detected failure", "rejected"
-    std::string detail;    ///< numbers or the error message
+    std::string outcome;     ///< "stable", "detected failure", "rejected"
+    std::string detail;      ///< numbers or the error message
     bool stateFinite = true; ///< no NaN or infinity left in the cloth's state
-    bool ok = false;       ///< the outcome is the expected, clean one
+    bool ok = false;         ///< the outcome is the expected, clean one
 };
 
 struct StabilityResult {
@@ -63,33 +63,33 @@ struct ErrorOptions {
 };
 
 struct ErrorPoint {
-    std::string scene;     ///< "experiment1", "experiment2"
-    bool limiter = false;  ///< stress-ordered strain limiter on
+    std::string scene;    ///< "experiment1", "experiment2"
+    bool limiter = false; ///< stress-ordered strain limiter on
     IntegratorKind integrator;
-    double dt = 0.0;       ///< [s]
-    double wallSeconds = 0.0;  ///< run time of the whole run [s]
-    double error = 0.0;    ///< RMS particle distance to the reference, max over the check times
-    double relError = 0.0; ///< error / grid spacing [-]
-    bool unstable = false; ///< blew up (detected failure) or diverged
+    double dt = 0.0;          ///< [s]
+    double wallSeconds = 0.0; ///< run time of the whole run [s]
+    double error = 0.0;       ///< RMS particle distance to the reference, max over the check times
+    double relError = 0.0;    ///< error / grid spacing [-]
+    bool unstable = false;    ///< blew up (detected failure) or diverged
     std::string note;
 };
 
 struct ReferenceCheck {
     std::string scene;
     bool limiter = false;
-    double dtRef = 0.0;       ///< reference dt [s]
-    double selfError = 0.0;   ///< RMS distance between reference(dt) and reference(2 dt)
-    double crossError = 0.0;  ///< RMS distance between RK4 and Velocity-Verlet at dtRef
+    double dtRef = 0.0;              ///< reference dt [s]
+    double selfError = 0.0;          ///< RMS distance between reference(dt) and reference(2 dt)
+    double crossError = 0.0;         ///< RMS distance between RK4 and Velocity-Verlet at dtRef
     double smallestSweepError = 0.0; ///< smallest error of any sweep point (for comparison)
 };
 
 struct Table1Row {
     IntegratorKind integrator;
     double dt = 0.0;
-    double paperSeconds = 0.0;   ///< the paper's "total time" [s]
-    double oursWall = 0.0;       ///< our wall time to the settle time or the cap [s]
-    double settleTime = 0.0;     ///< simulated time at which it settled [s] (inf: not)
-    double error = 0.0;          ///< against the reference at the check times
+    double paperSeconds = 0.0; ///< the paper's "total time" [s]
+    double oursWall = 0.0;     ///< our wall time to the settle time or the cap [s]
+    double settleTime = 0.0;   ///< simulated time at which it settled [s] (inf: not)
+    double error = 0.0;        ///< against the reference at the check times
     bool unstable = false;
 };
 
@@ -111,17 +111,17 @@ struct CompareOptions {
 
 struct CompareRow {
     std::string scene;
-    std::string engine;       ///< "drape", "btSoftBody", "btDeformable"
-    std::string config;       ///< integrator / piterations / sub-steps ...
+    std::string engine; ///< "drape", "btSoftBody", "btDeformable"
+    std::string config; ///< integrator / piterations / sub-steps ...
     std::size_t particles = 0;
     std::size_t links = 0;
-    double msPerStep = 0.0;   ///< median over repeated runs of the mean step time [ms]
+    double msPerStep = 0.0; ///< median over repeated runs of the mean step time [ms]
     double peakMaxStrain = 0.0, peakMeanStrain = 0.0;
     double finalMaxStrain = 0.0, finalMeanStrain = 0.0;
     double peakPenetration = 0.0; ///< deepest penetration during the run [scene length]
     std::size_t peakInside = 0;   ///< most particles inside colliders at once
     std::size_t finalInside = 0;
-    double settleTime = 0.0;  ///< [s]; inf when it did not settle in the run
+    double settleTime = 0.0;   ///< [s]; inf when it did not settle in the run
     double finalKinetic = 0.0; ///< [J]
     bool blewUp = false;
     std::string note;

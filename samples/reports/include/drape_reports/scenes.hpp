@@ -36,12 +36,12 @@ struct ClothScene {
     std::string name;  ///< file-name friendly
     std::string title; ///< human readable
     SheetSpec sheet;
-    TriangleMesh mesh;          ///< makeSheet(sheet)
-    double particleMass = 0.5;  ///< every particle [kg]
-    double stiffness = 20.0;    ///< every linked spring [N/m]
-    double damping = 0.05;      ///< eq. (8) C_d on every particle [N s/m]
+    TriangleMesh mesh;         ///< makeSheet(sheet)
+    double particleMass = 0.5; ///< every particle [kg]
+    double stiffness = 20.0;   ///< every linked spring [N/m]
+    double damping = 0.05;     ///< eq. (8) C_d on every particle [N s/m]
     Vec3 gravity = Vec3(0.0, -9.8, 0.0);
-    std::vector<Index> pins;    ///< fixed particles
+    std::vector<Index> pins; ///< fixed particles
     std::vector<Collider> colliders;
     double thickness = 1.0;     ///< contact thickness [scene length]
     double timeStep = 0.01;     ///< the scene's dt [s]
@@ -76,8 +76,7 @@ struct Penetration {
     double depth = 0.0;
     std::size_t inside = 0;
 };
-Penetration measurePenetration(const std::vector<Collider>& colliders,
-                               const std::vector<Vec3>& x);
+Penetration measurePenetration(const std::vector<Collider>& colliders, const std::vector<Vec3>& x);
 
 /// Meshes to draw the colliders (planes as a square around `around`).
 std::vector<samples::DrawMesh> colliderMeshes(const std::vector<Collider>& colliders,
@@ -86,7 +85,7 @@ std::vector<samples::DrawMesh> colliderMeshes(const std::vector<Collider>& colli
 /// A drape cloth of a scene, in a Bullet world holding the scene's colliders (none when the
 /// scene has no colliders: the cloth is stepped alone).
 class DrapeWorld {
-public:
+  public:
     DrapeWorld(const ClothScene& scene, const ClothSettings& settings);
     ~DrapeWorld();
     DrapeWorld(const DrapeWorld&) = delete;
@@ -96,7 +95,7 @@ public:
     Cloth& cloth();
     const Cloth& cloth() const;
 
-private:
+  private:
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };
