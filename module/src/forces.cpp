@@ -309,21 +309,12 @@ std::size_t ForceModel::passiveTermCount() const {
 void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
     const std::size_t n = x.size();
     f.resize(n);
-    // Runs a per-particle or per-spring loop on the pool when there is one.
-    auto forRange = [&](std::size_t count,
-                        const std::function<void(std::size_t, std::size_t)>& body) {
-        if (pool_) {
-            pool_->parallelFor(count, body);
-        } else {
-            body(0, count);
-        }
-    };
     const bool gravity = settings_.gravity != Vec3::Zero();
     const double cd = velocityTermsInIntegrator_ ? 0.0 : settings_.damping;
     // Start from gravity (eq. (6)) and particle damping (eq. (8)), or zero: one pass over the
     // particles instead of three. (The sum is then formed in another order than term by term:
     // results agree to rounding.)
-    forRange(n, [&](std::size_t b, std::size_t e) {
+    detail::forChunks(pool_, n, [&](std::size_t b, std::size_t e) {
         if (gravity && cd > 0.0) {
             for (std::size_t i = b; i < e; ++i)
                 f[i] = mass_[i] * settings_.gravity - cd * v[i];
@@ -490,15 +481,7 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, Vec3List& f) {
     soaX_.resize(3 * n);
     soaF_.resize(3 * n);
     slotF_.resize(3 * slots);
-    auto forRange = [&](std::size_t count,
-                        const std::function<void(std::size_t, std::size_t)>& body) {
-        if (pool_) {
-            pool_->parallelFor(count, body);
-        } else {
-            body(0, count);
-        }
-    };
-    forRange(n, [&](std::size_t b, std::size_t e) {
+    detail::forChunks(pool_, n, [&](std::size_t b, std::size_t e) {
         double* px = soaX_.data();
         double* py = px + n;
         double* pz = py + n;
@@ -510,7 +493,7 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, Vec3List& f) {
     });
     const double* rest = topology_->familySlotRestLengths().data();
     const double* kSlot = slotStiffness_.data();
-    forRange(slots, [&](std::size_t b, std::size_t e) {
+    detail::forChunks(pool_, slots, [&](std::size_t b, std::size_t e) {
         const double* px = soaX_.data();
         const double* py = px + n;
         const double* pz = py + n;
@@ -536,7 +519,7 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, Vec3List& f) {
             familySlotForces(m, ax, ay, az, bx, by, bz, k, l0, ox, oy, oz);
         }
     });
-    forRange(n, [&](std::size_t b, std::size_t e) {
+    detail::forChunks(pool_, n, [&](std::size_t b, std::size_t e) {
         for (std::size_t c = 0; c < 3; ++c) {
             double* out = soaF_.data() + c * n;
             const double* in = slotF_.data() + c * slots;

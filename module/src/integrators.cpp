@@ -17,24 +17,15 @@ namespace {
 
 /// Runs body(i) for every particle, on the context's pool when it has one.
 template <class Body> void forParticles(IntegratorContext& c, Body body) {
-    auto range = [&](std::size_t b, std::size_t e) {
+    detail::forChunks(c.pool, c.x.size(), [&](std::size_t b, std::size_t e) {
         for (std::size_t i = b; i < e; ++i)
             body(i);
-    };
-    if (c.pool) {
-        c.pool->parallelFor(c.x.size(), range);
-    } else {
-        range(0, c.x.size());
-    }
+    });
 }
 
 /// Runs body(begin, end) over chunks of the particles, on the context's pool when it has one.
 template <class Body> void forRanges(IntegratorContext& c, Body body) {
-    if (c.pool) {
-        c.pool->parallelFor(c.x.size(), body);
-    } else {
-        body(std::size_t{0}, c.x.size());
-    }
+    detail::forChunks(c.pool, c.x.size(), body);
 }
 
 /// Eq. (14) with the time step restored in the velocity term:
@@ -152,11 +143,7 @@ class VelocityVerlet final : public Integrator {
                 }
                 if (!std::isfinite(sum)) bad.store(true, std::memory_order_relaxed);
             };
-            if (c.pool) {
-                c.pool->parallelFor(c.x.size(), range);
-            } else {
-                range(0, c.x.size());
-            }
+            forRanges(c, range);
         };
         // A held particle (zero inverse mass) does not move by these terms, so for it nothing
         // is split: its f carries them as forces (the linear damping at its velocity, the
@@ -224,11 +211,7 @@ class VelocityVerlet final : public Integrator {
                 }
                 if (!std::isfinite(sx + sv + sf)) bad.store(true, std::memory_order_relaxed);
             };
-            if (c.pool) {
-                c.pool->parallelFor(c.x.size(), range);
-            } else {
-                range(0, c.x.size());
-            }
+            forRanges(c, range);
         } else {
             passes([&](std::size_t i) { c.v[i] += (h * c.invMass[i]) * c.f[i]; });
         }

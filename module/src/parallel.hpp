@@ -48,4 +48,14 @@ class ThreadPool {
     bool stop_ = false;
 };
 
+/// Runs body(begin, end) over [0, n): on the pool in chunks when there is one, else as one
+/// call on this thread.
+template <class Body> void forChunks(ThreadPool* pool, std::size_t n, Body&& body) {
+    if (pool) {
+        pool->parallelFor(n, body);
+    } else {
+        body(std::size_t{0}, n);
+    }
+}
+
 } // namespace drape::detail

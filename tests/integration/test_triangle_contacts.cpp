@@ -30,6 +30,28 @@ double segmentDistance2d(double pu, double pv, double au, double av, double bu, 
     return std::hypot(pu - (au + t * du), pv - (av + t * dv));
 }
 
+/// Adds a floor and a 9 x 9 sheet (spacing 5 cm, 0.162 kg, k 5 N/m) at height y whose two
+/// middle columns lie at x = -0.025 and +0.025 (a feature along z at x = 0 falls between
+/// them), with triangle contacts on or off; returns its handle.
+bullet::BulletCloth& addSheetOverFloor(TestWorld& w, double y, bool triangles) {
+    w.body(w.shape<btStaticPlaneShape>(btVector3(0, 1, 0), btScalar(0.0)), 0.0, Vec3::Zero());
+    ClothSettings s;
+    s.particleMass = 0.002;
+    s.springStiffness = 5.0;
+    s.damping = 0.01;
+    bullet::BulletClothSettings bs;
+    bs.contact.thickness = kThickness;
+    bs.contact.triangles = triangles;
+    return w.add(makeCloth(horizontalSheet(9, 9, 0.05, y, 0.025), s), bs);
+}
+
+double lowestParticle(const Cloth& cloth) {
+    double lowest = std::numeric_limits<double>::infinity();
+    for (const auto& x : cloth.positions())
+        lowest = std::min(lowest, x.y());
+    return lowest;
+}
+
 struct RodDrop {
     double lowest = 0.0;  ///< lowest particle at the end [m]
     double closest = 0.0; ///< closest spring to the rod's axis (x-y plane) [m]
@@ -40,25 +62,14 @@ struct RodDrop {
 /// a fifth of the spacing) that lies between two columns of particles, 30 cm above a floor.
 RodDrop dropOnRod(bool triangles) {
     TestWorld w;
-    w.body(w.shape<btStaticPlaneShape>(btVector3(0, 1, 0), btScalar(0.0)), 0.0, Vec3::Zero());
     const double radius = 0.01, axisY = 0.3;
     w.body(w.shape<btCapsuleShapeZ>(btScalar(radius), btScalar(0.6)), 0.0, Vec3(0, axisY, 0));
-    ClothSettings s;
-    s.particleMass = 0.002;
-    s.springStiffness = 5.0;
-    s.damping = 0.01;
-    auto cloth =
-        makeCloth(horizontalSheet(9, 9, 0.05, 0.4, 0.025), s); // columns at x = +-0.025, ...
-    bullet::BulletClothSettings bs;
-    bs.contact.thickness = kThickness;
-    bs.contact.triangles = triangles;
-    auto& handle = w.add(cloth, bs);
+    auto& handle = addSheetOverFloor(w, 0.4, triangles);
+    const std::shared_ptr<Cloth> cloth = handle.clothPtr();
     for (int k = 0; k < 360; ++k)
         w.world.stepSimulation(btScalar(kStep), 1, btScalar(kStep));
     RodDrop r;
-    r.lowest = std::numeric_limits<double>::infinity();
-    for (const auto& x : cloth->positions())
-        r.lowest = std::min(r.lowest, x.y());
+    r.lowest = lowestParticle(*cloth);
     r.closest = std::numeric_limits<double>::infinity();
     for (const auto& sp : cloth->topology().springs()) {
         const Vec3& a = cloth->positions()[sp.a];
@@ -233,21 +244,12 @@ struct EdgeDrop {
 /// (a knife edge along z, 30 cm above a floor), the ridge between two columns of particles.
 EdgeDrop dropOnEdge(bool triangles) {
     TestWorld w;
-    w.body(w.shape<btStaticPlaneShape>(btVector3(0, 1, 0), btScalar(0.0)), 0.0, Vec3::Zero());
     const double half = 0.05, ridgeY = 0.3;
     const double centreY = ridgeY - half * std::sqrt(2.0);
     w.body(w.shape<btBoxShape>(btVector3(btScalar(half), btScalar(half), btScalar(0.3))), 0.0,
            Vec3(0, centreY, 0),
            btQuaternion(btVector3(0, 0, 1), btScalar(0.25 * 3.14159265358979323846)));
-    ClothSettings s;
-    s.particleMass = 0.002;
-    s.springStiffness = 5.0;
-    s.damping = 0.01;
-    auto cloth = makeCloth(horizontalSheet(9, 9, 0.05, 0.36, 0.025), s); // columns at x = +-0.025
-    bullet::BulletClothSettings bs;
-    bs.contact.thickness = kThickness;
-    bs.contact.triangles = triangles;
-    w.add(cloth, bs);
+    const std::shared_ptr<Cloth> cloth = addSheetOverFloor(w, 0.36, triangles).clothPtr();
     EdgeDrop r;
     r.worstClearance = std::numeric_limits<double>::infinity();
     for (int k = 0; k < 360; ++k) {
@@ -267,9 +269,7 @@ EdgeDrop dropOnEdge(bool triangles) {
             r.finalClearance = std::min(r.finalClearance, y - ridgeY);
         }
     }
-    r.lowest = std::numeric_limits<double>::infinity();
-    for (const auto& x : cloth->positions())
-        r.lowest = std::min(r.lowest, x.y());
+    r.lowest = lowestParticle(*cloth);
     std::printf(
         "[measured] sheet dropped on a knife-edge box ridge (spacing 5 cm), triangle contacts %s: "
         "smallest height of a spring above the ridge %.5f m over the run, %.5f m at the end "
