@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <limits>
 #include <numeric>
@@ -139,6 +140,8 @@ void StrainLimiter::sortWarmList() {
         warmList_.clear();
         std::fill(inWarmList_.begin(), inWarmList_.end(), 0);
         std::fill(warmLeft_.begin(), warmLeft_.end(), 0.0);
+        for (std::uint32_t& c : checkedAt_)
+            c &= ~kWarmBit;
         for (std::size_t si = 0; si < lambda_.size(); ++si) {
             if (lambda_[si] == 0.0) continue;
             warmList_.push_back(static_cast<std::uint32_t>(si));
@@ -187,13 +190,6 @@ Vec3 StrainLimiter::keepAbove(Index i, const Vec3& dx, const std::vector<Vec3>& 
     if (!(below > 0.0)) return dx;
     planes_->push[kk] += below * n;
     return dx + below * n;
-}
-
-void StrainLimiter::dirty(Index i, const Vec3& dx, std::vector<Vec3>& x) {
-    move(i, dx, x);
-    if (dirtyAt_[i] == stamp_) return;
-    dirtyAt_[i] = stamp_;
-    dirty_.push_back(i);
 }
 
 void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<double>& invMass,
@@ -279,39 +275,48 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
     sortWarmList();
     std::size_t kept = 0, warmed = 0;
     {
+        // Two passes: every correction is measured on the positions the warm start found
+        // (its springs' lengths do not wait for each other's moves), then applied.
         std::uint32_t* list = warmList_.data();
         double* lambda = lambda_.data();
         double* left = warmLeft_.data();
+        std::uint32_t* checked = checkedAt_.data();
         unsigned char* listed = inWarmList_.data();
         const Spring* spring = springs.data();
         const double* w = invMass.data();
+        const Vec3* xp = x.data();
         const double share = s.warmStart;
+        warmMove_.resize(warmList_.size());
+        Vec3* pull = warmMove_.data();
         for (std::size_t k = 0; k < warmList_.size(); ++k) {
             const std::uint32_t si = list[k];
             double lam = lambda[si];
-            left[si] = 0.0;
+            pull[k].setZero();
             if (lam != 0.0) {
+                ++warmed;
                 const Spring& sp = spring[si];
                 const double wsum = w[sp.a] + w[sp.b];
-                ++warmed;
-                const Vec3 d = x[sp.b] - x[sp.a];
+                const Vec3 d = xp[sp.b] - xp[sp.a];
                 const double l = d.norm();
                 lam = wsum > 0.0
                           ? std::min(lam * share, std::max(0.0, l - 0.5 * sp.restLength) / wsum)
                           : 0.0;
-                lambda[si] = lam;
-                left[si] = lam;
-                if (lam != 0.0) {
-                    const Vec3 c = (lam / l) * d;
-                    if (w[sp.a] > 0.0) move(sp.a, w[sp.a] * c, x);
-                    if (w[sp.b] > 0.0) move(sp.b, -w[sp.b] * c, x);
-                }
+                if (lam != 0.0) pull[k] = (lam / l) * d;
             }
-            if (lam != 0.0) {
-                list[kept++] = si;
-            } else {
+            lambda[si] = lam;
+            left[si] = lam;
+            checked[si] = (checked[si] & ~kWarmBit) | std::uint32_t(lam > 0.0);
+        }
+        for (std::size_t k = 0; k < warmList_.size(); ++k) {
+            const std::uint32_t si = list[k];
+            if (lambda[si] == 0.0) {
                 listed[si] = 0;
+                continue;
             }
+            list[kept++] = si;
+            const Spring& sp = spring[si];
+            if (w[sp.a] > 0.0) move(sp.a, w[sp.a] * pull[k], x);
+            if (w[sp.b] > 0.0) move(sp.b, -w[sp.b] * pull[k], x);
         }
     }
     st.work += warmed;
@@ -446,17 +451,161 @@ void StrainLimiter::finish(const ClothTopology& topology, const std::vector<Vec3
     }
 }
 
+namespace {
+/// The sort key of a queued spring: its tension, rounded to float, in the high half, mapped
+/// to an unsigned integer that grows as the tension falls (the IEEE bits ordered as numbers,
+/// then complemented); the spring's index in the low half. Ascending keys are the wave's
+/// order: most stressed first, tensions equal to float precision (1e-7 relative) by index.
+std::uint64_t waveKey(double tension, std::uint32_t spring) {
+    const auto t = static_cast<float>(tension);
+    std::uint32_t u = 0;
+    std::memcpy(&u, &t, sizeof u);
+    u = (u & 0x80000000u) != 0u ? ~u : (u | 0x80000000u); // grows with t
+    return (std::uint64_t(~u) << 32) | spring;
+}
+} // namespace
+
+template <bool kPlanes>
+std::size_t StrainLimiter::correctWave(const std::vector<Spring>& springs,
+                                       const std::vector<double>& invMass, std::vector<Vec3>& x,
+                                       StrainLimitStats& st) {
+    // (Local pointers: warmList_.push_back and firstMove write to members, which would make
+    // the compiler reload every member's data pointer after them.)
+    const Spring* spring = springs.data();
+    const double* w = invMass.data();
+    Vec3* xp = x.data();
+    double* lambda = lambda_.data();
+    double* left = warmLeft_.data();
+    std::uint32_t* checked = checkedAt_.data();
+    unsigned char* listed = inWarmList_.data();
+    const unsigned char* moved = moved_.data();
+    std::uint32_t* dirtyAt = dirtyAt_.data();
+    Index* dirty = dirty_.data();
+    const std::uint32_t stamp = stamp_;
+    const double limit = limit_;
+    std::size_t nd = 0, corrections = 0;
+    // Moves particle i and lists it once for the checks after the wave (appended by adding 0
+    // or 1 to the count: dirty_ has room for every particle).
+    auto shift = [&](Index i, const Vec3& dx) {
+        if (!moved[i]) firstMove(i, x);
+        xp[i] += dx;
+        dirty[nd] = i;
+        nd += dirtyAt[i] != stamp;
+        dirtyAt[i] = stamp;
+    };
+    for (const std::uint64_t item : order_) {
+        const auto si = static_cast<std::uint32_t>(item); // the low half
+        const Index a = spring[si].a, b = spring[si].b;
+        const Vec3 d = xp[b] - xp[a];
+        const double l = d.norm();
+        const double wa = w[a], wb = w[b];
+        if (!(l > 0.0) || wa + wb == 0.0) continue;
+        const double excess = l - limit * spring[si].restLength;
+        // A contact plane the particle lies on takes the normal part of its move: it counts
+        // with w (1 - (u . n)^2) (first order). Shortening moves a along +u.
+        double wsum = wa + wb;
+        if constexpr (kPlanes) {
+            const Vec3 u = d / l;
+            const double eps = 1e-6 * spring[si].restLength;
+            const double sgn = excess > 0.0 ? 1.0 : -1.0;
+            wsum = slidingWeight(a, wa, sgn * u, x, eps) + slidingWeight(b, wb, -sgn * u, x, eps);
+            if (!(wsum > 0.0)) continue; // both ends held by their planes
+        }
+        // Provot's rule: to exactly the limit, by inverse-mass shares. A pull adds to the
+        // spring's lambda; a spring the warm start pulled in too far is let out to the limit,
+        // by at most what the warm start applied (never a push).
+        const double want = excess / wsum;
+        const double dl = want >= 0.0 ? want : std::max(want, -left[si]);
+        if (dl == 0.0) continue;
+        lambda[si] += dl;
+        if (!listed[si]) {
+            listed[si] = 1;
+            warmList_.push_back(si);
+        }
+        if (dl < 0.0) {
+            left[si] += dl;
+            checked[si] = (checked[si] & ~kWarmBit) | std::uint32_t(left[si] > 0.0);
+        }
+        const Vec3 c = (dl / l) * d;
+        ++corrections;
+        if constexpr (kPlanes) {
+            if (wa > 0.0) shift(a, keepAbove(a, wa * c, x));
+            if (wb > 0.0) shift(b, keepAbove(b, -wb * c, x));
+        } else {
+            if (wa > 0.0) shift(a, wa * c);
+            if (wb > 0.0) shift(b, -wb * c);
+        }
+    }
+    st.work += order_.size();
+    st.corrections += corrections;
+    return nd;
+}
+
+void StrainLimiter::checkMoved(const ClothTopology& topology, const std::vector<double>& invMass,
+                               const std::vector<double>& stiffness, const std::vector<Vec3>& x,
+                               std::size_t movedCount, StrainLimitStats& st) {
+    // The springs of every particle the wave moved are checked once (a particle moved by
+    // several corrections is looked at once, from where it ended). The check reads the spring
+    // from the particle's adjacency (neighbour, 1 / L0^2 side by side). The loop runs without
+    // data-dependent branches (which spring a particle shares with a particle moved earlier,
+    // and which springs leave the band, follow no pattern the processor could predict): every
+    // spring is measured, a spring seen already this wave counts nothing, and candidates are
+    // appended by adding 0 or 1 to the count. (A spring queued for the next wave was queued
+    // after its check in this loop: the stamp alone keeps it from being looked at twice.)
+    const Index* offp = topology.adjacencyOffsets().data();
+    const Index* sprp = topology.adjacentSprings().data();
+    const Index* nbrp = topology.adjacentParticles().data();
+    const double* inv2p = topology.adjacentInverseSquaredRestLengths().data();
+    const double* xp = x[0].data();
+    const Index* dirty = dirty_.data();
+    std::uint32_t* seen = checkedAt_.data();
+    const std::uint32_t mark = stamp_ << 1; // the stamp as checkedAt_ holds it
+    const double up = upper2_, low = lower2_;
+    std::size_t evaluated = 0, found = 0;
+    Index* cand = candidates_.data();
+    for (std::size_t m = 0; m < movedCount; ++m) {
+        const std::size_t e = dirty[m];
+        const double ex = xp[3 * e], ey = xp[3 * e + 1], ez = xp[3 * e + 2];
+        const std::size_t end = offp[e + 1];
+        for (std::size_t k = offp[e]; k < end; ++k) {
+            const std::size_t si = sprp[k];
+            const std::uint32_t word = seen[si];
+            const std::size_t fresh = (word & ~kWarmBit) != mark;
+            seen[si] = mark | (word & kWarmBit);
+            const double* xo = xp + 3 * std::size_t(nbrp[k]);
+            const double dx = xo[0] - ex, dy = xo[1] - ey, dz = xo[2] - ez;
+            const double ratio2 = (dx * dx + dy * dy + dz * dz) * inv2p[k];
+            // needs(si, ratio2)
+            const std::size_t need = (ratio2 > up) | ((ratio2 < low) & (word & kWarmBit));
+            cand[found] = static_cast<Index>(k);
+            found += fresh & need;
+            evaluated += fresh;
+        }
+    }
+    st.work += evaluated;
+    // The candidates (a few per wave) are measured again from the spring's ends: the same
+    // (l / L0)^2 (the squares do not see the direction).
+    const Spring* spring = topology.springs().data();
+    const double* w = invMass.data();
+    const double* rest = topology.adjacentRestLengths().data();
+    for (std::size_t c = 0; c < found; ++c) {
+        const Index k = cand[c];
+        const Spring& sp = spring[sprp[k]];
+        if (w[sp.a] + w[sp.b] == 0.0) continue;
+        const double* xa = xp + 3 * std::size_t(sp.a);
+        const double* xb = xp + 3 * std::size_t(sp.b);
+        const double dx = xa[0] - xb[0], dy = xa[1] - xb[1], dz = xa[2] - xb[2];
+        queue(sprp[k], (dx * dx + dy * dy + dz * dz) * inv2p[k], rest[k], stiffness);
+    }
+}
+
 void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<double>& invMass,
                              const std::vector<double>& stiffness, const LimiterSettings& s,
                              std::vector<Vec3>& x, StrainLimitStats& st) {
     const auto& springs = topology.springs();
-    const auto& off = topology.adjacencyOffsets();
-    const auto& spr = topology.adjacentSprings();
-    const auto& nbr = topology.adjacentParticles();
-    const auto& inv2 = topology.adjacentInverseSquaredRestLengths();
-    const auto& rest = topology.adjacentRestLengths();
     const std::size_t cap =
         static_cast<std::size_t>(s.maxRounds) * std::max<std::size_t>(springs.size(), 1);
+    dirty_.resize(x.size() + 1); // every particle at most once per wave (+1: the last write)
     while (!next_.empty()) {
         if (st.work > cap) {
             st.capHit = true;
@@ -465,111 +614,23 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
         wave_.swap(next_);
         next_.clear();
         ++st.rounds;
-        if (++stamp_ == 0) { // the stamp wrapped: forget every old one
-            std::fill(checkedAt_.begin(), checkedAt_.end(), 0u);
+        if (++stamp_ == kStampEnd) { // the stamp wrapped: forget every old one
+            for (std::uint32_t& c : checkedAt_)
+                c &= kWarmBit;
             std::fill(dirtyAt_.begin(), dirtyAt_.end(), 0u);
             stamp_ = 1;
         }
-        // Most stressed first: spring tension k (l - L0) when queued, ties by index. (Sorted
-        // as (key, index) pairs: the comparisons read no other array.)
+        // Most stressed first: spring tension k (l - L0) when queued, ties by index (one
+        // integer per spring, see waveKey: the comparisons read no other array).
         order_.clear();
         for (std::uint32_t si : wave_) {
             queued_[si] = 0;
-            order_.push_back({key_[si], si});
+            order_.push_back(waveKey(key_[si], si));
         }
-        std::sort(order_.begin(), order_.end(), [](const Queued& p, const Queued& q) {
-            return p.key != q.key ? p.key > q.key : p.spring < q.spring;
-        });
-        for (const Queued& item : order_) {
-            const std::uint32_t si = item.spring;
-            const Spring& sp = springs[si];
-            const Index a = sp.a, b = sp.b;
-            ++st.work;
-            const Vec3 d = x[b] - x[a];
-            const double l = d.norm();
-            const double wa = invMass[a], wb = invMass[b];
-            if (!(l > 0.0) || wa + wb == 0.0) continue;
-            const double excess = l - limit_ * sp.restLength;
-            // A contact plane the particle lies on takes the normal part of its move: it
-            // counts with w (1 - (u . n)^2) (first order). Shortening moves a along +u.
-            double wsum = wa + wb;
-            if (planes_) {
-                const Vec3 u = d / l;
-                const double eps = 1e-6 * sp.restLength;
-                const double sgn = excess > 0.0 ? 1.0 : -1.0;
-                wsum =
-                    slidingWeight(a, wa, sgn * u, x, eps) + slidingWeight(b, wb, -sgn * u, x, eps);
-                if (!(wsum > 0.0)) continue; // both ends held by their planes
-            }
-            // Provot's rule: to exactly the limit, by inverse-mass shares. A pull adds to the
-            // spring's lambda; a spring the warm start pulled in too far is let out to the
-            // limit, by at most what the warm start applied (never a push).
-            const double want = excess / wsum;
-            const double dl = want >= 0.0 ? want : std::max(want, -warmLeft_[si]);
-            if (dl == 0.0) continue;
-            lambda_[si] += dl;
-            if (!inWarmList_[si]) {
-                inWarmList_[si] = 1;
-                warmList_.push_back(si);
-            }
-            if (dl < 0.0) warmLeft_[si] += dl;
-            const Vec3 c = (dl / l) * d;
-            ++st.corrections;
-            if (planes_) {
-                if (wa > 0.0) dirty(a, keepAbove(a, wa * c, x), x);
-                if (wb > 0.0) dirty(b, keepAbove(b, -wb * c, x), x);
-            } else {
-                if (wa > 0.0) dirty(a, wa * c, x);
-                if (wb > 0.0) dirty(b, -wb * c, x);
-            }
-        }
-        // After the wave, the springs of every particle it moved are checked once (a particle
-        // moved by several corrections is looked at once, from where it ended). The check
-        // reads the spring from the particle's adjacency (neighbour, 1 / L0^2 side by side).
-        // The loop runs without data-dependent branches (which spring a particle shares with a
-        // particle moved earlier, and which springs leave the band, follow no pattern the
-        // processor could predict): every spring is measured, a spring seen already this wave
-        // counts nothing, and candidates are appended by adding 0 or 1 to the count. (A spring
-        // queued for the next wave was queued after its check in this loop: the stamp alone
-        // keeps it from being looked at twice. The arrays are read through local pointers.)
-        {
-            const Index* offp = off.data();
-            const Index* sprp = spr.data();
-            const Index* nbrp = nbr.data();
-            const double* inv2p = inv2.data();
-            const double* xp = x[0].data();
-            const double* warm = warmLeft_.data();
-            std::uint32_t* seen = checkedAt_.data();
-            const std::uint32_t stamp = stamp_;
-            const double up = upper2_, low = lower2_;
-            std::size_t evaluated = 0, found = 0;
-            Candidate* cand = candidates_.data();
-            for (Index e : dirty_) {
-                const double ex = xp[3 * std::size_t(e)], ey = xp[3 * std::size_t(e) + 1],
-                             ez = xp[3 * std::size_t(e) + 2];
-                for (Index k = offp[e]; k < offp[e + 1]; ++k) {
-                    const Index si = sprp[k];
-                    const std::size_t fresh = seen[si] != stamp;
-                    seen[si] = stamp;
-                    evaluated += fresh;
-                    const std::size_t o = nbrp[k];
-                    const double dx = xp[3 * o] - ex, dy = xp[3 * o + 1] - ey,
-                                 dz = xp[3 * o + 2] - ez;
-                    const double ratio2 = (dx * dx + dy * dy + dz * dz) * inv2p[k];
-                    // needs(si, ratio2)
-                    const std::size_t need = (ratio2 > up) | ((ratio2 < low) & (warm[si] > 0.0));
-                    cand[found] = Candidate{ratio2, k, e};
-                    found += fresh & need;
-                }
-            }
-            st.work += evaluated;
-            for (std::size_t c = 0; c < found; ++c) {
-                const Index e = cand[c].particle, k = cand[c].slot;
-                if (invMass[e] + invMass[nbr[k]] != 0.0)
-                    queue(spr[k], cand[c].ratio2, rest[k], stiffness);
-            }
-        }
-        dirty_.clear();
+        std::sort(order_.begin(), order_.end());
+        const std::size_t moved = planes_ ? correctWave<true>(springs, invMass, x, st)
+                                          : correctWave<false>(springs, invMass, x, st);
+        checkMoved(topology, invMass, stiffness, x, moved, st);
     }
     for (std::uint32_t si : next_)
         queued_[si] = 0;

@@ -112,10 +112,13 @@ AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Ind
 ///   2. warm start (LimiterSettings::warmStart = w): every spring that the last step had to
 ///      pull in is pulled in again by w times last step's correction, along its current
 ///      direction (the limiter's share of a lasting load, such as a hanging sheet's weight).
+///      All of them are measured on the positions the warm start finds, then applied (Jacobi:
+///      no correction waits for the one before it).
 ///   3. one scan of the springs queues every spring longer than (1 + maxStrain + tolerance) L0
 ///      and every warm-started spring shorter than (1 + maxStrain - tolerance) L0.
 ///   4. waves: the queued springs are sorted by stress k (l - L0), most stressed first (the
-///      paper's load order; ties by index, so the walk is a pure function of the state),
+///      paper's load order; tensions equal to float precision by index, so the walk is a
+///      pure function of the state),
 ///      and each is set to exactly (1 + maxStrain) L0 by Provot's rule: both ends move by
 ///      their inverse-mass shares (only the free end if the other is pinned). The correction
 ///      lambda of a spring accumulates over the step and never turns into a push (lambda >= 0:
@@ -156,6 +159,8 @@ class StrainLimiter {
     void resetWarmStart() {
         lambda_.assign(lambda_.size(), 0.0);
         warmLeft_.assign(warmLeft_.size(), 0.0);
+        for (std::uint32_t& c : checkedAt_)
+            c &= ~kWarmBit;
         warmListValid_ = false;
     }
 
@@ -190,14 +195,22 @@ class StrainLimiter {
     double scanFamilies(const ClothTopology& topology, const std::vector<double>& invMass,
                         const std::vector<double>& stiffness, const std::vector<Vec3>& x,
                         StrainLimitStats& st);
-    /// move() inside a wave: the particle's springs are checked when the wave ends.
-    void dirty(Index i, const Vec3& dx, std::vector<Vec3>& x);
     /// Inverse mass of particle i for a move along unit dir: w, or w (1 - (dir . n)^2) when it
     /// lies on its contact plane (within eps) and dir goes into it.
     double slidingWeight(Index i, double w, const Vec3& dir, const std::vector<Vec3>& x,
                          double eps) const;
     /// The move dx of particle i in a correction, kept above its contact plane (if any).
     Vec3 keepAbove(Index i, const Vec3& dx, const std::vector<Vec3>& x) const;
+    /// Applies the corrections of the sorted wave order_; returns how many particles it moved
+    /// (listed in dirty_). kPlanes: contact planes are set (planes_).
+    template <bool kPlanes>
+    std::size_t correctWave(const std::vector<Spring>& springs, const std::vector<double>& invMass,
+                            std::vector<Vec3>& x, StrainLimitStats& st);
+    /// Checks the springs of the first movedCount particles of dirty_ and queues those that
+    /// need a correction into the next wave.
+    void checkMoved(const ClothTopology& topology, const std::vector<double>& invMass,
+                    const std::vector<double>& stiffness, const std::vector<Vec3>& x,
+                    std::size_t movedCount, StrainLimitStats& st);
     void runWaves(const ClothTopology& topology, const std::vector<double>& invMass,
                   const std::vector<double>& stiffness, const LimiterSettings& s,
                   std::vector<Vec3>& x, StrainLimitStats& st);
@@ -222,11 +235,9 @@ class StrainLimiter {
     void finish(const ClothTopology& topology, const std::vector<Vec3>& x,
                 StrainLimitStats& st) const;
 
-    struct Queued {
-        double key;
-        std::uint32_t spring;
-    };
-    std::vector<Queued> order_;    ///< the wave being walked, most stressed first
+    /// The wave being walked, most stressed first: sort keys (waveKey in strain_limit.cpp),
+    /// the spring's index in the low 32 bits.
+    std::vector<std::uint64_t> order_;
     std::vector<double> lambda_;   ///< accumulated correction per spring
     std::vector<double> warmLeft_; ///< warm start a let-out may still undo this step
     /// The springs whose lambda may be nonzero (each once: inWarmList_); the first
@@ -240,17 +251,18 @@ class StrainLimiter {
     void sortWarmList();
     std::vector<unsigned char> queued_; ///< spring is in the next wave
     std::vector<std::uint32_t> wave_, next_;
-    std::vector<double> key_;                        ///< stress of each queued spring
-    std::vector<std::uint32_t> checkedAt_, dirtyAt_; ///< wave stamp of a spring's check / a move
-    std::vector<Index> dirty_;                       ///< particles the current wave moved
-    /// A spring the checks after a wave found in need of a correction: its (l / L0)^2, its
-    /// adjacency entry and the moved particle it was reached from.
-    struct Candidate {
-        double ratio2;
-        Index slot;
-        Index particle;
-    };
-    std::vector<Candidate> candidates_; ///< one per adjacency entry at most (+1: the last write)
+    std::vector<double> key_; ///< stress of each queued spring
+    /// Per spring: the wave stamp of its last check times 2, plus kWarmBit when warmLeft_ > 0
+    /// (the checks after a wave read both with one load).
+    std::vector<std::uint32_t> checkedAt_;
+    static constexpr std::uint32_t kWarmBit = 1u;
+    static constexpr std::uint32_t kStampEnd = 0x80000000u; ///< stamps stay below (2 stamp fits)
+    std::vector<std::uint32_t> dirtyAt_; ///< per particle: the wave stamp of its last move
+    std::vector<Vec3> warmMove_;         ///< warm start scratch: lambda d / l of each listed spring
+    std::vector<Index> dirty_;           ///< particles the current wave moved (the first of them)
+    /// Adjacency entries of the springs the checks after a wave found in need of a correction
+    /// (one per adjacency entry at most, +1: the last write).
+    std::vector<Index> candidates_;
     std::uint32_t stamp_ = 0;
     std::vector<unsigned char> moved_;
     std::vector<Index> movedIndex_;
