@@ -9,6 +9,7 @@
 
 #include "drape/bullet/bullet_cloth.hpp"
 
+#include <algorithm>
 #include <memory>
 #include <vector>
 
