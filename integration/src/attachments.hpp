@@ -7,7 +7,8 @@
 
 #include "body_snapshot.hpp"
 
-#include "drape/bullet/bullet_cloth.hpp"
+#include "drape/bullet/settings.hpp"
+#include "drape/cloth.hpp"
 
 #include <algorithm>
 #include <memory>

@@ -58,7 +58,7 @@ struct BulletCloth::Impl {
     Impl(btDynamicsWorld* w, std::shared_ptr<Cloth> c, const BulletClothSettings& s, double b,
          void* owner)
         : world(w), cloth(std::move(c)), settings(s), band(b), proxy(owner),
-          contacts(settings, band, last) {}
+          contacts(settings, band) {}
 
     btDynamicsWorld* world = nullptr;
     std::shared_ptr<Cloth> cloth;
@@ -66,10 +66,11 @@ struct BulletCloth::Impl {
     double band = 0.0;   ///< eq. (7) band width [m]
     double margin = 0.0; ///< broadphase margin [m]
     bool inWorld = false;
-    ContactStats last, total;
 
     detail::ClothProxy proxy;
-    detail::ContactSolver contacts; ///< the contact stage's state, and the bodies
+    detail::ContactSolver contacts;      ///< the contact stage's state, and the bodies
+    ContactStats& last = contacts.stats; ///< this Bullet sub-step's counts
+    ContactStats total;
     detail::Attachments attachments;
     detail::BodyPoses poses; ///< the candidate bodies at the previous sub-step (for waking)
     std::vector<const btCollisionObject*> candidates;

@@ -5,13 +5,14 @@
 
 namespace drape::bullet::detail {
 
-ContactSolver::ContactSolver(const BulletClothSettings& settings, double band, ContactStats& stats)
-    : records(std::make_shared<ContactState>()), settings_(settings), band_(band), stats_(stats) {
+ContactSolver::ContactSolver(const BulletClothSettings& settings, double band)
+    : records(std::make_shared<ContactState>()), contact_(settings.contact),
+      self_(settings.selfCollision), band_(band) {
     records->thickness = settings.contact.thickness;
     records->band = band;
 }
 
-bool ContactSolver::blockMisses(const BodySnapshot& b, const Block& bl) const {
+inline bool ContactSolver::blockMisses(const BodySnapshot& b, const Block& bl) const {
     return (bl.hi.array() < b.aabbMin.array()).any() || (bl.lo.array() > b.aabbMax.array()).any() ||
            (b.plane && aboveReach(b, bl.lo, bl.hi));
 }
@@ -24,14 +25,14 @@ bool ContactSolver::aboveReach(const BodySnapshot& b, const Vec3& lo, const Vec3
     for (int k = 0; k < 3; ++k)
         corner[k] = b.planeNormal[k] >= 0.0 ? lo[k] : hi[k];
     if (!corner.allFinite()) return false;
-    const double reach = settings_.contact.thickness + band_;
+    const double reach = contact_.thickness + band_;
     const double size = b.planeScale + std::max(lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff());
     return b.planeNormal.dot(corner) - b.planeOffset > reach + 1e-5 * size;
 }
 
 inline bool ContactSolver::mayTouch(const BodySnapshot& b, std::size_t i, const Vec3& xi,
                                     const Vec3& from) {
-    ++stats_.particleBoxTests;
+    ++stats.particleBoxTests;
     // The particle's box against the body's AABB grown by the reach: the comparisons
     // collideParticle made before.
     const ParticleBox& box = boxes_[i];
@@ -44,9 +45,9 @@ inline bool ContactSolver::mayTouch(const BodySnapshot& b, std::size_t i, const 
     // rounding of this distance against the query's (1e-9 relative), and for a swept particle
     // that of Bullet's single-precision ray test (1e-5 relative): only particles that the
     // query and the ray test would certainly reject are skipped, so nothing changes.
-    const double h = settings_.contact.thickness;
+    const double h = contact_.thickness;
     const double reach = h + band_;
-    const bool sweep = settings_.contact.continuous && (xi - from).squaredNorm() > h * h;
+    const bool sweep = contact_.continuous && (xi - from).squaredNorm() > h * h;
     const double dist = b.planeNormal.dot(xi) - b.planeOffset;
     const double size = b.planeScale + xi.cwiseAbs().maxCoeff();
     if (!sweep) return !(dist > reach + 1e-9 * size);
@@ -58,7 +59,7 @@ inline bool ContactSolver::mayTouch(const BodySnapshot& b, std::size_t i, const 
 void ContactSolver::run(Cloth& c, double dt) {
     const std::size_t n = c.particleCount();
     planes_.reset(n);
-    if (settings_.contact.triangles) trianglePlane_.assign(n, 0);
+    if (contact_.triangles) trianglePlane_.assign(n, 0);
     planeBody_.clear();
     planePoint_.clear();
     if (!inStep) { // the cloth was stepped outside the world: no snapshot to collide with
@@ -68,7 +69,7 @@ void ContactSolver::run(Cloth& c, double dt) {
     if (prevX.size() != n) prevX = c.positions();
     records->contacts.clear();
     records->dt = dt;
-    const bool self = settings_.selfCollision.enabled;
+    const bool self = self_.enabled;
     if (bodies.empty() && !self) {
         prevX = c.positions();
         return; // no rigid collider near the cloth: no collision work at all
@@ -77,16 +78,16 @@ void ContactSolver::run(Cloth& c, double dt) {
     Vec3List& v = c.mutableVelocities();
 
     if (self) {
-        const auto& sc = settings_.selfCollision;
+        const auto& sc = self_;
         const auto counts = selfCollider_.run(c.topology(), c.inverseMasses(), prevX, x, v,
                                               sc.thickness, sc.friction, sc.iterations);
-        stats_.selfPairTests += counts.pairTests;
-        stats_.selfContacts += counts.contacts;
+        stats.selfPairTests += counts.pairTests;
+        stats.selfContacts += counts.contacts;
     }
 
     QueryCounters counters;
     collideParticles(c, dt, counters);
-    if (settings_.contact.triangles) collideTriangles(c, dt, counters);
+    if (contact_.triangles) collideTriangles(c, dt, counters);
     bool anyTouching = false;
     for (unsigned char t : touching_)
         anyTouching = anyTouching || t != 0;
@@ -107,7 +108,7 @@ void ContactSolver::run(Cloth& c, double dt) {
         }
         if (st.corrections == 0) break;
         collideMoved(c, dt, counters);
-        if (settings_.contact.triangles) collideTriangles(c, dt, counters);
+        if (contact_.triangles) collideTriangles(c, dt, counters);
     }
 
     // What the contact planes held in the limiter's walk: the particle got m push / dt (its
@@ -115,8 +116,8 @@ void ContactSolver::run(Cloth& c, double dt) {
     for (std::size_t k = 0; k < planes_.size(); ++k)
         flushPlane(c, k, dt);
 
-    stats_.narrowphaseQueries += counters.queries;
-    stats_.triangleQueries += counters.triangleQueries;
+    stats.narrowphaseQueries += counters.queries;
+    stats.triangleQueries += counters.triangleQueries;
     prevX = x;
 }
 
@@ -148,7 +149,7 @@ void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counter
         auto misses = [&b, this](const Block& bl) { return blockMisses(b, bl); };
         // Every particle's box would fail the box test: skip them (and count the tests).
         if (misses(whole)) {
-            stats_.particleBoxTests += whole.free;
+            stats.particleBoxTests += whole.free;
             continue;
         }
         if (!blocksBuilt) { // before any projection of this step: from the boxes as they are
@@ -163,7 +164,7 @@ void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counter
         for (std::size_t k = 0; k < nBlocks; ++k) {
             Block& bl = blocks_[k];
             if (misses(bl)) {
-                stats_.particleBoxTests += bl.free;
+                stats.particleBoxTests += bl.free;
                 continue;
             }
             for (std::size_t i = k * kBlock, end = std::min(n, i + kBlock); i < end; ++i) {
@@ -203,7 +204,7 @@ void ContactSolver::collideMoved(Cloth& c, double dt, QueryCounters& counters) {
         const BodySnapshot& b = bodies[bi];
         for (MovedGroup& g : movedGroups_) {
             if (blockMisses(b, g.box)) {
-                stats_.particleBoxTests += g.box.free;
+                stats.particleBoxTests += g.box.free;
                 continue;
             }
             for (std::size_t m = g.begin; m < g.end; ++m) {

@@ -50,7 +50,8 @@
 #include "self_collision.hpp"
 #include "shape_queries.hpp"
 
-#include "drape/bullet/bullet_cloth.hpp"
+#include "drape/bullet/settings.hpp"
+#include "drape/cloth.hpp"
 #include "drape/strain_limit.hpp"
 
 #include <algorithm>
@@ -86,9 +87,8 @@ inline bool coulombImpulse(const Vec3& rel, const Vec3& normal, double w, const 
 
 class ContactSolver {
   public:
-    /// `settings` and `stats` must outlive the solver (the handle's); `band` is eq. (7)'s band
-    /// width [m].
-    ContactSolver(const BulletClothSettings& settings, double band, ContactStats& stats);
+    /// `band` is eq. (7)'s band width [m].
+    ContactSolver(const BulletClothSettings& settings, double band);
 
     /// The contact stage (the cloth's ClothStage runs it): self-collision, particle-body
     /// contacts, re-limiting, friction.
@@ -101,6 +101,9 @@ class ContactSolver {
     /// The bodies of this Bullet sub-step (snapshotted by the handle), whose accumulated
     /// impulses the handle applies after the cloth's steps.
     std::vector<BodySnapshot> bodies;
+    /// The work counts of the current Bullet sub-step (the handle's lastStats: the stage does
+    /// most of the counting, the handle and the attachments add theirs).
+    ContactStats stats;
     /// The records the contact force term reads (shared with it).
     std::shared_ptr<ContactState> records;
     /// Positions at the end of the previous step (after contacts).
@@ -178,8 +181,8 @@ class ContactSolver {
     /// The cloth gets impulse j at p, body b the opposite (if dynamic); both are counted.
     void exchange(BodySnapshot& b, const Vec3& j, const Vec3& p) {
         b.applyImpulse(-j, p);
-        stats_.impulseOnCloth += j;
-        if (b.dynamicBody) stats_.impulseOnBodies -= j;
+        stats.impulseOnCloth += j;
+        if (b.dynamicBody) stats.impulseOnBodies -= j;
     }
 
     // --- triangles (triangle_contacts.cpp) -------------------------------------------------
@@ -191,9 +194,10 @@ class ContactSolver {
     double collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t, double dt,
                            QueryCounters& counters);
 
-    const BulletClothSettings& settings_;
+    // Copies of the handle's settings (they never change), read in the per-particle loops.
+    const ContactSettings contact_;
+    const SelfCollisionSettings self_;
     const double band_;
-    ContactStats& stats_;
     SelfCollider selfCollider_;
 
     // Scratch of the stage, reused every step.
@@ -220,6 +224,8 @@ class ContactSolver {
     std::vector<MovedGroup> movedGroups_;
 };
 
+// Defined here, inline: they run per particle or per contact in the stage's loops.
+
 inline void ContactSolver::updateBox(std::size_t i, const Vec3& xi, const Vec3& from, bool fixed) {
     ParticleBox& box = boxes_[i];
     if (fixed) { // never collides: a box no AABB overlaps
@@ -229,12 +235,39 @@ inline void ContactSolver::updateBox(std::size_t i, const Vec3& xi, const Vec3& 
         }
         return;
     }
-    const double h = settings_.contact.thickness;
-    const bool sweep = settings_.contact.continuous && (xi - from).squaredNorm() > h * h;
+    const double h = contact_.thickness;
+    const bool sweep = contact_.continuous && (xi - from).squaredNorm() > h * h;
     for (int k = 0; k < 3; ++k) {
         box.lo[k] = sweep ? std::min(xi[k], from[k]) : xi[k];
         box.hi[k] = sweep ? std::max(xi[k], from[k]) : xi[k];
     }
+}
+
+inline void ContactSolver::keepPlane(Cloth& c, std::uint32_t bi, std::size_t i, const Vec3& n,
+                                     double offset, const Vec3& point, bool fromTriangle,
+                                     double dt) {
+    if (const std::int32_t was = planes_.of[i]; was >= 0 && planeBody_[std::size_t(was)] != bi)
+        flushPlane(c, std::size_t(was), dt);
+    const auto plane = std::size_t(planes_.set(static_cast<Index>(i), n, offset));
+    if (!trianglePlane_.empty()) trianglePlane_[i] = fromTriangle ? 1 : 0;
+    if (plane == planeBody_.size()) {
+        planeBody_.push_back(bi);
+        planePoint_.push_back(point);
+    } else {
+        planeBody_[plane] = bi;
+        planePoint_[plane] = point;
+    }
+}
+
+inline void ContactSolver::flushPlane(Cloth& c, std::size_t k, double dt) {
+    const Vec3 push = planes_.push[k];
+    if (push == Vec3::Zero()) return;
+    const std::size_t i = planes_.particle(k);
+    const Vec3 j = (c.masses()[i] / dt) * push;
+    BodySnapshot& b = bodies[planeBody_[k]];
+    exchange(b, j, planePoint_[k]);
+    frictionImpulse(c, i, b, planePoint_[k], planes_.normal[k], b.friction * j.norm());
+    planes_.push[k] = Vec3::Zero();
 }
 
 } // namespace drape::bullet::detail

@@ -7,13 +7,37 @@
 
 namespace drape::bullet::detail {
 
+inline void ContactSolver::recordContact(const Cloth& c, std::uint32_t bi, std::size_t i,
+                                         const SurfaceHit& hit, double cp, double damping) {
+    const BodySnapshot& b = bodies[bi];
+    ContactRecord* rec = nullptr;
+    const std::int64_t existing = recordOf_[i];
+    if (existing >= 0 && records->contacts[std::size_t(existing)].body == bi) {
+        rec = &records->contacts[std::size_t(existing)];
+    } else {
+        recordOf_[i] = std::int64_t(records->contacts.size());
+        rec = &records->contacts.emplace_back();
+        ++stats.contacts;
+    }
+    rec->particle = static_cast<Index>(i);
+    rec->body = bi;
+    rec->point = hit.point;
+    rec->normal = hit.normal;
+    rec->bodyVelocity = b.velocityAt(hit.point);
+    rec->mass = c.masses()[i];
+    rec->cp = std::max(cp, 0.0);
+    rec->damping = damping;
+    rec->mu = b.friction;
+    rec->impulses = b.dynamicBody != nullptr;
+}
+
 bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, double dt,
                                     QueryCounters& counters) {
     BodySnapshot& b = bodies[bi];
     Vec3List& x = c.mutablePositions();
     Vec3List& v = c.mutableVelocities();
     const double wi = c.inverseMasses()[i];
-    const auto& cs = settings_.contact;
+    const auto& cs = contact_;
     const double h = cs.thickness;
     const Vec3 xi = x[i];
     const Vec3 from = prevX[i];
@@ -49,7 +73,7 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
     }
     if (hit.distance >= h) return true; // in the band or resting on the body: no projection
 
-    ++stats_.projections;
+    ++stats.projections;
     touching_[i] = 1;
     x[i] = xi + (h - hit.distance) * hit.normal;
     const Vec3 rel = v[i] - b.velocityAt(hit.point);
@@ -70,7 +94,7 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
 bool ContactSolver::pathHit(const BodySnapshot& b, const Vec3& from, const Vec3& xi,
                             SurfaceHit& hit) {
     // Did the particle's path since the last step enter the body?
-    ++stats_.rayQueries;
+    ++stats.rayQueries;
     btTransform t0, t1;
     t0.setIdentity();
     t1.setIdentity();
@@ -91,56 +115,6 @@ bool ContactSolver::pathHit(const BodySnapshot& b, const Vec3& from, const Vec3&
     hit.normal = nrm;
     hit.distance = std::min((xi - hit.point).dot(nrm), 0.0);
     return true;
-}
-
-void ContactSolver::recordContact(const Cloth& c, std::uint32_t bi, std::size_t i,
-                                  const SurfaceHit& hit, double cp, double damping) {
-    const BodySnapshot& b = bodies[bi];
-    ContactRecord* rec = nullptr;
-    const std::int64_t existing = recordOf_[i];
-    if (existing >= 0 && records->contacts[std::size_t(existing)].body == bi) {
-        rec = &records->contacts[std::size_t(existing)];
-    } else {
-        recordOf_[i] = std::int64_t(records->contacts.size());
-        rec = &records->contacts.emplace_back();
-        ++stats_.contacts;
-    }
-    rec->particle = static_cast<Index>(i);
-    rec->body = bi;
-    rec->point = hit.point;
-    rec->normal = hit.normal;
-    rec->bodyVelocity = b.velocityAt(hit.point);
-    rec->mass = c.masses()[i];
-    rec->cp = std::max(cp, 0.0);
-    rec->damping = damping;
-    rec->mu = b.friction;
-    rec->impulses = b.dynamicBody != nullptr;
-}
-
-void ContactSolver::keepPlane(Cloth& c, std::uint32_t bi, std::size_t i, const Vec3& n,
-                              double offset, const Vec3& point, bool fromTriangle, double dt) {
-    if (const std::int32_t was = planes_.of[i]; was >= 0 && planeBody_[std::size_t(was)] != bi)
-        flushPlane(c, std::size_t(was), dt);
-    const auto plane = std::size_t(planes_.set(static_cast<Index>(i), n, offset));
-    if (!trianglePlane_.empty()) trianglePlane_[i] = fromTriangle ? 1 : 0;
-    if (plane == planeBody_.size()) {
-        planeBody_.push_back(bi);
-        planePoint_.push_back(point);
-    } else {
-        planeBody_[plane] = bi;
-        planePoint_[plane] = point;
-    }
-}
-
-void ContactSolver::flushPlane(Cloth& c, std::size_t k, double dt) {
-    const Vec3 push = planes_.push[k];
-    if (push == Vec3::Zero()) return;
-    const std::size_t i = planes_.particle(k);
-    const Vec3 j = (c.masses()[i] / dt) * push;
-    BodySnapshot& b = bodies[planeBody_[k]];
-    exchange(b, j, planePoint_[k]);
-    frictionImpulse(c, i, b, planePoint_[k], planes_.normal[k], b.friction * j.norm());
-    planes_.push[k] = Vec3::Zero();
 }
 
 void ContactSolver::frictionImpulse(Cloth& c, std::size_t i, BodySnapshot& b, const Vec3& p,

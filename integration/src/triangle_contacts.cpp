@@ -34,7 +34,7 @@ void ContactSolver::collideTriangles(Cloth& c, double dt, QueryCounters& counter
         double deepest = 0.0;
         for (const auto& [bi, t] : triangleHits_)
             deepest = std::max(deepest, collideTriangle(c, bi, t, dt, counters));
-        if (deepest <= 1e-9 * settings_.contact.thickness) break; // (rounding)
+        if (deepest <= 1e-9 * contact_.thickness) break; // (rounding)
     }
 }
 
@@ -45,7 +45,7 @@ double ContactSolver::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t,
     Vec3List& x = c.mutablePositions();
     Vec3List& v = c.mutableVelocities();
     const auto& w = c.inverseMasses();
-    const double h = settings_.contact.thickness;
+    const double h = contact_.thickness;
     const TriangleHit hit =
         closestToTriangle(b.object->getCollisionShape(), b.object->getWorldTransform(), x[tri[0]],
                           x[tri[1]], x[tri[2]], h, counters);
@@ -74,7 +74,7 @@ double ContactSolver::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t,
         if (!b.dynamicBody && (planes_.of[i] < 0 || trianglePlane_[i]))
             keepPlane(c, bi, i, n, n.dot(x[i]), hit.bodyPoint, true, dt);
     }
-    ++stats_.triangleContacts;
+    ++stats.triangleContacts;
     const Vec3 rel = beta[0] * v[tri[0]] + beta[1] * v[tri[1]] + beta[2] * v[tri[2]] -
                      b.velocityAt(hit.bodyPoint);
     const double vn = rel.dot(n);

@@ -2,7 +2,7 @@
 // handle is given, with messages that name the bad value.
 #pragma once
 
-#include "drape/bullet/bullet_cloth.hpp"
+#include "drape/bullet/settings.hpp"
 #include "drape/error.hpp"
 
 #include <string>
