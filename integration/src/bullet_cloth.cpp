@@ -51,6 +51,28 @@ namespace drape::bullet {
 using detail::num;
 using detail::require;
 
+namespace {
+
+/// total += s, count by count.
+void accumulate(ContactStats& total, const ContactStats& s) {
+    total.candidateBodies += s.candidateBodies;
+    total.particleBoxTests += s.particleBoxTests;
+    total.narrowphaseQueries += s.narrowphaseQueries;
+    total.rayQueries += s.rayQueries;
+    total.triangleQueries += s.triangleQueries;
+    total.triangleContacts += s.triangleContacts;
+    total.contacts += s.contacts;
+    total.projections += s.projections;
+    total.selfContacts += s.selfContacts;
+    total.selfPairTests += s.selfPairTests;
+    total.impulseOnBodies += s.impulseOnBodies;
+    total.impulseOnCloth += s.impulseOnCloth;
+    total.steps += s.steps;
+    total.proxyRefreshes += s.proxyRefreshes;
+}
+
+} // namespace
+
 struct BulletCloth::Impl {
     class Action;
     class Stage;
@@ -164,20 +186,7 @@ void BulletCloth::Impl::step(double dt) {
     if (!slept) updateBounds(dt);
     bodySeconds += std::chrono::duration<double>(Clock::now() - afterSteps).count();
     c.timers().add(slotBodies, bodySeconds);
-    total.candidateBodies += last.candidateBodies;
-    total.particleBoxTests += last.particleBoxTests;
-    total.narrowphaseQueries += last.narrowphaseQueries;
-    total.rayQueries += last.rayQueries;
-    total.triangleQueries += last.triangleQueries;
-    total.triangleContacts += last.triangleContacts;
-    total.contacts += last.contacts;
-    total.projections += last.projections;
-    total.selfContacts += last.selfContacts;
-    total.selfPairTests += last.selfPairTests;
-    total.impulseOnBodies += last.impulseOnBodies;
-    total.impulseOnCloth += last.impulseOnCloth;
-    total.steps += last.steps;
-    total.proxyRefreshes += last.proxyRefreshes;
+    accumulate(total, last);
 }
 
 void BulletCloth::Impl::gatherBodies(double dt) {
