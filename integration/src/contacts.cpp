@@ -7,53 +7,10 @@ namespace drape::bullet::detail {
 
 ContactSolver::ContactSolver(const BulletClothSettings& settings, double band)
     : records(std::make_shared<ContactState>()), contact_(settings.contact),
-      self_(settings.selfCollision), band_(band) {
+      self_(settings.selfCollision), band_(band),
+      boxes_(settings.contact.thickness, band, settings.contact.continuous) {
     records->thickness = settings.contact.thickness;
     records->band = band;
-}
-
-inline bool ContactSolver::blockMisses(const BodySnapshot& b, const Block& bl) const {
-    return (bl.hi.array() < b.aabbMin.array()).any() || (bl.lo.array() > b.aabbMax.array()).any() ||
-           (b.plane && aboveReach(b, bl.lo, bl.hi));
-}
-
-/// Whether the box lo..hi lies entirely above plane b, farther than the contact reach, with
-/// the margin mayTouch uses for swept particles: then no particle whose box is inside it
-/// (both its ends when swept) can touch the plane.
-bool ContactSolver::aboveReach(const BodySnapshot& b, const Vec3& lo, const Vec3& hi) const {
-    Vec3 corner; // the box's corner deepest along -normal
-    for (int k = 0; k < 3; ++k)
-        corner[k] = b.planeNormal[k] >= 0.0 ? lo[k] : hi[k];
-    if (!corner.allFinite()) return false;
-    const double reach = contact_.thickness + band_;
-    const double size = b.planeScale + std::max(lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff());
-    return b.planeNormal.dot(corner) - b.planeOffset > reach + 1e-5 * size;
-}
-
-inline bool ContactSolver::mayTouch(const BodySnapshot& b, std::size_t i, const Vec3& xi,
-                                    const Vec3& from) {
-    ++stats.particleBoxTests;
-    // The particle's box against the body's AABB grown by the reach: the comparisons
-    // collideParticle made before.
-    const ParticleBox& box = boxes_[i];
-    if ((box.hi[0] < b.aabbMin[0]) | (box.hi[1] < b.aabbMin[1]) | (box.hi[2] < b.aabbMin[2]) |
-        (box.lo[0] > b.aabbMax[0]) | (box.lo[1] > b.aabbMax[1]) | (box.lo[2] > b.aabbMax[2])) {
-        return false;
-    }
-    if (!b.plane) return true;
-    // A plane's AABB is infinite: reject particles clearly above it. The margin covers the
-    // rounding of this distance against the query's (1e-9 relative), and for a swept particle
-    // that of Bullet's single-precision ray test (1e-5 relative): only particles that the
-    // query and the ray test would certainly reject are skipped, so nothing changes.
-    const double h = contact_.thickness;
-    const double reach = h + band_;
-    const bool sweep = contact_.continuous && (xi - from).squaredNorm() > h * h;
-    const double dist = b.planeNormal.dot(xi) - b.planeOffset;
-    const double size = b.planeScale + xi.cwiseAbs().maxCoeff();
-    if (!sweep) return !(dist > reach + 1e-9 * size);
-    const double distFrom = b.planeNormal.dot(from) - b.planeOffset;
-    const double sizeFrom = std::max(size, b.planeScale + from.cwiseAbs().maxCoeff());
-    return !(dist > reach + 1e-5 * sizeFrom && distFrom > reach + 1e-5 * sizeFrom);
 }
 
 void ContactSolver::run(Cloth& c, double dt) {
@@ -137,7 +94,7 @@ void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counter
     Block whole;
     for (std::size_t i = 0; i < n; ++i) {
         const bool fixed = invMass[i] == 0.0;
-        updateBox(i, x[i], prevX[i], fixed);
+        boxes_.update(i, x[i], prevX[i], fixed);
         whole.free += !fixed;
         whole.grow(boxes_[i]);
     }
@@ -146,7 +103,7 @@ void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counter
     bool blocksBuilt = false;
     for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
         const BodySnapshot& b = bodies[bi];
-        auto misses = [&b, this](const Block& bl) { return blockMisses(b, bl); };
+        auto misses = [&b, this](const Block& bl) { return boxes_.misses(b, bl); };
         // Every particle's box would fail the box test: skip them (and count the tests).
         if (misses(whole)) {
             stats.particleBoxTests += whole.free;
@@ -168,12 +125,14 @@ void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counter
                 continue;
             }
             for (std::size_t i = k * kBlock, end = std::min(n, i + kBlock); i < end; ++i) {
-                if (invMass[i] == 0.0 || !mayTouch(b, i, x[i], prevX[i])) continue;
+                if (invMass[i] == 0.0) continue;
+                ++stats.particleBoxTests;
+                if (!boxes_.mayTouch(b, i, x[i], prevX[i])) continue;
                 const Vec3 before = x[i];
                 collideParticle(c, bi, i, dt, counters);
                 if (x[i] != before) { // projected: the next bodies see where it is now
                     projected_.push_back(static_cast<Index>(i));
-                    updateBox(i, x[i], prevX[i], false);
+                    boxes_.update(i, x[i], prevX[i], false);
                     bl.grow(boxes_[i]);
                     whole.grow(boxes_[i]);
                 }
@@ -192,7 +151,7 @@ void ContactSolver::collideMoved(Cloth& c, double dt, QueryCounters& counters) {
     movedGroups_.clear();
     for (std::size_t m = 0; m < moved_.size(); ++m) {
         const std::size_t i = moved_[m];
-        updateBox(i, x[i], prevX[i], false);
+        boxes_.update(i, x[i], prevX[i], false);
         if (movedGroups_.empty() || moved_[movedGroups_.back().begin] / kBlock != i / kBlock)
             movedGroups_.push_back(MovedGroup{m, m, Block{}});
         MovedGroup& g = movedGroups_.back();
@@ -203,18 +162,19 @@ void ContactSolver::collideMoved(Cloth& c, double dt, QueryCounters& counters) {
     for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
         const BodySnapshot& b = bodies[bi];
         for (MovedGroup& g : movedGroups_) {
-            if (blockMisses(b, g.box)) {
+            if (boxes_.misses(b, g.box)) {
                 stats.particleBoxTests += g.box.free;
                 continue;
             }
             for (std::size_t m = g.begin; m < g.end; ++m) {
                 const std::size_t i = moved_[m];
-                if (!mayTouch(b, i, x[i], prevX[i])) continue;
+                ++stats.particleBoxTests;
+                if (!boxes_.mayTouch(b, i, x[i], prevX[i])) continue;
                 const Vec3 before = x[i];
                 collideParticle(c, bi, i, dt, counters);
                 if (x[i] != before) {
                     projected_.push_back(static_cast<Index>(i));
-                    updateBox(i, x[i], prevX[i], false);
+                    boxes_.update(i, x[i], prevX[i], false);
                     g.box.grow(boxes_[i]);
                 }
             }

@@ -47,6 +47,7 @@
 
 #include "body_snapshot.hpp"
 #include "contact_force.hpp"
+#include "particle_boxes.hpp"
 #include "self_collision.hpp"
 #include "shape_queries.hpp"
 
@@ -116,24 +117,8 @@ class ContactSolver {
     std::size_t limiterSlot = 0;
 
   private:
-    /// Per particle: the box collideParticle tests against a body's AABB (the particle, or
-    /// its path since the previous step when that is longer than the thickness). Empty for
-    /// particles that never collide (zero inverse mass). Kept up to date as contacts move
-    /// particles, so every body sees the box of the particle as it is when it is tested.
-    struct ParticleBox {
-        double lo[3], hi[3];
-    };
-    /// The union of the boxes of kBlock consecutive particles, and how many of them collide.
-    struct Block {
-        Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
-        Vec3 hi = Vec3::Constant(-std::numeric_limits<double>::infinity());
-        std::size_t free = 0;
-        void grow(const ParticleBox& b) {
-            lo = lo.cwiseMin(Vec3(b.lo[0], b.lo[1], b.lo[2]));
-            hi = hi.cwiseMax(Vec3(b.hi[0], b.hi[1], b.hi[2]));
-        }
-    };
-    static constexpr std::size_t kBlock = 16;
+    using Block = ParticleBoxes::Block;
+    static constexpr std::size_t kBlock = ParticleBoxes::kBlock;
     /// Moved particles of one block, moved[begin, end), for the re-projection.
     struct MovedGroup {
         std::size_t begin = 0, end = 0;
@@ -145,14 +130,6 @@ class ContactSolver {
     void collideParticles(Cloth& c, double dt, QueryCounters& counters);
     /// The particles the limiter moved, against every body again.
     void collideMoved(Cloth& c, double dt, QueryCounters& counters);
-    void updateBox(std::size_t i, const Vec3& xi, const Vec3& from, bool fixed);
-    /// No particle whose box is inside bl can be within the reach of body b.
-    bool blockMisses(const BodySnapshot& b, const Block& bl) const;
-    /// The cheap test before collideParticle: false when particle i cannot be within the
-    /// contact reach of body b in this step, so that collideParticle would return false
-    /// without doing anything. Counts a box test.
-    bool mayTouch(const BodySnapshot& b, std::size_t i, const Vec3& xi, const Vec3& from);
-    bool aboveReach(const BodySnapshot& b, const Vec3& lo, const Vec3& hi) const;
 
     // --- one particle (particle_contacts.cpp) ----------------------------------------------
     /// Contact of particle i with body bi (projection, velocity response, friction, and its
@@ -217,31 +194,14 @@ class ContactSolver {
     /// contact.triangles is on.
     std::vector<unsigned char> trianglePlane_;
     std::vector<std::pair<std::uint32_t, std::size_t>>
-        triangleHits_; ///< (body, triangle) that touched
-    std::vector<ParticleBox> boxes_;
+        triangleHits_;    ///< (body, triangle) that touched
+    ParticleBoxes boxes_; ///< the cheap tests before a particle's contact query
     std::vector<Block> blocks_;
     std::vector<std::size_t> moved_;
     std::vector<MovedGroup> movedGroups_;
 };
 
-// Defined here, inline: they run per particle or per contact in the stage's loops.
-
-inline void ContactSolver::updateBox(std::size_t i, const Vec3& xi, const Vec3& from, bool fixed) {
-    ParticleBox& box = boxes_[i];
-    if (fixed) { // never collides: a box no AABB overlaps
-        for (int k = 0; k < 3; ++k) {
-            box.lo[k] = std::numeric_limits<double>::infinity();
-            box.hi[k] = -std::numeric_limits<double>::infinity();
-        }
-        return;
-    }
-    const double h = contact_.thickness;
-    const bool sweep = contact_.continuous && (xi - from).squaredNorm() > h * h;
-    for (int k = 0; k < 3; ++k) {
-        box.lo[k] = sweep ? std::min(xi[k], from[k]) : xi[k];
-        box.hi[k] = sweep ? std::max(xi[k], from[k]) : xi[k];
-    }
-}
+// Defined here, inline: they run per contact in the stage's loops.
 
 inline void ContactSolver::keepPlane(Cloth& c, std::uint32_t bi, std::size_t i, const Vec3& n,
                                      double offset, const Vec3& point, bool fromTriangle,
