@@ -5,7 +5,7 @@
 //   world->stepSimulation(dt, maxSubSteps, fixedTimeStep);      // steps bodies and cloth
 //   drape::bullet::removeCloth(*handle);                        // one call out
 //
-// How it fits into Bullet (see bullet_cloth.cpp for the details):
+// How it fits into Bullet (see src/bullet_cloth.cpp and the files it lists for the details):
 //  - The cloth is a btActionInterface, so btDiscreteDynamicsWorld steps it in every internal
 //    sub-step, right after the rigid bodies have been integrated.
 //  - It owns a broadphase proxy (a btGhostObject whose AABB is the cloth's bounding box plus a
