@@ -2,10 +2,12 @@
 // file wires the parts together and holds the Bullet sub-step (Impl::step); the parts are:
 //   proxy.*              the broadphase proxy (which bodies the cloth may touch)
 //   body_snapshot.*      the bodies in double precision, and the impulses they get back
-//   contacts.*           the contact stage (particle_contacts.cpp, triangle_contacts.cpp)
+//   contacts.*           the contact stage (particle_contacts.cpp, triangle_contacts.cpp,
+//                        particle_boxes.*: the cheap tests before a particle's query)
 //   contact_force.*      the contact force term (eq. (7) and Coulomb friction) in f
 //   attachments.*        attached particles as kinematic targets
-//   shape_queries.*, self_collision.*, validate.*, pose.hpp, drape/bullet/convert.hpp
+//   shape_queries.*, self_collision.*, validate.*, pose.hpp, drape/bullet/convert.hpp,
+//   drape/bullet/settings.hpp
 //
 // One Bullet sub-step (btDiscreteDynamicsWorld::internalSingleStepSimulation) runs: rigid
 // bodies predicted, broadphase and narrow-phase, constraints solved, transforms integrated,

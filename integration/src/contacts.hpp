@@ -1,8 +1,8 @@
 // contacts.hpp (private to drape::bullet): the contact stage, which runs inside every cloth
 // step after strain limiting: self-collision, particle-body contacts (contacts.cpp: the pass
-// over bodies and particles, the re-limiting; particle_contacts.cpp: one particle against one
-// body, with its friction), triangle-body contacts (triangle_contacts.cpp), and the reaction
-// of the contact force term on the bodies.
+// over bodies and particles, culled by particle_boxes.hpp, the re-limiting;
+// particle_contacts.cpp: one particle against one body, with its friction), triangle-body
+// contacts (triangle_contacts.cpp), and the reaction of the contact force term on the bodies.
 //
 // Contact of particle i (inverse mass w_i, mass m_i) with a body at surface point P, outward
 // normal n, signed distance d, thickness h, penalty band w:
