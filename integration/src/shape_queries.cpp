@@ -15,23 +15,6 @@
 namespace drape::bullet::detail {
 namespace {
 
-Vec3 toVec(const btVector3& v) {
-    return Vec3(double(v.x()), double(v.y()), double(v.z()));
-}
-btVector3 toBt(const Vec3& v) {
-    return btVector3(btScalar(v.x()), btScalar(v.y()), btScalar(v.z()));
-}
-
-Pose toPose(const btTransform& t) {
-    Pose p;
-    const btMatrix3x3& b = t.getBasis();
-    for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c)
-            p.R(r, c) = double(b[r][c]);
-    p.t = toVec(t.getOrigin());
-    return p;
-}
-
 /// Fills a hit from a local-frame result.
 SurfaceHit makeHit(const Pose& pose, double distance, const Vec3& localNormal,
                    const Vec3& localPoint) {

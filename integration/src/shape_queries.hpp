@@ -4,6 +4,8 @@
 // recursion for compounds. All in double precision in the body's frame.
 #pragma once
 
+#include "pose.hpp"
+
 #include "drape/mesh.hpp"
 
 #include <Eigen/Core>
@@ -12,15 +14,6 @@ class btCollisionShape;
 class btTransform;
 
 namespace drape::bullet::detail {
-
-/// A rigid transform in double precision: world = R local + t.
-struct Pose {
-    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-    Vec3 t = Vec3::Zero();
-    Vec3 toLocal(const Vec3& w) const { return R.transpose() * (w - t); }
-    Vec3 toWorld(const Vec3& l) const { return R * l + t; }
-    Pose operator*(const Pose& child) const { return Pose{R * child.R, R * child.t + t}; }
-};
 
 /// Nearest surface point of a shape to a query point.
 struct SurfaceHit {

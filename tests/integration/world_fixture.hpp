@@ -3,6 +3,7 @@
 #pragma once
 
 #include "drape/bullet/bullet_cloth.hpp"
+#include "drape/bullet/convert.hpp"
 #include "drape/cloth.hpp"
 #include "drape/mesh.hpp"
 #include "drape/topology.hpp"
@@ -14,11 +15,12 @@
 
 namespace drape::testing {
 
+// The tests' short names for drape/bullet/convert.hpp's conversions.
 inline btVector3 bt(const Vec3& v) {
-    return btVector3(btScalar(v.x()), btScalar(v.y()), btScalar(v.z()));
+    return bullet::toBt(v);
 }
 inline Vec3 eig(const btVector3& v) {
-    return Vec3(double(v.x()), double(v.y()), double(v.z()));
+    return bullet::toVec(v);
 }
 
 struct TestWorld {

@@ -5,6 +5,7 @@
 #include "drape_samples/mesh_io.hpp"
 
 #include <drape/bullet/bullet_cloth.hpp>
+#include <drape/bullet/convert.hpp>
 #include <drape/error.hpp>
 
 #include <btBulletDynamicsCommon.h>
@@ -24,13 +25,8 @@ namespace {
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
-btVector3 bt(const Vec3& v) {
-    return btVector3(static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()),
-                     static_cast<btScalar>(v.z()));
-}
-Vec3 toVec(const btVector3& v) {
-    return Vec3(v.x(), v.y(), v.z());
-}
+using bullet::toBt;
+using bullet::toVec;
 
 btQuaternion rotation(const Vec3& deg) {
     const Eigen::Quaterniond q = Eigen::AngleAxisd(deg.z() * kDegToRad, Vec3::UnitZ()) *
@@ -41,7 +37,7 @@ btQuaternion rotation(const Vec3& deg) {
 }
 
 btTransform pose(const Vec3& position, const Vec3& rotationDeg) {
-    return btTransform(rotation(rotationDeg), bt(position));
+    return btTransform(rotation(rotationDeg), toBt(position));
 }
 
 /// Keyframe interpolation: linear in position, spherical in rotation; held at the ends.
@@ -58,7 +54,7 @@ btTransform keyframePose(const std::vector<KeyframeDesc>& keys, const RigidBodyD
     const Vec3 p = a.position + s * (c.position - a.position);
     const btQuaternion q =
         rotation(a.rotationDeg).slerp(rotation(c.rotationDeg), static_cast<btScalar>(s));
-    return btTransform(q, bt(p));
+    return btTransform(q, toBt(p));
 }
 
 class BulletWorld final : public Simulation::RigidWorld {
@@ -67,7 +63,7 @@ class BulletWorld final : public Simulation::RigidWorld {
                 const std::vector<std::vector<Index>>& attachSets)
         : scene_(scene), dispatcher_(&config_),
           world_(&dispatcher_, &broadphase_, &solver_, &config_) {
-        world_.setGravity(bt(scene.cloth.gravity));
+        world_.setGravity(toBt(scene.cloth.gravity));
         for (const RigidBodyDesc& d : scene.rigidBodies)
             addBody(d);
 
@@ -116,8 +112,8 @@ class BulletWorld final : public Simulation::RigidWorld {
                 b.motion->setWorldTransform(keyframePose(d.keyframes, d, t + dt));
             } else if (d.motion == MotionKind::Dynamic && !b.inWorld && !b.manual &&
                        t + 0.5 * dt >= d.launchTime) {
-                b.body->setLinearVelocity(bt(d.linearVelocity));
-                b.body->setAngularVelocity(bt(d.angularVelocity));
+                b.body->setLinearVelocity(toBt(d.linearVelocity));
+                b.body->setAngularVelocity(toBt(d.angularVelocity));
                 world_.addRigidBody(b.body.get());
                 b.inWorld = true;
             }
@@ -153,11 +149,11 @@ class BulletWorld final : public Simulation::RigidWorld {
         Body& b = bodies_[i];
         b.manual = true;
         btTransform tr = b.body->getWorldTransform();
-        tr.setOrigin(bt(position));
+        tr.setOrigin(toBt(position));
         b.body->setWorldTransform(tr);
         b.body->setInterpolationWorldTransform(tr);
         if (b.motion) b.motion->setWorldTransform(tr);
-        b.body->setLinearVelocity(bt(velocity));
+        b.body->setLinearVelocity(toBt(velocity));
         b.body->setAngularVelocity(btVector3(0, 0, 0));
         b.body->clearForces();
         if (!b.inWorld) {
@@ -196,7 +192,7 @@ class BulletWorld final : public Simulation::RigidWorld {
         Body b;
         switch (d.shape.kind) {
         case ShapeKind::Box:
-            b.shape = std::make_unique<btBoxShape>(bt(d.shape.halfExtents));
+            b.shape = std::make_unique<btBoxShape>(toBt(d.shape.halfExtents));
             break;
         case ShapeKind::Sphere:
             b.shape = std::make_unique<btSphereShape>(static_cast<btScalar>(d.shape.radius));
@@ -206,15 +202,15 @@ class BulletWorld final : public Simulation::RigidWorld {
                                                        static_cast<btScalar>(d.shape.height));
             break;
         case ShapeKind::Plane:
-            b.shape = std::make_unique<btStaticPlaneShape>(bt(d.shape.normal),
+            b.shape = std::make_unique<btStaticPlaneShape>(toBt(d.shape.normal),
                                                            static_cast<btScalar>(d.shape.offset));
             break;
         case ShapeKind::Mesh: {
             const ImportedMesh im = importMesh(d.shape.mesh);
             b.triangles = std::make_unique<btTriangleMesh>(true, false);
             for (const Triangle& t : im.mesh.triangles)
-                b.triangles->addTriangle(bt(im.mesh.vertices[t[0]]), bt(im.mesh.vertices[t[1]]),
-                                         bt(im.mesh.vertices[t[2]]), false);
+                b.triangles->addTriangle(toBt(im.mesh.vertices[t[0]]), toBt(im.mesh.vertices[t[1]]),
+                                         toBt(im.mesh.vertices[t[2]]), false);
             b.shape = std::make_unique<btBvhTriangleMeshShape>(b.triangles.get(), true);
             break;
         }
@@ -239,8 +235,8 @@ class BulletWorld final : public Simulation::RigidWorld {
             b.body->setActivationState(DISABLE_DEACTIVATION);
         }
         if (dynamic) {
-            b.body->setLinearVelocity(bt(d.linearVelocity));
-            b.body->setAngularVelocity(bt(d.angularVelocity));
+            b.body->setLinearVelocity(toBt(d.linearVelocity));
+            b.body->setAngularVelocity(toBt(d.angularVelocity));
             // Thrown objects should not stop in mid-air because Bullet put them to sleep.
             b.body->setActivationState(DISABLE_DEACTIVATION);
         }

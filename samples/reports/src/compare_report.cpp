@@ -15,6 +15,7 @@
 #include "drape_reports/reports.hpp"
 #include "drape_reports/scenes.hpp"
 
+#include <drape/bullet/convert.hpp>
 #include <drape/error.hpp>
 #include <drape/strain_limit.hpp>
 #include <drape_samples/render.hpp>
@@ -41,9 +42,7 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-btVector3 bt(const Vec3& v) {
-    return btVector3(btScalar(v.x()), btScalar(v.y()), btScalar(v.z()));
-}
+using bullet::toBt;
 
 using Engine = ClothEngine;
 
@@ -74,13 +73,13 @@ struct Colliders {
             btTransform t;
             t.setIdentity();
             if (c.kind == Collider::Kind::Box) {
-                shape = std::make_unique<btBoxShape>(bt(c.halfExtents));
-                t.setOrigin(bt(c.center));
+                shape = std::make_unique<btBoxShape>(toBt(c.halfExtents));
+                t.setOrigin(toBt(c.center));
             } else if (c.kind == Collider::Kind::Sphere) {
                 shape = std::make_unique<btSphereShape>(btScalar(c.radius));
-                t.setOrigin(bt(c.center));
+                t.setOrigin(toBt(c.center));
             } else {
-                shape = std::make_unique<btStaticPlaneShape>(bt(c.normal), btScalar(c.offset));
+                shape = std::make_unique<btStaticPlaneShape>(toBt(c.normal), btScalar(c.offset));
             }
             shape->setMargin(margin);
             btRigidBody::btRigidBodyConstructionInfo info(0.0f, nullptr, shape.get());
@@ -145,9 +144,9 @@ class SoftBodyEngine : public Engine {
         solver_ = std::make_unique<btSequentialImpulseConstraintSolver>();
         world_ = std::make_unique<btSoftRigidDynamicsWorld>(dispatcher_.get(), broadphase_.get(),
                                                             solver_.get(), config_.get());
-        world_->setGravity(bt(sc.gravity));
+        world_->setGravity(toBt(sc.gravity));
         btSoftBodyWorldInfo& info = world_->getWorldInfo();
-        info.m_gravity = bt(sc.gravity);
+        info.m_gravity = toBt(sc.gravity);
         info.air_density = 0.0f;
         // The sparse SDF's cells must suit the scene's scale (spacing 10), not Bullet's metre
         // default of 0.25.
@@ -197,9 +196,9 @@ class DeformableEngine : public Engine {
         solver_->setDeformableSolver(bodySolver_.get());
         world_ = std::make_unique<btDeformableMultiBodyDynamicsWorld>(
             dispatcher_.get(), broadphase_.get(), solver_.get(), config_.get(), bodySolver_.get());
-        world_->setGravity(bt(sc.gravity));
+        world_->setGravity(toBt(sc.gravity));
         btSoftBodyWorldInfo& info = world_->getWorldInfo();
-        info.m_gravity = bt(sc.gravity);
+        info.m_gravity = toBt(sc.gravity);
         info.air_density = 0.0f;
         info.m_sparsesdf.setDefaultVoxelsz(btScalar(0.25 * sc.sheet.spacing));
         info.m_sparsesdf.Reset();
@@ -213,7 +212,7 @@ class DeformableEngine : public Engine {
         // per-particle drag), with drape's C_d as the coefficient.
         spring_ = std::make_unique<btDeformableMassSpringForce>(btScalar(sc.stiffness),
                                                                 btScalar(sc.damping), true);
-        gravity_ = std::make_unique<btDeformableGravityForce>(bt(sc.gravity));
+        gravity_ = std::make_unique<btDeformableGravityForce>(toBt(sc.gravity));
         world_->addForce(body_.get(), spring_.get());
         world_->addForce(body_.get(), gravity_.get());
         world_->setImplicit(true);

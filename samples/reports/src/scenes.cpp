@@ -2,6 +2,7 @@
 #include "drape_reports/scenes.hpp"
 
 #include <drape/bullet/bullet_cloth.hpp>
+#include <drape/bullet/convert.hpp>
 
 #include <btBulletDynamicsCommon.h>
 
@@ -272,7 +273,7 @@ DrapeWorld::DrapeWorld(const ClothScene& scene, const ClothSettings& settings)
     m.world = std::make_unique<btDiscreteDynamicsWorld>(m.dispatcher.get(), m.broadphase.get(),
                                                         m.solver.get(), m.config.get());
     const Vec3 g = scene.gravity;
-    m.world->setGravity(btVector3(btScalar(g.x()), btScalar(g.y()), btScalar(g.z())));
+    m.world->setGravity(bullet::toBt(g));
     if (scene.colliders.empty()) return;
     for (const Collider& c : scene.colliders) {
         std::unique_ptr<btCollisionShape> shape;
@@ -280,21 +281,16 @@ DrapeWorld::DrapeWorld(const ClothScene& scene, const ClothSettings& settings)
         t.setIdentity();
         switch (c.kind) {
         case Collider::Kind::Box:
-            shape = std::make_unique<btBoxShape>(btVector3(btScalar(c.halfExtents.x()),
-                                                           btScalar(c.halfExtents.y()),
-                                                           btScalar(c.halfExtents.z())));
-            t.setOrigin(
-                btVector3(btScalar(c.center.x()), btScalar(c.center.y()), btScalar(c.center.z())));
+            shape = std::make_unique<btBoxShape>(bullet::toBt(c.halfExtents));
+            t.setOrigin(bullet::toBt(c.center));
             break;
         case Collider::Kind::Sphere:
             shape = std::make_unique<btSphereShape>(btScalar(c.radius));
-            t.setOrigin(
-                btVector3(btScalar(c.center.x()), btScalar(c.center.y()), btScalar(c.center.z())));
+            t.setOrigin(bullet::toBt(c.center));
             break;
         case Collider::Kind::Plane:
-            shape = std::make_unique<btStaticPlaneShape>(
-                btVector3(btScalar(c.normal.x()), btScalar(c.normal.y()), btScalar(c.normal.z())),
-                btScalar(c.offset));
+            shape =
+                std::make_unique<btStaticPlaneShape>(bullet::toBt(c.normal), btScalar(c.offset));
             break;
         }
         shape->setMargin(0.0f);

@@ -1,0 +1,109 @@
+// drape/bullet/settings.hpp: the plain data of a cloth in a Bullet world: its settings
+// (contacts, self-collision, sub-steps, collision filter, sleep), the work counts of its
+// steps, and an attachment record. No Bullet header; included by bullet_cloth.hpp.
+#pragma once
+
+#include "drape/mesh.hpp"
+
+#include <cstdint>
+
+class btCollisionObject;
+
+namespace drape::bullet {
+
+/// Contacts between cloth particles and rigid bodies.
+struct ContactSettings {
+    /// Distance a particle keeps from every body surface [m]. Particles nearer than this are
+    /// projected out to it; it is the cloth's collision thickness. Must be > 0.
+    double thickness = 0.01;
+    /// Width of the band above `thickness` in which eq. (7)'s penalty force acts [m].
+    /// Negative means "equal to thickness".
+    double penaltyBand = -1.0;
+    /// C_p of eq. (7): the most the penalty pushes a particle at the bottom of the band [N].
+    /// It slows particles coming down into the band and holds them where it can carry their
+    /// load (a cloth landing on a body rests inside the band), but against static and kinematic
+    /// bodies it never pushes more than stops the particle: a cloth placed at the thickness
+    /// stays there. Negative means "twice the particle's weight under the cloth's gravity"; 0
+    /// turns the penalty off (particles then rest at the thickness).
+    double penaltyForce = -1.0;
+    /// Multiplies the body's btCollisionObject friction coefficient (Coulomb mu) [-].
+    double frictionScale = 1.0;
+    /// Ray-test the path of particles that moved more than `thickness` in a step, so that a
+    /// fast particle does not pass through a thin body between two steps.
+    bool continuous = true;
+    /// Also keep the cloth's triangles (their edges and interiors) `thickness` away from
+    /// convex bodies and the convex children of compounds, so that a feature thinner than the
+    /// particle spacing (a rod, a box's edge) cannot pass between particles. The response is
+    /// shared among the triangle's particles by their barycentric weights, two-way with dynamic
+    /// bodies. Off by default: it costs a box test per triangle and body near the cloth, and
+    /// a GJK query per triangle within reach of a body that not all its particles touch.
+    bool triangles = false;
+    /// Margin added around the cloth's bounding box for its broadphase proxy [m]. Negative
+    /// means "the cloth's mean spring rest length plus four thicknesses".
+    double broadphaseMargin = -1.0;
+};
+
+/// Collision of the cloth's particles with its own triangles (the paper's particle-triangle
+/// collision of the fabric with itself). Off unless `enabled`; costs nothing when off.
+struct SelfCollisionSettings {
+    bool enabled = false;    ///< run the self-collision pass
+    double thickness = 0.01; ///< distance a particle keeps from the cloth's other triangles [m]
+    int iterations = 2;      ///< passes over all particle-triangle pairs per step (>= 1)
+    double friction = 0.2;   ///< Coulomb mu between layers of the cloth [-]
+};
+
+/// How a cloth joins a world.
+struct BulletClothSettings {
+    ContactSettings contact;             ///< particle-body contacts
+    SelfCollisionSettings selfCollision; ///< particle-triangle self-collision
+    /// Cloth steps per internal Bullet sub-step (>= 1): a stiff cloth can run at
+    /// fixedTimeStep / substeps while the rigid bodies keep the world's step.
+    int substeps = 1;
+    /// Use the world's gravity for the cloth (copied when it is added and whenever the world's
+    /// changes). drape's default gravity is -9.81 m/s^2 along y, Bullet's is -10.
+    bool useWorldGravity = true;
+    /// Broadphase filter group and mask of the cloth's proxy (Bullet's collision filtering).
+    int collisionGroup = 1; ///< btBroadphaseProxy::DefaultFilter
+    int collisionMask = -1; ///< btBroadphaseProxy::AllFilter
+    /// Turn the cloth's sleeping on when it is added (with the thresholds of its
+    /// ClothSettings::sleep); false leaves the cloth's own setting.
+    bool sleep = true;
+};
+
+/// Work done in the last Bullet sub-step (all cloth sub-steps summed). Counts, not times, so
+/// tests can check that the broadphase is used.
+struct ContactStats {
+    std::size_t candidateBodies = 0;    ///< bodies among the proxy's broadphase overlaps
+    std::size_t particleBoxTests = 0;   ///< particle against body-AABB rejection tests
+    std::size_t narrowphaseQueries = 0; ///< closest-point queries against body shapes
+    std::size_t rayQueries = 0;         ///< continuous (swept) ray tests
+    std::size_t triangleQueries = 0;    ///< triangle-body GJK queries (contact.triangles)
+    std::size_t triangleContacts = 0;   ///< triangle-body contacts that moved a triangle
+    /// Particle-body contacts: particles touching a body (projected, or resting at the
+    /// thickness) or, with eq. (7) on, inside its band; once per particle and body per cloth
+    /// step, summed over the sub-steps.
+    std::size_t contacts = 0;
+    std::size_t projections = 0;   ///< contacts that moved a particle out of a body
+    std::size_t selfContacts = 0;  ///< particle-triangle self contacts resolved
+    std::size_t selfPairTests = 0; ///< particle-triangle pairs tested by self-collision
+    /// Total linear impulse the cloth gave dynamic bodies, through contacts and through
+    /// attachments [N s].
+    Vec3 impulseOnBodies = Vec3::Zero();
+    /// Total linear impulse bodies (static, kinematic and dynamic) gave the cloth through
+    /// contacts: velocity response, friction and contact forces over the step [N s]. With only
+    /// dynamic bodies and no attachments it is exactly -impulseOnBodies.
+    Vec3 impulseOnCloth = Vec3::Zero();
+    std::uint64_t steps = 0; ///< cloth steps taken by this handle since it was added
+    /// Sub-steps in which the cloth would have swept out of its proxy, so the proxy was moved
+    /// and the broadphase queried directly (btBroadphaseInterface::aabbTest).
+    std::size_t proxyRefreshes = 0;
+};
+
+/// A particle held at a point fixed in a body's frame.
+struct Attachment {
+    Index particle = 0;                      ///< cloth particle
+    const btCollisionObject* body = nullptr; ///< the body it is fixed to
+    Vec3 localPoint = Vec3::Zero();          ///< point in the body's frame [m]
+};
+
+} // namespace drape::bullet

@@ -1,0 +1,71 @@
+// Attachments as kinematic targets (see attachments.hpp).
+#include "attachments.hpp"
+
+#include <btBulletDynamicsCommon.h>
+
+#include <algorithm>
+
+namespace drape::bullet::detail {
+
+Vec3 attachmentPoint(const Attachment& a) {
+    return toPose(a.body->getWorldTransform()).toWorld(a.localPoint);
+}
+
+void Attachments::attach(Cloth& c, const Attachment& a) {
+    detach(c, a.particle);
+    const Vec3 p = attachmentPoint(a);
+    list_.push_back(a);
+    targets_.push_back(std::make_unique<KinematicTarget>(KinematicTarget{p, p}));
+    // The particle's path interpolates the attachment point across the current sub-step.
+    c.setKinematic(a.particle, TargetPath{targets_.back().get(), &window_});
+}
+
+void Attachments::detach(Cloth& c, Index particle) {
+    for (std::size_t k = 0; k < list_.size(); ++k) {
+        if (list_[k].particle != particle) continue;
+        c.unpin(particle); // (drops its path before its target goes)
+        list_.erase(list_.begin() + static_cast<std::ptrdiff_t>(k));
+        targets_.erase(targets_.begin() + static_cast<std::ptrdiff_t>(k));
+        return;
+    }
+}
+
+void Attachments::clear(Cloth& c) {
+    for (const auto& a : list_)
+        c.unpin(a.particle);
+    list_.clear();
+    targets_.clear();
+}
+
+void Attachments::advance(double t0, double dt) {
+    window_ = {t0, t0 + dt};
+    for (std::size_t a = 0; a < list_.size(); ++a) {
+        targets_[a]->from = targets_[a]->to;
+        targets_[a]->to = attachmentPoint(list_[a]);
+    }
+}
+
+void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>& bodies,
+                             ContactStats& stats) const {
+    // The body carries the force the cloth puts on the attached particle (springs and the
+    // particle's own weight).
+    for (const auto& a : list_) {
+        const btRigidBody* rb = btRigidBody::upcast(a.body);
+        if (!rb || rb->isStaticOrKinematicObject() || rb->getInvMass() <= 0.0f) continue;
+        const Vec3 j = c.forces()[a.particle] * h;
+        const Vec3 at = c.positions()[a.particle];
+        stats.impulseOnBodies += j;
+        auto snap = std::find_if(bodies.begin(), bodies.end(),
+                                 [&](const BodySnapshot& b) { return b.object == a.body; });
+        if (snap != bodies.end()) {
+            snap->applyImpulse(j, at);
+        } else {
+            // The body is outside the proxy (possible with a long attachment): apply now.
+            auto* body = const_cast<btRigidBody*>(rb);
+            body->applyImpulse(toBt(j), toBt(at - toVec(body->getCenterOfMassPosition())));
+            body->activate();
+        }
+    }
+}
+
+} // namespace drape::bullet::detail

@@ -1,0 +1,197 @@
+// The contact stage's pass over bodies and particles, and the re-limiting (see contacts.hpp).
+#include "contacts.hpp"
+
+#include "drape/timers.hpp"
+
+namespace drape::bullet::detail {
+
+ContactSolver::ContactSolver(const BulletClothSettings& settings, double band)
+    : records(std::make_shared<ContactState>()), contact_(settings.contact),
+      self_(settings.selfCollision), band_(band),
+      boxes_(settings.contact.thickness, band, settings.contact.continuous) {
+    records->thickness = settings.contact.thickness;
+    records->band = band;
+}
+
+void ContactSolver::run(Cloth& c, double dt) {
+    const std::size_t n = c.particleCount();
+    planes_.reset(n);
+    if (contact_.triangles) trianglePlane_.assign(n, 0);
+    planeBody_.clear();
+    planePoint_.clear();
+    if (!inStep) { // the cloth was stepped outside the world: no snapshot to collide with
+        prevX = c.positions();
+        return;
+    }
+    if (prevX.size() != n) prevX = c.positions();
+    records->contacts.clear();
+    records->dt = dt;
+    const bool self = self_.enabled;
+    if (bodies.empty() && !self) {
+        prevX = c.positions();
+        return; // no rigid collider near the cloth: no collision work at all
+    }
+    Vec3List& x = c.mutablePositions();
+    Vec3List& v = c.mutableVelocities();
+
+    if (self) {
+        const auto& sc = self_;
+        const auto counts = selfCollider_.run(c.topology(), c.inverseMasses(), prevX, x, v,
+                                              sc.thickness, sc.friction, sc.iterations);
+        stats.selfPairTests += counts.pairTests;
+        stats.selfContacts += counts.contacts;
+    }
+
+    QueryCounters counters;
+    collideParticles(c, dt, counters);
+    if (contact_.triangles) collideTriangles(c, dt, counters);
+    bool anyTouching = false;
+    for (unsigned char t : touching_)
+        anyTouching = anyTouching || t != 0;
+
+    // The projection may have overstretched springs the limiter had just fixed (a cloth
+    // pressed onto a sphere by its hanging sides: projecting along diverging normals lengthens
+    // the springs between touching particles). The particles it moved go into the limiter's
+    // worklist; what the limiter then moves is projected again, and so on. Holding the
+    // touching particles fixed instead does not work: springs between two of them could
+    // never be shortened.
+    const auto& lim = c.settings().limiter;
+    for (int pass = 0; anyTouching && lim.kind != LimiterKind::None && pass < kRelimitPasses;
+         ++pass) {
+        StrainLimitStats st;
+        {
+            ScopedPhase timeLimiter(c.timers(), limiterSlot);
+            st = c.relimit(projected_, dt, &planes_);
+        }
+        if (st.corrections == 0) break;
+        collideMoved(c, dt, counters);
+        if (contact_.triangles) collideTriangles(c, dt, counters);
+    }
+
+    // What the contact planes held in the limiter's walk: the particle got m push / dt (its
+    // velocity follows its position), the body gets the opposite.
+    for (std::size_t k = 0; k < planes_.size(); ++k)
+        flushPlane(c, k, dt);
+
+    stats.narrowphaseQueries += counters.queries;
+    stats.triangleQueries += counters.triangleQueries;
+    prevX = x;
+}
+
+void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counters) {
+    const std::size_t n = c.particleCount();
+    const Vec3List& x = c.positions();
+    const auto& invMass = c.inverseMasses();
+    touching_.assign(n, 0);
+    recordOf_.assign(n, -1);
+    projected_.clear();
+    // Pinned, kinematic and attached particles (zero inverse mass) get empty boxes. Blocks of
+    // kBlock consecutive particles (neighbours in a sheet, so their boxes are close) get the
+    // union of their boxes: a body a block's box misses is not tested against its particles
+    // one by one. The cloth's box is the union of all of them. Both are grown as contacts move
+    // particles, so they stay supersets of the boxes the particles have when they are tested.
+    boxes_.resize(n);
+    Block whole;
+    for (std::size_t i = 0; i < n; ++i) {
+        const bool fixed = invMass[i] == 0.0;
+        boxes_.update(i, x[i], prevX[i], fixed);
+        whole.free += !fixed;
+        whole.grow(boxes_[i]);
+    }
+    // The blocks are built when a body is near the cloth at all (not while it falls free).
+    const std::size_t nBlocks = (n + kBlock - 1) / kBlock;
+    bool blocksBuilt = false;
+    for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
+        const BodySnapshot& b = bodies[bi];
+        auto misses = [&b, this](const Block& bl) { return boxes_.misses(b, bl); };
+        // Every particle's box would fail the box test: skip them (and count the tests).
+        if (misses(whole)) {
+            stats.particleBoxTests += whole.free;
+            continue;
+        }
+        if (!blocksBuilt) { // before any projection of this step: from the boxes as they are
+            blocks_.assign(nBlocks, Block{});
+            for (std::size_t i = 0; i < n; ++i) {
+                Block& bl = blocks_[i / kBlock];
+                bl.free += invMass[i] != 0.0;
+                bl.grow(boxes_[i]);
+            }
+            blocksBuilt = true;
+        }
+        for (std::size_t k = 0; k < nBlocks; ++k) {
+            Block& bl = blocks_[k];
+            if (misses(bl)) {
+                stats.particleBoxTests += bl.free;
+                continue;
+            }
+            for (std::size_t i = k * kBlock, end = std::min(n, i + kBlock); i < end; ++i) {
+                if (invMass[i] == 0.0) continue;
+                ++stats.particleBoxTests;
+                if (!boxes_.mayTouch(b, i, x[i], prevX[i])) continue;
+                const Vec3 before = x[i];
+                collideParticle(c, bi, i, dt, counters);
+                if (x[i] != before) { // projected: the next bodies see where it is now
+                    projected_.push_back(static_cast<Index>(i));
+                    boxes_.update(i, x[i], prevX[i], false);
+                    bl.grow(boxes_[i]);
+                    whole.grow(boxes_[i]);
+                }
+            }
+        }
+    }
+}
+
+void ContactSolver::collideMoved(Cloth& c, double dt, QueryCounters& counters) {
+    const Vec3List& x = c.positions();
+    moved_.assign(c.relimitMoved().begin(), c.relimitMoved().end());
+    std::sort(moved_.begin(), moved_.end());
+    projected_.clear();
+    // Re-project what the limiter moved, in index order per body as before; the moved
+    // particles of one block are skipped together when their boxes' union misses a body.
+    movedGroups_.clear();
+    for (std::size_t m = 0; m < moved_.size(); ++m) {
+        const std::size_t i = moved_[m];
+        boxes_.update(i, x[i], prevX[i], false);
+        if (movedGroups_.empty() || moved_[movedGroups_.back().begin] / kBlock != i / kBlock)
+            movedGroups_.push_back(MovedGroup{m, m, Block{}});
+        MovedGroup& g = movedGroups_.back();
+        g.end = m + 1;
+        ++g.box.free;
+        g.box.grow(boxes_[i]);
+    }
+    for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
+        const BodySnapshot& b = bodies[bi];
+        for (MovedGroup& g : movedGroups_) {
+            if (boxes_.misses(b, g.box)) {
+                stats.particleBoxTests += g.box.free;
+                continue;
+            }
+            for (std::size_t m = g.begin; m < g.end; ++m) {
+                const std::size_t i = moved_[m];
+                ++stats.particleBoxTests;
+                if (!boxes_.mayTouch(b, i, x[i], prevX[i])) continue;
+                const Vec3 before = x[i];
+                collideParticle(c, bi, i, dt, counters);
+                if (x[i] != before) {
+                    projected_.push_back(static_cast<Index>(i));
+                    boxes_.update(i, x[i], prevX[i], false);
+                    g.box.grow(boxes_[i]);
+                }
+            }
+        }
+    }
+}
+
+void ContactSolver::applyContactForces(const Cloth& c, double h) {
+    frictionLeft_.assign(c.particleCount(), 0.0);
+    for (const auto& pc : records->contacts) {
+        if (pc.impulses)
+            frictionLeft_[pc.particle] += std::max(0.0, pc.mu * pc.force - pc.friction.norm());
+    }
+    for (const auto& pc : records->contacts) {
+        if (pc.force == 0.0) continue;
+        exchange(bodies[pc.body], (pc.force * pc.normal + pc.friction) * h, pc.point);
+    }
+}
+
+} // namespace drape::bullet::detail

@@ -1,0 +1,233 @@
+// contacts.hpp (private to drape::bullet): the contact stage, which runs inside every cloth
+// step after strain limiting: self-collision, particle-body contacts (contacts.cpp: the pass
+// over bodies and particles, culled by particle_boxes.hpp, the re-limiting;
+// particle_contacts.cpp: one particle against one body, with its friction), triangle-body
+// contacts (triangle_contacts.cpp), and the reaction of the contact force term on the bodies.
+//
+// Contact of particle i (inverse mass w_i, mass m_i) with a body at surface point P, outward
+// normal n, signed distance d, thickness h, penalty band w:
+//   d < h      (touching):  x_i is projected to P + h n; if the relative normal velocity
+//              v_n = (v_i - v_body(P)) . n is negative, an impulse lambda n with
+//              lambda = -v_n / (w_i + w_body(n)) stops the approach (inelastic: cloth does not
+//              bounce), w_body(n) = 1/M + (r x n)^T I^-1 (r x n) for dynamic bodies and 0 for
+//              static and kinematic ones, with a Coulomb impulse of at most mu lambda against
+//              the tangential slip.
+//   d < h (1 + 1e-6) or, with eq. (7) on, d < h + w: a contact record, which the contact
+//              force term (ContactForce, contact_force.hpp) turns into a normal force N and a
+//              friction force T in f(t + dt): N holds the particle (it cancels what presses it
+//              in and stops its normal motion within the step, and never more: nothing is
+//              launched, nothing bounces), bounded by eq. (7) in the band; T stops the slip
+//              within the step while |T| <= mu N (static friction: no creep at any dt), else is
+//              mu N against it (kinetic). A resting particle's state then stays exactly as it
+//              is, and its end-of-step velocity is zero.
+//   Each normal force gets its friction once: lambda and the limiter planes' pushes (below)
+//              as impulses in the stage, N as T in the force term. The Coulomb impulse of
+//              every impulse of the stage is one function (coulombImpulse).
+// Dynamic bodies get the opposite of every impulse and of every contact force times the step
+// at P; their snapshot velocities are updated contact by contact (sequential impulses), so
+// many particles hitting a light body do not each see it at rest. Against them the force term
+// has no terms in the velocity (they would feed back into a light body): N is eq. (7) plus the
+// inward part of f, T cancels the tangential force up to mu N, and the rest of the cone is an
+// impulse in the next stage (see ContactForce).
+//
+// Triangles (contact.triangles, off by default): each cloth triangle near a convex or compound
+// body is kept h away from it too (collideTriangle: GJK/EPA, the depth and the approach
+// impulse shared by barycentric weights), so a feature thinner than the particle spacing
+// cannot pass between particles.
+//
+// Fast particles: a particle that moved more than h in a step is also ray-tested along its
+// path (btCollisionWorld::rayTestSingle), so it cannot pass through a thin body.
+// After the projection, the particles it moved go into the limiter's worklist
+// (Cloth::relimit), and every particle within reach of a static or kinematic body keeps that
+// contact's tangent plane in the walk (ContactPlanes: the limiter slides it along the plane,
+// so the strain bound and the contact hold together; the plane's push reaches the body as an
+// impulse). What the limiter then moves is projected again (curved bodies, other bodies,
+// dynamic bodies, which get no plane), until nothing moves or kRelimitPasses rounds have run.
+#pragma once
+
+#include "body_snapshot.hpp"
+#include "contact_force.hpp"
+#include "particle_boxes.hpp"
+#include "self_collision.hpp"
+#include "shape_queries.hpp"
+
+#include "drape/bullet/settings.hpp"
+#include "drape/cloth.hpp"
+#include "drape/strain_limit.hpp"
+
+#include <algorithm>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <utility>
+#include <vector>
+
+namespace drape::bullet::detail {
+
+/// Limiter and re-projection passes after the contact projection.
+constexpr int kRelimitPasses = 8;
+/// Extra sweeps over the triangles in contact after a triangle pass.
+constexpr int kTriangleSweeps = 4;
+
+/// Coulomb friction of a normal impulse: the tangential impulse j, of at most `budget` [N s],
+/// against the slip of a cloth point of inverse mass w whose velocity relative to body b at p
+/// is `rel`, tangent to `normal`: the impulse that stops the slip if the budget allows it.
+/// Returns false when there is nothing to give (no budget, no slip). Particle and triangle
+/// contacts alike.
+inline bool coulombImpulse(const Vec3& rel, const Vec3& normal, double w, const BodySnapshot& b,
+                           const Vec3& p, double budget, Vec3& j) {
+    if (!(budget > 0.0)) return false;
+    const Vec3 vt = rel - rel.dot(normal) * normal;
+    const double vtLen = vt.norm();
+    if (vtLen <= 0.0) return false;
+    const Vec3 tdir = vt / vtLen;
+    const double jt = std::min(vtLen / (w + b.inverseMassAlong(p, tdir)), budget);
+    j = -jt * tdir;
+    return true;
+}
+
+class ContactSolver {
+  public:
+    /// `band` is eq. (7)'s band width [m].
+    ContactSolver(const BulletClothSettings& settings, double band);
+
+    /// The contact stage (the cloth's ClothStage runs it): self-collision, particle-body
+    /// contacts, re-limiting, friction.
+    void run(Cloth& c, double dt);
+    /// The contact force (normal and friction) the particles got at the end of a cloth step
+    /// of h [s] acts for h: dynamic bodies get the opposite, and what the friction cone left
+    /// becomes next step's frictionLeft.
+    void applyContactForces(const Cloth& c, double h);
+
+    /// The bodies of this Bullet sub-step (snapshotted by the handle), whose accumulated
+    /// impulses the handle applies after the cloth's steps.
+    std::vector<BodySnapshot> bodies;
+    /// The work counts of the current Bullet sub-step (the handle's lastStats: the stage does
+    /// most of the counting, the handle and the attachments add theirs).
+    ContactStats stats;
+    /// The records the contact force term reads (shared with it).
+    std::shared_ptr<ContactState> records;
+    /// Positions at the end of the previous step (after contacts).
+    Vec3List prevX;
+    /// Inside a Bullet sub-step: the bodies are a fresh snapshot. Outside (the cloth stepped
+    /// on its own) the stage collides with nothing.
+    bool inStep = false;
+    /// Timer slot in the cloth's PhaseTimers of the limiter calls inside the stage (nested in
+    /// its "bullet_contacts" phase).
+    std::size_t limiterSlot = 0;
+
+  private:
+    using Block = ParticleBoxes::Block;
+    static constexpr std::size_t kBlock = ParticleBoxes::kBlock;
+    /// Moved particles of one block, moved[begin, end), for the re-projection.
+    struct MovedGroup {
+        std::size_t begin = 0, end = 0;
+        Block box;
+    };
+
+    // --- the pass (contacts.cpp) ---------------------------------------------------------
+    /// Every particle against every body whose box its block's box meets.
+    void collideParticles(Cloth& c, double dt, QueryCounters& counters);
+    /// The particles the limiter moved, against every body again.
+    void collideMoved(Cloth& c, double dt, QueryCounters& counters);
+
+    // --- one particle (particle_contacts.cpp) ----------------------------------------------
+    /// Contact of particle i with body bi (projection, velocity response, friction, and its
+    /// contact record). Returns whether it is within the contact reach.
+    bool collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, double dt,
+                         QueryCounters& counters);
+    /// Where the particle's path since the last step entered body b (a ray test, for fast
+    /// particles): false if it did not.
+    bool pathHit(const BodySnapshot& b, const Vec3& from, const Vec3& xi, SurfaceHit& hit);
+    /// The contact record the force term reads, one per particle and body (a second visit,
+    /// after re-limiting, updates it).
+    void recordContact(const Cloth& c, std::uint32_t bi, std::size_t i, const SurfaceHit& hit,
+                       double cp, double damping);
+    /// Gives particle i the limiter plane n . x >= offset of its contact with body bi at
+    /// `point` (a plane of another body it had first gives that body what it held).
+    void keepPlane(Cloth& c, std::uint32_t bi, std::size_t i, const Vec3& n, double offset,
+                   const Vec3& point, bool fromTriangle, double dt);
+    /// Gives the body of contact plane k the opposite of what the plane pushed its particle
+    /// by in the limiter's walk (m push / dt), with the Coulomb friction that normal impulse
+    /// allows, and clears the push.
+    void flushPlane(Cloth& c, std::size_t k, double dt);
+    /// Coulomb friction of a normal impulse on particle i (coulombImpulse); the body gets the
+    /// opposite.
+    void frictionImpulse(Cloth& c, std::size_t i, BodySnapshot& b, const Vec3& p,
+                         const Vec3& normal, double budget);
+    /// The cloth gets impulse j at p, body b the opposite (if dynamic); both are counted.
+    void exchange(BodySnapshot& b, const Vec3& j, const Vec3& p) {
+        b.applyImpulse(-j, p);
+        stats.impulseOnCloth += j;
+        if (b.dynamicBody) stats.impulseOnBodies -= j;
+    }
+
+    // --- triangles (triangle_contacts.cpp) -------------------------------------------------
+    /// Triangle-body contacts (contact.triangles): every triangle whose box overlaps the
+    /// (reach-grown) box of a convex or compound body.
+    void collideTriangles(Cloth& c, double dt, QueryCounters& counters);
+    /// Contact of triangle t with body bi; returns the depth it moved the triangle out by
+    /// [m], or -1 without contact.
+    double collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t, double dt,
+                           QueryCounters& counters);
+
+    // Copies of the handle's settings (they never change), read in the per-particle loops.
+    const ContactSettings contact_;
+    const SelfCollisionSettings self_;
+    const double band_;
+    SelfCollider selfCollider_;
+
+    // Scratch of the stage, reused every step.
+    std::vector<unsigned char> touching_; ///< particle touched a body this step
+    std::vector<std::int64_t> recordOf_;  ///< per particle: its latest ContactRecord, or -1
+    /// Per particle: the friction its contact forces with dynamic bodies had left in the last
+    /// step, mu N - |T| [N] (see ContactForce); the stage gives it as an impulse.
+    std::vector<double> frictionLeft_;
+    std::vector<Index> projected_; ///< particles the last contact pass moved
+    /// The tangent plane of each particle's contact this step (n . x >= n . P + h), which the
+    /// limiter's walk keeps, with the body and the point it belongs to.
+    ContactPlanes planes_;
+    std::vector<std::uint32_t> planeBody_;
+    std::vector<Vec3> planePoint_;
+    /// Per particle: its contact plane this step comes from a triangle contact (a particle
+    /// contact's plane replaces it; a later triangle contact may update it). Sized only when
+    /// contact.triangles is on.
+    std::vector<unsigned char> trianglePlane_;
+    std::vector<std::pair<std::uint32_t, std::size_t>>
+        triangleHits_;    ///< (body, triangle) that touched
+    ParticleBoxes boxes_; ///< the cheap tests before a particle's contact query
+    std::vector<Block> blocks_;
+    std::vector<std::size_t> moved_;
+    std::vector<MovedGroup> movedGroups_;
+};
+
+// Defined here, inline: they run per contact in the stage's loops.
+
+inline void ContactSolver::keepPlane(Cloth& c, std::uint32_t bi, std::size_t i, const Vec3& n,
+                                     double offset, const Vec3& point, bool fromTriangle,
+                                     double dt) {
+    if (const std::int32_t was = planes_.of[i]; was >= 0 && planeBody_[std::size_t(was)] != bi)
+        flushPlane(c, std::size_t(was), dt);
+    const auto plane = std::size_t(planes_.set(static_cast<Index>(i), n, offset));
+    if (!trianglePlane_.empty()) trianglePlane_[i] = fromTriangle ? 1 : 0;
+    if (plane == planeBody_.size()) {
+        planeBody_.push_back(bi);
+        planePoint_.push_back(point);
+    } else {
+        planeBody_[plane] = bi;
+        planePoint_[plane] = point;
+    }
+}
+
+inline void ContactSolver::flushPlane(Cloth& c, std::size_t k, double dt) {
+    const Vec3 push = planes_.push[k];
+    if (push == Vec3::Zero()) return;
+    const std::size_t i = planes_.particle(k);
+    const Vec3 j = (c.masses()[i] / dt) * push;
+    BodySnapshot& b = bodies[planeBody_[k]];
+    exchange(b, j, planePoint_[k]);
+    frictionImpulse(c, i, b, planePoint_[k], planes_.normal[k], b.friction * j.norm());
+    planes_.push[k] = Vec3::Zero();
+}
+
+} // namespace drape::bullet::detail

@@ -1,0 +1,130 @@
+// One particle against one body: the closest point (or where a fast particle's path entered
+// the body), its limiter plane, its contact record, the projection, the inelastic normal
+// impulse and its Coulomb friction (see contacts.hpp).
+#include "contacts.hpp"
+
+#include <btBulletDynamicsCommon.h>
+
+namespace drape::bullet::detail {
+
+inline void ContactSolver::recordContact(const Cloth& c, std::uint32_t bi, std::size_t i,
+                                         const SurfaceHit& hit, double cp, double damping) {
+    const BodySnapshot& b = bodies[bi];
+    ContactRecord* rec = nullptr;
+    const std::int64_t existing = recordOf_[i];
+    if (existing >= 0 && records->contacts[std::size_t(existing)].body == bi) {
+        rec = &records->contacts[std::size_t(existing)];
+    } else {
+        recordOf_[i] = std::int64_t(records->contacts.size());
+        rec = &records->contacts.emplace_back();
+        ++stats.contacts;
+    }
+    rec->particle = static_cast<Index>(i);
+    rec->body = bi;
+    rec->point = hit.point;
+    rec->normal = hit.normal;
+    rec->bodyVelocity = b.velocityAt(hit.point);
+    rec->mass = c.masses()[i];
+    rec->cp = std::max(cp, 0.0);
+    rec->damping = damping;
+    rec->mu = b.friction;
+    rec->impulses = b.dynamicBody != nullptr;
+}
+
+bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, double dt,
+                                    QueryCounters& counters) {
+    BodySnapshot& b = bodies[bi];
+    Vec3List& x = c.mutablePositions();
+    Vec3List& v = c.mutableVelocities();
+    const double wi = c.inverseMasses()[i];
+    const auto& cs = contact_;
+    const double h = cs.thickness;
+    const Vec3 xi = x[i];
+    const Vec3 from = prevX[i];
+    const bool sweep = cs.continuous && (xi - from).squaredNorm() > h * h;
+
+    SurfaceHit hit;
+    if (!(sweep && pathHit(b, from, xi, hit))) {
+        hit = closestSurface(b.object->getCollisionShape(), b.pose, xi, from, h + band_, counters);
+        if (!hit.valid || hit.distance >= h + band_) return false;
+    }
+    // The limiter's walk keeps the particle above the tangent plane of a contact with a static
+    // or kinematic body. (Against a dynamic body the plane's push, applied after the walk as
+    // an impulse, feeds back into the body's motion: a body much lighter than the cloth on it
+    // goes unstable. There the projection and the walk alternate instead.)
+    if (!b.dynamicBody)
+        keepPlane(c, bi, i, hit.normal, hit.normal.dot(hit.point) + h, hit.point, false, dt);
+
+    // The contact record the force term reads (ContactForce): for every particle touching
+    // the body (below the thickness, or resting at it), and with eq. (7) on for every particle
+    // in the band above it (also for particles below the thickness: they end at its bottom
+    // after the projection).
+    const bool touches = hit.distance < h * (1.0 + kTouching);
+    const double mi = c.masses()[i];
+    double cp = cs.penaltyForce < 0.0 ? 2.0 * mi * c.settings().gravity.norm() : cs.penaltyForce;
+    if (cp > 0.0 || touches) {
+        const double damping = limitPenalty(mi, band_, dt, cp);
+        recordContact(c, bi, i, hit, cp, damping);
+    }
+    if (b.dynamicBody && i < frictionLeft_.size() && frictionLeft_[i] > 0.0) {
+        // The rest of the last step's friction cone against a dynamic body, once per step.
+        frictionImpulse(c, i, b, hit.point, hit.normal, frictionLeft_[i] * dt);
+        frictionLeft_[i] = 0.0;
+    }
+    if (hit.distance >= h) return true; // in the band or resting on the body: no projection
+
+    ++stats.projections;
+    touching_[i] = 1;
+    x[i] = xi + (h - hit.distance) * hit.normal;
+    const Vec3 rel = v[i] - b.velocityAt(hit.point);
+    const double vn = rel.dot(hit.normal);
+    if (vn < 0.0) {
+        // Inelastic: the approach stops, and the normal impulse lambda allows a tangential
+        // (Coulomb) impulse of mu lambda. (A resting load is carried by the contact force of
+        // ContactForce, with its own friction: each normal force counts once.)
+        const double lambda = -vn / (wi + b.inverseMassAlong(hit.point, hit.normal));
+        const Vec3 j = lambda * hit.normal;
+        v[i] += wi * j;
+        exchange(b, j, hit.point);
+        frictionImpulse(c, i, b, hit.point, hit.normal, b.friction * lambda);
+    }
+    return true;
+}
+
+bool ContactSolver::pathHit(const BodySnapshot& b, const Vec3& from, const Vec3& xi,
+                            SurfaceHit& hit) {
+    // Did the particle's path since the last step enter the body?
+    ++stats.rayQueries;
+    btTransform t0, t1;
+    t0.setIdentity();
+    t1.setIdentity();
+    t0.setOrigin(toBt(from));
+    t1.setOrigin(toBt(xi));
+    btCollisionWorld::ClosestRayResultCallback ray(t0.getOrigin(), t1.getOrigin());
+    btCollisionWorld::rayTestSingle(t0, t1, const_cast<btCollisionObject*>(b.object),
+                                    b.object->getCollisionShape(), b.object->getWorldTransform(),
+                                    ray);
+    if (!ray.hasHit()) return false;
+    Vec3 nrm = toVec(ray.m_hitNormalWorld);
+    const double len = nrm.norm();
+    if (!(len > 0.0)) return false;
+    nrm /= len;
+    if (nrm.dot(from - xi) < 0.0) nrm = -nrm; // face where the particle came from
+    hit.valid = true;
+    hit.point = toVec(ray.m_hitPointWorld);
+    hit.normal = nrm;
+    hit.distance = std::min((xi - hit.point).dot(nrm), 0.0);
+    return true;
+}
+
+void ContactSolver::frictionImpulse(Cloth& c, std::size_t i, BodySnapshot& b, const Vec3& p,
+                                    const Vec3& normal, double budget) {
+    Vec3& vi = c.mutableVelocities()[i];
+    const double wi = c.inverseMasses()[i];
+    Vec3 j;
+    if (!coulombImpulse(vi - b.velocityAt(p), normal, wi, b, p, budget, j)) return;
+    vi += wi * j;
+    exchange(b, j, p);
+}
+
+} // namespace drape::bullet::detail

@@ -1,0 +1,54 @@
+// proxy.hpp (private to drape::bullet): the cloth's broadphase proxy, a btGhostObject whose
+// AABB is the cloth's box swept over the next step plus a margin. Its broadphase overlaps are
+// the bodies the cloth may touch; no loop over the world's bodies anywhere. It has no
+// geometry and refuses narrow-phase, so it never takes part in the world's contacts or ray
+// tests.
+#pragma once
+
+#include "drape/cloth.hpp"
+
+#include <memory>
+#include <vector>
+
+class btCollisionObject;
+class btDynamicsWorld;
+
+namespace drape::bullet::detail {
+
+class BoundsShape;
+class ProxyGhost;
+
+class ClothProxy {
+  public:
+    /// `owner` becomes the ghost's user pointer (the BulletCloth).
+    explicit ClothProxy(void* owner);
+    ~ClothProxy();
+    ClothProxy(const ClothProxy&) = delete;
+    ClothProxy& operator=(const ClothProxy&) = delete;
+
+    const btCollisionObject* object() const;
+    /// Puts the ghost into the world (installing the ghost pair callback that keeps its
+    /// overlap list); from then on setBounds updates its broadphase AABB.
+    void addTo(btDynamicsWorld* world, int group, int mask);
+    void removeFromWorld();
+    /// The proxy's AABB [m].
+    void setBounds(const Vec3& lo, const Vec3& hi);
+    const Vec3& min() const { return min_; }
+    const Vec3& max() const { return max_; }
+    /// The objects whose broadphase proxies overlap the ghost, into `out`. When lo..hi (where
+    /// the cloth will reach in this step) is not inside the proxy's box, the box is first grown
+    /// to cover it and the broadphase asked directly (a tree query) for what the larger box
+    /// overlaps; returns whether it did.
+    bool candidates(const Vec3& lo, const Vec3& hi, std::vector<const btCollisionObject*>& out);
+
+  private:
+    btDynamicsWorld* world_ = nullptr; ///< while the ghost is in it
+    std::unique_ptr<BoundsShape> shape_;
+    std::unique_ptr<ProxyGhost> ghost_;
+    Vec3 min_ = Vec3::Zero(), max_ = Vec3::Zero();
+};
+
+/// The cloth's box swept over dt at its current velocities, grown by `grow` [m].
+void sweptBounds(const Cloth& c, double dt, double grow, Vec3& lo, Vec3& hi);
+
+} // namespace drape::bullet::detail

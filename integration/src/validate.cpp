@@ -1,0 +1,41 @@
+// Settings checks (see validate.hpp).
+#include "validate.hpp"
+
+#include <cmath>
+#include <sstream>
+
+namespace drape::bullet::detail {
+
+std::string num(double v) {
+    std::ostringstream s;
+    s.precision(6);
+    s << v;
+    return s.str();
+}
+
+void validate(const BulletClothSettings& s) {
+    const auto& c = s.contact;
+    require(std::isfinite(c.thickness) && c.thickness > 0.0, ErrorCode::InvalidArgument,
+            "contact.thickness must be positive and finite, got " + num(c.thickness));
+    require(std::isfinite(c.penaltyBand), ErrorCode::NonFinite,
+            "contact.penaltyBand is not finite");
+    require(std::isfinite(c.penaltyForce), ErrorCode::NonFinite,
+            "contact.penaltyForce is not finite");
+    require(std::isfinite(c.frictionScale) && c.frictionScale >= 0.0, ErrorCode::InvalidArgument,
+            "contact.frictionScale must be >= 0 and finite, got " + num(c.frictionScale));
+    require(std::isfinite(c.broadphaseMargin), ErrorCode::NonFinite,
+            "contact.broadphaseMargin is not finite");
+    require(s.substeps >= 1, ErrorCode::InvalidArgument,
+            "substeps must be >= 1, got " + std::to_string(s.substeps));
+    const auto& sc = s.selfCollision;
+    if (sc.enabled) {
+        require(std::isfinite(sc.thickness) && sc.thickness > 0.0, ErrorCode::InvalidArgument,
+                "selfCollision.thickness must be positive and finite, got " + num(sc.thickness));
+        require(sc.iterations >= 1, ErrorCode::InvalidArgument,
+                "selfCollision.iterations must be >= 1, got " + std::to_string(sc.iterations));
+        require(std::isfinite(sc.friction) && sc.friction >= 0.0, ErrorCode::InvalidArgument,
+                "selfCollision.friction must be >= 0 and finite, got " + num(sc.friction));
+    }
+}
+
+} // namespace drape::bullet::detail
