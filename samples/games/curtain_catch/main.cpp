@@ -11,6 +11,7 @@
 //     the rail (green: stopped, dark: got past or missed).
 //
 //   curtain_catch [-o OUT] [--throws N] [--seed S] [--no-render] [--width W --height H]
+#include "drape_samples/game.hpp"
 #include "drape_samples/render.hpp"
 #include "drape_samples/simulation.hpp"
 
@@ -18,7 +19,6 @@
 
 #include <algorithm>
 #include <cstdint>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -27,21 +27,6 @@ using namespace drape;
 using namespace drape::samples;
 
 namespace {
-
-/// Deterministic stand-in for a player (a 64-bit linear congruential generator).
-class ScriptedPlayer {
-  public:
-    explicit ScriptedPlayer(std::uint64_t seed)
-        : state_(seed * 2862933555777941757ull + 3037000493ull) {}
-    double uniform(double lo, double hi) {
-        state_ = state_ * 6364136223846793005ull + 1442695040888963407ull;
-        const double u = static_cast<double>(state_ >> 11) / 9007199254740992.0; // [0, 1)
-        return lo + (hi - lo) * u;
-    }
-
-  private:
-    std::uint64_t state_;
-};
 
 enum class BallState { Idle, Flying, Stopped, Through, Missed };
 
@@ -125,7 +110,7 @@ int main(int argc, char** argv) {
         int thrown = 0, stopped = 0, scored = 0;
         double nextThrow = 0.3;
         std::size_t nextBall = 0;
-        double accumulator = 0.0;
+        FixedStepLoop loop(dt, frameDt);
         std::size_t frame = 0;
         std::ofstream log(std::filesystem::path(out) / "throws.csv");
         log << "throw,ball,time_s,aim_x_m,aim_y_m,speed_m_s,on_target,result\n";
@@ -135,8 +120,8 @@ int main(int argc, char** argv) {
 
         // Play until every throw has been judged.
         while (scored < throws) {
-            accumulator += frameDt;
-            while (accumulator >= dt) {
+            loop.beginFrame();
+            while (loop.nextStep()) {
                 const double t = sim.time();
                 // Scripted input: throw the next ball when it is time.
                 if (thrown < throws && t >= nextThrow &&
@@ -162,7 +147,6 @@ int main(int argc, char** argv) {
                     nextBall = (nextBall + 1) % balls.size();
                 }
                 sim.step();
-                accumulator -= dt;
                 // Judge balls that have flown long enough: behind the curtain = through.
                 for (std::size_t i = 0; i < balls.size(); ++i) {
                     Ball& b = balls[i];
@@ -217,9 +201,7 @@ int main(int argc, char** argv) {
                         r == BallState::Idle ? Color{0.85f, 0.85f, 0.85f} : colourOf(r);
                     meshes.push_back(std::move(cube));
                 }
-                char name[32];
-                std::snprintf(name, sizeof name, "frame_%05zu.png", frame);
-                writePng(std::filesystem::path(out) / "frames" / name,
+                writePng(framePath(std::filesystem::path(out) / "frames", frame),
                          renderer->render(scene.camera, meshes, scene.output.background));
             }
             ++frame;
