@@ -11,9 +11,8 @@
 //
 //   tablecloth_trick [-o OUT] [--yank fast|slow|both] [--seed S] [--scene FILE]
 //                    [--no-render] [--width W --height H]
+#include "game_cli.hpp"
 #include "tablecloth_trick.hpp"
-
-#include <CLI/CLI.hpp>
 
 #include <filesystem>
 #include <fstream>
@@ -25,29 +24,16 @@ using namespace drape::samples::tablecloth;
 int main(int argc, char** argv) {
     CLI::App app{"tablecloth_trick: yank a tablecloth from under the dishes, score the ones left "
                  "standing (headless)"};
-    std::string out = "tablecloth_trick_out";
+    GameCommandLine cl{"tablecloth_trick_out", 15, DRAPE_TABLECLOTH_TRICK_SCENE};
     std::string yank = "both";
-    std::uint64_t seed = 15;
-    bool noRender = false;
-    int width = 640, height = 480;
-    std::string scenePath = DRAPE_TABLECLOTH_TRICK_SCENE;
-    app.add_option("-o,--out", out, "Output folder for frames, events and the score");
+    cl.addTo(app, "Output folder for frames, events and the score");
     app.add_option("--yank", yank, "Which rounds to play")
         ->check(CLI::IsMember({"fast", "slow", "both"}));
-    app.add_option("--seed", seed, "Seed of the scripted player");
-    app.add_option("--scene", scenePath, "World scene file");
-    app.add_option("--width", width, "Frame width [px]")->check(CLI::Range(16, 4096));
-    app.add_option("--height", height, "Frame height [px]")->check(CLI::Range(16, 4096));
-    app.add_flag("--no-render", noRender, "Do not write frames");
-    try {
-        app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
-        return app.exit(e) == 0 ? 0 : 2;
-    }
+    if (const int code = parseGameCommandLine(app, argc, argv); code >= 0) return code;
 
     try {
-        const SceneDesc scene = loadScene(scenePath);
-        const std::filesystem::path outDir(out);
+        const SceneDesc scene = loadScene(cl.scene);
+        const std::filesystem::path outDir(cl.out);
         std::filesystem::create_directories(outDir);
         std::ofstream events(outDir / "events.csv");
         events << kEventsHeader << '\n';
@@ -60,18 +46,22 @@ int main(int argc, char** argv) {
         for (YankKind kind : rounds) {
             RoundOptions options;
             options.kind = kind;
-            options.seed = seed;
+            options.seed = cl.seed;
             options.events = &events;
-            options.width = width;
-            options.height = height;
-            if (!noRender) options.frames = outDir / toString(kind) / "frames";
+            options.width = cl.width;
+            options.height = cl.height;
+            if (!cl.noRender) options.frames = outDir / toString(kind) / "frames";
             const RoundResult r = playRound(scene, options);
             std::cout << toString(kind) << " yank (" << r.yank.speed << " m/s):";
             for (const DishReport& d : r.dishes)
                 std::cout << "  " << d.name << (d.standing ? " standing" : " lost") << " (moved "
                           << (d.end - d.start).norm() << " m)";
             std::cout << "\n  score " << r.standing << " of " << r.dishes.size() << " in "
-                      << r.seconds << " s (" << r.frames << " frames)\n";
+                      << r.seconds << " s (" << r.frames << " frames, " << r.clothSubsteps
+                      << " cloth sub-steps per step)\n  lowest dish corner over the table: "
+                      << r.minTableClearance * 1000.0
+                      << " mm above its top; deepest cloth particle inside a dish: "
+                      << r.maxClothDepth * 1000.0 << " mm (negative: outside)\n";
             score << toString(kind) << ": " << r.standing << " of " << r.dishes.size()
                   << " dishes left standing\n";
             total += r.standing;

@@ -5,9 +5,8 @@
 #include "drape_samples/simulation.hpp"
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <ostream>
 
@@ -52,7 +51,9 @@ struct Dish {
     bool leftTable = false, tipped = false, fell = false;
 };
 
-Eigen::Matrix4d poseOf(const BodyView& v) { return v.transform.cast<double>(); }
+Eigen::Matrix4d poseOf(const BodyView& v) {
+    return v.transform.cast<double>();
+}
 
 double tiltDeg(const Eigen::Matrix4d& pose) {
     return std::acos(std::clamp(pose(1, 1), -1.0, 1.0)) * 180.0 / kPi;
@@ -66,9 +67,24 @@ double lowestCorner(const Eigen::Matrix4d& pose, const Vec3& half) {
     return pose(1, 3) - reach;
 }
 
+/// Height above the table top of the lowest corner of the box that lies over the table
+/// (+infinity if none does) [m].
+double clearanceOver(const TableTop& table, const Eigen::Matrix4d& pose, const Vec3& half) {
+    double least = std::numeric_limits<double>::infinity();
+    for (int corner = 0; corner < 8; ++corner) {
+        const Vec3 local((corner & 1 ? 1 : -1) * half.x(), (corner & 2 ? 1 : -1) * half.y(),
+                         (corner & 4 ? 1 : -1) * half.z());
+        const Vec3 p = pose.topLeftCorner<3, 3>() * local + pose.topRightCorner<3, 1>();
+        if (table.over(p)) least = std::min(least, p.y() - table.top);
+    }
+    return least;
+}
+
 } // namespace
 
-const char* toString(YankKind kind) { return kind == YankKind::Fast ? "fast" : "slow"; }
+const char* toString(YankKind kind) {
+    return kind == YankKind::Fast ? "fast" : "slow";
+}
 
 double Yank::displacement(double t) const {
     const double tau = t - startTime;
@@ -87,7 +103,7 @@ double Yank::endTime() const {
 
 Yank scriptYank(YankKind kind, ScriptedPlayer& player) {
     Yank y;
-    y.startTime = player.uniform(0.25, 0.35); // the dishes have settled on the cloth by then
+    y.startTime = player.uniform(0.25, 0.35);       // the dishes have settled on the cloth by then
     const double slope = player.uniform(0.15, 0.3); // down per metre toward the player
     y.direction = Vec3(0.0, -slope, 1.0).normalized();
     if (kind == YankKind::Fast) {
@@ -95,7 +111,7 @@ Yank scriptYank(YankKind kind, ScriptedPlayer& player) {
         y.rampTime = 0.06;
         y.distance = 1.0; // the whole cloth comes off the table
     } else {
-        y.speed = player.uniform(0.35, 0.45);
+        y.speed = player.uniform(0.55, 0.65);
         y.rampTime = 0.2;
         y.distance = 0.75;
     }
@@ -138,9 +154,8 @@ RoundResult playRound(const SceneDesc& scene, const RoundOptions& options) {
     Cloth& cloth = sim.cloth();
     for (Index i : sim.pinnedParticles()[0]) {
         const Vec3 x0 = cloth.positions()[i];
-        cloth.setKinematic(i, [x0, yank](double t) {
-            return Vec3(x0 + yank.direction * yank.displacement(t));
-        });
+        cloth.setKinematic(
+            i, [x0, yank](double t) { return Vec3(x0 + yank.direction * yank.displacement(t)); });
     }
 
     const char* round = toString(options.kind);
@@ -189,21 +204,17 @@ RoundResult playRound(const SceneDesc& scene, const RoundOptions& options) {
             event("yank_end", "", "hand stopped");
         }
         const std::vector<BodyView> now = sim.bodies();
-        if (std::getenv("TT_DEBUG") && t > yank.startTime - 0.01 && t < yank.startTime + 0.25) {
-            const Vec3 v = sim.bodyVelocity(dishes[0].name);
-            const Vec3 c = poseOf(now[dishes[0].view]).topRightCorner<3, 1>();
-            std::fprintf(stderr, "t %.3f c %.4f %.4f %.4f v %.3f %.3f %.3f contacts %zu\n", t, c.x(), c.y(), c.z(), v.x(), v.y(), v.z(), sim.contactCount());
-        }
         for (Dish& d : dishes) {
             const Eigen::Matrix4d pose = poseOf(now[d.view]);
             const Vec3 c = pose.topRightCorner<3, 1>();
             if (!started) d.report.start = c; // the last pose before the yank
-            d.report.maxDisplacement = std::max(d.report.maxDisplacement, (c - d.report.start).norm());
-            if (table.over(c))
-                result.minTableClearance =
-                    std::min(result.minTableClearance, lowestCorner(pose, d.half) - table.top);
+            d.report.maxDisplacement =
+                std::max(d.report.maxDisplacement, (c - d.report.start).norm());
+            result.minTableClearance =
+                std::min(result.minTableClearance, clearanceOver(table, pose, d.half));
             for (const Vec3& x : cloth.positions())
-                result.maxClothDepth = std::max(result.maxClothDepth, depthInsideBox(x, d.half, pose));
+                result.maxClothDepth =
+                    std::max(result.maxClothDepth, depthInsideBox(x, d.half, pose));
             if (!d.leftTable && !table.over(c)) {
                 d.leftTable = true;
                 event("left_table", d.name, "");
@@ -222,7 +233,14 @@ RoundResult playRound(const SceneDesc& scene, const RoundOptions& options) {
     const double end = yank.endTime() + options.settleAfterYank;
     FixedStepLoop loop(scene.timeStep, 1.0 / scene.output.fps);
     drawFrame();
-    while (sim.time() < end) {
+    // The round ends `settleAfterYank` after the hand stopped, or earlier once every dish has
+    // fallen off (nothing is left to score).
+    auto allFell = [&]() {
+        return std::all_of(dishes.begin(), dishes.end(), [](const Dish& d) { return d.fell; });
+    };
+    double fellAt = 1e300;
+    while (sim.time() < end && sim.time() < fellAt + 0.3) {
+        if (fellAt > 1e299 && allFell()) fellAt = sim.time();
         loop.beginFrame();
         while (loop.nextStep())
             step();
@@ -244,6 +262,7 @@ RoundResult playRound(const SceneDesc& scene, const RoundOptions& options) {
         result.dishes.push_back(r);
     }
     result.seconds = sim.time();
+    result.clothSubsteps = sim.substeps();
     return result;
 }
 

@@ -30,11 +30,11 @@ const char* toString(YankKind kind);
 /// `direction`: at rest until `startTime`, uniformly accelerated to `speed` over `rampTime`,
 /// then at `speed` until they have moved `distance`; then the hand stops and holds.
 struct Yank {
-    double startTime = 0.3;          ///< [s]
-    double speed = 1.0;              ///< top speed [m/s]
-    double rampTime = 0.1;           ///< time to reach it [s]
-    double distance = 1.0;           ///< how far the hand pulls [m]
-    Vec3 direction = Vec3::UnitZ();  ///< unit; toward the player, a little down
+    double startTime = 0.3;              ///< [s]
+    double speed = 1.0;                  ///< top speed [m/s]
+    double rampTime = 0.1;               ///< time to reach it [s]
+    double distance = 1.0;               ///< how far the hand pulls [m]
+    Vec3 direction = Vec3::UnitZ();      ///< unit; toward the player, a little down
     double displacement(double t) const; ///< [m] along direction
     double endTime() const;              ///< when the hand stops [s]
 };
@@ -45,7 +45,7 @@ Yank scriptYank(YankKind kind, ScriptedPlayer& player);
 
 /// The table top, read from the scene's static box called "table_top" (not rotated).
 struct TableTop {
-    double top = 0.0;                            ///< height of its upper face [m]
+    double top = 0.0;                              ///< height of its upper face [m]
     Eigen::Vector2d min = Eigen::Vector2d::Zero(); ///< (x, z) corner [m]
     Eigen::Vector2d max = Eigen::Vector2d::Zero(); ///< (x, z) corner [m]
     bool over(const Vec3& p) const {
@@ -60,8 +60,8 @@ double depthInsideBox(const Vec3& p, const Vec3& halfExtents, const Eigen::Matri
 /// Outcome for one dish.
 struct DishReport {
     std::string name;
-    Vec3 start = Vec3::Zero(); ///< centre when the yank starts [m]
-    Vec3 end = Vec3::Zero();   ///< centre at the end of the round [m]
+    Vec3 start = Vec3::Zero();    ///< centre when the yank starts [m]
+    Vec3 end = Vec3::Zero();      ///< centre at the end of the round [m]
     double maxDisplacement = 0.0; ///< largest distance from `start` during the round [m]
     double endTiltDeg = 0.0;      ///< angle of its up axis to the vertical at the end
     bool standing = false;        ///< upright on the table top at the end: it scores
@@ -83,15 +83,16 @@ struct RoundResult {
     Yank yank;
     std::vector<DishReport> dishes;
     int standing = 0; ///< the score
-    /// Over every step and every dish whose centre is over the table: the least height of its
-    /// lowest corner above the table top [m] (negative: it sank into the table).
+    /// Over every step, every dish and those of its corners that are over the table top: the
+    /// least height above the top [m] (negative: the dish sank into the table).
     double minTableClearance = 1e300;
     /// Over every step, every dish and every cloth particle: the largest depth of a particle
     /// inside a dish [m] (positive: the dish went through the cloth there).
     double maxClothDepth = -1e300;
     std::size_t steps = 0;
     std::size_t frames = 0;
-    double seconds = 0.0; ///< simulated
+    double seconds = 0.0;  ///< simulated
+    int clothSubsteps = 1; ///< cloth steps per scene step
 };
 
 /// Plays one round in the scene's world (built anew). Throws SceneError on a scene that is not a
