@@ -1,5 +1,5 @@
 // tablecloth_trick: a small headless game built on drape. A table is laid with a cloth, two
-// plates and a cup; the player yanks the cloth by its near edge and scores the dishes left
+// plates and a bowl; the player yanks the cloth by its near edge and scores the dishes left
 // standing on the table. By default it plays two rounds, a slow yank (the dishes ride along
 // and go over the edge) and a fast one (the cloth comes out from under them). It shows:
 //   - the world (table, cloth, dishes) comes from a scene file, built by Simulation;
@@ -24,7 +24,7 @@ using namespace drape::samples::tablecloth;
 int main(int argc, char** argv) {
     CLI::App app{"tablecloth_trick: yank a tablecloth from under the dishes, score the ones left "
                  "standing (headless)"};
-    GameCommandLine cl{"tablecloth_trick_out", 15, DRAPE_TABLECLOTH_TRICK_SCENE};
+    GameCommandLine cl{"tablecloth_trick_out", kDefaultSeed, DRAPE_TABLECLOTH_TRICK_SCENE};
     std::string yank = "both";
     cl.addTo(app, "Output folder for frames, events and the score");
     app.add_option("--yank", yank, "Which rounds to play")

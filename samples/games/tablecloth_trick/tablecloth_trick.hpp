@@ -67,9 +67,12 @@ struct DishReport {
     bool standing = false;        ///< upright on the table top at the end: it scores
 };
 
+/// The scripted player's seed unless the command line gives one.
+inline constexpr std::uint64_t kDefaultSeed = 1;
+
 struct RoundOptions {
     YankKind kind = YankKind::Fast;
-    std::uint64_t seed = 15;
+    std::uint64_t seed = kDefaultSeed;
     double settleAfterYank = 0.7; ///< [s] of play after the hand stops
     /// Frames (PNG) go here when set, at the scene's output.fps.
     std::optional<std::filesystem::path> frames;
