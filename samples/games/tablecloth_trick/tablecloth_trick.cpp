@@ -18,6 +18,7 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kStandingTiltDeg = 15.0; ///< a dish tilted more is not standing
 constexpr double kTippedTiltDeg = 30.0;   ///< "tipped" event
 constexpr double kFellDrop = 0.1;         ///< centre this far below the top: "fell" [m]
+constexpr double kAfterAllFell = 0.3;     ///< [s] a round goes on once every dish has fallen
 
 std::string origin(const SceneDesc& s) {
     return s.sourceFile.empty() ? std::string("scene") : s.sourceFile.string();
@@ -233,13 +234,13 @@ RoundResult playRound(const SceneDesc& scene, const RoundOptions& options) {
     const double end = yank.endTime() + options.settleAfterYank;
     FixedStepLoop loop(scene.timeStep, 1.0 / scene.output.fps);
     drawFrame();
-    // The round ends `settleAfterYank` after the hand stopped, or earlier once every dish has
-    // fallen off (nothing is left to score).
+    // The round ends `settleAfterYank` after the hand stopped, or kAfterAllFell after every
+    // dish has fallen off (nothing is left to score).
     auto allFell = [&]() {
         return std::all_of(dishes.begin(), dishes.end(), [](const Dish& d) { return d.fell; });
     };
     double fellAt = 1e300;
-    while (sim.time() < end && sim.time() < fellAt + 0.3) {
+    while (sim.time() < end && sim.time() < fellAt + kAfterAllFell) {
         if (fellAt > 1e299 && allFell()) fellAt = sim.time();
         loop.beginFrame();
         while (loop.nextStep())
