@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Renders one frame of every shipped scene (samples/scenes/*.json) with drape-run at 320x240
 # and writes docs/pictures/<scene>.png plus the contact sheet docs/pictures/scenes.png (the
-# frames in file-name order, four to a row, built with ffmpeg's tile filter), and one frame
-# of the curtain_catch game (docs/pictures/curtain_catch.png). The frame is
+# frames in file-name order, four to a row, built with ffmpeg's tile filter), one frame
+# of the curtain_catch game (docs/pictures/curtain_catch.png) and one of the tablecloth_trick
+# game (docs/pictures/tablecloth_trick.png: its slow and its fast yank side by side). The frame is
 # the last step of the scene's own duration unless the table below picks an earlier time
 # (in simulated seconds) at which more is going on.
 # Usage: scripts/pictures.sh        (needs root or sudo only if packages are missing)
@@ -11,7 +12,8 @@ cd "$(dirname "$0")/.."
 ./scripts/setup.sh
 build=${DRAPE_BUILD_DIR:-build}
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build "$build" -j"$(nproc)" --target drape-run drape_curtain_catch >/dev/null
+cmake --build "$build" -j"$(nproc)" --target drape-run drape_curtain_catch \
+    drape_tablecloth_trick_game >/dev/null
 
 # scene name -> simulated seconds to run (empty: the scene's duration)
 declare -A at=(
@@ -47,4 +49,12 @@ echo "pictures: $out/scenes.png ($n scenes)"
 ffmpeg -loglevel error -y -i "$tmp/curtain_catch/frames/frame_00048.png" \
     -compression_level 100 -pred mixed "$out/curtain_catch.png"
 echo "pictures: $out/curtain_catch.png"
+
+# The tablecloth trick (default seed), both rounds: slow-yank frame 23 (the dishes dragged to
+# the table's edge) beside fast-yank frame 9 (the cloth half out, the dishes in place).
+"$build"/bin/tablecloth_trick -o "$tmp/tablecloth_trick" --width 240 --height 180 >/dev/null
+ffmpeg -loglevel error -y -i "$tmp/tablecloth_trick/slow/frames/frame_00023.png" \
+    -i "$tmp/tablecloth_trick/fast/frames/frame_00009.png" \
+    -filter_complex "[0][1]hstack" -compression_level 100 -pred mixed "$out/tablecloth_trick.png"
+echo "pictures: $out/tablecloth_trick.png"
 du -ch "$out"/*.png | tail -n 1

@@ -11,14 +11,13 @@
 //     the rail (green: stopped, dark: got past or missed).
 //
 //   curtain_catch [-o OUT] [--throws N] [--seed S] [--no-render] [--width W --height H]
+#include "drape_samples/game.hpp"
 #include "drape_samples/render.hpp"
 #include "drape_samples/simulation.hpp"
-
-#include <CLI/CLI.hpp>
+#include "game_cli.hpp"
 
 #include <algorithm>
 #include <cstdint>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -27,21 +26,6 @@ using namespace drape;
 using namespace drape::samples;
 
 namespace {
-
-/// Deterministic stand-in for a player (a 64-bit linear congruential generator).
-class ScriptedPlayer {
-  public:
-    explicit ScriptedPlayer(std::uint64_t seed)
-        : state_(seed * 2862933555777941757ull + 3037000493ull) {}
-    double uniform(double lo, double hi) {
-        state_ = state_ * 6364136223846793005ull + 1442695040888963407ull;
-        const double u = static_cast<double>(state_ >> 11) / 9007199254740992.0; // [0, 1)
-        return lo + (hi - lo) * u;
-    }
-
-  private:
-    std::uint64_t state_;
-};
 
 enum class BallState { Idle, Flying, Stopped, Through, Missed };
 
@@ -84,27 +68,14 @@ Color colourOf(BallState s) {
 
 int main(int argc, char** argv) {
     CLI::App app{"curtain_catch: throw balls at a curtain and score the ones it stops (headless)"};
-    std::string out = "curtain_catch_out";
+    GameCommandLine cl{"curtain_catch_out", 7, DRAPE_CURTAIN_CATCH_SCENE};
     int throws = 8;
-    std::uint64_t seed = 7;
-    bool noRender = false;
-    int width = 640, height = 480;
-    std::string scenePath = DRAPE_CURTAIN_CATCH_SCENE;
-    app.add_option("-o,--out", out, "Output folder for frames and the score");
+    cl.addTo(app, "Output folder for frames and the score");
     app.add_option("--throws", throws, "Number of balls thrown")->check(CLI::Range(1, 100));
-    app.add_option("--seed", seed, "Seed of the scripted player");
-    app.add_option("--scene", scenePath, "World scene file");
-    app.add_option("--width", width, "Frame width [px]")->check(CLI::Range(16, 4096));
-    app.add_option("--height", height, "Frame height [px]")->check(CLI::Range(16, 4096));
-    app.add_flag("--no-render", noRender, "Do not write frames");
-    try {
-        app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
-        return app.exit(e) == 0 ? 0 : 2;
-    }
+    if (const int code = parseGameCommandLine(app, argc, argv); code >= 0) return code;
 
     try {
-        SceneDesc scene = loadScene(scenePath);
+        SceneDesc scene = loadScene(cl.scene);
         Simulation sim(scene);
         const double dt = scene.timeStep;
         const double frameDt = 1.0 / scene.output.fps;
@@ -115,19 +86,19 @@ int main(int argc, char** argv) {
         std::vector<Ball> balls;
         for (const auto& b : scene.rigidBodies)
             if (b.motion == MotionKind::Dynamic) balls.push_back(Ball{b.name});
-        if (balls.empty()) throw SceneError(scenePath + ": the game needs dynamic balls");
+        if (balls.empty()) throw SceneError(cl.scene + ": the game needs dynamic balls");
 
-        std::filesystem::create_directories(std::filesystem::path(out) / "frames");
+        std::filesystem::create_directories(std::filesystem::path(cl.out) / "frames");
         std::unique_ptr<OffscreenRenderer> renderer;
-        if (!noRender) renderer = std::make_unique<OffscreenRenderer>(width, height);
+        if (!cl.noRender) renderer = std::make_unique<OffscreenRenderer>(cl.width, cl.height);
 
-        ScriptedPlayer player(seed);
+        ScriptedPlayer player(cl.seed);
         int thrown = 0, stopped = 0, scored = 0;
         double nextThrow = 0.3;
         std::size_t nextBall = 0;
-        double accumulator = 0.0;
+        FixedStepLoop loop(dt, frameDt);
         std::size_t frame = 0;
-        std::ofstream log(std::filesystem::path(out) / "throws.csv");
+        std::ofstream log(std::filesystem::path(cl.out) / "throws.csv");
         log << "throw,ball,time_s,aim_x_m,aim_y_m,speed_m_s,on_target,result\n";
         std::vector<std::array<double, 4>> aims(balls.size());
         std::vector<BallState> results; // per throw, in order: the scoreboard
@@ -135,8 +106,8 @@ int main(int argc, char** argv) {
 
         // Play until every throw has been judged.
         while (scored < throws) {
-            accumulator += frameDt;
-            while (accumulator >= dt) {
+            loop.beginFrame();
+            while (loop.nextStep()) {
                 const double t = sim.time();
                 // Scripted input: throw the next ball when it is time.
                 if (thrown < throws && t >= nextThrow &&
@@ -162,7 +133,6 @@ int main(int argc, char** argv) {
                     nextBall = (nextBall + 1) % balls.size();
                 }
                 sim.step();
-                accumulator -= dt;
                 // Judge balls that have flown long enough: behind the curtain = through.
                 for (std::size_t i = 0; i < balls.size(); ++i) {
                     Ball& b = balls[i];
@@ -217,16 +187,14 @@ int main(int argc, char** argv) {
                         r == BallState::Idle ? Color{0.85f, 0.85f, 0.85f} : colourOf(r);
                     meshes.push_back(std::move(cube));
                 }
-                char name[32];
-                std::snprintf(name, sizeof name, "frame_%05zu.png", frame);
-                writePng(std::filesystem::path(out) / "frames" / name,
+                writePng(framePath(std::filesystem::path(cl.out) / "frames", frame),
                          renderer->render(scene.camera, meshes, scene.output.background));
             }
             ++frame;
             if (sim.time() > 600.0)
                 throw SceneError("the game did not finish in 600 simulated seconds");
         }
-        std::ofstream(std::filesystem::path(out) / "score.txt")
+        std::ofstream(std::filesystem::path(cl.out) / "score.txt")
             << "stopped " << stopped << " of " << throws << " balls\n";
         std::cout << "final score: the curtain stopped " << stopped << " of " << throws
                   << " balls in " << sim.time() << " s (" << frame << " frames)\n";
