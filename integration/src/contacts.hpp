@@ -198,6 +198,11 @@ class ContactSolver {
     ParticleBoxes boxes_; ///< the cheap tests before a particle's contact query
     std::vector<Block> blocks_;
     std::vector<std::size_t> moved_;
+    /// eq. (7)'s C_p and normal damping for the last particle mass and step seen (a cloth's
+    /// particles mostly share one mass: limitPenalty's roots and divisions once per step).
+    struct Penalty {
+        double mass = -1.0, dt = -1.0, gravity = -1.0, cp = 0.0, damping = 0.0;
+    } penalty_;
     std::vector<MovedGroup> movedGroups_;
 };
 

@@ -30,8 +30,12 @@ class ParticleBoxes {
         Vec3 hi = Vec3::Constant(-std::numeric_limits<double>::infinity());
         std::size_t free = 0;
         void grow(const Box& b) {
-            lo = lo.cwiseMin(Vec3(b.lo[0], b.lo[1], b.lo[2]));
-            hi = hi.cwiseMax(Vec3(b.hi[0], b.hi[1], b.hi[2]));
+            // Component by component: the compiler keeps a block that a loop grows in
+            // registers (two-lane vector minima made it store and reload it each time).
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = std::min(lo[k], b.lo[k]);
+                hi[k] = std::max(hi[k], b.hi[k]);
+            }
         }
     };
     static constexpr std::size_t kBlock = 16;

@@ -5,6 +5,8 @@
 
 #include <btBulletDynamicsCommon.h>
 
+#include <cmath>
+
 namespace drape::bullet::detail {
 
 inline void ContactSolver::recordContact(const Cloth& c, std::uint32_t bi, std::size_t i,
@@ -61,11 +63,15 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
     // after the projection).
     const bool touches = hit.distance < h * (1.0 + kTouching);
     const double mi = c.masses()[i];
-    double cp = cs.penaltyForce < 0.0 ? 2.0 * mi * c.settings().gravity.norm() : cs.penaltyForce;
-    if (cp > 0.0 || touches) {
-        const double damping = limitPenalty(mi, band_, dt, cp);
-        recordContact(c, bi, i, hit, cp, damping);
+    const double g = c.settings().gravity.squaredNorm();
+    if (mi != penalty_.mass || dt != penalty_.dt || g != penalty_.gravity) {
+        penalty_.mass = mi;
+        penalty_.dt = dt;
+        penalty_.gravity = g;
+        penalty_.cp = cs.penaltyForce < 0.0 ? 2.0 * mi * std::sqrt(g) : cs.penaltyForce;
+        penalty_.damping = limitPenalty(mi, band_, dt, penalty_.cp);
     }
+    if (penalty_.cp > 0.0 || touches) recordContact(c, bi, i, hit, penalty_.cp, penalty_.damping);
     if (b.dynamicBody && i < frictionLeft_.size() && frictionLeft_[i] > 0.0) {
         // The rest of the last step's friction cone against a dynamic body, once per step.
         frictionImpulse(c, i, b, hit.point, hit.normal, frictionLeft_[i] * dt);
