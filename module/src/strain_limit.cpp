@@ -140,8 +140,7 @@ void StrainLimiter::sortWarmList() {
         warmList_.clear();
         std::fill(inWarmList_.begin(), inWarmList_.end(), 0);
         std::fill(warmLeft_.begin(), warmLeft_.end(), 0.0);
-        for (std::uint32_t& c : checkedAt_)
-            c &= ~kWarmBit;
+        clearWarmBits();
         for (std::size_t si = 0; si < lambda_.size(); ++si) {
             if (lambda_[si] == 0.0) continue;
             warmList_.push_back(static_cast<std::uint32_t>(si));
@@ -277,6 +276,8 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
     {
         // Two passes: every correction is measured on the positions the warm start found
         // (its springs' lengths do not wait for each other's moves), then applied.
+        // pull[k] is set exactly for the springs whose lambda stays nonzero, the only ones
+        // the second pass reads it for.
         std::uint32_t* list = warmList_.data();
         double* lambda = lambda_.data();
         double* left = warmLeft_.data();
@@ -291,7 +292,6 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
         for (std::size_t k = 0; k < warmList_.size(); ++k) {
             const std::uint32_t si = list[k];
             double lam = lambda[si];
-            pull[k].setZero();
             if (lam != 0.0) {
                 ++warmed;
                 const Spring& sp = spring[si];
@@ -305,7 +305,7 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
             }
             lambda[si] = lam;
             left[si] = lam;
-            checked[si] = (checked[si] & ~kWarmBit) | std::uint32_t(lam > 0.0);
+            checked[si] = withWarmBit(checked[si], lam);
         }
         for (std::size_t k = 0; k < warmList_.size(); ++k) {
             const std::uint32_t si = list[k];
@@ -524,7 +524,7 @@ std::size_t StrainLimiter::correctWave(const std::vector<Spring>& springs,
         }
         if (dl < 0.0) {
             left[si] += dl;
-            checked[si] = (checked[si] & ~kWarmBit) | std::uint32_t(left[si] > 0.0);
+            checked[si] = withWarmBit(checked[si], left[si]);
         }
         const Vec3 c = (dl / l) * d;
         ++corrections;

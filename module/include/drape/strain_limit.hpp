@@ -159,8 +159,7 @@ class StrainLimiter {
     void resetWarmStart() {
         lambda_.assign(lambda_.size(), 0.0);
         warmLeft_.assign(warmLeft_.size(), 0.0);
-        for (std::uint32_t& c : checkedAt_)
-            c &= ~kWarmBit;
+        clearWarmBits();
         warmListValid_ = false;
     }
 
@@ -256,6 +255,15 @@ class StrainLimiter {
     /// (the checks after a wave read both with one load).
     std::vector<std::uint32_t> checkedAt_;
     static constexpr std::uint32_t kWarmBit = 1u;
+    /// A spring's check word with its warm bit set from its warmLeft_ value.
+    static std::uint32_t withWarmBit(std::uint32_t word, double left) {
+        return (word & ~kWarmBit) | static_cast<std::uint32_t>(left > 0.0);
+    }
+    /// Every warm bit off (warmLeft_ was zeroed).
+    void clearWarmBits() {
+        for (std::uint32_t& c : checkedAt_)
+            c &= ~kWarmBit;
+    }
     static constexpr std::uint32_t kStampEnd = 0x80000000u; ///< stamps stay below (2 stamp fits)
     std::vector<std::uint32_t> dirtyAt_; ///< per particle: the wave stamp of its last move
     std::vector<Vec3> warmMove_;         ///< warm start scratch: lambda d / l of each listed spring
