@@ -125,7 +125,10 @@ struct BulletCloth::Impl {
 class BulletCloth::Impl::Action final : public btActionInterface {
   public:
     explicit Action(Impl& impl) : impl_(impl) {}
-    void updateAction(btCollisionWorld*, btScalar dt) override { impl_.step(double(dt)); }
+    void updateAction(btCollisionWorld*, btScalar dt) override {
+        const std::optional<double>& exact = impl_.settings.timeStep;
+        impl_.step(exact && btScalar(*exact) == dt ? *exact : double(dt));
+    }
     void debugDraw(btIDebugDraw* drawer) override {
         if (!drawer) return;
         const Cloth& c = *impl_.cloth;
@@ -257,14 +260,14 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
     require(cloth != nullptr, ErrorCode::InvalidArgument, "addCloth: the cloth is null");
     detail::validate(settings);
     const double h = settings.contact.thickness;
-    double band = settings.contact.penaltyBand < 0.0 ? h : settings.contact.penaltyBand;
+    double band = settings.contact.penaltyBand.value_or(h);
     require(band > 0.0 || settings.contact.penaltyForce == 0.0, ErrorCode::InvalidArgument,
             "contact.penaltyBand must be positive when the penalty force is on");
     if (!(band > 0.0)) band = h;
     impl_ = std::make_unique<Impl>(world, std::move(cloth), settings, band, this);
     Impl& m = *impl_;
-    if (settings.contact.broadphaseMargin >= 0.0) {
-        m.margin = settings.contact.broadphaseMargin;
+    if (settings.contact.broadphaseMargin) {
+        m.margin = *settings.contact.broadphaseMargin;
     } else {
         double sum = 0.0;
         for (const auto& s : m.cloth->topology().springs())

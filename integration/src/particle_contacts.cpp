@@ -68,7 +68,7 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
         penalty_.mass = mi;
         penalty_.dt = dt;
         penalty_.gravity = g;
-        penalty_.cp = cs.penaltyForce < 0.0 ? 2.0 * mi * std::sqrt(g) : cs.penaltyForce;
+        penalty_.cp = cs.penaltyForce ? *cs.penaltyForce : 2.0 * mi * std::sqrt(g);
         penalty_.damping = limitPenalty(mi, band_, dt, penalty_.cp);
     }
     if (penalty_.cp > 0.0 || touches) recordContact(c, bi, i, hit, penalty_.cp, penalty_.damping);

@@ -17,16 +17,25 @@ void validate(const BulletClothSettings& s) {
     const auto& c = s.contact;
     require(std::isfinite(c.thickness) && c.thickness > 0.0, ErrorCode::InvalidArgument,
             "contact.thickness must be positive and finite, got " + num(c.thickness));
-    require(std::isfinite(c.penaltyBand), ErrorCode::NonFinite,
-            "contact.penaltyBand is not finite");
-    require(std::isfinite(c.penaltyForce), ErrorCode::NonFinite,
-            "contact.penaltyForce is not finite");
+    if (c.penaltyBand)
+        require(std::isfinite(*c.penaltyBand) && *c.penaltyBand >= 0.0, ErrorCode::InvalidArgument,
+                "contact.penaltyBand must be >= 0 and finite, got " + num(*c.penaltyBand));
+    if (c.penaltyForce)
+        require(std::isfinite(*c.penaltyForce) && *c.penaltyForce >= 0.0,
+                ErrorCode::InvalidArgument,
+                "contact.penaltyForce must be >= 0 and finite, got " + num(*c.penaltyForce));
     require(std::isfinite(c.frictionScale) && c.frictionScale >= 0.0, ErrorCode::InvalidArgument,
             "contact.frictionScale must be >= 0 and finite, got " + num(c.frictionScale));
-    require(std::isfinite(c.broadphaseMargin), ErrorCode::NonFinite,
-            "contact.broadphaseMargin is not finite");
+    if (c.broadphaseMargin)
+        require(std::isfinite(*c.broadphaseMargin) && *c.broadphaseMargin >= 0.0,
+                ErrorCode::InvalidArgument,
+                "contact.broadphaseMargin must be >= 0 and finite, got " +
+                    num(*c.broadphaseMargin));
     require(s.substeps >= 1, ErrorCode::InvalidArgument,
             "substeps must be >= 1, got " + std::to_string(s.substeps));
+    if (s.timeStep)
+        require(std::isfinite(*s.timeStep) && *s.timeStep > 0.0, ErrorCode::InvalidArgument,
+                "timeStep must be positive and finite, got " + num(*s.timeStep));
     const auto& sc = s.selfCollision;
     if (sc.enabled) {
         require(std::isfinite(sc.thickness) && sc.thickness > 0.0, ErrorCode::InvalidArgument,

@@ -8,6 +8,8 @@
 
 #include <catch2/catch.hpp>
 
+#include <optional>
+
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -25,6 +27,12 @@ ClothSettings lightCloth() {
     s.particleMass = 0.002;
     s.springStiffness = 5.0; // omega_max ~ 150 rad/s: Velocity-Verlet is stable up to dt ~ 13 ms
     return s;
+}
+
+/// The loops below run eq. (7) with the automatic C_p (written -1 in their labels) and off (0).
+std::optional<double> penaltyOrAutomatic(double penalty) {
+    if (penalty < 0.0) return std::nullopt;
+    return penalty;
 }
 
 /// A static box whose top face is a slope of `degrees` (rotated about z; down-slope is -x
@@ -57,7 +65,7 @@ struct Slope {
         cloth = makeCloth(makeSheet(spec), lightCloth());
         bullet::BulletClothSettings bs;
         bs.contact.thickness = kThickness;
-        bs.contact.penaltyForce = penaltyForce;
+        bs.contact.penaltyForce = penaltyOrAutomatic(penaltyForce);
         bs.sleep = false; // measure the motion itself, not a frozen state
         handle = &w.add(cloth, bs);
     }
@@ -225,7 +233,7 @@ TEST_CASE("a cloth placed at the contact distance is not pushed away and rests e
             auto cloth = makeCloth(horizontalSheet(9, 9, 0.05, 0.1 + kThickness), lightCloth());
             bullet::BulletClothSettings bs;
             bs.contact.thickness = kThickness;
-            bs.contact.penaltyForce = penalty;
+            bs.contact.penaltyForce = penaltyOrAutomatic(penalty);
             auto& handle = w.add(cloth, bs);
             double highest = 0.0, lowest = 1.0, peakEnergy = 0.0;
             std::size_t fewestContacts = std::numeric_limits<std::size_t>::max();
@@ -272,7 +280,7 @@ TEST_CASE("a cloth dropped on a box settles to rest exactly, where its contacts 
                 makeCloth(horizontalSheet(9, 9, 0.05, top + 0.05), cs); // 4 cm above the band
             bullet::BulletClothSettings bs;
             bs.contact.thickness = kThickness;
-            bs.contact.penaltyForce = penalty;
+            bs.contact.penaltyForce = penaltyOrAutomatic(penalty);
             bs.sleep = false; // the state itself must come to rest, not be frozen
             auto& handle = w.add(cloth, bs);
             for (int k = 0; k < 240; ++k)
@@ -331,7 +339,7 @@ TEST_CASE("Coulomb on a dynamic body: a sheet on a heavy slab slides g (sin - mu
                     makeCloth(horizontalSheet(5, 5, 0.04, top + kThickness, -0.5), lightCloth());
                 bullet::BulletClothSettings bs;
                 bs.contact.thickness = kThickness;
-                bs.contact.penaltyForce = penalty;
+                bs.contact.penaltyForce = penaltyOrAutomatic(penalty);
                 bs.sleep = false;
                 w.add(cloth, bs);
                 auto relative = [&] { // the sheet's centre relative to the slab

@@ -3,6 +3,7 @@
 #include "world_fixture.hpp"
 
 #include "drape/error.hpp"
+#include "drape/snapshot.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -67,6 +68,15 @@ TEST_CASE("bad input gets a drape::Error naming the problem", "[world][errors]")
     bad = {};
     bad.contact.frictionScale = std::nan("");
     CHECK_THROWS_WITH(bullet::addCloth(&w.world, cloth, bad), Catch::Contains("frictionScale"));
+    bad = {};
+    bad.contact.penaltyForce = -1.0;
+    CHECK_THROWS_WITH(bullet::addCloth(&w.world, cloth, bad), Catch::Contains("penaltyForce"));
+    bad = {};
+    bad.contact.broadphaseMargin = std::nan("");
+    CHECK_THROWS_WITH(bullet::addCloth(&w.world, cloth, bad), Catch::Contains("broadphaseMargin"));
+    bad = {};
+    bad.timeStep = 0.0;
+    CHECK_THROWS_WITH(bullet::addCloth(&w.world, cloth, bad), Catch::Contains("timeStep"));
 
     auto& handle = w.add(cloth);
     auto* box = w.body(w.shape<btBoxShape>(btVector3(0.1f, 0.1f, 0.1f)), 0.0, Vec3(0, 0, 0));
@@ -226,4 +236,35 @@ TEST_CASE("same scene, same result: two runs are bit-identical", "[world][determ
     REQUIRE(a.size() == b.size());
     for (std::size_t i = 0; i < a.size(); ++i)
         CHECK(a[i] == b[i]); // exact equality
+}
+
+TEST_CASE("timeStep: stepSimulation's btScalar sub-step becomes the cloth's exact double dt",
+          "[world][determinism]") {
+    // Bullet hands the sub-step to the cloth as a float: 1/120 s arrives as 0.008333334. With
+    // BulletClothSettings::timeStep = 1/120 the cloth steps with the double 1/120 instead, so
+    // a world stepped by stepSimulation follows stepInWorld(1/120) bit for bit; without it the
+    // two runs part (the float step is 4e-8 relatively longer).
+    const double dt = 1.0 / 120.0;
+    auto run = [dt](bool throughWorld, bool exact) {
+        TestWorld w;
+        w.body(w.shape<btBoxShape>(btVector3(0.3f, 0.05f, 0.3f)), 0.0, Vec3(0, 0, 0));
+        ClothSettings s = softCloth();
+        s.springStiffness = 10.0; // stable at 120 Hz
+        auto cloth = makeCloth(horizontalSheet(7, 7, 0.05, 0.4), s);
+        bullet::BulletClothSettings bs;
+        if (exact) bs.timeStep = dt;
+        auto& handle = w.add(cloth, bs);
+        for (int k = 0; k < 30; ++k) { // 0.25 s: falling 0.31 m onto the box
+            if (throughWorld) {
+                w.world.stepSimulation(btScalar(dt), 0);
+            } else {
+                w.world.getBroadphase()->calculateOverlappingPairs(w.world.getDispatcher());
+                handle.stepInWorld(dt);
+            }
+        }
+        return stateHash(*cloth);
+    };
+    const std::uint64_t alone = run(false, false);
+    CHECK(run(true, true) == alone);
+    CHECK(run(true, false) != alone);
 }

@@ -247,7 +247,7 @@ TEST_CASE("Experiment II: the tablecloth lands on the desk top and rests there",
     // x(t) = (g m / C_d) (t - (1 - exp(-0.3 t)) / 0.3) reaches 52 at t = 3.9 s. By 5 s it
     // has landed and rests within the contact band above the desk.
     REQUIRE(scene.collision);
-    const double h = scene.collision->thickness;
+    const double h = scene.collision->thickness.value();
     const Index centre = sheetIndex(scene.sheet->spec, 15, 30);
     const double x0 = sim.cloth().positions()[centre].x();
     std::size_t maxContacts = 0;

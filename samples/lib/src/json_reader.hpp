@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstdio>
 #include <initializer_list>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -226,6 +227,12 @@ class JsonObject {
     double number(const std::string& key, double def, const Limits& l) {
         const Json* v = find(key);
         return v ? toNumber(*v, pathOf(key), l) : def;
+    }
+    /// The number at `key` within `l`, or nothing when the key is absent.
+    std::optional<double> optNumber(const std::string& key, const Limits& l) {
+        const Json* v = find(key);
+        if (!v) return std::nullopt;
+        return toNumber(*v, pathOf(key), l);
     }
     double requireNumber(const std::string& key, const Limits& l) {
         return toNumber(require(key), pathOf(key), l);

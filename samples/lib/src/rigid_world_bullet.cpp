@@ -76,14 +76,14 @@ class BulletWorld final : public Simulation::RigidWorld {
         for (const Spring& sp : cloth.topology().springs())
             meanEdge += sp.restLength;
         meanEdge /= static_cast<double>(std::max<std::size_t>(1, cloth.topology().springCount()));
-        s.contact.thickness = c.thickness > 0.0 ? c.thickness : 0.1 * meanEdge;
+        s.contact.thickness = c.thickness.value_or(0.1 * meanEdge);
         s.contact.frictionScale = c.frictionScale;
-        if (c.penaltyForce >= 0.0) s.contact.penaltyForce = c.penaltyForce;
+        s.contact.penaltyForce = c.penaltyForce;
         s.contact.continuous = c.continuous;
         s.contact.triangles = c.triangleContacts;
         s.substeps = scene.substeps; // simulation.substeps, collision.substeps or "auto"
         s.selfCollision.enabled = c.selfCollision;
-        s.selfCollision.thickness = c.selfThickness > 0.0 ? c.selfThickness : s.contact.thickness;
+        s.selfCollision.thickness = c.selfThickness.value_or(s.contact.thickness);
         s.useWorldGravity = false; // the scene's gravity is already in the cloth
         try {
             cloth_ = bullet::addCloth(&world_, shared, s);

@@ -464,9 +464,9 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
         c->keys({"thickness", "friction_scale", "penalty_force", "continuous", "triangle_contacts",
                  "substeps", "self_collision", "self_thickness"});
         CollisionDesc cd;
-        cd.thickness = c->number("thickness", -1.0, kSize);
+        cd.thickness = c->optNumber("thickness", kSize);
         cd.frictionScale = c->number("friction_scale", 1.0, kCoefficient);
-        cd.penaltyForce = c->number("penalty_force", -1.0, kPenaltyForce);
+        cd.penaltyForce = c->optNumber("penalty_force", kPenaltyForce);
         cd.continuous = c->boolean("continuous", true);
         cd.triangleContacts = c->boolean("triangle_contacts", false);
         cd.substeps = static_cast<int>(c->integer("substeps", 1, 1, 1000));
@@ -478,7 +478,7 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
             sc.substeps = cd.substeps;
         }
         cd.selfCollision = c->boolean("self_collision", false);
-        cd.selfThickness = c->number("self_thickness", -1.0, kSize);
+        cd.selfThickness = c->optNumber("self_thickness", kSize);
         c->finish();
         if (sc.rigidBodies.empty() && !cd.selfCollision)
             top.fail("collision",

@@ -155,7 +155,7 @@ ClothScene fromSceneFile(const samples::SceneDesc& d) {
     s.timeStep = d.timeStep;
     s.duration = d.duration;
     s.camera = d.camera;
-    if (d.collision && d.collision->thickness > 0.0) s.thickness = d.collision->thickness;
+    if (d.collision && d.collision->thickness) s.thickness = *d.collision->thickness;
     for (const samples::RigidBodyDesc& b : d.rigidBodies) {
         if (b.motion != samples::MotionKind::Static) refuse("body " + b.name + " is not static");
         if (b.rotationDeg != Vec3::Zero()) refuse("body " + b.name + " is rotated");

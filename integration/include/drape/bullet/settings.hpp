@@ -6,6 +6,7 @@
 #include "drape/mesh.hpp"
 
 #include <cstdint>
+#include <optional>
 
 class btCollisionObject;
 
@@ -16,16 +17,16 @@ struct ContactSettings {
     /// Distance a particle keeps from every body surface [m]. Particles nearer than this are
     /// projected out to it; it is the cloth's collision thickness. Must be > 0.
     double thickness = 0.01;
-    /// Width of the band above `thickness` in which eq. (7)'s penalty force acts [m].
-    /// Negative means "equal to thickness".
-    double penaltyBand = -1.0;
+    /// Width of the band above `thickness` in which eq. (7)'s penalty force acts [m]; > 0
+    /// unless the penalty is off. Not given: equal to `thickness`.
+    std::optional<double> penaltyBand;
     /// C_p of eq. (7): the most the penalty pushes a particle at the bottom of the band [N].
     /// It slows particles coming down into the band and holds them where it can carry their
     /// load (a cloth landing on a body rests inside the band), but against static and kinematic
     /// bodies it never pushes more than stops the particle: a cloth placed at the thickness
-    /// stays there. Negative means "twice the particle's weight under the cloth's gravity"; 0
-    /// turns the penalty off (particles then rest at the thickness).
-    double penaltyForce = -1.0;
+    /// stays there. Not given: twice the particle's weight under the cloth's gravity. 0 turns
+    /// the penalty off (particles then rest at the thickness); must be >= 0.
+    std::optional<double> penaltyForce;
     /// Multiplies the body's btCollisionObject friction coefficient (Coulomb mu) [-].
     double frictionScale = 1.0;
     /// Ray-test the path of particles that moved more than `thickness` in a step, so that a
@@ -38,9 +39,9 @@ struct ContactSettings {
     /// bodies. Off by default: it costs a box test per triangle and body near the cloth, and
     /// a GJK query per triangle within reach of a body that not all its particles touch.
     bool triangles = false;
-    /// Margin added around the cloth's bounding box for its broadphase proxy [m]. Negative
-    /// means "the cloth's mean spring rest length plus four thicknesses".
-    double broadphaseMargin = -1.0;
+    /// Margin added around the cloth's bounding box for its broadphase proxy [m] (>= 0). Not
+    /// given: the cloth's mean spring rest length plus four thicknesses.
+    std::optional<double> broadphaseMargin;
 };
 
 /// Collision of the cloth's particles with its own triangles (the paper's particle-triangle
@@ -59,6 +60,12 @@ struct BulletClothSettings {
     /// Cloth steps per internal Bullet sub-step (>= 1): a stiff cloth can run at
     /// fixedTimeStep / substeps while the rigid bodies keep the world's step.
     int substeps = 1;
+    /// The cloth's exact time step [s] (> 0). Bullet hands its sub-step to the cloth as a
+    /// btScalar (a float in Debian's build): 1/60 s arrives as 0.016666668. When the sub-step
+    /// equals this value rounded to btScalar, the cloth steps with this double instead, so a
+    /// cloth in a world stepped by stepSimulation follows the same path as one stepped alone
+    /// with this dt. Not given (or another sub-step): the btScalar step, widened to double.
+    std::optional<double> timeStep;
     /// Use the world's gravity for the cloth (copied when it is added and whenever the world's
     /// changes). drape's default gravity is -9.81 m/s^2 along y, Bullet's is -10.
     bool useWorldGravity = true;

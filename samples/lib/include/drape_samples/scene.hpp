@@ -128,14 +128,14 @@ struct RigidBodyDesc {
 
 /// Cloth-versus-rigid contact parameters (see drape::bullet::ContactSettings).
 struct CollisionDesc {
-    double thickness = -1.0;       ///< contact distance [m]; negative = a tenth of the mean edge
-    double frictionScale = 1.0;    ///< multiplies each body's friction [-]
-    double penaltyForce = -1.0;    ///< eq. (7)'s C_p [N]; negative = automatic, 0 = off
-    bool continuous = true;        ///< swept tests for fast particles
-    bool triangleContacts = false; ///< triangle-body contacts too (ContactSettings::triangles)
-    int substeps = 1;            ///< cloth steps per world step (older name of SceneDesc::substeps)
-    bool selfCollision = false;  ///< particle-triangle self-collision
-    double selfThickness = -1.0; ///< [m]; negative = thickness
+    std::optional<double> thickness; ///< contact distance [m]; not given: a tenth of the mean edge
+    double frictionScale = 1.0;      ///< multiplies each body's friction [-]
+    std::optional<double> penaltyForce; ///< eq. (7)'s C_p [N]; not given: automatic; 0 = off
+    bool continuous = true;             ///< swept tests for fast particles
+    bool triangleContacts = false;      ///< triangle-body contacts too (ContactSettings::triangles)
+    int substeps = 1;           ///< cloth steps per world step (older name of SceneDesc::substeps)
+    bool selfCollision = false; ///< particle-triangle self-collision
+    std::optional<double> selfThickness; ///< [m]; not given: `thickness`
 };
 
 struct WindDesc {
