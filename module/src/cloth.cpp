@@ -38,31 +38,27 @@ void requireNonNegative(double v, const std::string& name) {
     requireFinite(v, name);
     if (v < 0.0) throw Error(ErrorCode::InvalidArgument, name + " must be >= 0, got " + num(v));
 }
-/// A directly given value: 0 means "not given", anything else must be positive and finite.
-bool given(double v, const std::string& name) {
-    if (v == 0.0) return false;
-    requirePositive(v, name);
+/// A given value must be positive and finite; returns whether it is given.
+bool given(const std::optional<double>& v, const std::string& name) {
+    if (!v) return false;
+    requirePositive(*v, name);
     return true;
 }
 
 std::vector<double> buildMasses(const ClothTopology& topo, const ClothSettings& s) {
     if (given(s.particleMass, "particleMass")) {
-        return std::vector<double>(topo.particleCount(), s.particleMass);
+        return std::vector<double>(topo.particleCount(), *s.particleMass);
     }
     double total = 0.0;
     if (given(s.totalMass, "totalMass")) {
-        total = s.totalMass;
-    } else if (s.material.density != 0.0 || s.material.thickness != 0.0) {
+        total = *s.totalMass;
+    } else {
         requirePositive(s.material.density, "material.density");
         requirePositive(s.material.thickness, "material.thickness");
         if (s.lumping == MassLumping::AreaLumped) {
             return areaLumpedMasses(topo, s.material.density, s.material.thickness);
         }
         total = s.material.density * s.material.thickness * topo.totalRestArea();
-    } else {
-        throw Error(ErrorCode::InvalidArgument,
-                    "no mass given: set particleMass, totalMass, or material.density and "
-                    "material.thickness");
     }
     if (s.lumping == MassLumping::Uniform) return uniformMasses(topo, total);
     // Area-lumped shares of the given total.
@@ -75,16 +71,26 @@ std::vector<double> buildMasses(const ClothTopology& topo, const ClothSettings& 
     return m;
 }
 
-std::vector<double> buildStiffness(const ClothTopology& topo, const ClothSettings& s) {
+std::vector<double> buildStiffness(const ClothTopology& topo, const ClothSettings& s,
+                                   const std::vector<double>& mass) {
     if (given(s.springStiffness, "springStiffness")) {
-        return std::vector<double>(topo.springCount(), s.springStiffness);
+        return std::vector<double>(topo.springCount(), *s.springStiffness);
     }
-    if (s.material.youngsModulus == 0.0 && s.material.thickness == 0.0) {
-        throw Error(ErrorCode::InvalidArgument,
-                    "no stiffness given: set springStiffness, or material.youngsModulus and "
-                    "material.thickness");
+    if (s.material.youngsModulus) {
+        return springStiffnessFromMaterial(topo, *s.material.youngsModulus, s.material.thickness);
     }
-    return springStiffnessFromMaterial(topo, s.material.youngsModulus, s.material.thickness);
+    // Automatic: omega_max^2 is linear in a uniform k, so measure it at k = 1 and scale.
+    std::vector<double> k(topo.springCount(), 1.0);
+    std::vector<double> invMass(mass.size());
+    for (std::size_t i = 0; i < mass.size(); ++i)
+        invMass[i] = 1.0 / mass[i];
+    const double omega1 = estimateMaxAngularFrequency(topo, k, invMass);
+    if (omega1 > 0.0) {
+        const double scale = kAutomaticStiffnessOmega / omega1;
+        for (double& ki : k)
+            ki = scale * scale;
+    }
+    return k;
 }
 
 void validateSettings(const ClothSettings& s) {
@@ -112,8 +118,9 @@ void validateSettings(const ClothSettings& s) {
                     "limiter.maxRounds must be >= 1, got " + std::to_string(s.limiter.maxRounds));
     }
     requirePositive(s.implicit.cgTolerance, "implicit.cgTolerance");
-    requireNonNegative(s.failure.maxStrain, "failure.maxStrain");
-    requireNonNegative(s.failure.maxEnergyGrowth, "failure.maxEnergyGrowth");
+    if (s.failure.maxStrain) requirePositive(*s.failure.maxStrain, "failure.maxStrain");
+    if (s.failure.maxEnergyGrowth)
+        requirePositive(*s.failure.maxEnergyGrowth, "failure.maxEnergyGrowth");
     if (s.failure.retrySubsteps < 0 || s.failure.retrySubsteps > 1024) {
         throw Error(ErrorCode::InvalidArgument,
                     "failure.retrySubsteps must be between 0 and 1024, got " +
@@ -147,8 +154,9 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     pinned_.assign(x_.size(), 0);
     if (settings_.threads > 1)
         poolStorage_ = std::make_unique<detail::ThreadPool>(settings_.threads);
-    forceModel_ = std::make_unique<ForceModel>(topology_, buildStiffness(*topology_, settings_),
-                                               mass_, settings_, timers_, poolStorage_.get());
+    forceModel_ =
+        std::make_unique<ForceModel>(topology_, buildStiffness(*topology_, settings_, mass_), mass_,
+                                     settings_, timers_, poolStorage_.get());
     integrator_ = makeIntegrator(settings_.integrator, settings_.implicit);
     integrator_->bind(*forceModel_);
     for (const Stage& st : kStages)
@@ -303,7 +311,7 @@ void Cloth::stepOnce(double dt) {
                     IntegratorContext{x_, v_, f_, invMass_, dt, *forceModel_, poolStorage_.get()}};
     // Energy can only grow through wind, user forces, kinematic particles and stages
     // (contacts with moving bodies): check it only without those sources.
-    ctx.checkEnergy = settings_.failure.maxEnergyGrowth > 0.0 && kinematic_.empty() &&
+    ctx.checkEnergy = settings_.failure.maxEnergyGrowth.has_value() && kinematic_.empty() &&
                       stages_.empty() &&
                       forceModel_->activeTerms().size() == forceModel_->passiveTermCount();
     if (ctx.checkEnergy) {
@@ -482,24 +490,24 @@ void Cloth::stageVerify(StepContext& ctx) {
     // Velocity-Verlet's finish() looked at every value on its way; a full pass is only needed
     // to find the culprit, or for integrators whose finish() did not look.
     if (!integrator_->finishChecksFinite() || ctx.integrator.nonFiniteSeen) checkFinite("the step");
-    if (settings_.failure.maxStrain > 0.0) {
+    if (settings_.failure.maxStrain) {
         const double strain = maxStrain();
-        if (strain > settings_.failure.maxStrain) {
+        if (strain > *settings_.failure.maxStrain) {
             throw Error(ErrorCode::SimulationFailure,
                         "strain " + num(strain) + " exceeds the hard cap failure.maxStrain = " +
-                            num(settings_.failure.maxStrain) + " in step " +
+                            num(*settings_.failure.maxStrain) + " in step " +
                             std::to_string(steps_ + 1) + " (t = " + num(time_) +
                             " s); the cloth keeps its state from before the step");
         }
     }
     if (ctx.checkEnergy) {
         const double after = kineticEnergy() + springEnergy() + gravityEnergy();
-        if (after - ctx.energyBefore > settings_.failure.maxEnergyGrowth * ctx.scaleBefore) {
+        if (after - ctx.energyBefore > *settings_.failure.maxEnergyGrowth * ctx.scaleBefore) {
             throw Error(ErrorCode::SimulationFailure,
                         "mechanical energy grew by " + num(after - ctx.energyBefore) +
                             " J in step " + std::to_string(steps_ + 1) + " (t = " + num(time_) +
                             " s), more than failure.maxEnergyGrowth = " +
-                            num(settings_.failure.maxEnergyGrowth) + " times the energy scale " +
+                            num(*settings_.failure.maxEnergyGrowth) + " times the energy scale " +
                             num(ctx.scaleBefore) +
                             " J, with no energy source; the cloth keeps "
                             "its state from before the step");

@@ -9,19 +9,28 @@
 
 namespace drape {
 
+double automaticWeldTolerance(const std::vector<Vec3>& vertices) {
+    bool any = false;
+    Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
+    for (const Vec3& p : vertices) {
+        if (!p.allFinite()) continue; // weldVertices reports it with the vertex number
+        lo = any ? lo.cwiseMin(p) : p;
+        hi = any ? hi.cwiseMax(p) : p;
+        any = true;
+    }
+    return 1e-9 * (hi - lo).norm();
+}
+
 std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& input,
                                                           const TopologyOptions& options) {
     if (input.vertices.empty()) throw Error(ErrorCode::InvalidMesh, "mesh has no vertices");
-    double tolerance = options.weldTolerance;
-    if (tolerance < 0.0) {
-        Vec3 lo = input.vertices.front(), hi = lo;
-        for (const auto& p : input.vertices) {
-            if (!p.allFinite()) break; // weldVertices reports it with the vertex number
-            lo = lo.cwiseMin(p);
-            hi = hi.cwiseMax(p);
-        }
-        tolerance = 1e-9 * (hi - lo).norm();
+    if (options.weldTolerance &&
+        !(*options.weldTolerance >= 0.0 && std::isfinite(*options.weldTolerance))) {
+        throw Error(ErrorCode::InvalidArgument, "weldTolerance must be >= 0 and finite, got " +
+                                                    std::to_string(*options.weldTolerance));
     }
+    const double tolerance =
+        options.weldTolerance ? *options.weldTolerance : automaticWeldTolerance(input.vertices);
     WeldResult welded = weldVertices(input, tolerance);
     validateMesh(welded.mesh, options.minAreaRatio);
 

@@ -91,11 +91,12 @@ TEST_CASE("Bad cloth parameters are refused with a clear error", "[errors][setti
         REQUIRE_DRAPE_ERROR(build(s), ErrorCode::InvalidArgument, "particleMass");
         s.particleMass = kNaN;
         REQUIRE_DRAPE_ERROR(build(s), ErrorCode::NonFinite, "particleMass");
-        s.particleMass = 0.0;
+        s.particleMass = 0.0; // given: must be positive
+        REQUIRE_DRAPE_ERROR(build(s), ErrorCode::InvalidArgument, "particleMass");
+        s.particleMass.reset();
         s.totalMass = -2.0;
         REQUIRE_DRAPE_ERROR(build(s), ErrorCode::InvalidArgument, "totalMass");
-        s.totalMass = 0.0; // nothing given at all
-        REQUIRE_DRAPE_ERROR(build(s), ErrorCode::InvalidArgument, "mass");
+        s.totalMass.reset(); // nothing given: the material's density and thickness
         s.material.density = -1.0;
         s.material.thickness = 1e-4;
         REQUIRE_DRAPE_ERROR(build(s), ErrorCode::InvalidArgument, "density");
@@ -108,8 +109,11 @@ TEST_CASE("Bad cloth parameters are refused with a clear error", "[errors][setti
         REQUIRE_DRAPE_ERROR(build(s), ErrorCode::InvalidArgument, "springStiffness");
         s.springStiffness = kInf;
         REQUIRE_DRAPE_ERROR(build(s), ErrorCode::NonFinite, "springStiffness");
-        s.springStiffness = 0.0; // nothing given
-        REQUIRE_DRAPE_ERROR(build(s), ErrorCode::InvalidArgument, "stiffness");
+        s.springStiffness = 0.0; // given: must be positive
+        REQUIRE_DRAPE_ERROR(build(s), ErrorCode::InvalidArgument, "springStiffness");
+        s.springStiffness.reset(); // nothing given: (M1) from a given Young's modulus
+        s.material.youngsModulus = -1e9;
+        REQUIRE_DRAPE_ERROR(build(s), ErrorCode::InvalidArgument, "youngsModulus");
         REQUIRE_DRAPE_ERROR(springStiffnessFromMaterial(*topo, 0.0, 1e-4),
                             ErrorCode::InvalidArgument, "youngsModulus");
         REQUIRE_DRAPE_ERROR(springStiffnessFromMaterial(*topo, 1e9, kNaN), ErrorCode::NonFinite,

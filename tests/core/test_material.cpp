@@ -221,3 +221,50 @@ TEST_CASE("Cloth takes masses and stiffness from the settings it is given", "[ma
         CHECK(total(uniform.masses()) == Approx(kRho * kH * A).epsilon(1e-12));
     }
 }
+
+TEST_CASE("A default ClothSettings simulates: 200 g/m^2 cotton, stiffness for a 60 Hz step",
+          "[material][mass][settings]") {
+    SheetSpec spec;
+    spec.rows = 21;
+    spec.cols = 21;
+    spec.spacing = 0.05;
+    spec.uAxis = Vec3::UnitX();
+    spec.vAxis = -Vec3::UnitY(); // hanging in the x-y plane
+    const auto topo = ClothTopology::build(makeSheet(spec));
+    Cloth cloth(topo, ClothSettings{});
+    // Mass: the default material's rho h = 400 kg/m^3 * 0.5 mm = 0.2 kg/m^2 over the 1 m^2.
+    double mass = 0.0;
+    for (double m : cloth.masses())
+        mass += m;
+    CHECK(mass == Approx(0.2 * topo->totalRestArea()).epsilon(1e-12));
+    CHECK(topo->totalRestArea() == Approx(1.0).epsilon(1e-12));
+    // Stiffness: uniform, chosen so that omega_max is kAutomaticStiffnessOmega; Velocity-Verlet
+    // is then stable up to 2 / 60 s, twice a 60 Hz step.
+    const double k = cloth.stiffness().front();
+    for (double ks : cloth.stiffness())
+        CHECK(ks == k);
+    CHECK(cloth.maxAngularFrequency() == Approx(kAutomaticStiffnessOmega).epsilon(1e-9));
+    CHECK(cloth.stableTimeStep() == Approx(2.0 / kAutomaticStiffnessOmega).epsilon(1e-9));
+    // Twice the spacing with the same cotton: omega^2 ~ k / (rho h s^2) at a fixed omega means
+    // k ~ s^2, up to the coarser sheet's border share (the bound is not exactly scale-free).
+    spec.rows = spec.cols = 11;
+    spec.spacing = 0.1;
+    Cloth coarse(ClothTopology::build(makeSheet(spec)), ClothSettings{});
+    CHECK(coarse.stiffness().front() / k == Approx(4.0).epsilon(0.1));
+
+    // It hangs from two corners at 60 Hz: no error, finite, the limiter holds 10 %.
+    cloth.pin(0);
+    cloth.pin(20);
+    for (int i = 0; i < 180; ++i)
+        cloth.step(1.0 / 60.0);
+    CHECK(cloth.maxStrain() <= 0.10 + cloth.settings().limiter.tolerance + 1e-12);
+    double lowest = 0.0;
+    for (const Vec3& x : cloth.positions()) {
+        REQUIRE(x.allFinite());
+        lowest = std::min(lowest, x.y());
+    }
+    // A 1 m sheet hanging from its top corners reaches below its own height (it sags), but no
+    // farther than its diagonal stretched by the 10 % bound.
+    CHECK(lowest < -1.0);
+    CHECK(lowest > -std::sqrt(2.0) * 1.1);
+}

@@ -157,7 +157,7 @@ TEST_CASE("a cloth dropped on a light box pushes it down with the cloth's weight
         stepWorld(w);
         impulse += handle.lastStats().impulseOnBodies;
     }
-    const double weight = 9.81 * 121.0 * s.particleMass;
+    const double weight = 9.81 * 121.0 * s.particleMass.value();
     const double lowest =
         std::min_element(cloth->positions().begin(), cloth->positions().end(),
                          [](const Vec3& a, const Vec3& b) { return a.y() < b.y(); })

@@ -121,7 +121,12 @@ TEST_CASE("failure settings are validated", "[blowup]") {
     s.springStiffness = 1.0;
     s.failure.maxStrain = -1.0;
     CHECK_THROWS_WITH(Cloth(topo, s), Catch::Contains("failure.maxStrain"));
-    s.failure.maxStrain = 0.0;
+    s.failure.maxStrain = 0.0; // given: must be positive (not given turns the cap off)
+    CHECK_THROWS_WITH(Cloth(topo, s), Catch::Contains("failure.maxStrain"));
+    s.failure.maxStrain.reset();
+    s.failure.maxEnergyGrowth = std::nan("");
+    CHECK_THROWS_WITH(Cloth(topo, s), Catch::Contains("failure.maxEnergyGrowth"));
+    s.failure.maxEnergyGrowth.reset();
     s.failure.retrySubsteps = -3;
     CHECK_THROWS_WITH(Cloth(topo, s), Catch::Contains("failure.retrySubsteps"));
 }

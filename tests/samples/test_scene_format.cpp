@@ -134,8 +134,8 @@ TEST_CASE("broken scenes are refused with the path of the field", "[scene][error
                            "particle_mass": -0.01, "stiffness": 50.0}})"),
                Contains("cloth.particle_mass: must be in [1e-12, 1e+06] kg, got -0.01"));
     CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
-                           "stiffness": 50.0}})"),
-               Contains("cloth: no mass"));
+                           "stiffness": 50.0, "material": {"density": -3}}})"),
+               Contains("cloth.material.density: must be in"));
     CHECK_THAT(errorOf(R"({"cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 0.1},
                            "mesh": {"file": "x.obj"}, "particle_mass": 0.01, "stiffness": 5}})"),
                Contains("exactly one of cloth.sheet"));

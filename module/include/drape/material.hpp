@@ -24,15 +24,20 @@
 
 #include "drape/topology.hpp"
 
+#include <optional>
 #include <vector>
 
 namespace drape {
 
-/// Physical fabric properties.
+/// Physical fabric properties. The defaults are a medium woven cotton of 200 g/m^2.
 struct FabricMaterial {
-    double youngsModulus = 0.0; ///< E [Pa]; PET (Dacron) is about 1.2e10 Pa
-    double thickness = 0.0;     ///< h [m]; woven fabrics are 1e-4 .. 1e-3 m
-    double density = 0.0;       ///< rho [kg/m^3] (apparent density); about 1.1e3 .. 1.5e3
+    /// E [Pa]; PET (Dacron) is about 1.2e10 Pa. Not given: ClothSettings chooses the
+    /// stiffness (see ClothSettings::springStiffness); a real fabric's E makes springs far too
+    /// stiff for an explicit step at game rates, which the strain limiter stands in for.
+    std::optional<double> youngsModulus;
+    double thickness = 5e-4; ///< h [m]; woven fabrics are 1e-4 .. 1e-3 m
+    /// rho [kg/m^3] (apparent density: mass per area over h); with the default h, 0.2 kg/m^2.
+    double density = 400.0;
 };
 
 /// Stiffness of every spring by (M1) [N/m]. Throws if E or h is not positive and finite.

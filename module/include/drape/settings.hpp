@@ -5,6 +5,7 @@
 #include "drape/material.hpp"
 #include "drape/mesh.hpp"
 
+#include <optional>
 #include <string>
 
 namespace drape {
@@ -94,13 +95,14 @@ struct ImplicitSettings {
 
 /// Blow-up detection beyond the always-on check for non-finite positions and velocities.
 struct FailureSettings {
-    /// Hard cap on the largest strain (l - L0) / L0 after a step; 0 turns it off [-].
-    double maxStrain = 0.0;
+    /// Hard cap on the largest strain (l - L0) / L0 after a step (> 0); not given: no cap [-].
+    std::optional<double> maxStrain;
     /// A step fails when the mechanical energy (kinetic + springs + gravity) grows by more
     /// than this times the energy scale (kinetic + elastic + total weight times the mean
     /// spring length). Only checked when nothing can add energy (no wind or user forces, no
-    /// kinematic particles, no stages); 0 turns it off [-]. Costs two energy passes a step.
-    double maxEnergyGrowth = 0.0;
+    /// kinematic particles, no stages) (> 0); not given: not checked [-]. Costs two energy
+    /// passes a step.
+    std::optional<double> maxEnergyGrowth;
     /// Retry a failed step as this many sub-steps before giving up (0 or 1: no retry).
     int retrySubsteps = 0;
 };
@@ -130,17 +132,29 @@ struct SleepSettings {
     double time = 1.0;
 };
 
-/// Everything a Cloth needs besides its topology.
+/// Angular frequency the automatic stiffness aims at [rad/s] (ClothSettings::springStiffness):
+/// Velocity-Verlet's stability limit 2 / omega is then 1/30 s, twice a 60 Hz game step.
+inline constexpr double kAutomaticStiffnessOmega = 60.0;
+
+/// Everything a Cloth needs besides its topology. A default-constructed ClothSettings is
+/// valid: a 200 g/m^2 cotton, stiffness chosen for a 60 Hz step, Velocity-Verlet, the
+/// paper's stress-ordered limiting at 10 %, gravity -9.81 m/s^2 along y.
 struct ClothSettings {
     IntegratorKind integrator = IntegratorKind::VelocityVerlet;
 
-    // Mass: particleMass if > 0, else totalMass if > 0, else material density and thickness.
-    double particleMass = 0.0;                  ///< mass of every particle [kg]
-    double totalMass = 0.0;                     ///< mass of the whole cloth [kg]
+    // Mass: particleMass if given, else totalMass if given, else the material's density
+    // times its thickness over the cloth's rest area. Given values must be positive.
+    std::optional<double> particleMass;         ///< mass of every particle [kg]
+    std::optional<double> totalMass;            ///< mass of the whole cloth [kg]
     MassLumping lumping = MassLumping::Uniform; ///< how totalMass or material mass is spread
-    // Stiffness: springStiffness if > 0, else (M1) from the material.
-    double springStiffness = 0.0; ///< k of every spring [N/m] (the paper's C_e)
-    FabricMaterial material;      ///< used for whatever is not given directly
+    /// k of every spring [N/m] (the paper's C_e); must be positive. Not given: (M1) from
+    /// material.youngsModulus if that is given; otherwise automatic: the uniform k for which
+    /// the cloth's omega_max (stability.hpp, with its masses and no pins) is
+    /// kAutomaticStiffnessOmega, so a 60 Hz Velocity-Verlet step is half its stability limit.
+    /// That k depends on the mesh: finer meshes get softer springs (the strain limiter holds
+    /// the cloth's stretch whatever k is).
+    std::optional<double> springStiffness;
+    FabricMaterial material; ///< used for whatever is not given directly
 
     Vec3 gravity = Vec3(0.0, -9.81, 0.0); ///< g [m/s^2]; eq. (6)
     double damping = 0.0;       ///< C_d of eq. (8): force -C_d v on every particle [N s/m]

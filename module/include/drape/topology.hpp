@@ -5,6 +5,7 @@
 #include "drape/mesh.hpp"
 
 #include <memory>
+#include <optional>
 #include <vector>
 
 namespace drape {
@@ -34,12 +35,16 @@ struct SpringFamily {
 /// ClothTopology::springSlots() entry of a spring in no family.
 inline constexpr std::size_t kNoSlot = static_cast<std::size_t>(-1);
 
+/// 1e-9 times the diagonal of the finite vertices' bounding box [m]: the weld tolerance used
+/// when none is given (TopologyOptions::weldTolerance).
+double automaticWeldTolerance(const std::vector<Vec3>& vertices);
+
 /// Options for ClothTopology::build.
 struct TopologyOptions {
-    /// Vertices closer than this are welded into one particle [m]. Negative means
-    /// "1e-9 times the mesh's bounding-box diagonal", which welds exact and near-exact
-    /// duplicates (the seams an exporter leaves) without touching real geometry.
-    double weldTolerance = -1.0;
+    /// Vertices closer than this are welded into one particle [m] (>= 0). Not given:
+    /// automaticWeldTolerance, which welds exact and near-exact duplicates (the seams an
+    /// exporter leaves) without touching real geometry.
+    std::optional<double> weldTolerance;
     /// A triangle whose area is below this times its longest edge squared is degenerate.
     double minAreaRatio = 1e-10;
 };

@@ -63,7 +63,7 @@ ImportedMesh importMesh(const MeshDesc& desc) {
     return importMesh(desc.file, o);
 }
 
-ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance) {
+ImportedMesh importMesh(const std::filesystem::path& file, std::optional<double> weldTolerance) {
     MeshImportOptions o;
     o.weldTolerance = weldTolerance;
     return importMesh(file, o);
@@ -558,15 +558,8 @@ ImportedMesh importMesh(const std::filesystem::path& file, const MeshImportOptio
     UnusableTriangles unusable;
     WeldResult welded;
     if (!raw.mesh.triangles.empty()) {
-        double tol = options.weldTolerance;
-        if (tol < 0.0) {
-            Vec3 lo = raw.mesh.vertices[0], hi = lo;
-            for (const Vec3& v : raw.mesh.vertices) {
-                lo = lo.cwiseMin(v);
-                hi = hi.cwiseMax(v);
-            }
-            tol = 1e-9 * (hi - lo).norm();
-        }
+        const double tol =
+            options.weldTolerance.value_or(automaticWeldTolerance(raw.mesh.vertices));
         try {
             welded = weldVertices(raw.mesh, tol);
             unusable = dropUnusableTriangles(welded.mesh, TopologyOptions{}.minAreaRatio);

@@ -77,7 +77,7 @@ MeshDesc parseMeshDesc(JsonObject o, const std::filesystem::path& baseDir) {
     m.rotationDeg = o.vec3("rotation_deg", m.rotationDeg, kAngle);
     m.translation = o.vec3("translation", m.translation, kCoordinate);
     if (const Json* w = o.find("weld_tolerance")) {
-        // Negative: automatic (documented as -1); else a distance.
+        // Negative: automatic, as when absent (the format documents -1); else a distance.
         const bool automatic = w->is_number() && w->get<double>() < 0.0;
         if (!automatic)
             m.weldTolerance = o.toNumber(*w, o.pathOf("weld_tolerance"), kWeldTolerance);
@@ -174,30 +174,21 @@ void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDi
     }
 
     ClothSettings& c = sc.cloth;
-    c.particleMass = o.number("particle_mass", 0.0, kParticleMass);
-    c.totalMass = o.number("total_mass", 0.0, kTotalMass);
+    // Absent values are ClothSettings' own defaults (a 200 g/m^2 cotton, automatic stiffness).
+    c.particleMass = o.optNumber("particle_mass", kParticleMass);
+    c.totalMass = o.optNumber("total_mass", kTotalMass);
     if (o.has("particle_mass") && o.has("total_mass"))
         o.failKey("total_mass", "give particle_mass or total_mass, not both");
     const std::string lump = o.choice("mass_lumping", "uniform", {"uniform", "area"});
     c.lumping = lump == "area" ? MassLumping::AreaLumped : MassLumping::Uniform;
-    c.springStiffness = o.number("stiffness", 0.0, kStiffness);
+    c.springStiffness = o.optNumber("stiffness", kStiffness);
     if (auto m = o.optObject("material")) {
         m->keys({"youngs_modulus", "thickness", "density"});
-        c.material.youngsModulus = m->number("youngs_modulus", 0.0, kYoungsModulus);
-        c.material.thickness = m->number("thickness", 0.0, kMaterialThickness);
-        c.material.density = m->number("density", 0.0, kDensity);
+        c.material.youngsModulus = m->optNumber("youngs_modulus", kYoungsModulus);
+        c.material.thickness = m->number("thickness", c.material.thickness, kMaterialThickness);
+        c.material.density = m->number("density", c.material.density, kDensity);
         m->finish();
     }
-    const bool massGiven = c.particleMass > 0.0 || c.totalMass > 0.0 ||
-                           (c.material.density > 0.0 && c.material.thickness > 0.0);
-    if (!massGiven)
-        o.fail(o.path(), "no mass: give particle_mass, total_mass, or material.density and "
-                         "material.thickness");
-    const bool stiffnessGiven =
-        c.springStiffness > 0.0 || (c.material.youngsModulus > 0.0 && c.material.thickness > 0.0);
-    if (!stiffnessGiven)
-        o.fail(o.path(), "no stiffness: give stiffness, or material.youngs_modulus and "
-                         "material.thickness");
     c.damping = o.number("damping", 0.0, kDamping);
     c.springDamping = o.number("spring_damping", 0.0, kDamping);
     if (auto a = o.optObject("air")) {

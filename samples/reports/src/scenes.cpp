@@ -148,8 +148,10 @@ ClothScene fromSceneFile(const samples::SceneDesc& d) {
     s.title = d.name;
     s.sheet = d.sheet->spec;
     s.mesh = makeSheet(s.sheet);
-    s.particleMass = d.cloth.particleMass;
-    s.stiffness = d.cloth.springStiffness;
+    if (!d.cloth.particleMass || !d.cloth.springStiffness)
+        refuse("particle_mass and stiffness must be given");
+    s.particleMass = *d.cloth.particleMass;
+    s.stiffness = *d.cloth.springStiffness;
     s.damping = d.cloth.damping;
     s.gravity = d.cloth.gravity;
     s.timeStep = d.timeStep;

@@ -12,6 +12,7 @@
 
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,8 +37,8 @@ bool meshIoAvailable();
 
 /// How importMesh reads a file.
 struct MeshImportOptions {
-    /// Vertices closer than this are merged [m]; negative: 1e-9 of the bounding-box diagonal.
-    double weldTolerance = -1.0;
+    /// Vertices closer than this are merged [m]; not given: drape::automaticWeldTolerance.
+    std::optional<double> weldTolerance;
     /// Degenerate triangles (two corners at one point, or no area), duplicate triangles and
     /// vertices no triangle uses: refuse the mesh (true) or drop them with a warning (false).
     bool refuseDegenerate = false;
@@ -61,7 +62,8 @@ struct MeshImportOptions {
 /// non-finite coordinates, too many vertices...).
 ImportedMesh importMesh(const std::filesystem::path& file, const MeshImportOptions& options);
 /// importMesh with only a weld tolerance given.
-ImportedMesh importMesh(const std::filesystem::path& file, double weldTolerance = -1.0);
+ImportedMesh importMesh(const std::filesystem::path& file,
+                        std::optional<double> weldTolerance = std::nullopt);
 
 /// Applies scale, then rotation (x, y, z in degrees), then translation to every vertex.
 void transformMesh(TriangleMesh& mesh, const Vec3& scale, const Vec3& rotationDeg,

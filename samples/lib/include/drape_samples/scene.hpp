@@ -55,11 +55,11 @@ struct SheetDesc {
 
 /// A cloth loaded from a mesh file (through assimp), then scaled, rotated and translated.
 struct MeshDesc {
-    std::filesystem::path file;      ///< resolved against the scene file's folder
-    Vec3 scale = Vec3::Ones();       ///< per-axis scale [-]
-    Vec3 rotationDeg = Vec3::Zero(); ///< rotation about x, then y, then z [deg]
-    Vec3 translation = Vec3::Zero(); ///< [m]
-    double weldTolerance = -1.0;     ///< [m]; negative = automatic (see TopologyOptions)
+    std::filesystem::path file;          ///< resolved against the scene file's folder
+    Vec3 scale = Vec3::Ones();           ///< per-axis scale [-]
+    Vec3 rotationDeg = Vec3::Zero();     ///< rotation about x, then y, then z [deg]
+    Vec3 translation = Vec3::Zero();     ///< [m]
+    std::optional<double> weldTolerance; ///< [m]; not given: automatic (see TopologyOptions)
     /// What to do with degenerate triangles (a repeated corner or no area), duplicate
     /// triangles and vertices no triangle uses: drop them with a warning (false) or refuse
     /// the mesh (true, "degenerate_triangles": "refuse").
