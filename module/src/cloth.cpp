@@ -144,19 +144,20 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     : topology_(std::move(topology)), settings_(settings) {
     if (!topology_) throw Error(ErrorCode::InvalidArgument, "cloth topology is null");
     validateSettings(settings_);
-    mass_ = buildMasses(*topology_, settings_);
-    invMass_.resize(mass_.size());
-    for (std::size_t i = 0; i < mass_.size(); ++i)
-        invMass_[i] = 1.0 / mass_[i];
+    std::vector<double> mass = buildMasses(*topology_, settings_);
+    invMass_.resize(mass.size());
+    for (std::size_t i = 0; i < mass.size(); ++i)
+        invMass_[i] = 1.0 / mass[i];
     x_ = topology_->restPositions();
     v_.assign(x_.size(), Vec3::Zero());
     f_.assign(x_.size(), Vec3::Zero());
     pinned_.assign(x_.size(), 0);
     if (settings_.threads > 1)
         poolStorage_ = std::make_unique<detail::ThreadPool>(settings_.threads);
-    forceModel_ =
-        std::make_unique<ForceModel>(topology_, buildStiffness(*topology_, settings_, mass_), mass_,
-                                     settings_, timers_, poolStorage_.get());
+    std::vector<double> stiffness = buildStiffness(*topology_, settings_, mass);
+    // The masses live in the force model (gravity reads them); masses() returns its copy.
+    forceModel_ = std::make_unique<ForceModel>(topology_, std::move(stiffness), std::move(mass),
+                                               settings_, timers_, poolStorage_.get());
     integrator_ = makeIntegrator(settings_.integrator, settings_.implicit);
     integrator_->bind(*forceModel_);
     for (const Stage& st : kStages)
@@ -238,7 +239,7 @@ double Cloth::energyScale() const {
     // Kinetic plus elastic energy, floored by the work gravity does over one mean spring
     // length, so that a cloth at rest still has a finite scale.
     double totalMass = 0.0;
-    for (double m : mass_)
+    for (double m : masses())
         totalMass += m;
     double meanRest = 0.0;
     for (const auto& s : topology_->springs())
@@ -621,7 +622,7 @@ void Cloth::setKinematic(Index i, KinematicPath path) {
 void Cloth::unpin(Index i) {
     checkIndex(i, x_.size(), "unpin");
     pinned_[i] = 0;
-    invMass_[i] = 1.0 / mass_[i];
+    invMass_[i] = 1.0 / masses()[i];
     kinematic_.erase(std::remove_if(kinematic_.begin(), kinematic_.end(),
                                     [&](const auto& k) { return k.first == i; }),
                      kinematic_.end());
@@ -720,18 +721,20 @@ double Cloth::meanStrain() const {
     return meanSpringStrain(*topology_, x_);
 }
 double Cloth::kineticEnergy() const {
+    const std::vector<double>& m = masses();
     double e = 0.0;
     for (std::size_t i = 0; i < v_.size(); ++i)
-        e += 0.5 * mass_[i] * v_[i].squaredNorm();
+        e += 0.5 * m[i] * v_[i].squaredNorm();
     return e;
 }
 double Cloth::springEnergy() const {
     return drape::springEnergy(topology_->springs(), forceModel_->stiffness(), x_);
 }
 double Cloth::gravityEnergy() const {
+    const std::vector<double>& m = masses();
     double e = 0.0;
     for (std::size_t i = 0; i < x_.size(); ++i)
-        e -= mass_[i] * settings_.gravity.dot(x_[i]);
+        e -= m[i] * settings_.gravity.dot(x_[i]);
     return e;
 }
 double Cloth::maxAngularFrequency() const {

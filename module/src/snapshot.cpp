@@ -177,7 +177,7 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
     cloth.limiter_.setWarmStartState(std::move(lambda));
     for (std::size_t i = 0; i < n; ++i) {
         cloth.pinned_[i] = pinned[i];
-        cloth.invMass_[i] = pinned[i] ? 0.0 : 1.0 / cloth.mass_[i];
+        cloth.invMass_[i] = pinned[i] ? 0.0 : 1.0 / cloth.masses()[i];
     }
     cloth.invalidateOmega();
     cloth.wake(); // sleep is not stored: a loaded cloth is awake (see cloth.hpp)

@@ -123,7 +123,7 @@ class Cloth {
     Vec3List& mutableVelocities();
     void setPosition(Index i, const Vec3& x);
     void setVelocity(Index i, const Vec3& v);
-    const std::vector<double>& masses() const { return mass_; }           ///< [kg]
+    const std::vector<double>& masses() const { return forceModel_->mass(); } ///< [kg]
     const std::vector<double>& inverseMasses() const { return invMass_; } ///< 0 if pinned
     const std::vector<double>& stiffness() const { return forceModel_->stiffness(); } ///< [N/m]
     double time() const { return time_; } ///< simulated time [s]
@@ -199,7 +199,6 @@ class Cloth {
 
     TopologyPtr topology_;
     ClothSettings settings_;
-    std::vector<double> mass_;
     std::vector<double> invMass_;
     Vec3List x_, v_, f_;
     Vec3List xScratch_, vScratch_, xBeforeLimit_;
