@@ -289,7 +289,6 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
     m.cloth->addExternalForce("contact_force", detail::ContactForce(m.contacts.records));
     m.stage = std::make_shared<Impl::Stage>(m.contacts);
     m.cloth->addStage(m.stage);
-    m.contacts.prevX = m.cloth->positions();
 
     m.updateBounds(0.0);
     m.proxy.addTo(world, settings.collisionGroup, settings.collisionMask);

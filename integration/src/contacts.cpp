@@ -19,24 +19,18 @@ void ContactSolver::run(Cloth& c, double dt) {
     if (contact_.triangles) trianglePlane_.assign(n, 0);
     planeBody_.clear();
     planePoint_.clear();
-    if (!inStep) { // the cloth was stepped outside the world: no snapshot to collide with
-        prevX = c.positions();
-        return;
-    }
-    if (prevX.size() != n) prevX = c.positions();
+    if (!inStep) return; // the cloth was stepped outside the world: no bodies to collide with
+    from_ = &c.stepStartPositions();
     records->contacts.clear();
     records->dt = dt;
     const bool self = self_.enabled;
-    if (bodies.empty() && !self) {
-        prevX = c.positions();
-        return; // no rigid collider near the cloth: no collision work at all
-    }
+    if (bodies.empty() && !self) return; // no rigid collider near the cloth: no work at all
     Vec3List& x = c.mutablePositions();
     Vec3List& v = c.mutableVelocities();
 
     if (self) {
         const auto& sc = self_;
-        const auto counts = selfCollider_.run(c.topology(), c.inverseMasses(), prevX, x, v,
+        const auto counts = selfCollider_.run(c.topology(), c.inverseMasses(), prevX(), x, v,
                                               sc.thickness, sc.friction, sc.iterations);
         stats.selfPairTests += counts.pairTests;
         stats.selfContacts += counts.contacts;
@@ -75,7 +69,6 @@ void ContactSolver::run(Cloth& c, double dt) {
 
     stats.narrowphaseQueries += counters.queries;
     stats.triangleQueries += counters.triangleQueries;
-    prevX = x;
 }
 
 void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counters) {
@@ -94,7 +87,7 @@ void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counter
     Block whole;
     for (std::size_t i = 0; i < n; ++i) {
         const bool fixed = invMass[i] == 0.0;
-        boxes_.update(i, x[i], prevX[i], fixed);
+        boxes_.update(i, x[i], prevX()[i], fixed);
         whole.free += !fixed;
         whole.grow(boxes_[i]);
     }
@@ -127,12 +120,12 @@ void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counter
             for (std::size_t i = k * kBlock, end = std::min(n, i + kBlock); i < end; ++i) {
                 if (invMass[i] == 0.0) continue;
                 ++stats.particleBoxTests;
-                if (!boxes_.mayTouch(b, i, x[i], prevX[i])) continue;
+                if (!boxes_.mayTouch(b, i, x[i], prevX()[i])) continue;
                 const Vec3 before = x[i];
                 collideParticle(c, bi, i, dt, counters);
                 if (x[i] != before) { // projected: the next bodies see where it is now
                     projected_.push_back(static_cast<Index>(i));
-                    boxes_.update(i, x[i], prevX[i], false);
+                    boxes_.update(i, x[i], prevX()[i], false);
                     bl.grow(boxes_[i]);
                     whole.grow(boxes_[i]);
                 }
@@ -151,7 +144,7 @@ void ContactSolver::collideMoved(Cloth& c, double dt, QueryCounters& counters) {
     movedGroups_.clear();
     for (std::size_t m = 0; m < moved_.size(); ++m) {
         const std::size_t i = moved_[m];
-        boxes_.update(i, x[i], prevX[i], false);
+        boxes_.update(i, x[i], prevX()[i], false);
         if (movedGroups_.empty() || moved_[movedGroups_.back().begin] / kBlock != i / kBlock)
             movedGroups_.push_back(MovedGroup{m, m, Block{}});
         MovedGroup& g = movedGroups_.back();
@@ -169,12 +162,12 @@ void ContactSolver::collideMoved(Cloth& c, double dt, QueryCounters& counters) {
             for (std::size_t m = g.begin; m < g.end; ++m) {
                 const std::size_t i = moved_[m];
                 ++stats.particleBoxTests;
-                if (!boxes_.mayTouch(b, i, x[i], prevX[i])) continue;
+                if (!boxes_.mayTouch(b, i, x[i], prevX()[i])) continue;
                 const Vec3 before = x[i];
                 collideParticle(c, bi, i, dt, counters);
                 if (x[i] != before) {
                     projected_.push_back(static_cast<Index>(i));
-                    boxes_.update(i, x[i], prevX[i], false);
+                    boxes_.update(i, x[i], prevX()[i], false);
                     g.box.grow(boxes_[i]);
                 }
             }

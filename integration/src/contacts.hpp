@@ -107,8 +107,6 @@ class ContactSolver {
     ContactStats stats;
     /// The records the contact force term reads (shared with it).
     std::shared_ptr<ContactState> records;
-    /// Positions at the end of the previous step (after contacts).
-    Vec3List prevX;
     /// Inside a Bullet sub-step: the bodies are a fresh snapshot. Outside (the cloth stepped
     /// on its own) the stage collides with nothing.
     bool inStep = false;
@@ -117,6 +115,10 @@ class ContactSolver {
     std::size_t limiterSlot = 0;
 
   private:
+    /// The positions the step started from (Cloth::stepStartPositions), set by run(): each
+    /// particle is swept from here. Nothing of it outlives the step.
+    const Vec3List* from_ = nullptr;
+    const Vec3List& prevX() const { return *from_; }
     using Block = ParticleBoxes::Block;
     static constexpr std::size_t kBlock = ParticleBoxes::kBlock;
     /// Moved particles of one block, moved[begin, end), for the re-projection.

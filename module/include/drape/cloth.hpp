@@ -124,7 +124,7 @@ class Cloth {
     void setPosition(Index i, const Vec3& x);
     void setVelocity(Index i, const Vec3& v);
     const std::vector<double>& masses() const { return forceModel_->mass(); } ///< [kg]
-    const std::vector<double>& inverseMasses() const { return invMass_; } ///< 0 if pinned
+    const std::vector<double>& inverseMasses() const { return invMass_; }     ///< 0 if pinned
     const std::vector<double>& stiffness() const { return forceModel_->stiffness(); } ///< [N/m]
     double time() const { return time_; } ///< simulated time [s]
     std::uint64_t stepCount() const { return steps_; }
@@ -156,6 +156,10 @@ class Cloth {
     StrainLimitStats relimit(const std::vector<Index>& touched, double dt,
                              ContactPlanes* planes = nullptr);
     const std::vector<Index>& relimitMoved() const;
+    /// Inside a step (for stages): the positions at its start, before integration [m]. A
+    /// collision stage sweeps each particle from here to where it is now. Outside a step: the
+    /// start of the last step taken (empty before the first).
+    const Vec3List& stepStartPositions() const { return xScratch_; }
     const PhaseTimers& timers() const { return timers_; }
     PhaseTimers& timers() { return timers_; }
     /// Names of the phases a step runs, in order (what the pipeline holds for this cloth).
