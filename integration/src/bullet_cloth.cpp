@@ -144,12 +144,18 @@ class BulletCloth::Impl::Action final : public btActionInterface {
 
 class BulletCloth::Impl::Stage final : public ClothStage {
   public:
-    explicit Stage(detail::ContactSolver& contacts) : contacts_(contacts) {}
+    Stage(detail::ContactSolver& contacts, std::size_t particles)
+        : contacts_(contacts), particles_(particles) {}
     std::string name() const override { return "bullet_contacts"; }
     void run(Cloth& c, double dt) override { contacts_.run(c, dt); }
+    std::vector<unsigned char> saveState() const override { return contacts_.saveState(); }
+    void loadState(const std::vector<unsigned char>& bytes) override {
+        contacts_.loadState(particles_, bytes);
+    }
 
   private:
     detail::ContactSolver& contacts_;
+    std::size_t particles_;
 };
 
 void BulletCloth::Impl::step(double dt) {
@@ -287,7 +293,7 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
     // The force term lives as long as the cloth; it reads the contact list, which is empty
     // once this handle is removed.
     m.cloth->addExternalForce("contact_force", detail::ContactForce(m.contacts.records));
-    m.stage = std::make_shared<Impl::Stage>(m.contacts);
+    m.stage = std::make_shared<Impl::Stage>(m.contacts, m.cloth->particleCount());
     m.cloth->addStage(m.stage);
 
     m.updateBounds(0.0);

@@ -1,7 +1,14 @@
 // The contact stage's pass over bodies and particles, and the re-limiting (see contacts.hpp).
 #include "contacts.hpp"
 
+#include "validate.hpp"
+
+#include "drape/error.hpp"
 #include "drape/timers.hpp"
+
+#include <cmath>
+#include <cstring>
+#include <string>
 
 namespace drape::bullet::detail {
 
@@ -185,6 +192,28 @@ void ContactSolver::applyContactForces(const Cloth& c, double h) {
         if (pc.force == 0.0) continue;
         exchange(bodies[pc.body], (pc.force * pc.normal + pc.friction) * h, pc.point);
     }
+}
+
+std::vector<unsigned char> ContactSolver::saveState() const {
+    std::vector<unsigned char> out(frictionLeft_.size() * sizeof(double));
+    if (!out.empty()) std::memcpy(out.data(), frictionLeft_.data(), out.size());
+    return out;
+}
+
+void ContactSolver::loadState(std::size_t n, const std::vector<unsigned char>& bytes) {
+    if (bytes.empty()) {
+        frictionLeft_.clear();
+        return;
+    }
+    require(bytes.size() == n * sizeof(double), ErrorCode::InvalidArgument,
+            "expected " + std::to_string(n * sizeof(double)) + " bytes (friction left for " +
+                std::to_string(n) + " particles), got " + std::to_string(bytes.size()));
+    std::vector<double> left(n);
+    std::memcpy(left.data(), bytes.data(), bytes.size());
+    for (double l : left)
+        require(std::isfinite(l) && l >= 0.0, ErrorCode::InvalidArgument,
+                "a particle's friction left is negative or not finite");
+    frictionLeft_ = std::move(left);
 }
 
 } // namespace drape::bullet::detail

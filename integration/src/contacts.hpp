@@ -98,6 +98,11 @@ class ContactSolver {
     /// of h [s] acts for h: dynamic bodies get the opposite, and what the friction cone left
     /// becomes next step's frictionLeft.
     void applyContactForces(const Cloth& c, double h);
+    /// What the stage carries from one step to the next (the friction left per particle), as
+    /// bytes for the cloth's snapshot, and back (empty: none). loadState throws drape::Error
+    /// on bytes that are not n finite, non-negative values for the cloth's n particles.
+    std::vector<unsigned char> saveState() const;
+    void loadState(std::size_t particles, const std::vector<unsigned char>& bytes);
 
     /// The bodies of this Bullet sub-step (snapshotted by the handle), whose accumulated
     /// impulses the handle applies after the cloth's steps.
@@ -179,13 +184,14 @@ class ContactSolver {
     const double band_;
     SelfCollider selfCollider_;
 
+    /// State carried to the next step (in the cloth's snapshots: saveState): per particle, the
+    /// friction its contact forces with dynamic bodies had left in the last step, mu N - |T|
+    /// [N] (see ContactForce); the next stage gives it as an impulse.
+    std::vector<double> frictionLeft_;
     // Scratch of the stage, reused every step.
     std::vector<unsigned char> touching_; ///< particle touched a body this step
     std::vector<std::int64_t> recordOf_;  ///< per particle: its latest ContactRecord, or -1
-    /// Per particle: the friction its contact forces with dynamic bodies had left in the last
-    /// step, mu N - |T| [N] (see ContactForce); the stage gives it as an impulse.
-    std::vector<double> frictionLeft_;
-    std::vector<Index> projected_; ///< particles the last contact pass moved
+    std::vector<Index> projected_;        ///< particles the last contact pass moved
     /// The tangent plane of each particle's contact this step (n . x >= n . P + h), which the
     /// limiter's walk keeps, with the body and the point it belongs to.
     ContactPlanes planes_;

@@ -12,7 +12,12 @@ namespace drape {
 namespace {
 
 constexpr char kMagic[8] = {'D', 'R', 'A', 'P', 'E', 'S', 'N', 'P'};
-constexpr std::uint32_t kVersion = 2; // 2: the limiter's warm start per spring
+// 2: the limiter's warm start per spring; 3: sleep state and the caller stages' states.
+constexpr std::uint32_t kVersion = 3;
+constexpr std::uint32_t kOldestVersion = 2;
+/// Caps on the variable part, so a corrupt length fails cleanly instead of allocating.
+constexpr std::uint32_t kMaxStages = 1024;
+constexpr std::uint32_t kMaxStageName = 4096;
 
 struct Fnv {
     std::uint64_t h = 1469598103934665603ull;
@@ -32,6 +37,10 @@ class Writer {
         const auto* p = reinterpret_cast<const unsigned char*>(&v);
         out.insert(out.end(), p, p + sizeof(T));
     }
+    void bytes(const void* data, std::size_t n) {
+        const auto* p = static_cast<const unsigned char*>(data);
+        out.insert(out.end(), p, p + n);
+    }
     std::vector<unsigned char> out;
 };
 
@@ -48,8 +57,20 @@ class Reader {
         pos += sizeof(T);
         return v;
     }
+    /// The next n bytes (n checked against what is left before anything is allocated).
+    std::vector<unsigned char> take(std::uint64_t n, const char* what) {
+        if (n > end - pos) {
+            throw Error(ErrorCode::InvalidArgument,
+                        std::string("snapshot is truncated (ends inside ") + what + ")");
+        }
+        std::vector<unsigned char> out(bytes.begin() + std::ptrdiff_t(pos),
+                                       bytes.begin() + std::ptrdiff_t(pos + n));
+        pos += std::size_t(n);
+        return out;
+    }
     const std::vector<unsigned char>& bytes;
     std::size_t pos = 0;
+    std::size_t end = 0; ///< where the checksum starts
 };
 
 } // namespace
@@ -95,6 +116,24 @@ std::vector<unsigned char> saveSnapshot(const Cloth& cloth) {
     const auto& lambda = cloth.limiter_.warmStartState();
     for (std::size_t s = 0; s < cloth.topology().springCount(); ++s)
         w.pod(s < lambda.size() ? lambda[s] : 0.0);
+    // Sleep: asleep, the quiet time, and the positions the quiet time is measured from.
+    w.pod(static_cast<std::uint8_t>(cloth.asleep_ ? 1 : 0));
+    w.pod(cloth.quietTime_);
+    const bool anchored = cloth.anchor_.size() == cloth.particleCount();
+    w.pod(static_cast<std::uint8_t>(anchored ? 1 : 0));
+    if (anchored)
+        for (const Vec3& a : cloth.anchor_)
+            w.bytes(a.data(), 3 * sizeof(double));
+    // The caller stages' states, by name (ClothStage::saveState).
+    w.pod(static_cast<std::uint32_t>(cloth.stages_.size()));
+    for (const auto& stage : cloth.stages_) {
+        const std::string name = stage->name();
+        const std::vector<unsigned char> state = stage->saveState();
+        w.pod(static_cast<std::uint32_t>(name.size()));
+        w.bytes(name.data(), name.size());
+        w.pod(static_cast<std::uint64_t>(state.size()));
+        w.bytes(state.data(), state.size());
+    }
     Fnv sum;
     sum.bytes(w.out.data(), w.out.size());
     w.pod(sum.h);
@@ -114,11 +153,12 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
     std::memcpy(&stored, bytes.data() + bytes.size() - 8, 8);
     Reader r(bytes);
     r.pos = sizeof(kMagic);
+    r.end = bytes.size() - 8;
     const auto version = r.pod<std::uint32_t>("the version");
-    if (version != kVersion) {
-        throw Error(ErrorCode::InvalidArgument, "snapshot version " + std::to_string(version) +
-                                                    " is not supported (expected " +
-                                                    std::to_string(kVersion) + ")");
+    if (version < kOldestVersion || version > kVersion) {
+        throw Error(ErrorCode::InvalidArgument,
+                    "snapshot version " + std::to_string(version) + " is not supported (expected " +
+                        std::to_string(kOldestVersion) + " to " + std::to_string(kVersion) + ")");
     }
     const auto fingerprint = r.pod<std::uint64_t>("the topology fingerprint");
     const auto n = r.pod<std::uint64_t>("the particle count");
@@ -128,9 +168,10 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
                                                     std::to_string(cloth.particleCount()));
     }
     const std::size_t ns = cloth.topology().springCount();
-    const std::size_t expected =
-        sizeof(kMagic) + 4 + 8 + 8 + 8 + 8 + 1 + n * (9 * 8 + 1) + ns * 8 + 8;
-    if (bytes.size() != expected) {
+    // The fixed part (version 2 is only that); version 3 has a variable part after it.
+    const std::size_t fixed = sizeof(kMagic) + 4 + 8 + 8 + 8 + 8 + 1 + n * (9 * 8 + 1) + ns * 8 + 8;
+    const std::size_t expected = version == 2 ? fixed : fixed + 1 + 8 + 1 + 4;
+    if (version == 2 ? bytes.size() != expected : bytes.size() < expected) {
         throw Error(ErrorCode::InvalidArgument,
                     "snapshot is " + std::to_string(bytes.size()) + " bytes, expected " +
                         std::to_string(expected) + (bytes.size() < expected ? " (truncated)" : ""));
@@ -167,7 +208,64 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
         }
     }
     if (!std::isfinite(time)) throw Error(ErrorCode::NonFinite, "snapshot time is not finite");
-    // Commit: nothing above modified the cloth.
+    bool asleep = false;
+    double quietTime = 0.0;
+    Vec3List anchor;
+    std::vector<std::pair<std::string, std::vector<unsigned char>>> stageStates;
+    if (version >= 3) {
+        asleep = r.pod<std::uint8_t>("the sleep flag") != 0;
+        quietTime = r.pod<double>("the quiet time");
+        if (!std::isfinite(quietTime) || quietTime < 0.0)
+            throw Error(ErrorCode::NonFinite, "snapshot holds an invalid quiet time");
+        if (r.pod<std::uint8_t>("the anchor flag") != 0) {
+            const auto raw = r.take(std::uint64_t(n) * 3 * sizeof(double), "the sleep anchors");
+            anchor.resize(n);
+            std::memcpy(static_cast<void*>(anchor.data()), raw.data(), raw.size());
+            for (const Vec3& a : anchor)
+                if (!a.allFinite())
+                    throw Error(ErrorCode::NonFinite, "snapshot holds a non-finite sleep anchor");
+        }
+        if (asleep && anchor.empty())
+            throw Error(ErrorCode::InvalidArgument, "snapshot is asleep without sleep anchors");
+        const auto count = r.pod<std::uint32_t>("the stage count");
+        if (count > kMaxStages)
+            throw Error(ErrorCode::InvalidArgument,
+                        "snapshot claims " + std::to_string(count) + " stages");
+        for (std::uint32_t k = 0; k < count; ++k) {
+            const auto length = r.pod<std::uint32_t>("a stage name");
+            if (length > kMaxStageName)
+                throw Error(ErrorCode::InvalidArgument,
+                            "snapshot holds a stage name of " + std::to_string(length) + " bytes");
+            const auto name = r.take(length, "a stage name");
+            const auto size = r.pod<std::uint64_t>("a stage state");
+            stageStates.emplace_back(std::string(name.begin(), name.end()),
+                                     r.take(size, "a stage state"));
+        }
+        if (r.pos != r.end)
+            throw Error(ErrorCode::InvalidArgument,
+                        "snapshot has " + std::to_string(r.end - r.pos) + " bytes after its end");
+    }
+    // The stages take their states first: a stage that refuses its bytes throws before the
+    // cloth changes. A stage of this cloth the snapshot does not name starts afresh (empty
+    // state); a state whose stage this cloth lacks is ignored (a snapshot taken in a world
+    // loads into a bare cloth). Stages of one name are matched in order.
+    std::vector<bool> used(stageStates.size(), false);
+    for (const auto& stage : cloth.stages_) {
+        const std::string name = stage->name();
+        std::vector<unsigned char> state;
+        for (std::size_t k = 0; k < stageStates.size(); ++k) {
+            if (used[k] || stageStates[k].first != name) continue;
+            used[k] = true;
+            state = std::move(stageStates[k].second);
+            break;
+        }
+        try {
+            stage->loadState(state);
+        } catch (const Error& e) {
+            throw Error(e.code(), "snapshot state of stage '" + name + "': " + e.what());
+        }
+    }
+    // Commit: nothing above modified the cloth's own state.
     cloth.x_ = std::move(x);
     cloth.v_ = std::move(v);
     cloth.f_ = std::move(f);
@@ -180,7 +278,12 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
         cloth.invMass_[i] = pinned[i] ? 0.0 : 1.0 / cloth.masses()[i];
     }
     cloth.invalidateOmega();
-    cloth.wake(); // sleep is not stored: a loaded cloth is awake (see cloth.hpp)
+    cloth.wake(); // restarts the quiet count; a version 3 snapshot then restores it
+    if (version >= 3) {
+        cloth.quietTime_ = quietTime;
+        cloth.anchor_ = std::move(anchor);
+        cloth.asleep_ = asleep && cloth.settings_.sleep.enabled;
+    }
 }
 
 void saveSnapshotFile(const Cloth& cloth, const std::string& path) {

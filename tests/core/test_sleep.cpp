@@ -163,7 +163,7 @@ TEST_CASE("a kinematic particle that starts moving wakes the sleeping cloth", "[
     CHECK(c->positions()[free].x() - frozen[free].x() > 0.02);
 }
 
-TEST_CASE("sleeping is off by default, validated, and not stored in snapshots", "[sleep]") {
+TEST_CASE("sleeping is off by default, validated, and stored in snapshots", "[sleep]") {
     auto off = hangingCloth(false);
     for (int k = 0; k < 20 * 240; ++k)
         off->step(kDt);
@@ -178,14 +178,32 @@ TEST_CASE("sleeping is off by default, validated, and not stored in snapshots", 
     bad.time = -1.0;
     CHECK_THROWS_WITH(off->setSleep(bad), Catch::Contains("sleep.time"));
 
-    // setSleep turns it on for an existing cloth; a snapshot loads awake.
+    // setSleep turns it on for an existing cloth; a snapshot keeps the sleep state: a sleeping
+    // cloth loads asleep, and one counting its quiet time goes on counting from there.
     SleepSettings on;
     on.enabled = true;
     off->setSleep(on);
     stepUntilAsleep(*off);
     REQUIRE(off->isAsleep());
-    const auto bytes = saveSnapshot(*off);
-    loadSnapshot(*off, bytes);
+    const auto asleep = saveSnapshot(*off);
+    off->wake();
+    off->step(kDt);
+    off->step(kDt);
+    REQUIRE_FALSE(off->isAsleep());
+    const double quiet = off->quietTime();
+    REQUIRE(quiet > 0.0);
+    const auto counting = saveSnapshot(*off);
+    loadSnapshot(*off, asleep);
+    CHECK(off->isAsleep());
+    loadSnapshot(*off, counting);
     CHECK_FALSE(off->isAsleep());
-    CHECK(off->quietTime() == 0.0);
+    CHECK(off->quietTime() == quiet);
+    // Asleep after the same number of further steps as the saved cloth would be.
+    int more = 0;
+    while (!off->isAsleep() && more < 100000) {
+        off->step(kDt);
+        ++more;
+    }
+    CHECK(quiet + more * kDt >= on.time - 1e-9);
+    CHECK(quiet + (more - 1) * kDt < on.time + 1e-9);
 }

@@ -18,8 +18,9 @@
 // restarts the quiet count and continues from the frozen state: the trajectory after waking
 // is that of a cloth (sleeping or not) restored from a snapshot of the frozen state. An
 // external force term or a caller stage that would act on a sleeping cloth must have its
-// owner call wake() (drape::bullet does, for moving bodies). Snapshots do not store sleep:
-// a loaded cloth is awake and counts its quiet time from zero.
+// owner call wake() (drape::bullet does, for moving bodies). Snapshots store sleep (asleep,
+// the quiet time and where it is measured from): a loaded cloth sleeps or counts on as the
+// saved one did.
 #pragma once
 
 #include "drape/forces.hpp"
@@ -50,6 +51,12 @@ class ClothStage {
     virtual std::string name() const = 0;
     /// Runs once per step; dt is the step's time step [s].
     virtual void run(Cloth& cloth, double dt) = 0;
+    /// What the stage carries from one step to the next, for the cloth's snapshots
+    /// (drape/snapshot.hpp). Default: nothing.
+    virtual std::vector<unsigned char> saveState() const { return {}; }
+    /// Restores what saveState returned; empty bytes mean "start afresh" (the snapshot did not
+    /// name this stage). Throws drape::Error on bytes it cannot take, before changing itself.
+    virtual void loadState(const std::vector<unsigned char>& bytes) { (void)bytes; }
 };
 
 /// A prescribed path for a kinematic particle: position [m] at simulated time t [s].

@@ -2,16 +2,20 @@
 // it for determinism checks.
 //
 // A snapshot holds what a step reads: time, step count, positions, velocities, the cached
-// forces, pins and their positions, user forces are not included (they are inputs the
-// caller sets again). Kinematic paths are functions and cannot be stored: a restored cloth
-// keeps the kinematic paths it already has. Restoring into a cloth built from the same
-// topology and settings and then stepping gives bit-identical results to the uninterrupted
-// run.
+// forces, pins and their positions, the limiter's warm start, the sleep state, and the state
+// each caller stage carries between steps (ClothStage::saveState; drape::bullet's contact
+// stage keeps the rest of each particle's friction cone against dynamic bodies). User forces
+// are not included (they are inputs the caller sets again). Kinematic paths are functions and
+// cannot be stored: a restored cloth keeps the kinematic paths it already has. Restoring into
+// a cloth built from the same topology and settings (and, in a world, the same bodies in the
+// same states) and then stepping gives bit-identical results to the uninterrupted run.
 //
-// File layout (little-endian): "DRAPESNP", u32 version, u64 topology fingerprint,
-// u64 particle count, f64 time, u64 steps, u8 forces-valid, then per particle
-// x, v, f (9 f64) and u8 pinned, then per spring the limiter's warm start (f64; version 2),
-// and finally a u64 FNV-1a checksum of everything before it.
+// File layout (little-endian): "DRAPESNP", u32 version (3; 2 is still read), u64 topology
+// fingerprint, u64 particle count, f64 time, u64 steps, u8 forces-valid, then per particle
+// x, v, f (9 f64) and u8 pinned, then per spring the limiter's warm start (f64). Version 3
+// goes on with u8 asleep, f64 quiet time, u8 has-anchors and then per particle its sleep
+// anchor (3 f64), u32 stage count and per stage u32 name length, the name, u64 state length
+// and the state. Last, a u64 FNV-1a checksum of everything before it.
 #pragma once
 
 #include "drape/cloth.hpp"
