@@ -400,6 +400,9 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
     std::vector<SceneRun> scenes;
     auto add = [&scenes](ClothScene sc, double duration, int repeats, double deformable) {
         SceneRun r;
+        // The scene files' cameras at the report's render size (one image per engine).
+        sc.camera.width = 360;
+        sc.camera.height = 300;
         r.scene = std::move(sc);
         r.duration = duration;
         r.repeats = repeats;
@@ -549,6 +552,9 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
        << "` (writes this folder "
        << "from scratch).\n\n"
        << machineMarkdown(machine) << "## Set-up\n\n"
+       << "The scenes are the scene files of samples/scenes (the paper's experiments and "
+          "cloth_on_sphere.json; the hanging sheets are Experiment I resized, the --quick sizes "
+          "likewise: reports::resizedSheet).\n\n"
        << "Every engine gets the same triangle mesh (vertex i is particle i is node i), the same "
           "particle "
           "mass (0.5), the same pinned particles, gravity 9.8 and the same static colliders; the "
@@ -556,13 +562,15 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
           "units (spacing 10, k 20 N/m). Frame dt 0.01 s.\n\n"
        << "- **drape**: Velocity-Verlet, with and without the stress-ordered strain limiter (10 "
           "%), "
-          "particle damping C_d = 0.05 N s/m, contacts through drape::bullet (thickness 1).\n"
+          "particle damping C_d and contact thickness of the scene file (C_d = 0.05 N s/m and "
+          "thickness 1, Experiment II 0.15 N s/m and 2.5), contacts through drape::bullet.\n"
        << "- **btSoftBody** (btSoftRigidDynamicsWorld): btSoftBodyHelpers::CreateFromTriMesh on "
           "the same "
           "vertices and triangles; its links are the unique triangle edges, the same set as "
           "drape's springs "
           "(the link counts below match). Node masses set one by one, pins by setMass(node, 0), "
-          "m_kLST = 1, kDP = C_d dt / m per sub-step (its velocity damping), margin 1, kCHR 1, "
+          "m_kLST = 1, kDP = C_d dt / m per sub-step (its velocity damping), margin = the "
+          "thickness, kCHR 1, "
           "kDF = the collider's friction. Sweeps of m_cfg.piterations (1, 4, 16) and of sub-steps "
           "(1, 4). "
           "**Its stiffness is not a spring constant**: kLST is a unitless [0, 1] factor of a "
@@ -571,7 +579,7 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
           "stretches "
           "depends on piterations and sub-steps instead.\n"
        << "- **btDeformable** (btDeformableMultiBodyDynamicsWorld, implicit solve): "
-          "btDeformableMassSpringForce(k = 20 N/m, damping 0.05 along the springs) and "
+          "btDeformableMassSpringForce(k = 20 N/m, damping C_d along the springs) and "
           "btDeformableGravityForce, SDF_RD contacts, setUseProjection(true) (with Bullet 3.24's "
           "default Lagrange-multiplier path the implicit solve does not move the nodes at all: a "
           "two-triangle cloth under gravity stays put).\n\n"
