@@ -80,8 +80,18 @@ ClothScene fromSceneFile(const samples::SceneDesc& d) {
     s.title = d.name;
     s.sheet = d.sheet->spec;
     s.mesh = makeSheet(s.sheet);
-    s.particleMass = d.cloth.particleMass;
-    s.stiffness = d.cloth.springStiffness;
+    {
+        // The file's cloth as the core builds it (mass and stiffness given directly, or through
+        // total_mass or a material): a ClothScene holds one mass and one stiffness.
+        const Cloth probe(ClothTopology::build(s.mesh), d.cloth);
+        const auto [mLo, mHi] = std::minmax_element(probe.masses().begin(), probe.masses().end());
+        const auto [kLo, kHi] =
+            std::minmax_element(probe.stiffness().begin(), probe.stiffness().end());
+        if (*mLo != *mHi) refuse("the particle masses are not all equal");
+        if (*kLo != *kHi) refuse("the spring stiffnesses are not all equal");
+        s.particleMass = *mLo;
+        s.stiffness = *kLo;
+    }
     s.damping = d.cloth.damping;
     s.gravity = d.cloth.gravity;
     s.timeStep = d.timeStep;
