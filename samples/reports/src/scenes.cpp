@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 namespace drape::reports {
 
@@ -254,6 +255,10 @@ DrapeWorld::~DrapeWorld() = default;
 
 void DrapeWorld::step(double dt) {
     Impl& m = *impl_;
+    // stepSimulation takes a step below btScalar's epsilon as no step at all.
+    if (!(btScalar(dt) >= SIMD_EPSILON))
+        throw std::invalid_argument("DrapeWorld::step: dt = " + std::to_string(dt) +
+                                    " s is below the smallest step Bullet takes");
     if (!m.handle || m.options.timeStep != dt) {
         // The cloth's exact time step is part of how it joins the world.
         if (m.handle) bullet::removeCloth(*m.handle);

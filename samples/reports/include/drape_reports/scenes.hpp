@@ -108,7 +108,8 @@ class DrapeWorld {
     DrapeWorld(const DrapeWorld&) = delete;
     DrapeWorld& operator=(const DrapeWorld&) = delete;
     /// One world step of dt [s]. Throws drape::Error (SimulationFailure when the state blew
-    /// up, UnstableTimeStep when the cloth's settings refuse dt).
+    /// up, UnstableTimeStep when the cloth's settings refuse dt), std::invalid_argument for a
+    /// dt below btScalar's epsilon (which stepSimulation would not step).
     void step(double dt);
     Cloth& cloth();
     const Cloth& cloth() const;
