@@ -15,6 +15,8 @@
 #include "drape_reports/reports.hpp"
 #include "drape_reports/scenes.hpp"
 
+#include "colliders.hpp"
+
 #include <drape/bullet/convert.hpp>
 #include <drape/error.hpp>
 #include <drape/strain_limit.hpp>
@@ -61,40 +63,6 @@ class DrapeEngine : public Engine {
   private:
     DrapeWorld world_;
     double dt_;
-};
-
-/// Static colliders as Bullet rigid bodies.
-struct Colliders {
-    std::vector<std::unique_ptr<btCollisionShape>> shapes;
-    std::vector<std::unique_ptr<btRigidBody>> bodies;
-    void build(btDynamicsWorld* world, const std::vector<Collider>& cs, float margin) {
-        for (const Collider& c : cs) {
-            std::unique_ptr<btCollisionShape> shape;
-            btTransform t;
-            t.setIdentity();
-            if (c.kind == Collider::Kind::Box) {
-                shape = std::make_unique<btBoxShape>(toBt(c.halfExtents));
-                t.setOrigin(toBt(c.center));
-            } else if (c.kind == Collider::Kind::Sphere) {
-                shape = std::make_unique<btSphereShape>(btScalar(c.radius));
-                t.setOrigin(toBt(c.center));
-            } else {
-                shape = std::make_unique<btStaticPlaneShape>(toBt(c.normal), btScalar(c.offset));
-            }
-            shape->setMargin(margin);
-            btRigidBody::btRigidBodyConstructionInfo info(0.0f, nullptr, shape.get());
-            info.m_startWorldTransform = t;
-            info.m_friction = btScalar(c.friction);
-            auto body = std::make_unique<btRigidBody>(info);
-            world->addRigidBody(body.get());
-            shapes.push_back(std::move(shape));
-            bodies.push_back(std::move(body));
-        }
-    }
-    void remove(btDynamicsWorld* world) {
-        for (auto& b : bodies)
-            world->removeRigidBody(b.get());
-    }
 };
 
 /// Builds the soft body from the scene's mesh: same vertices, triangles, masses and pins.
@@ -181,7 +149,7 @@ class SoftBodyEngine : public Engine {
     std::unique_ptr<btDbvtBroadphase> broadphase_;
     std::unique_ptr<btSequentialImpulseConstraintSolver> solver_;
     std::unique_ptr<btSoftRigidDynamicsWorld> world_;
-    Colliders colliders_;
+    StaticColliders colliders_;
     std::unique_ptr<btSoftBody> body_;
 };
 
@@ -239,7 +207,7 @@ class DeformableEngine : public Engine {
     std::unique_ptr<btDbvtBroadphase> broadphase_;
     std::unique_ptr<btDeformableBodySolver> bodySolver_;
     std::unique_ptr<btDeformableMultiBodyConstraintSolver> solver_;
-    Colliders colliders_;
+    StaticColliders colliders_;
     std::unique_ptr<btSoftBody> body_;
     std::unique_ptr<btDeformableMassSpringForce> spring_;
     std::unique_ptr<btDeformableGravityForce> gravity_;

@@ -1,6 +1,8 @@
 // The report scenes and the drape runner for them.
 #include "drape_reports/scenes.hpp"
 
+#include "colliders.hpp"
+
 #include <drape/bullet/bullet_cloth.hpp>
 #include <drape/bullet/convert.hpp>
 
@@ -182,41 +184,11 @@ double rmsDistance(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
     return a.empty() ? 0.0 : std::sqrt(sum / static_cast<double>(a.size()));
 }
 
-// --- DrapeWorld ------------------------------------------------------------------------------
+// --- StaticColliders -------------------------------------------------------------------------
 
-struct DrapeWorld::Impl {
-    std::shared_ptr<Cloth> cloth;
-    bullet::BulletClothSettings options;
-    std::unique_ptr<btDefaultCollisionConfiguration> config;
-    std::unique_ptr<btCollisionDispatcher> dispatcher;
-    std::unique_ptr<btDbvtBroadphase> broadphase;
-    std::unique_ptr<btSequentialImpulseConstraintSolver> solver;
-    std::unique_ptr<btDiscreteDynamicsWorld> world;
-    std::vector<std::unique_ptr<btCollisionShape>> shapes;
-    std::vector<std::unique_ptr<btRigidBody>> bodies;
-    std::unique_ptr<bullet::BulletCloth> handle;
-
-    ~Impl() {
-        handle.reset();
-        for (auto& b : bodies)
-            world->removeRigidBody(b.get());
-    }
-};
-
-DrapeWorld::DrapeWorld(const ClothScene& scene, const ClothSettings& settings)
-    : impl_(std::make_unique<Impl>()) {
-    impl_->cloth = std::make_shared<Cloth>(ClothTopology::build(scene.mesh), settings);
-    for (Index p : scene.pins)
-        impl_->cloth->pin(p);
-    Impl& m = *impl_;
-    m.config = std::make_unique<btDefaultCollisionConfiguration>();
-    m.dispatcher = std::make_unique<btCollisionDispatcher>(m.config.get());
-    m.broadphase = std::make_unique<btDbvtBroadphase>();
-    m.solver = std::make_unique<btSequentialImpulseConstraintSolver>();
-    m.world = std::make_unique<btDiscreteDynamicsWorld>(m.dispatcher.get(), m.broadphase.get(),
-                                                        m.solver.get(), m.config.get());
-    m.world->setGravity(bullet::toBt(scene.gravity));
-    for (const Collider& c : scene.colliders) {
+void StaticColliders::build(btDynamicsWorld* world, const std::vector<Collider>& colliders,
+                            float margin) {
+    for (const Collider& c : colliders) {
         std::unique_ptr<btCollisionShape> shape;
         btTransform t;
         t.setIdentity();
@@ -234,15 +206,55 @@ DrapeWorld::DrapeWorld(const ClothScene& scene, const ClothSettings& settings)
                 std::make_unique<btStaticPlaneShape>(bullet::toBt(c.normal), btScalar(c.offset));
             break;
         }
-        shape->setMargin(0.0f);
+        shape->setMargin(margin);
         btRigidBody::btRigidBodyConstructionInfo info(0.0f, nullptr, shape.get());
         info.m_startWorldTransform = t;
         info.m_friction = btScalar(c.friction);
         auto body = std::make_unique<btRigidBody>(info);
-        m.world->addRigidBody(body.get());
-        m.shapes.push_back(std::move(shape));
-        m.bodies.push_back(std::move(body));
+        world->addRigidBody(body.get());
+        shapes.push_back(std::move(shape));
+        bodies.push_back(std::move(body));
     }
+}
+
+void StaticColliders::remove(btDynamicsWorld* world) {
+    for (auto& b : bodies)
+        world->removeRigidBody(b.get());
+}
+
+// --- DrapeWorld ------------------------------------------------------------------------------
+
+struct DrapeWorld::Impl {
+    std::shared_ptr<Cloth> cloth;
+    bullet::BulletClothSettings options;
+    std::unique_ptr<btDefaultCollisionConfiguration> config;
+    std::unique_ptr<btCollisionDispatcher> dispatcher;
+    std::unique_ptr<btDbvtBroadphase> broadphase;
+    std::unique_ptr<btSequentialImpulseConstraintSolver> solver;
+    std::unique_ptr<btDiscreteDynamicsWorld> world;
+    StaticColliders colliders;
+    std::unique_ptr<bullet::BulletCloth> handle;
+
+    ~Impl() {
+        handle.reset();
+        colliders.remove(world.get());
+    }
+};
+
+DrapeWorld::DrapeWorld(const ClothScene& scene, const ClothSettings& settings)
+    : impl_(std::make_unique<Impl>()) {
+    impl_->cloth = std::make_shared<Cloth>(ClothTopology::build(scene.mesh), settings);
+    for (Index p : scene.pins)
+        impl_->cloth->pin(p);
+    Impl& m = *impl_;
+    m.config = std::make_unique<btDefaultCollisionConfiguration>();
+    m.dispatcher = std::make_unique<btCollisionDispatcher>(m.config.get());
+    m.broadphase = std::make_unique<btDbvtBroadphase>();
+    m.solver = std::make_unique<btSequentialImpulseConstraintSolver>();
+    m.world = std::make_unique<btDiscreteDynamicsWorld>(m.dispatcher.get(), m.broadphase.get(),
+                                                        m.solver.get(), m.config.get());
+    m.world->setGravity(bullet::toBt(scene.gravity));
+    m.colliders.build(m.world.get(), scene.colliders, 0.0f);
     m.options.contact.thickness = scene.thickness;
     m.options.useWorldGravity = false; // the cloth keeps the scene's exact (double) gravity
     // Alone, the cloth keeps its own settings (the reports measure the integrators on hanging
