@@ -81,7 +81,8 @@ SceneDesc resizedSheet(const SceneDesc& scene, Index rows, Index cols) {
         if (b.rotationDeg != Vec3::Zero()) cannotResize(scene, b.path + ": a rotated body");
         b.position = map(b.position);
         for (KeyframeDesc& k : b.keyframes) {
-            if (k.rotationDeg != Vec3::Zero()) cannotResize(scene, b.path + ": a rotating keyframe");
+            if (k.rotationDeg != Vec3::Zero())
+                cannotResize(scene, b.path + ": a rotating keyframe");
             k.position = map(k.position);
         }
         ShapeDesc& shape = b.shape;
@@ -98,7 +99,8 @@ SceneDesc resizedSheet(const SceneDesc& scene, Index rows, Index cols) {
             break;
         case ShapeKind::Plane: {
             const int a = coordinateAxis(shape.normal);
-            if (a < 0) cannotResize(scene, b.path + ": a plane whose normal is not a coordinate axis");
+            if (a < 0)
+                cannotResize(scene, b.path + ": a plane whose normal is not a coordinate axis");
             shape.offset = shape.offset * num[a] / den[a];
             break;
         }
