@@ -10,13 +10,16 @@
 //   drape-bench --benchmark_filter=scaling        only the scaling family
 //   drape-bench --benchmark_repetitions=9         more repetitions (later flags win)
 //
-// The scene: particle mass 0.5, spacing 10, spring stiffness 20, gravity (0, -9.8, 0), the two
-// top corners pinned, dt 0.01 (Experiment I of the paper). Explicit Euler is unstable on an
-// undamped spring network for any dt, but within the 200 steps measured here it stays finite
-// (its energy grows by a bounded factor), so all integrators share dt = 0.01.
+// The scene is Experiment I as samples/scenes/experiment1_suspended_sheet.json defines it (read
+// through drape::samples: particle mass 0.5, spacing 10, spring stiffness 20, C_d 0.05, gravity
+// (0, -9.8, 0), the two top corners pinned, dt 0.01); the other sizes are that scene resized by
+// samples::resizedSheet. Only Cloth::step is timed (the core; no Bullet world). Explicit Euler
+// is unstable on a spring network at this dt, but within the 200 steps measured here it stays
+// finite (its energy grows by a bounded factor), so all integrators share the scene's dt.
 #include "drape/cloth.hpp"
 #include "drape/error.hpp"
 #include "drape/snapshot.hpp"
+#include "drape_samples/scene.hpp"
 
 #include <benchmark/benchmark.h>
 
@@ -50,7 +53,21 @@ namespace {
 
 using namespace drape;
 
-constexpr double kDt = 0.01;
+/// Experiment I, read once from its scene file.
+const samples::SceneDesc& experiment1() {
+    static const samples::SceneDesc scene =
+        samples::loadScene(DRAPE_BENCH_SCENES_DIR "/experiment1_suspended_sheet.json");
+    return scene;
+}
+
+/// Experiment I resized to size x size (samples::resizedSheet; the file's own size as it is).
+samples::SceneDesc experiment1(Index size) {
+    const samples::SceneDesc& e1 = experiment1();
+    if (e1.sheet->spec.rows == size && e1.sheet->spec.cols == size) return e1;
+    return samples::resizedSheet(e1, size, size);
+}
+
+const double kDt = experiment1().timeStep;
 
 struct SceneSpec {
     const char* name;
@@ -59,30 +76,24 @@ struct SceneSpec {
     int stepsImplicit; ///< measured steps per repetition for implicit Euler (much slower)
 };
 
+/// The scene file's cloth settings with another integrator, limiter and thread count.
 ClothSettings sceneSettings(IntegratorKind integrator, LimiterKind limiter, int threads) {
-    ClothSettings s;
+    ClothSettings s = experiment1().cloth;
     s.integrator = integrator;
-    s.particleMass = 0.5;
-    s.springStiffness = 20.0;
-    s.gravity = Vec3(0.0, -9.8, 0.0);
     s.limiter.kind = limiter;
     s.threads = threads;
     return s;
 }
 
 SheetSpec sheetSpec(Index size) {
-    SheetSpec spec;
-    spec.rows = size;
-    spec.cols = size;
-    spec.spacing = 10.0;
-    return spec;
+    return experiment1(size).sheet->spec;
 }
 
+/// The cloth of Experiment I at size x size, pinned as the scene file pins it.
 std::unique_ptr<Cloth> makeCloth(Index size, TopologyPtr topology, const ClothSettings& s) {
-    const SheetSpec spec = sheetSpec(size);
     auto cloth = std::make_unique<Cloth>(std::move(topology), s);
-    cloth->pin(sheetIndex(spec, 0, 0));
-    cloth->pin(sheetIndex(spec, 0, size - 1));
+    for (Index p : samples::fixedPins(experiment1(size)))
+        cloth->pin(p);
     return cloth;
 }
 
@@ -198,10 +209,14 @@ void restart(Cloth& cloth, const std::vector<unsigned char>& start) {
 /// `asleep` = false runs the same settling with sleeping off: the same state, stepped awake. The
 /// ratio of the two is what a sleeping cloth saves.
 void runRest(benchmark::State& state, bool asleep) {
-    SheetSpec spec = sheetSpec(35);
+    SheetSpec spec; // not Experiment I: a sheet of cloth size, described here
+    spec.rows = 35;
+    spec.cols = 35;
     spec.spacing = 0.02;
-    ClothSettings settings =
-        sceneSettings(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered, 1);
+    ClothSettings settings;
+    settings.integrator = IntegratorKind::VelocityVerlet;
+    settings.limiter.kind = LimiterKind::StressOrdered;
+    settings.gravity = Vec3(0.0, -9.8, 0.0);
     settings.particleMass = 5e-3;
     settings.springStiffness = 5.0;
     settings.damping = 0.05;
@@ -520,7 +535,8 @@ int main(int argc, char** argv) {
     benchmark::AddCustomContext("cpu_model", cpuModel());
     benchmark::AddCustomContext("load_average_at_start", loadAverage());
     benchmark::AddCustomContext(
-        "scene", "mass 0.5, spacing 10, k 20, g 9.8, two top corners pinned, dt 0.01");
+        "scene", "samples/scenes/experiment1_suspended_sheet.json (mass 0.5, spacing 10, k 20, "
+                 "C_d 0.05, g 9.8, two top corners pinned, dt 0.01), resized per case");
     benchmark::AddCustomContext("time_per_step",
                                 "the Time/CPU columns are per step (one iteration = one step)");
     benchmark::Initialize(&n, args.data());

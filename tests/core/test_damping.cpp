@@ -3,6 +3,7 @@
 // terminal velocity under aerodynamic drag, the static stretch of a user force, and the
 // implicit integrator's two linear solvers agreeing.
 #include "helpers.hpp"
+#include "measured.hpp"
 
 #include "drape/cloth.hpp"
 
@@ -72,10 +73,11 @@ double convergenceOrder(const DampedBreathing& osc, IntegratorKind kind, const s
         errs.push_back(osc.error(*cloth, T));
     }
     const double slope = logLogSlope(dts, errs);
-    std::printf("[measured] damped breathing, %-16s:", toString(kind));
+    std::string line = measured("damped breathing, %-16s:", toString(kind));
     for (std::size_t i = 0; i < dts.size(); ++i)
-        std::printf("  dt=%.4f: %.3e", dts[i], errs[i]);
-    std::printf("  -> order %.3f\n", slope);
+        line += measured("  dt=%.4f: %.3e", dts[i], errs[i]);
+    line += measured("  -> order %.3f", slope);
+    UNSCOPED_INFO(line); // shown with the caller's assertion on the order
     return slope;
 }
 
@@ -177,10 +179,11 @@ TEST_CASE(
         previous = std::move(next);
     }
     const double order = logLogSlope(dts, diffs);
-    std::printf("[measured] irregular sheet, damping and aero, velocity_verlet: differences");
+    std::string line = measured("irregular sheet, damping and aero, velocity_verlet: differences");
     for (double d : diffs)
-        std::printf(" %.3e", d);
-    std::printf(" -> order %.3f\n", order);
+        line += measured(" %.3e", d);
+    line += measured(" -> order %.3f", order);
+    INFO(line);
     CHECK(order == Approx(2.0).margin(0.1));
 }
 
@@ -307,8 +310,8 @@ TEST_CASE("A falling plate reaches the terminal velocity of its drag", "[aero]")
         CHECK(std::abs(cloth.velocities()[i].x()) < 1e-9);
         CHECK(std::abs(cloth.velocities()[i].z()) < 1e-9);
     }
-    std::printf("[measured] falling plate: speed %.9f m/s, terminal speed %.9f m/s\n",
-                -cloth.velocities()[0].y(), vt);
+    INFO(measured("falling plate: speed %.9f m/s, terminal speed %.9f m/s",
+                  -cloth.velocities()[0].y(), vt));
     // The transient itself, v = vt tanh(t / tau), with RK4 (error ~(dt/tau)^4 = 1e-8): this
     // checks the drag force's magnitude away from the fixed point.
     s.integrator = IntegratorKind::RungeKutta4;
@@ -345,10 +348,11 @@ TEST_CASE("Velocity-Verlet stays second order with aerodynamic drag", "[aero][co
         errs.push_back(std::sqrt(e2));
     }
     const double order = logLogSlope(dts, errs);
-    std::printf("[measured] falling plate, velocity_verlet: errors");
+    std::string line = measured("falling plate, velocity_verlet: errors");
     for (double e : errs)
-        std::printf(" %.3e", e);
-    std::printf(" -> order %.3f\n", order);
+        line += measured(" %.3e", e);
+    line += measured(" -> order %.3f", order);
+    INFO(line);
     CHECK(order == Approx(2.0).margin(0.1));
 }
 

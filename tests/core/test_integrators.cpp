@@ -9,6 +9,7 @@
 // omega = sqrt(3k/m), with no geometric nonlinearity to blur the comparison. By symmetry every
 // integrator keeps the motion in that mode and reduces to its scalar form on r.
 #include "helpers.hpp"
+#include "measured.hpp"
 
 #include "drape/cloth.hpp"
 
@@ -161,10 +162,9 @@ TEST_CASE("Velocity-Verlet energy error stays bounded over 100,000 steps",
         if (n < window) firstMax = std::max(firstMax, err);
         if (n >= steps - window) lastMax = std::max(lastMax, err);
     }
-    std::printf(
-        "[measured] VV breathing mode, omega dt = 0.05, 1e5 steps: max |dE|/E first 10%% = %.3e, "
-        "last 10%% = %.3e\n",
-        firstMax, lastMax);
+    INFO(measured("VV breathing mode, omega dt = 0.05, 1e5 steps: max |dE|/E first 10%% = %.3e, "
+                  "last 10%% = %.3e",
+                  firstMax, lastMax));
     // For the harmonic oscillator Verlet exactly conserves v^2 + omega^2 x^2 (1 - (omega dt)^2/4),
     // so E oscillates with a relative amplitude of (omega dt)^2 / 4 = 6.25e-4 and never drifts.
     const double bound = 0.05 * 0.05 / 4.0;
@@ -201,9 +201,9 @@ TEST_CASE("Velocity-Verlet energy error stays bounded over 100,000 steps",
         if (n < window) first = std::max(first, err);
         if (n >= steps - window) last = std::max(last, err);
     }
-    std::printf("[measured] VV nonlinear swing, 1e5 steps: max |dE| first 10%% = %.3e J, last 10%% "
-                "= %.3e J\n",
-                first, last);
+    INFO(measured("VV nonlinear swing, 1e5 steps: max |dE| first 10%% = %.3e J, last 10%% "
+                  "= %.3e J",
+                  first, last));
     // Quasi-periodic motion: windows differ, but a drift over 1e5 steps would be 10x or more.
     CHECK(last <= 2.0 * first + 1e-12);
 }
@@ -230,8 +230,7 @@ TEST_CASE("Oscillator period matches 2 pi sqrt(m / k)", "[integrators][period]")
         const double dt = 0.01 / omega;
         const double T =
             measurePeriod(cloth, dt, 20 * 629, [](const Cloth& c) { return c.positions()[0].x(); });
-        std::printf("[measured] single spring period %.8f s, analytic %.8f s\n", T,
-                    2 * kPi / omega);
+        INFO(measured("single spring period %.8f s, analytic %.8f s", T, 2 * kPi / omega));
         // Verlet's phase error is (omega dt)^2 / 24 = 4e-6 relative; interpolated crossings add
         // O(dt^2) per crossing, averaged out over 20 periods. 1e-4 is a safe bound.
         CHECK(T == Approx(2 * kPi / omega).epsilon(1e-4));
@@ -310,11 +309,11 @@ TEST_CASE("Measured convergence orders of the five integrators", "[integrators][
             errs.push_back(osc.error(*cloth, N * dt));
         }
         const double slope = logLogSlope(dts, errs);
-        std::printf("[measured] %-16s errors at T = 2 s:", toString(c.kind));
+        std::string line = measured("%-16s errors at T = 2 s:", toString(c.kind));
         for (std::size_t i = 0; i < dts.size(); ++i)
-            std::printf("  dt=%.5f: %.3e", dts[i], errs[i]);
-        std::printf("  -> order %.3f\n", slope);
-        INFO(toString(c.kind) << " slope " << slope);
+            line += measured("  dt=%.5f: %.3e", dts[i], errs[i]);
+        line += measured("  -> order %.3f", slope);
+        INFO(line);
         // Leading-error dominance: the next term is ~omega dt (<= 7%) of the leading one, so
         // the fitted slope is within 0.1 of the order.
         CHECK(slope == Approx(c.order).margin(0.1));

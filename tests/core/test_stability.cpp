@@ -2,6 +2,7 @@
 // a dense eigen-decomposition, and explicit integrators just above the limit blow up while
 // just below it they stay bounded.
 #include "helpers.hpp"
+#include "measured.hpp"
 
 #include "drape/cloth.hpp"
 #include "drape/stability.hpp"
@@ -117,11 +118,10 @@ TEST_CASE("Max angular frequency bounds the true one on larger meshes", "[stabil
             std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(K).eigenvalues().maxCoeff());
         const double gershgorin = std::sqrt(*std::max_element(row.begin(), row.end()));
         const double est = estimateMaxAngularFrequency(*topo, k, invMass);
-        std::printf(
-            "[measured] omega_max seed %llu: physical at rest %.6f, Laplacian %.6f, estimate %.6f "
-            "(%+.2e vs Laplacian), Gershgorin %.6f\n",
-            static_cast<unsigned long long>(seed), physical, laplacian, est, est / laplacian - 1.0,
-            gershgorin);
+        INFO(measured("omega_max seed %llu: physical at rest %.6f, Laplacian %.6f, estimate %.6f "
+                      "(%+.2e vs Laplacian), Gershgorin %.6f",
+                      static_cast<unsigned long long>(seed), physical, laplacian, est,
+                      est / laplacian - 1.0, gershgorin));
         INFO("seed " << seed << " physical " << physical << " Laplacian " << laplacian
                      << " estimate " << est);
         CHECK(est >= physical);
@@ -188,10 +188,9 @@ TEST_CASE("Explicit integrators blow up just above the limit and not just below"
           Case{IntegratorKind::RungeKutta4, 1.05}}) {
         const double below = growth(c.kind, 0.98, 2000);
         const double aboveGrowth = growth(c.kind, c.above, 2000);
-        std::printf(
-            "[measured] %s: max displacement / initial over 2000 steps at 0.98 x limit %.3f, "
-            "at %.2f x limit %.3g\n",
-            toString(c.kind), below, c.above, aboveGrowth);
+        INFO(measured("%s: max displacement / initial over 2000 steps at 0.98 x limit %.3f, "
+                      "at %.2f x limit %.3g",
+                      toString(c.kind), below, c.above, aboveGrowth));
         INFO(toString(c.kind) << " below " << below << " above " << aboveGrowth);
         // Below: Verlet keeps v^2 + omega^2 x^2 (1 - (omega dt)^2/4), so from rest |x| <= x0;
         // symplectic Euler keeps v^2 + omega^2 x^2 - omega^2 dt x v, so |x| <= x0 /

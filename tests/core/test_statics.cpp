@@ -16,6 +16,7 @@
 // ~strain as the strip shears to keep the diagonals' lengths) changes the forces by a
 // relative O(strain); with strain <= 1e-4 a 1e-3 relative tolerance covers it.
 #include "helpers.hpp"
+#include "measured.hpp"
 
 #include "drape/cloth.hpp"
 
@@ -84,9 +85,9 @@ void checkStatics(const Strip& s) {
             CHECK(std::abs(extension) < 1e-2 * topExtension);
         }
     }
-    std::printf("[measured] hanging strip: worst relative error of vertical extensions %.2e "
-                "(top extension %.4e m)\n",
-                worst, topExtension);
+    INFO(measured("hanging strip: worst relative error of vertical extensions %.2e "
+                  "(top extension %.4e m)",
+                  worst, topExtension));
 }
 
 } // namespace
@@ -105,7 +106,7 @@ TEST_CASE("Hanging strip settles to the statically determinate tensions", "[stat
             s.cloth->step(dt);
             ++steps;
         }
-        std::printf("[measured] hanging strip (VV, dt %.3e s) settled in %d steps\n", dt, steps);
+        INFO(measured("hanging strip (VV, dt %.3e s) settled in %d steps", dt, steps));
         // Residual speed 1e-10 m/s means position errors ~ v / omega_1 ~ 1e-12 m, far below
         // the 1e-8 m the tolerance allows.
         REQUIRE(maxSpeed(*s.cloth) <= 1e-10);
@@ -120,8 +121,7 @@ TEST_CASE("Hanging strip settles to the statically determinate tensions", "[stat
             s.cloth->step(0.02); // ~40 times Velocity-Verlet's stability limit
             ++steps;
         }
-        std::printf("[measured] hanging strip (implicit Euler, dt 0.02 s) settled in %d steps\n",
-                    steps);
+        INFO(measured("hanging strip (implicit Euler, dt 0.02 s) settled in %d steps", steps));
         REQUIRE(maxSpeed(*s.cloth) <= 1e-10);
         checkStatics(s);
     }

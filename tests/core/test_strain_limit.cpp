@@ -4,6 +4,7 @@
 // inverse-mass shares), velocities consistent with the corrections, pins and kinematic
 // particles.
 #include "helpers.hpp"
+#include "measured.hpp"
 
 #include "drape/cloth.hpp"
 #include "drape/strain_limit.hpp"
@@ -73,9 +74,9 @@ TEST_CASE("Experiment I without a limiter overstretches far beyond 10 %",
             peak = std::max(peak, cloth->maxStrain());
             if (n == 199) at2 = cloth->maxStrain();
         }
-        std::printf("[measured] Experiment I (%s start), no limiter: max strain at t = 2 s %.3f, "
-                    "at t = 10 s %.3f, peak over 10 s %.3f\n",
-                    vertical ? "vertical" : "horizontal", at2, cloth->maxStrain(), peak);
+        INFO(measured("Experiment I (%s start), no limiter: max strain at t = 2 s %.3f, "
+                      "at t = 10 s %.3f, peak over 10 s %.3f",
+                      vertical ? "vertical" : "horizontal", at2, cloth->maxStrain(), peak));
         // The sheet weighs 35*35*0.5*9.8 = 6.0 kN. At 10 % strain a spring holds only
         // k * 0.1 * L0 = 20 N (28 N on a diagonal), so the handful of springs at each pinned
         // corner cannot carry it: the static equilibrium needs corner strains of several
@@ -115,12 +116,12 @@ void experimentOneWithLimiter(LimiterKind kind, bool vertical, double slack = 0.
                    cloth->velocities()[0] == Vec3::Zero() &&
                    cloth->velocities()[34] == Vec3::Zero();
     }
-    std::printf("[measured] Experiment I (%s start), %s limiter: max strain over 200 steps "
-                "%.6f (limit %.2f + tolerance %.0e), steps over the limit %d, most rounds "
-                "in a step %d (maxRounds %d)\n",
-                vertical ? "vertical" : "horizontal", toString(kind), worst,
-                cloth->settings().limiter.maxStrain, cloth->settings().limiter.tolerance, over,
-                maxRounds, cloth->settings().limiter.maxRounds);
+    INFO(measured("Experiment I (%s start), %s limiter: max strain over 200 steps "
+                  "%.6f (limit %.2f + tolerance %.0e), steps over the limit %d, most rounds "
+                  "in a step %d (maxRounds %d)",
+                  vertical ? "vertical" : "horizontal", toString(kind), worst,
+                  cloth->settings().limiter.maxStrain, cloth->settings().limiter.tolerance, over,
+                  maxRounds, cloth->settings().limiter.maxRounds));
     INFO(toString(kind) << (vertical ? " vertical" : " horizontal") << ": worst strain " << worst
                         << ", " << over << " steps over the limit, first at step " << firstOver);
     CHECK(over == 0);
@@ -183,10 +184,10 @@ TEST_CASE("Experiment I, 10 s with damping: bound every step, no energy source",
         }
         e = e2;
     }
-    std::printf("[measured] Experiment I 10 s, C_d 0.05: peak strain %.6f, energy rise %.2f J "
-                "(largest step %.2f J), dissipated %.4g J, cap hits %llu\n",
-                worst, rise, maxRise, dissipated,
-                static_cast<unsigned long long>(cloth.limiterCapHits()));
+    INFO(measured("Experiment I 10 s, C_d 0.05: peak strain %.6f, energy rise %.2f J "
+                  "(largest step %.2f J), dissipated %.4g J, cap hits %llu",
+                  worst, rise, maxRise, dissipated,
+                  static_cast<unsigned long long>(cloth.limiterCapHits())));
     CHECK(worst <= 0.1 + s.limiter.tolerance + 1e-12);
     CHECK(cloth.limiterCapHits() == 0);
     CHECK(dissipated > 1e5); // the sheet falls ~200 m under 6 kN: most of it is dissipated
@@ -626,12 +627,11 @@ TEST_CASE("The strain bound holds for any pin set and stiffness", "[limiter][bou
             e = e2;
             excess = std::max(excess, e2 - e0);
         }
-        std::printf(
-            "[measured] %s: peak strain %.6f, energy above the start %.3g J (scale %.3g J), "
-            "step-to-step rises %.3g J of %.3g J dissipated, work %.2f sweeps/step, "
-            "cap hits %llu\n",
-            pc.name, worst, excess, scale, rise, dissipated, work / steps,
-            static_cast<unsigned long long>(cloth.limiterCapHits()));
+        INFO(measured("%s: peak strain %.6f, energy above the start %.3g J (scale %.3g J), "
+                      "step-to-step rises %.3g J of %.3g J dissipated, work %.2f sweeps/step, "
+                      "cap hits %llu",
+                      pc.name, worst, excess, scale, rise, dissipated, work / steps,
+                      static_cast<unsigned long long>(cloth.limiterCapHits())));
         INFO(pc.name);
         CHECK(worst <= 0.1 + s.limiter.tolerance + 1e-12);
         CHECK(cloth.limiterCapHits() == 0);

@@ -1,5 +1,6 @@
 // Particle contacts with every supported Bullet shape, a cloth draped over a sphere and over a
 // static triangle mesh, and a fast cloth against a thin box (tunnelling).
+#include "measured.hpp"
 #include "world_fixture.hpp"
 
 #include <BulletCollision/CollisionShapes/btTriangleMesh.h>
@@ -273,9 +274,9 @@ TEST_CASE("a fast cloth does not tunnel through a thin static box", "[contacts][
             break;
         }
     }
-    std::printf("tunnelling without the swept test starts at %.2f m/s (dt 0.01 s, box 2 cm, "
-                "thickness 1 cm)\n",
-                firstLeak);
+    INFO(measured("tunnelling without the swept test starts at %.2f m/s (dt 0.01 s, box 2 cm, "
+                  "thickness 1 cm)",
+                  firstLeak));
     CHECK(firstLeak >= 1.0);
     CHECK(firstLeak <= 4.1);
     // And at 20 m/s it does leak: the swept test is what prevents it.
@@ -316,9 +317,9 @@ DrapeOverBox drapeOverBox(double tolerance) {
         }
     }
     r.capHits = cloth->limiterCapHits();
-    std::printf("[measured] sheet over a box: peak strain %.6f, deepest %.3g m past the "
-                "thickness, limiter cap hits %llu\n",
-                r.peakStrain, r.deepest, static_cast<unsigned long long>(r.capHits));
+    UNSCOPED_INFO(measured("sheet over a box: peak strain %.6f, deepest %.3g m past the "
+                           "thickness, limiter cap hits %llu",
+                           r.peakStrain, r.deepest, static_cast<unsigned long long>(r.capHits)));
     return r;
 }
 } // namespace

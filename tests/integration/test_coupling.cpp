@@ -1,6 +1,7 @@
 // Two-way coupling with dynamic bodies (momentum, a trampoline, a cloth on a light box),
 // kinematic bodies, and attachments (a cloth following a moving kinematic pole, a box hanging
 // from a cloth).
+#include "measured.hpp"
 #include "world_fixture.hpp"
 
 #include "drape/snapshot.hpp"
@@ -116,9 +117,10 @@ TEST_CASE("a ball dropped on a trampoline stretches it and bounces back",
     const double t = 480 * kStep;
     const double expectedDv = -9.81 * t + handle.totalStats().impulseOnBodies.y() / ballMass;
     const double dv = double(ball->getLinearVelocity().y()) - vy0;
-    std::printf("trampoline: ball lowest %.3f m, cloth lowest %.3f m, closest particle %.4f m from "
-                "the ball, rebound top %.3f m, impact speed %.2f m/s\n",
-                lowestBall, lowestCloth, deepest, topAfterBounce, -minVy);
+    INFO(measured(
+        "trampoline: ball lowest %.3f m, cloth lowest %.3f m, closest particle %.4f m from "
+        "the ball, rebound top %.3f m, impact speed %.2f m/s",
+        lowestBall, lowestCloth, deepest, topAfterBounce, -minVy));
     INFO("ball lowest " << lowestBall << ", cloth lowest " << lowestCloth << ", closest " << deepest
                         << ", top after bounce " << topAfterBounce);
     // No particle inside the ball (deeper than the thickness, within float noise).

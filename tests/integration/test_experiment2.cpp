@@ -2,6 +2,7 @@
 // stiffness 20, dt 0.01, Velocity-Verlet, stress-ordered 10 % strain limit) falls onto a static
 // btBoxShape desk smaller than the cloth and settles. Scene units are metres, kilograms and
 // seconds with g = 9.81 m/s^2.
+#include "measured.hpp"
 #include "world_fixture.hpp"
 
 #include <catch2/catch.hpp>
@@ -72,9 +73,10 @@ TEST_CASE("Experiment II: a 30 x 60 cloth drops onto a desk and settles", "[expe
         if (settled && settleTime < 0.0) settleTime = step * kDt;
         if (!settled) settleTime = -1.0; // must stay settled to the end
     }
-    std::printf("experiment II: deepest %.4f (thickness %.2f), worst strain %.4f, settled at %.2f "
-                "s, KE %.3f J\n",
-                deepest, kThickness, worstStrain, settleTime, cloth->kineticEnergy());
+    INFO(
+        measured("experiment II: deepest %.4f (thickness %.2f), worst strain %.4f, settled at %.2f "
+                 "s, KE %.3f J",
+                 deepest, kThickness, worstStrain, settleTime, cloth->kineticEnergy()));
     INFO("closest approach to the desk " << deepest << ", worst strain " << worstStrain
                                          << ", settled from t = " << settleTime << " s");
     // No particle ever closer to the desk than the cloth thickness (to rounding: the

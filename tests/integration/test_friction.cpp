@@ -4,6 +4,7 @@
 // of mu M g and, released, stops where the friction work has taken its kinetic energy; a cloth
 // placed on a body or settled on it is not pushed away, reports its contacts and comes to rest
 // exactly.
+#include "measured.hpp"
 #include "world_fixture.hpp"
 
 #include <catch2/catch.hpp>
@@ -99,9 +100,10 @@ TEST_CASE("kinetic friction: a sheet slides g (sin - mu cos) t^2 / 2 down a slop
             const double expected = g * (std::sin(a) - mu * std::cos(a)) * t * t / 2.0;
             const Vec3 d = s.centre() - c0;
             const double slid = d.dot(s.downhill);
-            std::printf("[measured] slope %.0f deg, mu %.2f, penalty %g: slid %.5f m in %.2f s, "
-                        "Coulomb %.5f m (%+.3f %%)\n",
-                        degrees, mu, penalty, slid, t, expected, 100.0 * (slid / expected - 1.0));
+            INFO(measured("slope %.0f deg, mu %.2f, penalty %g: slid %.5f m in %.2f s, "
+                          "Coulomb %.5f m (%+.3f %%)",
+                          degrees, mu, penalty, slid, t, expected,
+                          100.0 * (slid / expected - 1.0)));
             CHECK(slid == Approx(expected).epsilon(0.02));
             // It slid in the face: no lift-off, no sinking (float geometry: 1e-6 m).
             CHECK(std::abs(d.dot(s.normal)) < 1e-6);
@@ -125,10 +127,9 @@ TEST_CASE("static friction: a sheet on a slope below tan(theta) = mu does not cr
                 const Vec3 c2 = s.centre();
                 const double g = s.cloth->settings().gravity.norm();
                 const double first = (c1 - c0).norm(), creep = (c2 - c1).norm();
-                std::printf(
-                    "[measured] slope %.0f deg, mu %.2f, penalty %g, dt %.3f s: moved %.3g m "
-                    "while settling, then %.3g m in 1 s\n",
-                    degrees, mu, penalty, dt, first, creep);
+                INFO(measured("slope %.0f deg, mu %.2f, penalty %g, dt %.3f s: moved %.3g m "
+                              "while settling, then %.3g m in 1 s",
+                              degrees, mu, penalty, dt, first, creep));
                 // Before the first contact is found the first step is free fall: at most
                 // g dt^2 / 2, which the projection takes back along the normal.
                 CHECK(first <= 0.5 * g * dt * dt);
@@ -213,9 +214,9 @@ TEST_CASE("a cloth dragged across a box needs a pull of mu M g and, let go, stop
     end /= mass;
     const double slid = end.x() - start.x();
     const double expectedSlide = v0 * v0 / (2.0 * mu * g);
-    std::printf("[measured] dragged sheet: pull %.5f N (mu M g = %.5f N), released at %.4f m/s, "
-                "slid %.5f m (v^2 / (2 mu g) = %.5f m), KE after %.3g J\n",
-                pull, mu * freeMass * g, v0, slid, expectedSlide, cloth->kineticEnergy());
+    INFO(measured("dragged sheet: pull %.5f N (mu M g = %.5f N), released at %.4f m/s, "
+                  "slid %.5f m (v^2 / (2 mu g) = %.5f m), KE after %.3g J",
+                  pull, mu * freeMass * g, v0, slid, expectedSlide, cloth->kineticEnergy()));
     CHECK(v0 == Approx(speed).epsilon(0.05)); // it was moving with the bar
     CHECK(pull == Approx(mu * freeMass * g).epsilon(0.02));
     CHECK(slid == Approx(expectedSlide).epsilon(0.02));
@@ -249,12 +250,12 @@ TEST_CASE("a cloth placed at the contact distance is not pushed away and rests e
                     fewestContacts = std::min(fewestContacts, handle.lastStats().contacts);
                 if (asleepAt < 0 && cloth->isAsleep()) asleepAt = k;
             }
-            std::printf(
-                "[measured] sheet placed at the contact distance, penalty %g: height %.9f..%.9f m "
+            INFO(measured(
+                "sheet placed at the contact distance, penalty %g: height %.9f..%.9f m "
                 "(contact distance %.3f), peak KE %.3g J, fewest contacts %zu of %zu, asleep after "
-                "step %d\n",
+                "step %d",
                 penalty, lowest, highest, 0.1 + kThickness, peakEnergy, fewestContacts,
-                cloth->particleCount(), asleepAt);
+                cloth->particleCount(), asleepAt));
             // Neither pushed up nor let in: at the contact distance after every step (the box's
             // top is a float: 1e-7 m).
             CHECK(highest <= 0.1 + kThickness + 1e-7);
@@ -298,12 +299,12 @@ TEST_CASE("a cloth dropped on a box settles to rest exactly, where its contacts 
             const double equilibrium =
                 kThickness +
                 (penalty < 0.0 ? kThickness * (1.0 - std::log(1.0 + (e - 1.0) / 2.0)) : 0.0);
-            std::printf(
-                "[measured] sheet dropped on a box, penalty %g: rests %.7f..%.7f m above the top "
-                "(eq. (7) equilibrium %.7f), KE %.3g J after 1 s, %zu of %zu particles in "
-                "contact\n",
-                penalty, lowest, highest, equilibrium, cloth->kineticEnergy(),
-                handle.lastStats().contacts, cloth->particleCount());
+            INFO(
+                measured("sheet dropped on a box, penalty %g: rests %.7f..%.7f m above the top "
+                         "(eq. (7) equilibrium %.7f), KE %.3g J after 1 s, %zu of %zu particles in "
+                         "contact",
+                         penalty, lowest, highest, equilibrium, cloth->kineticEnergy(),
+                         handle.lastStats().contacts, cloth->particleCount()));
             CHECK(highest - lowest <= 1e-9);      // flat, all at one height
             CHECK(highest <= equilibrium + 1e-7); // float box: 1e-7 m
             CHECK(lowest >= kThickness - 1e-7);
@@ -356,11 +357,11 @@ TEST_CASE("Coulomb on a dynamic body: a sheet on a heavy slab slides g (sin - mu
                         w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
                     const double slid = (relative() - r0).x(), t = 0.5;
                     const double expected = g * (std::sin(a) - mu * std::cos(a)) * t * t / 2.0;
-                    std::printf("[measured] on a dynamic slab, %.0f deg, mu %.2f, penalty %g: slid "
-                                "%.5f m, Coulomb "
-                                "%.5f m (%+.2f %%)\n",
-                                degrees, mu, penalty, slid, expected,
-                                100.0 * (slid / expected - 1.0));
+                    INFO(measured("on a dynamic slab, %.0f deg, mu %.2f, penalty %g: slid "
+                                  "%.5f m, Coulomb "
+                                  "%.5f m (%+.2f %%)",
+                                  degrees, mu, penalty, slid, expected,
+                                  100.0 * (slid / expected - 1.0)));
                     CHECK(slid == Approx(expected).epsilon(0.02));
                 } else {
                     for (int k = 0; k < 24; ++k)
@@ -369,11 +370,11 @@ TEST_CASE("Coulomb on a dynamic body: a sheet on a heavy slab slides g (sin - mu
                     for (int k = 0; k < 240; ++k)
                         w.world.stepSimulation(btScalar(dt), 1, btScalar(dt));
                     const Vec3 d = relative() - r1;
-                    std::printf("[measured] on a dynamic slab, %.0f deg, mu %.2f, penalty %g: "
-                                "moved %.3g m along, "
-                                "%.3g m across the slab in 1 s, KE %.3g J\n",
-                                degrees, mu, penalty, std::abs(d.x()), std::abs(d.y()),
-                                cloth->kineticEnergy());
+                    INFO(measured("on a dynamic slab, %.0f deg, mu %.2f, penalty %g: "
+                                  "moved %.3g m along, "
+                                  "%.3g m across the slab in 1 s, KE %.3g J",
+                                  degrees, mu, penalty, std::abs(d.x()), std::abs(d.y()),
+                                  cloth->kineticEnergy()));
                     // Sticks: no slip along the slab beyond a micrometre in a second (the slab's
                     // own single-precision jitter; the static-body creep this replaced was mm).
                     CHECK(std::abs(d.x()) < 1e-6);

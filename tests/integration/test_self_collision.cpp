@@ -1,5 +1,6 @@
 // Self-collision: a cloth folded onto itself keeps its layers apart when self-collision is on
 // (and, as a control, falls through itself when it is off).
+#include "measured.hpp"
 #include "world_fixture.hpp"
 
 #include <catch2/catch.hpp>
@@ -111,10 +112,10 @@ TEST_CASE("a cloth folded onto itself keeps its layers apart with self-collision
     const double thickness = 0.01;
     const FoldResult on = dropFold(true, thickness);
     const FoldResult off = dropFold(false, thickness);
-    std::printf("self-collision: layer separation on %.4f m (worst %.4f), off %.4f m; %zu "
-                "contacts, %zu pair tests\n",
-                on.finalSeparation, on.worstSeparation, off.finalSeparation, on.selfContacts,
-                on.selfPairTests);
+    INFO(measured("self-collision: layer separation on %.4f m (worst %.4f), off %.4f m; %zu "
+                  "contacts, %zu pair tests",
+                  on.finalSeparation, on.worstSeparation, off.finalSeparation, on.selfContacts,
+                  on.selfPairTests));
     INFO("separation with self-collision " << on.finalSeparation << " (worst " << on.worstSeparation
                                            << "), without " << off.finalSeparation);
     // With it: the top layer lies on the bottom one and never crosses it. Every particle is

@@ -4,6 +4,7 @@
 // hanging curtain pushes it, and a box's knife edge stays under a sheet dropped on it. Each check
 // also runs without triangle contacts, where the rod must pass (so the check can fail), and the
 // mode costs nothing when it is off.
+#include "measured.hpp"
 #include "world_fixture.hpp"
 
 #include <catch2/catch.hpp>
@@ -79,11 +80,11 @@ RodDrop dropOnRod(bool triangles) {
     }
     r.triangleQueries = handle.totalStats().triangleQueries;
     r.triangleContacts = handle.totalStats().triangleContacts;
-    std::printf(
-        "[measured] sheet dropped on a rod of radius 1 cm (spacing 5 cm), triangle contacts %s: "
+    UNSCOPED_INFO(measured(
+        "sheet dropped on a rod of radius 1 cm (spacing 5 cm), triangle contacts %s: "
         "lowest particle %.4f m, closest spring to the axis %.5f m (radius + thickness %.3f), "
-        "%zu triangle queries\n",
-        triangles ? "on" : "off", r.lowest, r.closest, radius + kThickness, r.triangleQueries);
+        "%zu triangle queries",
+        triangles ? "on" : "off", r.lowest, r.closest, radius + kThickness, r.triangleQueries));
     return r;
 }
 
@@ -160,10 +161,10 @@ Sweep sweepRod(bool triangles) {
             break;
         }
     }
-    std::printf("[measured] rod swept through a curtain at 2 m/s, triangle contacts %s: cloth %.4f "
-                "m in front "
-                "of the rod's axis at its height (worst column), peak strain %.4f\n",
-                triangles ? "on" : "off", r.worstLead, r.peakStrain);
+    UNSCOPED_INFO(measured("rod swept through a curtain at 2 m/s, triangle contacts %s: cloth %.4f "
+                           "m in front "
+                           "of the rod's axis at its height (worst column), peak strain %.4f",
+                           triangles ? "on" : "off", r.worstLead, r.peakStrain));
     return r;
 }
 
@@ -211,10 +212,10 @@ RodHit rodThroughFreeSheet(bool triangles) {
     for (std::size_t i = 0; i < cloth->particleCount(); ++i)
         r.cloth += cloth->masses()[i] * cloth->velocities()[i].y();
     r.rod = rodMass * double(rod->getLinearVelocity().y());
-    std::printf("[measured] dynamic rod through a free sheet, triangle contacts %s: momentum cloth "
-                "%.6f, rod %.6f, "
-                "total %.6f (before %.6f) N s\n",
-                triangles ? "on" : "off", r.cloth, r.rod, r.cloth + r.rod, r.total0);
+    UNSCOPED_INFO(measured("dynamic rod through a free sheet, triangle contacts %s: momentum cloth "
+                           "%.6f, rod %.6f, "
+                           "total %.6f (before %.6f) N s",
+                           triangles ? "on" : "off", r.cloth, r.rod, r.cloth + r.rod, r.total0));
     return r;
 }
 
@@ -270,11 +271,11 @@ EdgeDrop dropOnEdge(bool triangles) {
         }
     }
     r.lowest = lowestParticle(*cloth);
-    std::printf(
-        "[measured] sheet dropped on a knife-edge box ridge (spacing 5 cm), triangle contacts %s: "
+    UNSCOPED_INFO(measured(
+        "sheet dropped on a knife-edge box ridge (spacing 5 cm), triangle contacts %s: "
         "smallest height of a spring above the ridge %.5f m over the run, %.5f m at the end "
-        "(thickness %.3f), lowest particle %.4f m\n",
-        triangles ? "on" : "off", r.worstClearance, r.finalClearance, kThickness, r.lowest);
+        "(thickness %.3f), lowest particle %.4f m",
+        triangles ? "on" : "off", r.worstClearance, r.finalClearance, kThickness, r.lowest));
     return r;
 }
 

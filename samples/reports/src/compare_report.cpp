@@ -15,6 +15,8 @@
 #include "drape_reports/reports.hpp"
 #include "drape_reports/scenes.hpp"
 
+#include "colliders.hpp"
+
 #include <drape/bullet/convert.hpp>
 #include <drape/error.hpp>
 #include <drape/strain_limit.hpp>
@@ -61,40 +63,6 @@ class DrapeEngine : public Engine {
   private:
     DrapeWorld world_;
     double dt_;
-};
-
-/// Static colliders as Bullet rigid bodies.
-struct Colliders {
-    std::vector<std::unique_ptr<btCollisionShape>> shapes;
-    std::vector<std::unique_ptr<btRigidBody>> bodies;
-    void build(btDynamicsWorld* world, const std::vector<Collider>& cs, float margin) {
-        for (const Collider& c : cs) {
-            std::unique_ptr<btCollisionShape> shape;
-            btTransform t;
-            t.setIdentity();
-            if (c.kind == Collider::Kind::Box) {
-                shape = std::make_unique<btBoxShape>(toBt(c.halfExtents));
-                t.setOrigin(toBt(c.center));
-            } else if (c.kind == Collider::Kind::Sphere) {
-                shape = std::make_unique<btSphereShape>(btScalar(c.radius));
-                t.setOrigin(toBt(c.center));
-            } else {
-                shape = std::make_unique<btStaticPlaneShape>(toBt(c.normal), btScalar(c.offset));
-            }
-            shape->setMargin(margin);
-            btRigidBody::btRigidBodyConstructionInfo info(0.0f, nullptr, shape.get());
-            info.m_startWorldTransform = t;
-            info.m_friction = btScalar(c.friction);
-            auto body = std::make_unique<btRigidBody>(info);
-            world->addRigidBody(body.get());
-            shapes.push_back(std::move(shape));
-            bodies.push_back(std::move(body));
-        }
-    }
-    void remove(btDynamicsWorld* world) {
-        for (auto& b : bodies)
-            world->removeRigidBody(b.get());
-    }
 };
 
 /// Builds the soft body from the scene's mesh: same vertices, triangles, masses and pins.
@@ -181,7 +149,7 @@ class SoftBodyEngine : public Engine {
     std::unique_ptr<btDbvtBroadphase> broadphase_;
     std::unique_ptr<btSequentialImpulseConstraintSolver> solver_;
     std::unique_ptr<btSoftRigidDynamicsWorld> world_;
-    Colliders colliders_;
+    StaticColliders colliders_;
     std::unique_ptr<btSoftBody> body_;
 };
 
@@ -239,7 +207,7 @@ class DeformableEngine : public Engine {
     std::unique_ptr<btDbvtBroadphase> broadphase_;
     std::unique_ptr<btDeformableBodySolver> bodySolver_;
     std::unique_ptr<btDeformableMultiBodyConstraintSolver> solver_;
-    Colliders colliders_;
+    StaticColliders colliders_;
     std::unique_ptr<btSoftBody> body_;
     std::unique_ptr<btDeformableMassSpringForce> spring_;
     std::unique_ptr<btDeformableGravityForce> gravity_;
@@ -400,6 +368,9 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
     std::vector<SceneRun> scenes;
     auto add = [&scenes](ClothScene sc, double duration, int repeats, double deformable) {
         SceneRun r;
+        // The scene files' cameras at the report's render size (one image per engine).
+        sc.camera.width = 360;
+        sc.camera.height = 300;
         r.scene = std::move(sc);
         r.duration = duration;
         r.repeats = repeats;
@@ -549,6 +520,9 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
        << "` (writes this folder "
        << "from scratch).\n\n"
        << machineMarkdown(machine) << "## Set-up\n\n"
+       << "The scenes are the scene files of samples/scenes (the paper's experiments and "
+          "cloth_on_sphere.json; the hanging sheets are Experiment I resized, the --quick sizes "
+          "likewise: reports::resizedSheet).\n\n"
        << "Every engine gets the same triangle mesh (vertex i is particle i is node i), the same "
           "particle "
           "mass (0.5), the same pinned particles, gravity 9.8 and the same static colliders; the "
@@ -556,13 +530,15 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
           "units (spacing 10, k 20 N/m). Frame dt 0.01 s.\n\n"
        << "- **drape**: Velocity-Verlet, with and without the stress-ordered strain limiter (10 "
           "%), "
-          "particle damping C_d = 0.05 N s/m, contacts through drape::bullet (thickness 1).\n"
+          "particle damping C_d and contact thickness of the scene file (C_d = 0.05 N s/m and "
+          "thickness 1, Experiment II 0.15 N s/m and 2.5), contacts through drape::bullet.\n"
        << "- **btSoftBody** (btSoftRigidDynamicsWorld): btSoftBodyHelpers::CreateFromTriMesh on "
           "the same "
           "vertices and triangles; its links are the unique triangle edges, the same set as "
           "drape's springs "
           "(the link counts below match). Node masses set one by one, pins by setMass(node, 0), "
-          "m_kLST = 1, kDP = C_d dt / m per sub-step (its velocity damping), margin 1, kCHR 1, "
+          "m_kLST = 1, kDP = C_d dt / m per sub-step (its velocity damping), margin = the "
+          "thickness, kCHR 1, "
           "kDF = the collider's friction. Sweeps of m_cfg.piterations (1, 4, 16) and of sub-steps "
           "(1, 4). "
           "**Its stiffness is not a spring constant**: kLST is a unitless [0, 1] factor of a "
@@ -571,7 +547,7 @@ CompareResult runCompareReport(const CompareOptions& options, const Machine& mac
           "stretches "
           "depends on piterations and sub-steps instead.\n"
        << "- **btDeformable** (btDeformableMultiBodyDynamicsWorld, implicit solve): "
-          "btDeformableMassSpringForce(k = 20 N/m, damping 0.05 along the springs) and "
+          "btDeformableMassSpringForce(k = 20 N/m, damping C_d along the springs) and "
           "btDeformableGravityForce, SDF_RD contacts, setUseProjection(true) (with Bullet 3.24's "
           "default Lagrange-multiplier path the implicit solve does not move the nodes at all: a "
           "two-triangle cloth under gravity stays put).\n\n"

@@ -1,6 +1,8 @@
 // The report scenes and the drape runner for them.
 #include "drape_reports/scenes.hpp"
 
+#include "colliders.hpp"
+
 #include <drape/bullet/bullet_cloth.hpp>
 #include <drape/bullet/convert.hpp>
 
@@ -8,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 namespace drape::reports {
 
@@ -27,111 +30,43 @@ double Collider::signedDistance(const Vec3& x) const {
     return 0.0;
 }
 
-namespace {
-
-ClothScene hanging(const std::string& name, const std::string& title, Index rows, Index cols) {
-    ClothScene s;
-    s.name = name;
-    s.title = title;
-    const double side = 10.0 * (cols - 1);
-    s.sheet.rows = rows;
-    s.sheet.cols = cols;
-    s.sheet.spacing = 10.0;
-    s.sheet.origin = Vec3(-0.5 * side, 0.0, 0.0);
-    s.sheet.uAxis = Vec3::UnitX();
-    s.sheet.vAxis = -Vec3::UnitY();
-    s.mesh = makeSheet(s.sheet);
-    s.pins = {sheetIndex(s.sheet, 0, 0), sheetIndex(s.sheet, 0, cols - 1)};
-    s.duration = 10.0;
-    const double height = 10.0 * (rows - 1);
-    // The limited sheet hangs about 1.1 of its height; frame that, and some slack below.
-    s.camera.target = Vec3(0.0, -0.6 * height, 0.0);
-    s.camera.position = Vec3(0.35 * side, -0.45 * height, 2.6 * std::max(side, height));
-    s.camera.fovDeg = 45.0;
-    s.camera.width = 360;
-    s.camera.height = 300;
-    return s;
+std::filesystem::path sceneDirectory() {
+    return DRAPE_REPORTS_SCENES_DIR;
 }
 
-} // namespace
+ClothScene loadClothScene(const std::string& fileName, Index rows, Index cols) {
+    const samples::SceneDesc file = samples::loadScene(sceneDirectory() / fileName);
+    return fromSceneFile(rows > 0 ? samples::resizedSheet(file, rows, cols) : file);
+}
 
 ClothScene experiment1(Index rows, Index cols) {
-    ClothScene s = hanging("experiment1",
-                           "Experiment I (" + std::to_string(rows) + " x " + std::to_string(cols) +
-                               " suspended sheet)",
-                           rows, cols);
+    ClothScene s = loadClothScene("experiment1_suspended_sheet.json", rows, cols);
+    s.name = "experiment1";
+    s.title = "Experiment I (" + std::to_string(rows) + " x " + std::to_string(cols) +
+              " suspended sheet)";
     return s;
 }
 
 ClothScene hangingSheet(Index n) {
-    ClothScene s = hanging("hanging" + std::to_string(n),
-                           "hanging sheet " + std::to_string(n) + " x " + std::to_string(n), n, n);
+    ClothScene s = experiment1(n, n);
+    s.name = "hanging" + std::to_string(n);
+    s.title = "hanging sheet " + std::to_string(n) + " x " + std::to_string(n);
     s.duration = 5.0;
     return s;
 }
 
 ClothScene experiment2(Index rows, Index cols) {
-    ClothScene s;
+    ClothScene s = loadClothScene("experiment2_tablecloth.json", rows, cols);
     s.name = "experiment2";
     s.title = "Experiment II (" + std::to_string(rows) + " x " + std::to_string(cols) +
               " tablecloth onto a desk)";
-    s.sheet.rows = rows;
-    s.sheet.cols = cols;
-    s.sheet.spacing = 10.0;
-    const double alongX = 10.0 * (rows - 1), alongZ = 10.0 * (cols - 1);
-    s.sheet.origin = Vec3(-0.5 * alongX, 60.0, -0.5 * alongZ);
-    s.sheet.uAxis = Vec3::UnitZ();
-    s.sheet.vAxis = Vec3::UnitX();
-    s.mesh = makeSheet(s.sheet);
-    // The desk top is smaller than the cloth in both directions (the paper's figure 8):
-    // 200 x 340 for the 290 x 590 cloth, scaled with the cloth for reduced sizes.
-    Collider desk;
-    desk.kind = Collider::Kind::Box;
-    desk.center = Vec3::Zero();
-    desk.halfExtents = Vec3(100.0 * alongX / 290.0, 5.0, 170.0 * alongZ / 590.0);
-    desk.friction = 0.6;
-    Collider floor;
-    floor.kind = Collider::Kind::Plane;
-    floor.normal = Vec3::UnitY();
-    floor.offset = -150.0;
-    floor.friction = 0.8;
-    s.colliders = {desk, floor};
-    s.thickness = 1.0;
-    s.duration = 10.0;
-    s.camera.position = Vec3(430.0, 250.0, 560.0) * std::max(alongZ / 590.0, 0.3);
-    s.camera.target = Vec3(0.0, -30.0, 0.0);
-    s.camera.width = 360;
-    s.camera.height = 300;
     return s;
 }
 
 ClothScene clothOnSphere(Index n) {
-    ClothScene s;
+    ClothScene s = loadClothScene("cloth_on_sphere.json", n, n);
     s.name = "sphere" + std::to_string(n);
     s.title = "cloth " + std::to_string(n) + " x " + std::to_string(n) + " onto a sphere";
-    const double side = 10.0 * (n - 1);
-    const double radius = 0.28 * side;
-    s.sheet.rows = n;
-    s.sheet.cols = n;
-    s.sheet.spacing = 10.0;
-    s.sheet.origin = Vec3(-0.5 * side, radius + 20.0, -0.5 * side);
-    s.sheet.uAxis = Vec3::UnitX();
-    s.sheet.vAxis = Vec3::UnitZ();
-    s.mesh = makeSheet(s.sheet);
-    Collider ball;
-    ball.kind = Collider::Kind::Sphere;
-    ball.radius = radius;
-    ball.friction = 0.5;
-    Collider floor;
-    floor.kind = Collider::Kind::Plane;
-    floor.offset = -radius - 0.4 * side;
-    floor.friction = 0.8;
-    s.colliders = {ball, floor};
-    s.duration = 8.0;
-    s.camera.position = Vec3(1.3 * side, 0.9 * side, 1.6 * side);
-    s.camera.target = Vec3(0.0, -0.1 * side, 0.0);
-    s.camera.width = 360;
-    s.camera.height = 300;
     return s;
 }
 
@@ -141,22 +76,31 @@ ClothScene fromSceneFile(const samples::SceneDesc& d) {
         throw samples::SceneError(origin + ": cannot be run by every engine: " + what);
     };
     if (!d.sheet) refuse("the cloth is not a generated sheet");
-    if (!d.pins.empty() || !d.attachments.empty()) refuse("pins and attachments are not supported");
+    if (!d.attachments.empty()) refuse("attachments are not supported");
     if (d.wind) refuse("wind is not supported");
     ClothScene s;
     s.name = d.name;
     s.title = d.name;
     s.sheet = d.sheet->spec;
     s.mesh = makeSheet(s.sheet);
-    if (!d.cloth.particleMass || !d.cloth.springStiffness)
-        refuse("particle_mass and stiffness must be given");
-    s.particleMass = *d.cloth.particleMass;
-    s.stiffness = *d.cloth.springStiffness;
+    {
+        // The file's cloth as the core builds it (mass and stiffness given directly, or through
+        // total_mass or a material): a ClothScene holds one mass and one stiffness.
+        const Cloth probe(ClothTopology::build(s.mesh), d.cloth);
+        const auto [mLo, mHi] = std::minmax_element(probe.masses().begin(), probe.masses().end());
+        const auto [kLo, kHi] =
+            std::minmax_element(probe.stiffness().begin(), probe.stiffness().end());
+        if (*mLo != *mHi) refuse("the particle masses are not all equal");
+        if (*kLo != *kHi) refuse("the spring stiffnesses are not all equal");
+        s.particleMass = *mLo;
+        s.stiffness = *kLo;
+    }
     s.damping = d.cloth.damping;
     s.gravity = d.cloth.gravity;
     s.timeStep = d.timeStep;
     s.duration = d.duration;
     s.camera = d.camera;
+    s.pins = samples::fixedPins(d);
     if (d.collision && d.collision->thickness) s.thickness = *d.collision->thickness;
     for (const samples::RigidBodyDesc& b : d.rigidBodies) {
         if (b.motion != samples::MotionKind::Static) refuse("body " + b.name + " is not static");
@@ -240,44 +184,11 @@ double rmsDistance(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
     return a.empty() ? 0.0 : std::sqrt(sum / static_cast<double>(a.size()));
 }
 
-// --- DrapeWorld ------------------------------------------------------------------------------
+// --- StaticColliders -------------------------------------------------------------------------
 
-struct DrapeWorld::Impl {
-    std::shared_ptr<Cloth> cloth;
-    std::unique_ptr<btDefaultCollisionConfiguration> config;
-    std::unique_ptr<btCollisionDispatcher> dispatcher;
-    std::unique_ptr<btDbvtBroadphase> broadphase;
-    std::unique_ptr<btSequentialImpulseConstraintSolver> solver;
-    std::unique_ptr<btDiscreteDynamicsWorld> world;
-    std::vector<std::unique_ptr<btCollisionShape>> shapes;
-    std::vector<std::unique_ptr<btRigidBody>> bodies;
-    std::unique_ptr<bullet::BulletCloth> handle;
-
-    ~Impl() {
-        handle.reset();
-        for (auto& b : bodies)
-            world->removeRigidBody(b.get());
-    }
-};
-
-DrapeWorld::DrapeWorld(const ClothScene& scene, const ClothSettings& settings)
-    : impl_(std::make_unique<Impl>()) {
-    impl_->cloth = std::make_shared<Cloth>(ClothTopology::build(scene.mesh), settings);
-    for (Index p : scene.pins)
-        impl_->cloth->pin(p);
-    // Every scene gets a world (an empty one costs nothing per step) so that all runs share
-    // the same code path.
-    Impl& m = *impl_;
-    m.config = std::make_unique<btDefaultCollisionConfiguration>();
-    m.dispatcher = std::make_unique<btCollisionDispatcher>(m.config.get());
-    m.broadphase = std::make_unique<btDbvtBroadphase>();
-    m.solver = std::make_unique<btSequentialImpulseConstraintSolver>();
-    m.world = std::make_unique<btDiscreteDynamicsWorld>(m.dispatcher.get(), m.broadphase.get(),
-                                                        m.solver.get(), m.config.get());
-    const Vec3 g = scene.gravity;
-    m.world->setGravity(bullet::toBt(g));
-    if (scene.colliders.empty()) return;
-    for (const Collider& c : scene.colliders) {
+void StaticColliders::build(btDynamicsWorld* world, const std::vector<Collider>& colliders,
+                            float margin) {
+    for (const Collider& c : colliders) {
         std::unique_ptr<btCollisionShape> shape;
         btTransform t;
         t.setIdentity();
@@ -295,32 +206,81 @@ DrapeWorld::DrapeWorld(const ClothScene& scene, const ClothSettings& settings)
                 std::make_unique<btStaticPlaneShape>(bullet::toBt(c.normal), btScalar(c.offset));
             break;
         }
-        shape->setMargin(0.0f);
+        shape->setMargin(margin);
         btRigidBody::btRigidBodyConstructionInfo info(0.0f, nullptr, shape.get());
         info.m_startWorldTransform = t;
         info.m_friction = btScalar(c.friction);
         auto body = std::make_unique<btRigidBody>(info);
-        m.world->addRigidBody(body.get());
-        m.shapes.push_back(std::move(shape));
-        m.bodies.push_back(std::move(body));
+        world->addRigidBody(body.get());
+        shapes.push_back(std::move(shape));
+        bodies.push_back(std::move(body));
     }
-    bullet::BulletClothSettings bs;
-    bs.contact.thickness = scene.thickness;
-    bs.useWorldGravity = false; // the cloth keeps the scene's exact (double) gravity
-    m.handle = bullet::addCloth(m.world.get(), m.cloth, bs);
+}
+
+void StaticColliders::remove(btDynamicsWorld* world) {
+    for (auto& b : bodies)
+        world->removeRigidBody(b.get());
+}
+
+// --- DrapeWorld ------------------------------------------------------------------------------
+
+struct DrapeWorld::Impl {
+    std::shared_ptr<Cloth> cloth;
+    bullet::BulletClothSettings options;
+    std::unique_ptr<btDefaultCollisionConfiguration> config;
+    std::unique_ptr<btCollisionDispatcher> dispatcher;
+    std::unique_ptr<btDbvtBroadphase> broadphase;
+    std::unique_ptr<btSequentialImpulseConstraintSolver> solver;
+    std::unique_ptr<btDiscreteDynamicsWorld> world;
+    StaticColliders colliders;
+    std::unique_ptr<bullet::BulletCloth> handle;
+
+    ~Impl() {
+        handle.reset();
+        colliders.remove(world.get());
+    }
+};
+
+DrapeWorld::DrapeWorld(const ClothScene& scene, const ClothSettings& settings)
+    : impl_(std::make_unique<Impl>()) {
+    impl_->cloth = std::make_shared<Cloth>(ClothTopology::build(scene.mesh), settings);
+    for (Index p : scene.pins)
+        impl_->cloth->pin(p);
+    Impl& m = *impl_;
+    m.config = std::make_unique<btDefaultCollisionConfiguration>();
+    m.dispatcher = std::make_unique<btCollisionDispatcher>(m.config.get());
+    m.broadphase = std::make_unique<btDbvtBroadphase>();
+    m.solver = std::make_unique<btSequentialImpulseConstraintSolver>();
+    m.world = std::make_unique<btDiscreteDynamicsWorld>(m.dispatcher.get(), m.broadphase.get(),
+                                                        m.solver.get(), m.config.get());
+    m.world->setGravity(bullet::toBt(scene.gravity));
+    m.colliders.build(m.world.get(), scene.colliders, 0.0f);
+    m.options.contact.thickness = scene.thickness;
+    m.options.useWorldGravity = false; // the cloth keeps the scene's exact (double) gravity
+    // Alone, the cloth keeps its own settings (the reports measure the integrators on hanging
+    // sheets; the integration's default would turn sleeping on). With colliders, the
+    // integration's defaults, as drape-run has them.
+    if (scene.colliders.empty()) m.options.sleep = false;
 }
 
 DrapeWorld::~DrapeWorld() = default;
 
 void DrapeWorld::step(double dt) {
-    if (!impl_->handle) {
-        impl_->cloth->step(dt);
-        return;
+    Impl& m = *impl_;
+    // stepSimulation takes a step below btScalar's epsilon as no step at all.
+    if (!(btScalar(dt) >= SIMD_EPSILON))
+        throw std::invalid_argument("DrapeWorld::step: dt = " + std::to_string(dt) +
+                                    " s is below the smallest step Bullet takes");
+    if (!m.handle || m.options.timeStep != dt) {
+        // The cloth's exact time step is part of how it joins the world.
+        if (m.handle) bullet::removeCloth(*m.handle);
+        m.handle.reset();
+        m.options.timeStep = dt;
+        m.handle = bullet::addCloth(m.world.get(), m.cloth, m.options);
     }
-    // Static colliders need no rigid-body step: refresh the broadphase pairs (the cloth's
-    // proxy moved last step) and step the cloth with the exact double dt.
-    impl_->world->getBroadphase()->calculateOverlappingPairs(impl_->world->getDispatcher());
-    impl_->handle->stepInWorld(dt);
+    // maxSubSteps 0: one internal step of exactly dt (in btScalar), which the cloth, told its
+    // timeStep, takes as the double dt.
+    m.world->stepSimulation(btScalar(dt), 0);
 }
 
 Cloth& DrapeWorld::cloth() {

@@ -90,6 +90,15 @@ void perturb(Cloth& cloth, double a) {
     }
 }
 
+/// A scene of a mesh alone (no colliders): the cloth of the cases that are not sheets.
+ClothScene meshScene(TriangleMesh mesh, std::vector<Index> pins = {}) {
+    ClothScene s;
+    s.name = "mesh";
+    s.mesh = std::move(mesh);
+    s.pins = std::move(pins);
+    return s;
+}
+
 struct Trial {
     bool stable = true;
     std::vector<Vec3> finalPositions;
@@ -101,9 +110,8 @@ struct Trial {
 Trial trial(const ClothScene& scene, IntegratorKind kind, double k, double dt, int steps) {
     ClothSettings s = clothSettings(scene, kind, LimiterKind::None);
     s.springStiffness = k;
-    Cloth cloth(ClothTopology::build(scene.mesh), s);
-    for (Index p : scene.pins)
-        cloth.pin(p);
+    DrapeWorld world(scene, s);
+    Cloth& cloth = world.cloth();
     perturb(cloth, 1e-3 * scene.sheet.spacing);
     const double T = dt * steps;
     const double g = scene.gravity.norm();
@@ -113,7 +121,7 @@ Trial trial(const ClothScene& scene, IntegratorKind kind, double k, double dt, i
     Trial t;
     try {
         for (int i = 0; i < steps; ++i) {
-            cloth.step(dt);
+            world.step(dt);
             if (i % 16 == 15 && !(cloth.kineticEnergy() <= bound)) {
                 t.stable = false;
                 return t;
@@ -239,11 +247,10 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
                           false};
             ClothSettings s = clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::None);
             s.rejectUnstableTimeStep = true;
-            Cloth cloth(ClothTopology::build(sc.mesh), s);
-            for (Index p : sc.pins)
-                cloth.pin(p);
+            DrapeWorld world(sc, s);
+            const Cloth& cloth = world.cloth();
             try {
-                cloth.step(frame);
+                world.step(frame);
                 c.outcome = "stable";
                 c.detail = "stepped without complaint";
             } catch (const Error& e) {
@@ -262,14 +269,13 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
                           true,
                           false};
             ClothSettings s = clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::None);
-            Cloth cloth(ClothTopology::build(sc.mesh), s);
-            for (Index p : sc.pins)
-                cloth.pin(p);
+            DrapeWorld world(sc, s);
+            Cloth& cloth = world.cloth();
             perturb(cloth, 1e-6);
             int step = 0;
             try {
                 for (; step < 600; ++step)
-                    cloth.step(frame);
+                    world.step(frame);
                 c.outcome = "stable";
                 c.detail = "600 steps, max strain " + fmt(cloth.maxStrain());
             } catch (const Error& e) {
@@ -283,9 +289,8 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         }
         {
             ClothSettings s = clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::None);
-            Cloth cloth(ClothTopology::build(sc.mesh), s);
-            for (Index p : sc.pins)
-                cloth.pin(p);
+            DrapeWorld world(sc, s);
+            const Cloth& cloth = world.cloth();
             const TimeStepCheck chk = checkTimeStep(cloth, frame);
             const int frames = quick ? 3 : 15;
             ExtremeCase c{"k = 1e6 N/m, Velocity-Verlet with the sub-steps drape-check suggests",
@@ -299,7 +304,7 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
             try {
                 for (int f = 0; f < frames; ++f) {
                     for (int i = 0; i < chk.substeps; ++i)
-                        cloth.step(frame / chk.substeps);
+                        world.step(frame / chk.substeps);
                 }
                 c.outcome = "stable";
                 c.detail = "max strain " + fmt(cloth.maxStrain()) + " (weight / k gives ~1e-5)";
@@ -320,12 +325,11 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
                           false};
             ClothSettings s = clothSettings(sc, IntegratorKind::ImplicitEuler, LimiterKind::None);
             s.rejectUnstableTimeStep = true;
-            Cloth cloth(ClothTopology::build(sc.mesh), s);
-            for (Index p : sc.pins)
-                cloth.pin(p);
+            DrapeWorld world(sc, s);
+            const Cloth& cloth = world.cloth();
             try {
                 for (int i = 0; i < 60; ++i)
-                    cloth.step(frame);
+                    world.step(frame);
                 c.outcome = "stable";
                 c.detail = "max strain " + fmt(cloth.maxStrain()) + ", kinetic energy " +
                            fmt(cloth.kineticEnergy()) + " J";
@@ -364,8 +368,8 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         for (IntegratorKind kind :
              {IntegratorKind::VelocityVerlet, IntegratorKind::ImplicitEuler}) {
             s.integrator = kind;
-            Cloth cloth(topo, s);
-            cloth.pin(0);
+            DrapeWorld world(meshScene(mesh, {0}), s);
+            const Cloth& cloth = world.cloth();
             const TimeStepCheck chk = checkTimeStep(cloth, 0.01);
             ExtremeCase c{std::string("mass ratio ") + fmt(ratio, 3) + " between neighbours, " +
                               toString(kind),
@@ -381,7 +385,7 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
             try {
                 for (int i = 0; i < 100; ++i) {
                     for (int j = 0; j < sub; ++j)
-                        cloth.step(0.01 / sub);
+                        world.step(0.01 / sub);
                 }
                 c.outcome = "stable";
                 c.detail = chk.message + " After 1 s: max strain " + fmt(cloth.maxStrain()) + ".";
@@ -401,9 +405,8 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         ClothScene sc = experiment1(n, n);
         ClothSettings s =
             clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
-        Cloth cloth(ClothTopology::build(sc.mesh), s);
-        for (Index p : sc.pins)
-            cloth.pin(p);
+        DrapeWorld world(sc, s);
+        Cloth& cloth = world.cloth();
         const double dt = 50.0 * cloth.stableTimeStep();
         ExtremeCase c{"dt = 50 x the limit (Experiment I, Velocity-Verlet, limiter on)",
                       "dt = " + fmt(dt) + " s, rejectUnstableTimeStep = false, 2000 steps",
@@ -414,7 +417,7 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         int step = 0;
         try {
             for (; step < 2000; ++step)
-                cloth.step(dt);
+                world.step(dt);
             c.outcome = "stable";
             c.detail = "the strain limiter held the sheet together: max strain " +
                        fmt(cloth.maxStrain()) + ", kinetic energy " + fmt(cloth.kineticEnergy()) +
@@ -437,9 +440,11 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
                       false};
         ClothSettings s2 = s;
         s2.rejectUnstableTimeStep = true;
-        Cloth c2(ClothTopology::build(sc.mesh), s2);
+        sc.pins.clear(); // as before: this cloth was never pinned
+        DrapeWorld w2(sc, s2);
+        const Cloth& c2 = w2.cloth();
         try {
-            c2.step(dt);
+            w2.step(dt);
             r.outcome = "stable";
         } catch (const Error& e) {
             r.outcome = "rejected";
@@ -513,12 +518,10 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
             sc.gravity *= scale;
             ClothSettings s =
                 clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
-            Cloth cloth(ClothTopology::build(sc.mesh), s);
-            for (Index p : sc.pins)
-                cloth.pin(p);
+            DrapeWorld world(sc, s);
             for (int i = 0; i < 200; ++i)
-                cloth.step(0.01);
-            x = cloth.positions();
+                world.step(0.01);
+            x = world.cloth().positions();
             for (Vec3& v : x)
                 v /= scale;
         };
@@ -588,13 +591,11 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
                 s.particleMass = 0.002;
                 s.springStiffness = 10.0;
                 s.rejectUnstableTimeStep = true;
-                auto topo = ClothTopology::build(sliverSheet(thin));
-                Cloth cloth(topo, s);
-                cloth.pin(0);
-                cloth.pin(9);
+                DrapeWorld world(meshScene(sliverSheet(thin), {0, 9}), s);
+                const Cloth& cloth = world.cloth();
                 const TimeStepCheck chk = checkTimeStep(cloth, 0.01);
                 for (int i = 0; i < 100 * chk.substeps; ++i)
-                    cloth.step(0.01 / chk.substeps);
+                    world.step(0.01 / chk.substeps);
                 c.outcome = "stable";
                 const StrainLimitStats& ls = cloth.lastLimiterStats();
                 c.detail = std::to_string(chk.substeps) +
@@ -640,16 +641,15 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
                       true,
                       false};
         try {
-            auto topo = ClothTopology::build(a);
             ClothSettings s;
             s.particleMass = 0.01;
             s.springStiffness = 50.0;
             s.damping = 0.01;
-            Cloth cloth(topo, s);
-            cloth.pin(0);
-            cloth.pin(sheetIndex(left, 0, 3));
+            DrapeWorld world(meshScene(a, {0, sheetIndex(left, 0, 3)}), s);
+            const Cloth& cloth = world.cloth();
+            const ClothTopology* topo = &cloth.topology();
             for (int i = 0; i < 200; ++i)
-                cloth.step(0.005);
+                world.step(0.005);
             c.outcome = "stable";
             c.detail = "welded to " + std::to_string(topo->particleCount()) + " particles (" +
                        std::to_string(a.vertices.size() - topo->particleCount()) +
@@ -694,9 +694,11 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         ClothSettings s =
             clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
         s.rejectUnstableTimeStep = true;
-        Cloth cloth(ClothTopology::build(sc.mesh), s);
-        for (std::size_t i = 0; i < cloth.particleCount(); ++i)
-            cloth.pin(static_cast<Index>(i));
+        sc.pins.clear();
+        for (std::size_t i = 0; i < sc.mesh.vertices.size(); ++i)
+            sc.pins.push_back(static_cast<Index>(i));
+        DrapeWorld world(sc, s);
+        const Cloth& cloth = world.cloth();
         const std::vector<Vec3> before = cloth.positions();
         ExtremeCase c{"every particle pinned",
                       "8x8 Experiment I sheet, 100 steps of 0.01 s",
@@ -706,7 +708,7 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
                       false};
         try {
             for (int i = 0; i < 100; ++i)
-                cloth.step(0.01);
+                world.step(0.01);
             const double moved = rmsDistance(before, cloth.positions());
             c.outcome = "stable";
             c.detail = "RMS motion " + fmt(moved) + ", omega_max " +
@@ -724,15 +726,14 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         sc.gravity = Vec3::Zero();
         ClothSettings s =
             clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
-        Cloth cloth(ClothTopology::build(sc.mesh), s);
-        for (Index p : sc.pins)
-            cloth.pin(p);
+        DrapeWorld world(sc, s);
+        const Cloth& cloth = world.cloth();
         const std::vector<Vec3> before = cloth.positions();
         ExtremeCase c{"zero gravity", "8x8 Experiment I sheet, g = 0, 100 steps", "", "", true,
                       false};
         try {
             for (int i = 0; i < 100; ++i)
-                cloth.step(0.01);
+                world.step(0.01);
             const double moved = rmsDistance(before, cloth.positions());
             c.outcome = "stable";
             c.detail = "RMS motion " + fmt(moved) + ", kinetic energy " +
@@ -755,7 +756,8 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         s.springStiffness = 10.0;
         s.gravity = Vec3(0, -9.81, 0);
         s.rejectUnstableTimeStep = true;
-        Cloth cloth(ClothTopology::build(tri), s);
+        DrapeWorld world(meshScene(tri), s);
+        const Cloth& cloth = world.cloth();
         ExtremeCase c{"a cloth of a single triangle",
                       "3 particles, free fall for 1 s, dt 0.01",
                       "",
@@ -764,7 +766,7 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
                       false};
         try {
             for (int i = 0; i < 100; ++i)
-                cloth.step(0.01);
+                world.step(0.01);
             const double drop = -cloth.positions()[0].y();
             const double expected = 0.5 * 9.81 * cloth.time() * cloth.time();
             c.outcome = "stable";

@@ -206,4 +206,23 @@ SceneDesc loadScene(const std::filesystem::path& file);
 SceneDesc parseScene(const std::string& text, const std::string& origin,
                      const std::filesystem::path& baseDir);
 
+/// The one way a scene file is run at another size (the reports' reduced sizes, the
+/// benchmarks' scaling sheets): the sheet gets rows x cols particles at the same spacing, and
+/// the whole scene is scaled with it about the world origin, axis by axis: by (new side / old
+/// side) of the sheet along its u and v axes, and by the geometric mean g of those two ratios
+/// along the third axis. So the sheet's origin, the bodies (positions and keyframes; box half
+/// extents per axis, sphere and capsule radii by g, plane offsets) and the camera (its target;
+/// its distance from the target by the larger ratio) keep their places relative to the cloth:
+/// Experiment II's desk stays smaller than the cloth, Experiment I still hangs from y = 0. A
+/// pin or attachment at grid cell (r, c), or particle index r * cols + c, moves to the cell at
+/// the same relative place (rounded: corners stay corners); selection boxes are scaled.
+/// Everything else (spacing, masses, stiffness, damping, gravity, thickness, time step,
+/// duration) is kept. Throws SceneError for what it cannot scale: a mesh cloth, sheet axes or
+/// plane normals off the coordinate axes, rotated bodies, mesh bodies, groups.
+SceneDesc resizedSheet(const SceneDesc& scene, Index rows, Index cols);
+/// The particles a sheet scene pins in place (its pins' indices and grid cells), for programs
+/// that build the cloth themselves. Throws SceneError for a mesh cloth, moving pins and pins
+/// chosen by box or group.
+std::vector<Index> fixedPins(const SceneDesc& scene);
+
 } // namespace drape::samples

@@ -1,7 +1,8 @@
 // drape_reports/scenes.hpp: the report scenes (the paper's Experiments I and II, hanging
 // sheets, a cloth on a sphere) as plain data that any engine can build (drape, btSoftBody,
-// Bullet's deformable world), and DrapeWorld, which runs one in drape (with Bullet colliders
-// when the scene has any).
+// Bullet's deformable world), and DrapeWorld, which runs one in drape inside a Bullet world.
+// The scenes are the files of samples/scenes (the ones drape-run runs), read through
+// drape::samples; reduced sizes come from resizedSheet.
 //
 // Units are the paper's: grid spacing 10, particle mass 0.5, stiffness 20, g = 9.8, so
 // lengths are "paper units" (think centimetres with a weak gravity); the report text says so.
@@ -11,6 +12,7 @@
 #include <drape_samples/render.hpp>
 #include <drape_samples/scene.hpp>
 
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -49,21 +51,32 @@ struct ClothScene {
     samples::CameraDesc camera; ///< for renders
 };
 
-/// Experiment I: rows x cols sheet (35 x 35 in the paper) hanging from its two top corners.
+/// The folder of the shipped scene files (samples/scenes of the source tree).
+std::filesystem::path sceneDirectory();
+/// A shipped scene file (`fileName` in sceneDirectory()) as a ClothScene: samples::loadScene,
+/// resized to rows x cols by samples::resizedSheet (the one way the reports and benchmarks
+/// derive other sizes from a scene file) unless rows is 0, then fromSceneFile.
+/// Throws samples::SceneError.
+ClothScene loadClothScene(const std::string& fileName, Index rows = 0, Index cols = 0);
+
+/// Experiment I (samples/scenes/experiment1_suspended_sheet.json), resized to rows x cols
+/// (35 x 35 in the paper and the file).
 ClothScene experiment1(Index rows = 35, Index cols = 35);
-/// Experiment II: a rows x cols tablecloth (30 x 60 in the paper) dropped onto a desk
-/// (200 x 340 top, smaller than the cloth) over a floor.
+/// Experiment II (samples/scenes/experiment2_tablecloth.json: a 30 x 60 tablecloth dropped
+/// onto a desk with four legs, smaller than the cloth, over a floor), resized to rows x cols.
 ClothScene experiment2(Index rows = 30, Index cols = 60);
-/// An n x n sheet of the paper's parameters hanging from its two top corners.
+/// Experiment I resized to n x n (named "hanging<n>"; 5 s).
 ClothScene hangingSheet(Index n);
-/// An n x n horizontal sheet dropped onto a sphere of radius 0.28 of the sheet's side.
+/// samples/scenes/cloth_on_sphere.json (a 40 x 40 sheet dropped onto a sphere of radius 0.28
+/// of its side) resized to n x n (named "sphere<n>").
 ClothScene clothOnSphere(Index n);
 
 /// A scene file's scene (samples/scenes/*.json) as a ClothScene, for the engines that do not
 /// read scene files (btSoftBody, the deformable world): its sheet, particle mass, stiffness,
-/// particle damping, gravity, time step, duration, thickness, and its static boxes, spheres and
-/// planes (unrotated). Throws samples::SceneError for what a ClothScene cannot hold (mesh
-/// cloths, pins, attachments, wind, non-static or rotated bodies, capsules, meshes).
+/// particle damping, gravity, time step, duration, thickness, fixed pins (samples::fixedPins),
+/// and its static boxes, spheres and planes (unrotated). Throws samples::SceneError for
+/// what a ClothScene cannot hold (mesh cloths, moving pins or pins chosen by box or group,
+/// attachments, wind, non-static or rotated bodies, capsules, meshes).
 ClothScene fromSceneFile(const samples::SceneDesc& scene);
 
 /// ClothSettings for the scene (mass, stiffness, damping, gravity) with an integrator and a
@@ -82,15 +95,21 @@ Penetration measurePenetration(const std::vector<Collider>& colliders, const std
 std::vector<samples::DrawMesh> colliderMeshes(const std::vector<Collider>& colliders,
                                               const Vec3& around);
 
-/// A drape cloth of a scene, in a Bullet world holding the scene's colliders (none when the
-/// scene has no colliders: the cloth is stepped alone).
+/// A drape cloth of a scene in a btDiscreteDynamicsWorld holding the scene's colliders (an
+/// empty world when it has none), stepped as a game steps it: world->stepSimulation(dt, 0), one
+/// internal step of dt, with BulletClothSettings::timeStep = dt so that the cloth steps with
+/// the exact double dt (the reports' numbers do not depend on dt's float rounding).
+/// The cloth joins the world at its first step (with that step's dt); a step with another dt
+/// takes it out and adds it again (the reports keep one dt per world).
 class DrapeWorld {
   public:
     DrapeWorld(const ClothScene& scene, const ClothSettings& settings);
     ~DrapeWorld();
     DrapeWorld(const DrapeWorld&) = delete;
     DrapeWorld& operator=(const DrapeWorld&) = delete;
-    /// One step of dt [s]. Throws drape::Error (SimulationFailure when the state blew up).
+    /// One world step of dt [s]. Throws drape::Error (SimulationFailure when the state blew
+    /// up, UnstableTimeStep when the cloth's settings refuse dt), std::invalid_argument for a
+    /// dt below btScalar's epsilon (which stepSimulation would not step).
     void step(double dt);
     Cloth& cloth();
     const Cloth& cloth() const;
