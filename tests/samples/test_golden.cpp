@@ -26,7 +26,7 @@ using namespace drape::samples;
 
 namespace {
 constexpr int kGoldenSteps = 200;
-constexpr std::uint64_t kGoldenHash = 0xce7a119662ab7f33ULL;
+constexpr std::uint64_t kGoldenHash = 0x1e5b9b61a4be87c3ULL;
 
 std::string hex(std::uint64_t h) {
     char buf[32];
