@@ -585,17 +585,21 @@ void checkIndex(Index i, std::size_t n, const char* what) {
 }
 } // namespace
 
-void Cloth::pin(Index i) {
-    checkIndex(i, x_.size(), "pin");
-    pinned_[i] = 1;
-    invMass_[i] = 0.0;
-    v_[i] = Vec3::Zero();
+void Cloth::setHeld(Index i, bool held) {
+    pinned_[i] = held ? 1 : 0;
+    invMass_[i] = held ? 0.0 : 1.0 / masses()[i];
     kinematic_.erase(std::remove_if(kinematic_.begin(), kinematic_.end(),
                                     [&](const auto& k) { return k.first == i; }),
                      kinematic_.end());
     forcesValid_ = false;
     invalidateOmega();
     edited();
+}
+
+void Cloth::pin(Index i) {
+    checkIndex(i, x_.size(), "pin");
+    v_[i] = Vec3::Zero();
+    setHeld(i, true);
 }
 
 void Cloth::pin(Index i, const Vec3& position) {
@@ -621,14 +625,7 @@ void Cloth::setKinematic(Index i, KinematicPath path) {
 
 void Cloth::unpin(Index i) {
     checkIndex(i, x_.size(), "unpin");
-    pinned_[i] = 0;
-    invMass_[i] = 1.0 / masses()[i];
-    kinematic_.erase(std::remove_if(kinematic_.begin(), kinematic_.end(),
-                                    [&](const auto& k) { return k.first == i; }),
-                     kinematic_.end());
-    forcesValid_ = false;
-    invalidateOmega();
-    edited();
+    setHeld(i, false);
 }
 
 bool Cloth::isPinned(Index i) const {

@@ -206,6 +206,8 @@ class Cloth {
         if (!inStep_) wake();
     }
     bool kinematicTargetsMove(double dt) const;
+    /// Pins (held) or frees particle i, dropping any kinematic path it had.
+    void setHeld(Index i, bool held);
     void updateSleep(double dt);
 
     TopologyPtr topology_;

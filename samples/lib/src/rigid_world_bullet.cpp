@@ -84,7 +84,7 @@ class BulletWorld final : public Simulation::RigidWorld {
         s.substeps = scene.substeps; // simulation.substeps, collision.substeps or "auto"
         s.selfCollision.enabled = c.selfCollision;
         s.selfCollision.thickness = c.selfThickness.value_or(s.contact.thickness);
-        s.useWorldGravity = false; // the scene's gravity is already in the cloth
+        s.useWorldGravity = false;   // the scene's gravity is already in the cloth
         s.timeStep = scene.timeStep; // the cloth steps with the scene's exact double dt
         try {
             cloth_ = bullet::addCloth(&world_, shared, s);

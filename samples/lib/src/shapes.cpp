@@ -91,6 +91,20 @@ DrawMesh makeBoxMesh(const Vec3& h) {
 namespace {
 
 // A UV sphere with `stacks` rings from pole to pole (even, so the equator is a row).
+/// Two triangles per cell of a grid of `bands` x `slices` cells whose vertex rows hold
+/// slices + 1 vertices each (a sphere's or capsule's latitude bands).
+void pushBands(DrawMesh& m, int bands, int slices) {
+    const auto row = static_cast<std::uint32_t>(slices + 1);
+    for (int i = 0; i < bands; ++i)
+        for (int j = 0; j < slices; ++j) {
+            const std::uint32_t a =
+                static_cast<std::uint32_t>(i) * row + static_cast<std::uint32_t>(j);
+            const std::uint32_t b = a + row;
+            pushTriangle(m, a, b, a + 1);
+            pushTriangle(m, a + 1, b, b + 1);
+        }
+}
+
 DrawMesh makeRoundMesh(double r, int slices, int stacks) {
     DrawMesh m;
     if (stacks % 2) ++stacks;
@@ -106,15 +120,7 @@ DrawMesh makeRoundMesh(double r, int slices, int stacks) {
             m.normals.push_back(static_cast<float>(-std::sin(phi) * std::sin(th)));
         }
     }
-    const auto row = static_cast<std::uint32_t>(slices + 1);
-    for (int i = 0; i < stacks; ++i)
-        for (int j = 0; j < slices; ++j) {
-            const std::uint32_t a =
-                static_cast<std::uint32_t>(i) * row + static_cast<std::uint32_t>(j);
-            const std::uint32_t b = a + row;
-            pushTriangle(m, a, b, a + 1);
-            pushTriangle(m, a + 1, b, b + 1);
-        }
+    pushBands(m, stacks, slices);
     return m;
 }
 
@@ -141,15 +147,7 @@ DrawMesh makeCapsuleMesh(double radius, double height, int slices, int stacks) {
                 m.normals.push_back(top.normals[s + static_cast<std::size_t>(k)]);
         }
     }
-    const auto r = static_cast<std::uint32_t>(row);
-    for (int i = 0; i < stacks + 1; ++i)
-        for (int j = 0; j < slices; ++j) {
-            const std::uint32_t a =
-                static_cast<std::uint32_t>(i) * r + static_cast<std::uint32_t>(j);
-            const std::uint32_t b = a + r;
-            pushTriangle(m, a, b, a + 1);
-            pushTriangle(m, a + 1, b, b + 1);
-        }
+    pushBands(m, stacks + 1, slices);
     return m;
 }
 
