@@ -325,7 +325,8 @@ void Cloth::stepOnce(double dt) {
     const bool keepWarmStart = settings_.limiter.kind == LimiterKind::StressOrdered;
     if (keepWarmStart) {
         const auto& lambda = limiter_.warmStartState();
-        lambdaBefore_.assign(lambda.begin(), lambda.end()); // no allocation after the first step
+        step_.lambdaBefore.assign(lambda.begin(),
+                                  lambda.end()); // no allocation after the first step
     }
     bool swapped = false;
     inStep_ = true; // edits by stages do not count as wake-ups
@@ -345,10 +346,10 @@ void Cloth::stepOnce(double dt) {
         inStep_ = false;
         quietTime_ = 0.0;
         if (swapped) {
-            x_.swap(xScratch_);
-            v_.swap(vScratch_);
+            x_.swap(step_.x0);
+            v_.swap(step_.v0);
         }
-        if (keepWarmStart) limiter_.setWarmStartState(lambdaBefore_);
+        if (keepWarmStart) limiter_.setWarmStartState(step_.lambdaBefore);
         forcesValid_ = false;
         throw;
     }
@@ -410,20 +411,20 @@ void Cloth::stageForcesRefresh(StepContext&) {
 
 void Cloth::stageIntegrate(StepContext& ctx) {
     const std::size_t n = x_.size();
-    xScratch_.resize(n);
-    vScratch_.resize(n);
+    step_.x0.resize(n);
+    step_.v0.resize(n);
     if (!kinematic_.empty()) {
-        kinematicStart_.clear();
+        step_.kinematicStart.clear();
         for (const auto& k : kinematic_)
-            kinematicStart_.push_back(x_[k.first]);
+            step_.kinematicStart.push_back(x_[k.first]);
     }
     // Integrators that can write the new state to other buffers get the old one swapped out
     // of x_, v_ (no copy); the others work in place on a copy.
-    x_.swap(xScratch_);
-    v_.swap(vScratch_);
-    if (!integrator_->advanceFrom(ctx.integrator, xScratch_, vScratch_)) {
-        std::copy(xScratch_.begin(), xScratch_.end(), x_.begin());
-        std::copy(vScratch_.begin(), vScratch_.end(), v_.begin());
+    x_.swap(step_.x0);
+    v_.swap(step_.v0);
+    if (!integrator_->advanceFrom(ctx.integrator, step_.x0, step_.v0)) {
+        std::copy(step_.x0.begin(), step_.x0.end(), x_.begin());
+        std::copy(step_.v0.begin(), step_.v0.end(), v_.begin());
         integrator_->advance(ctx.integrator);
     }
 }
@@ -437,7 +438,7 @@ void Cloth::stageKinematic(StepContext& ctx) {
                                                   " returned a non-finite position");
         }
         x_[i] = target;
-        v_[i] = (target - kinematicStart_[k]) / ctx.dt;
+        v_[i] = (target - step_.kinematicStart[k]) / ctx.dt;
     }
 }
 
@@ -458,7 +459,7 @@ void Cloth::stageLimit(StepContext& ctx) {
         return;
     }
     // The comparison limiters: displacements from a copy.
-    xBeforeLimit_ = x_;
+    step_.beforeLimit = x_;
     limiterStats_ =
         lim.kind == LimiterKind::Provot
             ? limitStrainProvot(*topology_, invMass_, lim, x_)
@@ -466,7 +467,7 @@ void Cloth::stageLimit(StepContext& ctx) {
     if (limiterStats_.corrections == 0) return;
     const double invDt = 1.0 / ctx.dt;
     for (std::size_t i = 0; i < x_.size(); ++i)
-        v_[i] += (x_[i] - xBeforeLimit_[i]) * invDt;
+        v_[i] += (x_[i] - step_.beforeLimit[i]) * invDt;
 }
 
 void Cloth::stageCallerStages(StepContext& ctx) {
@@ -527,17 +528,17 @@ StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt,
         applyLimiterMoves(dt);
     } else {
         // The comparison limiters have no worklist: they run whole, and report what moved.
-        xBeforeLimit_ = x_;
+        step_.beforeLimit = x_;
         st = settings_.limiter.kind == LimiterKind::Provot
                  ? limitStrainProvot(*topology_, invMass_, settings_.limiter, x_)
                  : limitStrainOneSided(*topology_, invMass_, forceModel_->stiffness(),
                                        settings_.limiter, x_);
-        relimitMoved_.clear();
+        step_.relimitMoved.clear();
         const double invDt = 1.0 / dt;
         for (std::size_t i = 0; i < x_.size(); ++i) {
-            if (x_[i] == xBeforeLimit_[i]) continue;
-            v_[i] += (x_[i] - xBeforeLimit_[i]) * invDt;
-            relimitMoved_.push_back(static_cast<Index>(i));
+            if (x_[i] == step_.beforeLimit[i]) continue;
+            v_[i] += (x_[i] - step_.beforeLimit[i]) * invDt;
+            step_.relimitMoved.push_back(static_cast<Index>(i));
         }
     }
     limiterStats_.rounds += st.rounds;
@@ -553,7 +554,7 @@ StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt,
 
 const std::vector<Index>& Cloth::relimitMoved() const {
     return settings_.limiter.kind == LimiterKind::StressOrdered ? limiter_.movedIndex()
-                                                                : relimitMoved_;
+                                                                : step_.relimitMoved;
 }
 
 std::vector<std::string> Cloth::pipeline() const {

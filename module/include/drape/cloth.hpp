@@ -166,7 +166,7 @@ class Cloth {
     /// Inside a step (for stages): the positions at its start, before integration [m]. A
     /// collision stage sweeps each particle from here to where it is now. Outside a step: the
     /// start of the last step taken (empty before the first).
-    const Vec3List& stepStartPositions() const { return xScratch_; }
+    const Vec3List& stepStartPositions() const { return step_.x0; }
     const PhaseTimers& timers() const { return timers_; }
     PhaseTimers& timers() { return timers_; }
     /// Names of the phases a step runs, in order (what the pipeline holds for this cloth).
@@ -177,6 +177,16 @@ class Cloth {
     friend std::vector<unsigned char> saveSnapshot(const Cloth&);
     friend void loadSnapshot(Cloth&, const std::vector<unsigned char>&);
     struct StepContext;
+    /// Per-step scratch, as Jolt keeps its update context apart from the body's state: what a
+    /// step fills and reads, kept between steps only so that no step allocates. None of it is
+    /// state (snapshots do not need it); x0 is the step's start (stepStartPositions()).
+    struct StepBuffers {
+        Vec3List x0, v0;                  ///< positions and velocities at the step's start
+        Vec3List beforeLimit;             ///< positions before a comparison limiter or relimit
+        std::vector<Vec3> kinematicStart; ///< kinematic particles at the step's start
+        std::vector<double> lambdaBefore; ///< the limiter's warm start (restored on failure)
+        std::vector<Index> relimitMoved;  ///< particles the last relimit() moved
+    };
     /// One entry of the step table (see cloth.cpp): name, whether this cloth runs it,
     /// whether the driver times it (stages timed inside have their own timers), the stage.
     struct Stage {
@@ -214,8 +224,7 @@ class Cloth {
     ClothSettings settings_;
     std::vector<double> invMass_;
     Vec3List x_, v_, f_;
-    Vec3List xScratch_, vScratch_, xBeforeLimit_;
-    std::vector<Vec3> kinematicStart_;
+    StepBuffers step_; ///< per-step scratch (see StepBuffers)
     std::vector<unsigned char> pinned_;
     std::vector<std::pair<Index, KinematicPath>> kinematic_;
     std::unique_ptr<detail::ThreadPool> poolStorage_;
@@ -225,9 +234,7 @@ class Cloth {
     std::vector<std::size_t> stageSlots_;       ///< timer slot of each kStages entry
     std::vector<std::size_t> callerStageSlots_; ///< timer slot of each caller stage
     StrainLimiter limiter_;
-    std::vector<double> lambdaBefore_; ///< the limiter's warm start before the step (restore)
     StrainLimitStats limiterStats_;
-    std::vector<Index> relimitMoved_;
     std::uint64_t limiterCapHits_ = 0;
     PhaseTimers timers_;
     bool forcesValid_ = false;
