@@ -46,9 +46,9 @@ class Writer {
 
 class Reader {
   public:
-    explicit Reader(const std::vector<unsigned char>& b) : bytes(b) {}
+    explicit Reader(const std::vector<unsigned char>& b) : bytes(b), end(b.size()) {}
     template <class T> T pod(const char* what) {
-        if (pos + sizeof(T) > bytes.size()) {
+        if (pos + sizeof(T) > end) {
             throw Error(ErrorCode::InvalidArgument,
                         std::string("snapshot is truncated (ends inside ") + what + ")");
         }
@@ -70,7 +70,7 @@ class Reader {
     }
     const std::vector<unsigned char>& bytes;
     std::size_t pos = 0;
-    std::size_t end = 0; ///< where the checksum starts
+    std::size_t end; ///< where the data ends (the checksum starts)
 };
 
 } // namespace

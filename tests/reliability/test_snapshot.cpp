@@ -234,3 +234,38 @@ TEST_CASE("snapshots carry the caller stages' states, matched by name", "[snapsh
     loadSnapshot(*resumed, noStages);
     CHECK(again->runs == 0);
 }
+
+TEST_CASE("a crafted snapshot with a valid checksum but impossible lengths is refused",
+          "[snapshot][errors]") {
+    // Lengths inside the file are checked against what is left of it before anything is read
+    // or allocated: a stage state claiming 2^60 bytes, or 2^31 stages, is refused by name.
+    auto cloth = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+    cloth->addStage(std::make_shared<CountingStage>());
+    cloth->step(0.002);
+    const auto good = saveSnapshot(*cloth);
+    auto reseal = [](std::vector<unsigned char> b) { // recompute the FNV-1a checksum
+        std::uint64_t h = 1469598103934665603ull;
+        for (std::size_t i = 0; i + 8 < b.size(); ++i) {
+            h ^= b[i];
+            h *= 1099511628211ull;
+        }
+        std::memcpy(b.data() + b.size() - 8, &h, 8);
+        return b;
+    };
+    // Layout of the tail: ... u32 stage count, u32 name length, "counting", u64 state length,
+    // 8 state bytes, u64 checksum.
+    const std::size_t stateLength = good.size() - 8 - 8 - 8;
+    const std::size_t stageCount = stateLength - 8 - 4 - 4;
+    auto huge = good;
+    const std::uint64_t big = std::uint64_t(1) << 60;
+    std::memcpy(huge.data() + stateLength, &big, 8);
+    auto fresh = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+    fresh->addStage(std::make_shared<CountingStage>());
+    CHECK_THROWS_WITH(loadSnapshot(*fresh, reseal(huge)), Catch::Contains("truncated"));
+    auto many = good;
+    const std::uint32_t count = 0x80000000u;
+    std::memcpy(many.data() + stageCount, &count, 4);
+    CHECK_THROWS_WITH(loadSnapshot(*fresh, reseal(many)), Catch::Contains("stages"));
+    // The untouched file still loads (the offsets above are the real ones).
+    CHECK_NOTHROW(loadSnapshot(*fresh, reseal(good)));
+}
