@@ -26,6 +26,16 @@ void stepWorld(TestWorld& w, int steps = 1) {
         w.world.stepSimulation(btScalar(kStep), 1, btScalar(kStep));
 }
 
+/// Pins the border of an n x n sheet.
+void pinBorder(Cloth& c, Index n) {
+    for (Index k = 0; k < n; ++k) {
+        c.pin(k);
+        c.pin((n - 1) * n + k);
+        c.pin(k * n);
+        c.pin(k * n + n - 1);
+    }
+}
+
 Vec3 clothMomentum(const Cloth& c) {
     Vec3 p = Vec3::Zero();
     for (std::size_t i = 0; i < c.particleCount(); ++i)
@@ -78,12 +88,7 @@ TEST_CASE("a ball dropped on a trampoline stretches it and bounces back",
     s.limiter.kind = LimiterKind::None; // an elastic membrane: the springs must give the bounce
     constexpr Index n = 21;
     auto cloth = makeCloth(horizontalSheet(n, n, 0.1, 0.0), s);
-    for (Index k = 0; k < n; ++k) { // pinned border: a 2 x 2 m trampoline
-        cloth->pin(k);
-        cloth->pin((n - 1) * n + k);
-        cloth->pin(k * n);
-        cloth->pin(k * n + n - 1);
-    }
+    pinBorder(*cloth, n); // a 2 x 2 m trampoline
     bullet::BulletClothSettings bs;
     bs.contact.thickness = 0.01;
     bs.substeps = 3; // the membrane's stable step is ~1/500 s; the world's is 1/240 s
@@ -329,12 +334,7 @@ TEST_CASE("a world restored from a snapshot continues bit-identically, friction 
             s.damping = 0.01;
             constexpr Index n = 15;
             cloth = makeCloth(horizontalSheet(n, n, 0.1, 0.0), s);
-            for (Index k = 0; k < n; ++k) {
-                cloth->pin(k);
-                cloth->pin((n - 1) * n + k);
-                cloth->pin(k * n);
-                cloth->pin(k * n + n - 1);
-            }
+            pinBorder(*cloth, n);
             bullet::BulletClothSettings bs;
             bs.contact.thickness = 0.01;
             bs.substeps = 3;
