@@ -47,32 +47,6 @@ void addPackedSpringForces(const std::vector<Spring>& springs, const std::vector
 }
 } // namespace
 
-SpringBlocks makeSpringBlocks(const ClothTopology& topology, const std::vector<Index>& subset,
-                              std::size_t blocks) {
-    const std::size_t n = topology.particleCount();
-    blocks = std::max<std::size_t>(1, std::min(blocks, n));
-    SpringBlocks out;
-    out.inner.resize(blocks);
-    auto blockOf = [&](Index i) { return static_cast<std::size_t>(i) * blocks / n; };
-    const auto& springs = topology.springs();
-    for (Index s : subset) {
-        const std::size_t ba = blockOf(springs[s].a), bb = blockOf(springs[s].b);
-        if (ba == bb) {
-            out.inner[ba].push_back(s);
-        } else {
-            out.crossing.push_back(s);
-        }
-    }
-    return out;
-}
-
-SpringBlocks makeSpringBlocks(const ClothTopology& topology, std::size_t blocks) {
-    std::vector<Index> all(topology.springCount());
-    for (std::size_t s = 0; s < all.size(); ++s)
-        all[s] = static_cast<Index>(s);
-    return makeSpringBlocks(topology, all, blocks);
-}
-
 void addSpringDamping(const std::vector<Spring>& springs, double c, const Vec3List& x,
                       const Vec3List& v, Vec3List& f) {
     for (const Spring& sp : springs) {
@@ -188,87 +162,23 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
                        detail::ThreadPool* pool)
     : topology_(std::move(topology)), stiffness_(std::move(stiffness)), mass_(std::move(mass)),
       settings_(settings), timers_(timers), pool_(pool) {
-    // A fixed number of blocks (independent of the thread count, so sums do not change with
-    // it): one per 16384 particles, at most 64.
-    const SpringBlocks blocks = makeSpringBlocks(
-        *topology_, std::min<std::size_t>(64, 1 + topology_->particleCount() / 16384));
     if (!stiffness_.empty() && std::all_of(stiffness_.begin(), stiffness_.end(),
                                            [&](double k) { return k == stiffness_[0]; })) {
         uniformStiffness_ = stiffness_[0];
     }
-    const auto& springs = topology_->springs();
-    auto pack = [&](const std::vector<Index>& list) {
-        for (Index s : list) {
-            packed_.push_back(springs[s]);
-            if (uniformStiffness_ == 0.0) packedStiffness_.push_back(stiffness_[s]);
-        }
-        packedStart_.push_back(packed_.size());
-    };
-    packed_.reserve(springs.size());
-    packedStart_.push_back(0);
-    for (const auto& inner : blocks.inner)
-        pack(inner);
-    pack(blocks.crossing);
-    // The force pass: family springs by slot, the loose ones packed by block as above.
-    const std::size_t blockCount = blocks.inner.size();
-    const SpringBlocks loose = makeSpringBlocks(*topology_, topology_->looseSprings(), blockCount);
-    auto packLoose = [&](const std::vector<Index>& list) {
-        for (Index s : list) {
-            loosePacked_.push_back(springs[s]);
-            if (uniformStiffness_ == 0.0) looseStiffness_.push_back(stiffness_[s]);
-        }
-        looseStart_.push_back(loosePacked_.size());
-    };
-    looseStart_.push_back(0);
-    for (const auto& inner : loose.inner)
-        packLoose(inner);
-    packLoose(loose.crossing);
+    // The force pass: family springs by slot, the loose ones by the topology's packed blocks
+    // (per-cloth only the stiffness, when it varies).
+    if (uniformStiffness_ == 0.0)
+        for (Index s : topology_->packedLooseSprings().index)
+            looseStiffness_.push_back(stiffness_[s]);
     {
         const auto& slotSpring = topology_->familySlotSprings();
         slotStiffness_.resize(slotSpring.size());
         for (std::size_t j = 0; j < slotSpring.size(); ++j)
             slotStiffness_[j] = slotSpring[j] == kNoParticle ? 0.0 : stiffness_[slotSpring[j]];
     }
-    if (settings_.springDamping > 0.0) orderDampingSweep();
+    if (settings_.springDamping > 0.0) (void)topology_->dampingSweepOrder(); // baked once, shared
     rebuildPipeline();
-}
-
-// The damping sweep updates each spring's two velocities from the values the springs before it
-// left, so springs that share a particle form a chain the processor has to run one after the
-// other (the velocity is stored, loaded again and goes through a division before the next
-// spring can start). A sheet's springs come grouped by particle, so nearly every spring waits
-// for the one before it. Within each packed range the sweep therefore visits the springs by
-// greedy edge colour: a spring gets the lowest colour not yet taken at either of its ends, and
-// the springs of one colour, which share no particle, run back to back. Any fixed order gives
-// a valid sweep (the backward sweep is its exact reverse); this one only runs faster.
-void ForceModel::orderDampingSweep() {
-    dampPacked_.clear();
-    dampPacked_.reserve(packed_.size());
-    std::vector<std::uint64_t> taken(mass_.size(), 0); // colours used at each particle
-    std::vector<unsigned> colour;
-    std::vector<std::size_t> order;
-    for (std::size_t r = 0; r + 1 < packedStart_.size(); ++r) {
-        const std::size_t b = packedStart_[r], e = packedStart_[r + 1];
-        colour.assign(e - b, 0);
-        for (std::size_t s = b; s < e; ++s) {
-            const std::uint64_t used = taken[packed_[s].a] | taken[packed_[s].b];
-            unsigned c = 0;
-            while (c < 63 && ((used >> c) & 1u))
-                ++c; // more than 63 colours share the last
-            colour[s - b] = c;
-            taken[packed_[s].a] |= std::uint64_t(1) << c;
-            taken[packed_[s].b] |= std::uint64_t(1) << c;
-        }
-        for (std::size_t s = b; s < e; ++s)
-            taken[packed_[s].a] = taken[packed_[s].b] = 0;
-        order.resize(e - b);
-        for (std::size_t k = 0; k < order.size(); ++k)
-            order[k] = k;
-        std::stable_sort(order.begin(), order.end(),
-                         [&](std::size_t p, std::size_t q) { return colour[p] < colour[q]; });
-        for (std::size_t k : order)
-            dampPacked_.push_back(packed_[b + k]);
-    }
 }
 
 void ForceModel::rebuildPipeline() {
@@ -339,13 +249,14 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
         switch (e.term) {
         case Term::Springs: {
             addFamilySpringForces(x, f);
-            const std::size_t nb = looseStart_.size() - 2; // inner blocks; the last range crosses
-            if (loosePacked_.empty()) break;
+            const PackedSprings& loose = topology_->packedLooseSprings();
+            const std::size_t nb = loose.starts.size() - 2; // inner blocks; the last range crosses
+            if (loose.springs.empty()) break;
             // Blocks in parallel (each writes only its own particles), then the crossing
             // springs: the same sums in the same order for any thread count.
             auto range = [&](std::size_t block) {
-                addPackedSpringForces(loosePacked_, looseStiffness_, uniformStiffness_,
-                                      looseStart_[block], looseStart_[block + 1], x, f);
+                addPackedSpringForces(loose.springs, looseStiffness_, uniformStiffness_,
+                                      loose.starts[block], loose.starts[block + 1], x, f);
             };
             auto blockRange = [&](std::size_t b, std::size_t end) {
                 for (std::size_t k = b; k < end; ++k)
@@ -598,10 +509,11 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, Vec3List& f) {
 // what presses a resting particle into a body or along it then misses the damping), it damps
 // stiff modes only for dt lambda < 2, and it changed how Experiment II settled on the desk.
 //
-// Order of a sweep over the packed springs (by colour within each block, orderDampingSweep):
-// the inner blocks touch disjoint particles, so running them in parallel is the same as running
-// them one after the other; forward = the blocks (each front to back), then the crossing
-// springs; backward = the exact reverse. The result is the same for any thread count.
+// Order of a sweep over the packed springs (by colour within each block,
+// ClothTopology::dampingSweepOrder): the inner blocks touch disjoint particles, so running them in
+// parallel is the same as running them one after the other; forward = the blocks (each front to
+// back), then the crossing springs; backward = the exact reverse. The result is the same for any
+// thread count.
 void ForceModel::applySpringDampingFlow(const Vec3List& x, Vec3List& v,
                                         const std::vector<double>& invMass, double tau,
                                         bool forward, Vec3List* heldImpulse) {
@@ -612,13 +524,14 @@ void ForceModel::applySpringDampingFlow(const Vec3List& x, Vec3List& v,
         if (e.term == Term::SpringDamping) slot = e.timerSlot;
     }
     ScopedPhase timer(timers_, slot);
-    const std::size_t nb = packedStart_.size() - 2; // inner blocks; the last range crosses
+    const PackedSprings& order = topology_->dampingSweepOrder();
+    const std::size_t nb = order.starts.size() - 2; // inner blocks; the last range crosses
     auto range = [&](std::size_t k) {
-        const std::size_t b = packedStart_[k], e = packedStart_[k + 1];
+        const std::size_t b = order.starts[k], e = order.starts[k + 1];
         if (forward) {
-            sweepSpringDamping<true>(dampPacked_, b, e, c, tau, x, v, invMass, heldImpulse);
+            sweepSpringDamping<true>(order.springs, b, e, c, tau, x, v, invMass, heldImpulse);
         } else {
-            sweepSpringDamping<false>(dampPacked_, b, e, c, tau, x, v, invMass, heldImpulse);
+            sweepSpringDamping<false>(order.springs, b, e, c, tau, x, v, invMass, heldImpulse);
         }
     };
     auto blocks = [&]() {

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <string>
 
 namespace drape {
@@ -19,6 +20,103 @@ double automaticWeldTolerance(const std::vector<Vec3>& vertices) {
         any = true;
     }
     return 1e-9 * (hi - lo).norm();
+}
+
+SpringBlocks makeSpringBlocks(const ClothTopology& topology, const std::vector<Index>& subset,
+                              std::size_t blocks) {
+    const std::size_t n = topology.particleCount();
+    blocks = std::max<std::size_t>(1, std::min(blocks, n));
+    SpringBlocks out;
+    out.inner.resize(blocks);
+    auto blockOf = [&](Index i) { return static_cast<std::size_t>(i) * blocks / n; };
+    const auto& springs = topology.springs();
+    for (Index s : subset) {
+        const std::size_t ba = blockOf(springs[s].a), bb = blockOf(springs[s].b);
+        if (ba == bb) {
+            out.inner[ba].push_back(s);
+        } else {
+            out.crossing.push_back(s);
+        }
+    }
+    return out;
+}
+
+SpringBlocks makeSpringBlocks(const ClothTopology& topology, std::size_t blocks) {
+    std::vector<Index> all(topology.springCount());
+    for (std::size_t s = 0; s < all.size(); ++s)
+        all[s] = static_cast<Index>(s);
+    return makeSpringBlocks(topology, all, blocks);
+}
+
+namespace {
+/// The springs of `blocks` copied out range by range (inner blocks, then the crossing ones).
+PackedSprings pack(const ClothTopology& topology, const SpringBlocks& blocks) {
+    PackedSprings out;
+    const auto& springs = topology.springs();
+    auto add = [&](const std::vector<Index>& list) {
+        for (Index s : list) {
+            out.springs.push_back(springs[s]);
+            out.index.push_back(s);
+        }
+        out.starts.push_back(out.springs.size());
+    };
+    out.starts.push_back(0);
+    for (const auto& inner : blocks.inner)
+        add(inner);
+    add(blocks.crossing);
+    return out;
+}
+} // namespace
+
+std::size_t ClothTopology::springBlockCount() const {
+    return std::min<std::size_t>(64, 1 + particleCount() / 16384);
+}
+
+// The damping sweep updates each spring's two velocities from the values the springs before it
+// left, so springs that share a particle form a chain the processor has to run one after the
+// other (the velocity is stored, loaded again and goes through a division before the next
+// spring can start). A sheet's springs come grouped by particle, so nearly every spring waits
+// for the one before it. Within each packed range the sweep therefore visits the springs by
+// greedy edge colour: a spring gets the lowest colour not yet taken at either of its ends, and
+// the springs of one colour, which share no particle, run back to back. Any fixed order gives
+// a valid sweep (the backward sweep is its exact reverse); this one only runs faster.
+const PackedSprings& ClothTopology::dampingSweepOrder() const {
+    std::call_once(dampingOrderOnce_, [this] {
+        const PackedSprings all = pack(*this, makeSpringBlocks(*this, springBlockCount()));
+        PackedSprings& out = dampingOrder_;
+        out.starts = all.starts;
+        out.springs.reserve(all.springs.size());
+        out.index.reserve(all.springs.size());
+        std::vector<std::uint64_t> taken(particleCount(), 0); // colours used at each particle
+        std::vector<unsigned> colour;
+        std::vector<std::size_t> order;
+        for (std::size_t r = 0; r + 1 < all.starts.size(); ++r) {
+            const std::size_t b = all.starts[r], e = all.starts[r + 1];
+            colour.assign(e - b, 0);
+            for (std::size_t s = b; s < e; ++s) {
+                const Spring& sp = all.springs[s];
+                const std::uint64_t used = taken[sp.a] | taken[sp.b];
+                unsigned c = 0;
+                while (c < 63 && ((used >> c) & 1u))
+                    ++c; // more than 63 colours share the last
+                colour[s - b] = c;
+                taken[sp.a] |= std::uint64_t(1) << c;
+                taken[sp.b] |= std::uint64_t(1) << c;
+            }
+            for (std::size_t s = b; s < e; ++s)
+                taken[all.springs[s].a] = taken[all.springs[s].b] = 0;
+            order.resize(e - b);
+            for (std::size_t k = 0; k < order.size(); ++k)
+                order[k] = k;
+            std::stable_sort(order.begin(), order.end(),
+                             [&](std::size_t p, std::size_t q) { return colour[p] < colour[q]; });
+            for (std::size_t k : order) {
+                out.springs.push_back(all.springs[b + k]);
+                out.index.push_back(all.index[b + k]);
+            }
+        }
+    });
+    return dampingOrder_;
 }
 
 std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& input,
@@ -144,6 +242,8 @@ std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& in
         topo->adjInvRest2_[k] = topo->invRest2_[topo->adjSprings_[k]];
 
     topo->bakeFamilies();
+    topo->packedLoose_ =
+        pack(*topo, makeSpringBlocks(*topo, topo->looseSprings(), topo->springBlockCount()));
 
     topo->triangleAreas_.resize(topo->triangles_.size());
     for (std::size_t t = 0; t < topo->triangles_.size(); ++t) {

@@ -26,20 +26,6 @@ using Vec3List = std::vector<Vec3>;
 void addSpringForces(const std::vector<Spring>& springs, const std::vector<double>& stiffness,
                      const Vec3List& x, Vec3List& f);
 
-/// A fixed split of the springs for parallel accumulation. Particles are cut into `blocks`
-/// contiguous index ranges; inner[b] lists (in index order) the springs with both ends in
-/// block b, crossing the springs joining two blocks. Every particle then receives its inner
-/// springs first, in index order, then its crossing springs, in index order: the same
-/// floating-point sums whether the blocks run on one thread or many.
-struct SpringBlocks {
-    std::vector<std::vector<Index>> inner;
-    std::vector<Index> crossing;
-};
-SpringBlocks makeSpringBlocks(const ClothTopology& topology, std::size_t blocks);
-/// The same split of a subset of the springs (indices into topology.springs(), ascending).
-SpringBlocks makeSpringBlocks(const ClothTopology& topology, const std::vector<Index>& subset,
-                              std::size_t blocks);
-
 /// Damping along springs: a gets c ((v_b - v_a) . n) n, b the opposite. Dissipates relative
 /// motion along the spring only, so rigid motion is not damped.
 void addSpringDamping(const std::vector<Spring>& springs, double c, const Vec3List& x,
@@ -155,22 +141,9 @@ class ForceModel {
     std::vector<std::pair<std::string, ExternalForce>> externals_;
     std::vector<Entry> pipeline_;
     detail::ThreadPool* pool_ = nullptr;
-    /// The springs of makeSpringBlocks' split, copied out in block order (inner blocks, then
-    /// the crossing springs), with their stiffness, so the step reads them front to back without an
-    /// index list: block b is packed[packedStart[b] .. packedStart[b + 1]), the crossing
-    /// springs the last range.
-    std::vector<Spring> packed_;
-    /// packed_ with each range reordered for the damping sweep (orderDampingSweep); empty
-    /// without spring damping.
-    std::vector<Spring> dampPacked_;
-    void orderDampingSweep();
-    std::vector<double> packedStiffness_;
-    std::vector<std::size_t> packedStart_;
-    /// The loose springs (ClothTopology::looseSprings) split and packed as packed_ is, for
-    /// the force pass; the family springs go through addFamilySpringForces.
-    std::vector<Spring> loosePacked_;
+    /// The stiffness of each spring of ClothTopology::packedLooseSprings(), in its order (empty
+    /// when every spring has the same); the layout itself is the topology's, baked once.
     std::vector<double> looseStiffness_;
-    std::vector<std::size_t> looseStart_;
     /// Per family slot: the spring's stiffness (0 for a hole, whose force is then 0).
     std::vector<double> slotStiffness_;
     /// Scratch of the family force pass: positions and forces as three coordinate arrays

@@ -5,6 +5,7 @@
 #include "drape/mesh.hpp"
 
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <vector>
 
@@ -34,6 +35,33 @@ struct SpringFamily {
 
 /// ClothTopology::springSlots() entry of a spring in no family.
 inline constexpr std::size_t kNoSlot = static_cast<std::size_t>(-1);
+
+/// Springs copied out in a fixed block order for the passes that read them front to back:
+/// range r is springs[starts[r] .. starts[r + 1]), the inner blocks first (springs with both
+/// ends in one contiguous range of particles), the springs crossing blocks last; index[j] is
+/// the topology's index of springs[j]. Blocks never depend on the thread count, so the sums
+/// are the same on one thread or many.
+struct PackedSprings {
+    std::vector<Spring> springs;
+    std::vector<Index> index;
+    std::vector<std::size_t> starts;
+};
+
+class ClothTopology;
+
+/// A fixed split of the springs for parallel accumulation. Particles are cut into `blocks`
+/// contiguous index ranges; inner[b] lists (in index order) the springs with both ends in
+/// block b, crossing the springs joining two blocks. Every particle then receives its inner
+/// springs first, in index order, then its crossing springs, in index order: the same
+/// floating-point sums whether the blocks run on one thread or many.
+struct SpringBlocks {
+    std::vector<std::vector<Index>> inner;
+    std::vector<Index> crossing;
+};
+SpringBlocks makeSpringBlocks(const ClothTopology& topology, std::size_t blocks);
+/// The same split of a subset of the springs (indices into topology.springs(), ascending).
+SpringBlocks makeSpringBlocks(const ClothTopology& topology, const std::vector<Index>& subset,
+                              std::size_t blocks);
 
 /// 1e-9 times the diagonal of the finite vertices' bounding box [m]: the weld tolerance used
 /// when none is given (TopologyOptions::weldTolerance).
@@ -99,6 +127,16 @@ class ClothTopology {
     const std::vector<Index>& looseSprings() const { return looseSprings_; }
     /// Edges used by exactly one triangle (the cloth's border).
     std::size_t boundaryEdgeCount() const { return boundaryEdges_; }
+    /// Number of particle blocks of the packed spring layouts: one per 16384 particles, at
+    /// most 64 (fixed by the particle count alone).
+    std::size_t springBlockCount() const;
+    /// The loose springs (looseSprings()) packed by block: the force pass's layout for the
+    /// springs in no family, baked once.
+    const PackedSprings& packedLooseSprings() const { return packedLoose_; }
+    /// Every spring packed by block, each range ordered for the spring-damping sweep (greedy
+    /// edge colours: springs that share no particle run back to back). Baked the first time
+    /// a cloth with spring damping asks (thread-safe), then shared.
+    const PackedSprings& dampingSweepOrder() const;
 
   private:
     ClothTopology() = default;
@@ -121,6 +159,9 @@ class ClothTopology {
     std::vector<double> slotInvRest2_;
     std::vector<Index> looseSprings_;
     std::vector<std::size_t> springSlot_;
+    PackedSprings packedLoose_;
+    mutable PackedSprings dampingOrder_;
+    mutable std::once_flag dampingOrderOnce_;
     void bakeFamilies();
 };
 
