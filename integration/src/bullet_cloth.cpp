@@ -366,6 +366,12 @@ const std::shared_ptr<Cloth>& BulletCloth::clothPtr() const {
 const BulletClothSettings& BulletCloth::settings() const {
     return impl_->settings;
 }
+void BulletCloth::setTimeStep(std::optional<double> dt) {
+    BulletClothSettings s = impl_->settings;
+    s.timeStep = dt;
+    detail::validate(s);
+    impl_->settings.timeStep = dt;
+}
 const btCollisionObject* BulletCloth::proxyObject() const {
     return impl_->proxy.object();
 }

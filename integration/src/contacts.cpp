@@ -37,7 +37,7 @@ void ContactSolver::run(Cloth& c, double dt) {
 
     if (self) {
         const auto& sc = self_;
-        const auto counts = selfCollider_.run(c.topology(), c.inverseMasses(), prevX(), x, v,
+        const auto counts = selfCollider_.run(c.topology(), c.inverseMasses(), stepStart(), x, v,
                                               sc.thickness, sc.friction, sc.iterations);
         stats.selfPairTests += counts.pairTests;
         stats.selfContacts += counts.contacts;
@@ -94,7 +94,7 @@ void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counter
     Block whole;
     for (std::size_t i = 0; i < n; ++i) {
         const bool fixed = invMass[i] == 0.0;
-        boxes_.update(i, x[i], prevX()[i], fixed);
+        boxes_.update(i, x[i], stepStart()[i], fixed);
         whole.free += !fixed;
         whole.grow(boxes_[i]);
     }
@@ -127,12 +127,12 @@ void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counter
             for (std::size_t i = k * kBlock, end = std::min(n, i + kBlock); i < end; ++i) {
                 if (invMass[i] == 0.0) continue;
                 ++stats.particleBoxTests;
-                if (!boxes_.mayTouch(b, i, x[i], prevX()[i])) continue;
+                if (!boxes_.mayTouch(b, i, x[i], stepStart()[i])) continue;
                 const Vec3 before = x[i];
                 collideParticle(c, bi, i, dt, counters);
                 if (x[i] != before) { // projected: the next bodies see where it is now
                     projected_.push_back(static_cast<Index>(i));
-                    boxes_.update(i, x[i], prevX()[i], false);
+                    boxes_.update(i, x[i], stepStart()[i], false);
                     bl.grow(boxes_[i]);
                     whole.grow(boxes_[i]);
                 }
@@ -151,7 +151,7 @@ void ContactSolver::collideMoved(Cloth& c, double dt, QueryCounters& counters) {
     movedGroups_.clear();
     for (std::size_t m = 0; m < moved_.size(); ++m) {
         const std::size_t i = moved_[m];
-        boxes_.update(i, x[i], prevX()[i], false);
+        boxes_.update(i, x[i], stepStart()[i], false);
         if (movedGroups_.empty() || moved_[movedGroups_.back().begin] / kBlock != i / kBlock)
             movedGroups_.push_back(MovedGroup{m, m, Block{}});
         MovedGroup& g = movedGroups_.back();
@@ -169,12 +169,12 @@ void ContactSolver::collideMoved(Cloth& c, double dt, QueryCounters& counters) {
             for (std::size_t m = g.begin; m < g.end; ++m) {
                 const std::size_t i = moved_[m];
                 ++stats.particleBoxTests;
-                if (!boxes_.mayTouch(b, i, x[i], prevX()[i])) continue;
+                if (!boxes_.mayTouch(b, i, x[i], stepStart()[i])) continue;
                 const Vec3 before = x[i];
                 collideParticle(c, bi, i, dt, counters);
                 if (x[i] != before) {
                     projected_.push_back(static_cast<Index>(i));
-                    boxes_.update(i, x[i], prevX()[i], false);
+                    boxes_.update(i, x[i], stepStart()[i], false);
                     g.box.grow(boxes_[i]);
                 }
             }

@@ -123,7 +123,7 @@ class ContactSolver {
     /// The positions the step started from (Cloth::stepStartPositions), set by run(): each
     /// particle is swept from here. Nothing of it outlives the step.
     const Vec3List* from_ = nullptr;
-    const Vec3List& prevX() const { return *from_; }
+    const Vec3List& stepStart() const { return *from_; }
     using Block = ParticleBoxes::Block;
     static constexpr std::size_t kBlock = ParticleBoxes::kBlock;
     /// Moved particles of one block, moved[begin, end), for the re-projection.

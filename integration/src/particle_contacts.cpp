@@ -42,7 +42,7 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
     const auto& cs = contact_;
     const double h = cs.thickness;
     const Vec3 xi = x[i];
-    const Vec3 from = prevX()[i];
+    const Vec3 from = stepStart()[i];
     const bool sweep = cs.continuous && (xi - from).squaredNorm() > h * h;
 
     SurfaceHit hit;

@@ -67,7 +67,7 @@ double ContactSolver::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t,
         x[i] += (beta[k] * w[i] * depth / weight) * n;
         touching_[i] = 1;
         projected_.push_back(i);
-        boxes_.update(i, x[i], prevX()[i], false);
+        boxes_.update(i, x[i], stepStart()[i], false);
         // Against a static or kinematic body the limiter's walk keeps the particle from going
         // back along n (its own contact's plane, if it has one, comes first), so the strain
         // bound and the triangle's contact hold together, as for particle contacts.

@@ -72,7 +72,7 @@ std::vector<double> buildMasses(const ClothTopology& topo, const ClothSettings& 
 }
 
 std::vector<double> buildStiffness(const ClothTopology& topo, const ClothSettings& s,
-                                   const std::vector<double>& mass) {
+                                   const std::vector<double>& invMass) {
     if (given(s.springStiffness, "springStiffness")) {
         return std::vector<double>(topo.springCount(), *s.springStiffness);
     }
@@ -81,9 +81,6 @@ std::vector<double> buildStiffness(const ClothTopology& topo, const ClothSetting
     }
     // Automatic: omega_max^2 is linear in a uniform k, so measure it at k = 1 and scale.
     std::vector<double> k(topo.springCount(), 1.0);
-    std::vector<double> invMass(mass.size());
-    for (std::size_t i = 0; i < mass.size(); ++i)
-        invMass[i] = 1.0 / mass[i];
     const double omega1 = estimateMaxAngularFrequency(topo, k, invMass);
     if (omega1 > 0.0) {
         const double scale = kAutomaticStiffnessOmega / omega1;
@@ -154,7 +151,7 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     pinned_.assign(x_.size(), 0);
     if (settings_.threads > 1)
         poolStorage_ = std::make_unique<detail::ThreadPool>(settings_.threads);
-    std::vector<double> stiffness = buildStiffness(*topology_, settings_, mass);
+    std::vector<double> stiffness = buildStiffness(*topology_, settings_, invMass_);
     // The masses live in the force model (gravity reads them); masses() returns its copy.
     forceModel_ = std::make_unique<ForceModel>(topology_, std::move(stiffness), std::move(mass),
                                                settings_, timers_, poolStorage_.get());

@@ -85,6 +85,8 @@ TEST_CASE("bad input gets a drape::Error naming the problem", "[world][errors]")
     CHECK(code([&] { handle.attach(0, nullptr, Vec3::Zero()); }) == ErrorCode::InvalidArgument);
     CHECK(code([&] { handle.attach(0, box, Vec3(std::nan(""), 0, 0)); }) == ErrorCode::NonFinite);
     CHECK(code([&] { handle.stepInWorld(-1.0); }) == ErrorCode::InvalidArgument);
+    CHECK_THROWS_WITH(handle.setTimeStep(-0.01), Catch::Contains("timeStep"));
+    CHECK_FALSE(handle.settings().timeStep.has_value()); // unchanged by the refused value
 
     // A body under the cloth with a negative Coulomb coefficient: the step refuses it by name,
     // and the cloth keeps its state.
@@ -245,15 +247,16 @@ TEST_CASE("timeStep: stepSimulation's btScalar sub-step becomes the cloth's exac
     // a world stepped by stepSimulation follows stepInWorld(1/120) bit for bit; without it the
     // two runs part (the float step is 4e-8 relatively longer).
     const double dt = 1.0 / 120.0;
-    auto run = [dt](bool throughWorld, bool exact) {
+    auto run = [dt](bool throughWorld, bool exact, bool setLater = false) {
         TestWorld w;
         w.body(w.shape<btBoxShape>(btVector3(0.3f, 0.05f, 0.3f)), 0.0, Vec3(0, 0, 0));
         ClothSettings s = softCloth();
         s.springStiffness = 10.0; // stable at 120 Hz
         auto cloth = makeCloth(horizontalSheet(7, 7, 0.05, 0.4), s);
         bullet::BulletClothSettings bs;
-        if (exact) bs.timeStep = dt;
+        if (exact && !setLater) bs.timeStep = dt;
         auto& handle = w.add(cloth, bs);
+        if (exact && setLater) handle.setTimeStep(dt);
         for (int k = 0; k < 30; ++k) { // 0.25 s: falling 0.31 m onto the box
             if (throughWorld) {
                 w.world.stepSimulation(btScalar(dt), 0);
@@ -266,5 +269,6 @@ TEST_CASE("timeStep: stepSimulation's btScalar sub-step becomes the cloth's exac
     };
     const std::uint64_t alone = run(false, false);
     CHECK(run(true, true) == alone);
+    CHECK(run(true, true, true) == alone); // set on the handle after it joined the world
     CHECK(run(true, false) != alone);
 }

@@ -271,12 +271,11 @@ void DrapeWorld::step(double dt) {
     if (!(btScalar(dt) >= SIMD_EPSILON))
         throw std::invalid_argument("DrapeWorld::step: dt = " + std::to_string(dt) +
                                     " s is below the smallest step Bullet takes");
-    if (!m.handle || m.options.timeStep != dt) {
-        // The cloth's exact time step is part of how it joins the world.
-        if (m.handle) bullet::removeCloth(*m.handle);
-        m.handle.reset();
+    if (!m.handle) {
         m.options.timeStep = dt;
         m.handle = bullet::addCloth(m.world.get(), m.cloth, m.options);
+    } else if (m.handle->settings().timeStep != dt) {
+        m.handle->setTimeStep(dt);
     }
     // maxSubSteps 0: one internal step of exactly dt (in btScalar), which the cloth, told its
     // timeStep, takes as the double dt.

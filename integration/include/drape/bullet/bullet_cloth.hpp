@@ -38,6 +38,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 class btCollisionObject;
@@ -80,6 +81,10 @@ class BulletCloth {
     const Cloth& cloth() const;
     const std::shared_ptr<Cloth>& clothPtr() const;
     const BulletClothSettings& settings() const;
+    /// Changes BulletClothSettings::timeStep (the exact double a matching Bullet sub-step is
+    /// taken as), for a caller that steps the world with another dt. Throws drape::Error on a
+    /// non-positive or non-finite value.
+    void setTimeStep(std::optional<double> dt);
     /// The broadphase proxy's owner (a ghost object with no contact response).
     const btCollisionObject* proxyObject() const;
     /// Counts of the last Bullet sub-step.
