@@ -340,6 +340,13 @@ TEST_CASE("Spring families: every spring in one slot or loose, and the family ke
         spec.spacing = 0.1;
         checkMesh(makeSheet(spec), 3, true);
     }
+    SECTION("a sheet of several blocks: the slots before each block are carried over") {
+        SheetSpec spec; // 12000 particles: the pass works in blocks of 2048
+        spec.rows = 40;
+        spec.cols = 300;
+        spec.spacing = 0.1;
+        checkMesh(makeSheet(spec), 11, true);
+    }
     SECTION("an irregular mesh: some springs loose") {
         checkMesh(irregularMesh(4, 4, 7, true), 5, false);
     }

@@ -146,9 +146,9 @@ class ForceModel {
     std::vector<double> looseStiffness_;
     /// Per family slot: the spring's stiffness (0 for a hole, whose force is then 0).
     std::vector<double> slotStiffness_;
-    /// Scratch of the family force pass: positions and forces as three coordinate arrays
-    /// (x of every particle, then y, then z), and each slot's spring force.
-    std::vector<double> soaX_, soaF_, slotF_;
+    /// Scratch of the family force pass: the positions as three coordinate arrays (x of every
+    /// particle, then y, then z).
+    std::vector<double> soaX_;
     void addFamilySpringForces(const Vec3List& x, Vec3List& f);
     /// The common stiffness when every spring has the same (the step then reads no
     /// per-spring stiffness), else 0.
