@@ -216,29 +216,40 @@ std::size_t ForceModel::passiveTermCount() const {
     return count;
 }
 
+// f[i] = m_i g - C_d v_i for particles [b, e), with the terms that are on (the force sum's start).
+void ForceModel::startForces(const ForceStart& s, std::size_t b, std::size_t e,
+                             Vec3List& f) const {
+    const Vec3List& v = *s.v;
+    const double cd = s.damping;
+    if (s.gravity && cd > 0.0) {
+        for (std::size_t i = b; i < e; ++i)
+            f[i] = mass_[i] * settings_.gravity - cd * v[i];
+    } else if (s.gravity) {
+        for (std::size_t i = b; i < e; ++i)
+            f[i] = mass_[i] * settings_.gravity;
+    } else if (cd > 0.0) {
+        for (std::size_t i = b; i < e; ++i)
+            f[i] = -cd * v[i];
+    } else {
+        for (std::size_t i = b; i < e; ++i)
+            f[i].setZero();
+    }
+}
+
 void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
     const std::size_t n = x.size();
     f.resize(n);
-    const bool gravity = settings_.gravity != Vec3::Zero();
-    const double cd = velocityTermsInIntegrator_ ? 0.0 : settings_.damping;
-    // Start from gravity (eq. (6)) and particle damping (eq. (8)), or zero: one pass over the
-    // particles instead of three. (The sum is then formed in another order than term by term:
-    // results agree to rounding.)
-    detail::forChunks(pool_, n, [&](std::size_t b, std::size_t e) {
-        if (gravity && cd > 0.0) {
-            for (std::size_t i = b; i < e; ++i)
-                f[i] = mass_[i] * settings_.gravity - cd * v[i];
-        } else if (gravity) {
-            for (std::size_t i = b; i < e; ++i)
-                f[i] = mass_[i] * settings_.gravity;
-        } else if (cd > 0.0) {
-            for (std::size_t i = b; i < e; ++i)
-                f[i] = -cd * v[i];
-        } else {
-            for (std::size_t i = b; i < e; ++i)
-                f[i].setZero();
-        }
-    });
+    const ForceStart start{settings_.gravity != Vec3::Zero(),
+                           velocityTermsInIntegrator_ ? 0.0 : settings_.damping, &v};
+    // The springs come first in the pipeline. With spring families their pass starts the sum
+    // itself (one pass over f instead of two); otherwise gravity (eq. (6)) and particle damping
+    // (eq. (8)), or zero, are set here: one pass over the particles instead of three. (The sum
+    // is then formed in another order than term by term: results agree to rounding.)
+    const bool familiesStart = !topology_->springFamilies().empty();
+    if (!familiesStart) {
+        detail::forChunks(pool_, n,
+                          [&](std::size_t b, std::size_t e) { startForces(start, b, e, f); });
+    }
     for (const Entry& e : pipeline_) {
         // Applied by the integrator instead (setVelocityTermsInIntegrator), and timed there.
         if (velocityTermsInIntegrator_ &&
@@ -248,7 +259,7 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
         ScopedPhase timer(timers_, e.timerSlot);
         switch (e.term) {
         case Term::Springs: {
-            addFamilySpringForces(x, f);
+            if (familiesStart) addFamilySpringForces(x, start, f);
             const PackedSprings& loose = topology_->packedLooseSprings();
             const std::size_t nb = loose.starts.size() - 2; // inner blocks; the last range crosses
             if (loose.springs.empty()) break;
@@ -367,9 +378,10 @@ void addFusedTerms(std::size_t groupSize, std::size_t m, const double* const* ru
 namespace {
 /// Writes the slot forces of family `fam` for the starts a in [aLo, aHi) to (ox, oy, oz)[0 ..
 /// aHi - aLo): 0 where a is not a start of the family (before its first slot, after its last),
-/// so that the sums may add them without checking.
+/// so that the sums may add them without checking. (px, py, pz)[i - origin] is particle i.
 void familyRange(const SpringFamily& fam, std::ptrdiff_t aLo, std::ptrdiff_t aHi,
-                 const double* px, const double* py, const double* pz, const double* kSlot,
+                 std::size_t origin, const double* px, const double* py, const double* pz,
+                 const double* kSlot,
                  const double* rest, double* ox, double* oy, double* oz) {
     const std::ptrdiff_t first = fam.first, last = first + std::ptrdiff_t(fam.count);
     const std::ptrdiff_t lo = std::clamp(first, aLo, aHi), hi = std::clamp(last, lo, aHi);
@@ -378,7 +390,7 @@ void familyRange(const SpringFamily& fam, std::ptrdiff_t aLo, std::ptrdiff_t aHi
     std::fill(oy, oy + head, 0.0);
     std::fill(oz, oz + head, 0.0);
     if (m > 0) {
-        const std::size_t a = std::size_t(lo), slot = fam.slot + std::size_t(lo - first);
+        const std::size_t a = std::size_t(lo) - origin, slot = fam.slot + std::size_t(lo - first);
         familySlotForces(m, px + a, py + a, pz + a, px + a + fam.offset, py + a + fam.offset,
                          pz + a + fam.offset, kSlot + slot, rest + slot, ox + head, oy + head,
                          oz + head);
@@ -391,58 +403,61 @@ void familyRange(const SpringFamily& fam, std::ptrdiff_t aLo, std::ptrdiff_t aHi
 } // namespace
 
 // The family springs (ClothTopology::springFamilies) as loops over plain arrays that the
-// compiler vectorises, in blocks that stay in cache. The positions are copied into coordinate
-// arrays; then each thread walks its particles in blocks of B. For a block [p, q) it computes,
+// compiler vectorises, in blocks that stay in cache. Each thread walks its particles in blocks
+// of B. For a block [p, q) it copies the positions the block's slots read (up to the widest
+// offset on either side) into coordinate arrays (x of every particle, then y, then z); computes,
 // family by family, the force k (l - L0) / l d of every slot that starts at a particle of the
 // block (from two contiguous runs of particles; a hole has k = 0 and L0 = 0, so its force is 0
 // unless its ends coincide, which the l > 0 test also covers) into a small buffer that still
 // holds the `offset` slots before the block (carried over from the block before, computed afresh
-// at the start of a thread's range); every particle of the block then adds the slots it starts
-// (+) and ends (-), family by family, and the sum goes onto f. No slot force goes to memory and
-// comes back: at 1e6 particles that round trip was 96 MB per step.
+// at the start of a thread's range); then every particle of the block adds the slots it starts
+// (+) and ends (-), family by family, and the sum goes onto f, after the start of the sum
+// (gravity and damping, startForces) in the same pass. Nothing but the positions and f goes
+// through memory: at 1e6 particles the slot forces' round trip alone was 96 MB per step.
 //
 // Each particle's sum has the same terms in the same order for any split of the particles
 // among threads or blocks (a slot's force is the same function of the same positions wherever
 // it is computed), so results do not depend on the thread count.
-void ForceModel::addFamilySpringForces(const Vec3List& x, Vec3List& f) {
+void ForceModel::addFamilySpringForces(const Vec3List& x, const ForceStart& start, Vec3List& f) {
     const auto& families = topology_->springFamilies();
-    if (families.empty()) return;
     const std::size_t n = x.size();
-    soaX_.resize(3 * n);
-    detail::forChunks(pool_, n, [&](std::size_t b, std::size_t e) {
-        double* px = soaX_.data();
-        double* py = px + n;
-        double* pz = py + n;
-        for (std::size_t i = b; i < e; ++i) {
-            px[i] = x[i][0];
-            py[i] = x[i][1];
-            pz[i] = x[i][2];
-        }
-    });
     std::size_t maxOffset = 0;
     for (const SpringFamily& fam : families)
         maxOffset = std::max<std::size_t>(maxOffset, fam.offset);
     // The block: at least twice the widest offset, so that carrying the offset's slots over
     // costs at most half a block's copies.
     const std::size_t block = std::max<std::size_t>(2048, 2 * maxOffset);
+    const std::size_t span = block + 2 * maxOffset; // positions a block reads
     const double* rest = topology_->familySlotRestLengths().data();
     const double* kSlot = slotStiffness_.data();
     detail::forChunks(pool_, n, [&](std::size_t b, std::size_t e) {
         if (b >= e) return;
-        // Per thread: for each family three coordinate runs of block + offset slot forces
-        // (index k holds the slot starting at particle p - offset + k), then the block's sums.
+        // Per thread: the block's sums, its positions, then for each family three coordinate
+        // runs of block + offset slot forces (index k holds the slot starting at particle
+        // p - offset + k).
         thread_local std::vector<double> scratch;
-        std::size_t need = 3 * block;
+        std::size_t need = 3 * block + 3 * span;
         for (const SpringFamily& fam : families)
             need += 3 * (block + fam.offset);
         if (scratch.size() < need) scratch.resize(need);
-        const double* px = soaX_.data();
-        const double* py = px + n;
-        const double* pz = py + n;
         double* sums = scratch.data();
+        double* pos = sums + 3 * block;
+        double* slotBuf = pos + 3 * span;
         for (std::size_t p = b; p < e; p += block) {
             const std::size_t q = std::min(e, p + block), m = q - p;
-            double* buf = sums + 3 * block;
+            // Positions [lo, hi): every particle a slot of this block (or, at the start of the
+            // range, of the offset's slots before it) reads. pos[i - lo] is particle i.
+            const std::size_t lo = p > maxOffset ? p - maxOffset : 0;
+            const std::size_t hi = std::min(n, q + maxOffset);
+            double* cx = pos;
+            double* cy = pos + span;
+            double* cz = pos + 2 * span;
+            for (std::size_t i = lo; i < hi; ++i) {
+                cx[i - lo] = x[i][0];
+                cy[i - lo] = x[i][1];
+                cz[i - lo] = x[i][2];
+            }
+            double* buf = slotBuf;
             for (const SpringFamily& fam : families) {
                 const std::size_t len = block + fam.offset;
                 double* bx = buf;
@@ -450,12 +465,12 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, Vec3List& f) {
                 double* bz = by + len;
                 const std::ptrdiff_t ip = std::ptrdiff_t(p), off = fam.offset;
                 if (p == b) { // the offset's slots before the range: computed here
-                    familyRange(fam, ip - off, ip, px, py, pz, kSlot, rest, bx, by, bz);
+                    familyRange(fam, ip - off, ip, lo, cx, cy, cz, kSlot, rest, bx, by, bz);
                 } else { // carried over from the (full) block before
                     for (double* c : {bx, by, bz})
                         std::copy(c + block, c + block + fam.offset, c);
                 }
-                familyRange(fam, ip, ip + std::ptrdiff_t(m), px, py, pz, kSlot, rest,
+                familyRange(fam, ip, ip + std::ptrdiff_t(m), lo, cx, cy, cz, kSlot, rest,
                             bx + fam.offset, by + fam.offset, bz + fam.offset);
                 buf += 3 * len;
             }
@@ -467,16 +482,16 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, Vec3List& f) {
                 // terms; the particles outside take them family by family (the slots they do
                 // not start or end hold 0). Which formula a particle gets depends on its index
                 // only, never on the block: the same sums for any thread count.
-                const double* groupBuf = sums + 3 * block;
+                const double* groupBuf = slotBuf;
                 for (std::size_t g = 0; g < families.size(); g += 4) {
                     const std::size_t gEnd = std::min(families.size(), g + 4);
-                    std::size_t lo = p, hi = q;
+                    std::size_t in0 = p, in1 = q; // the group's interior in this block
                     for (std::size_t r = g; r < gEnd; ++r) {
                         const SpringFamily& fam = families[r];
-                        lo = std::max<std::size_t>(lo, std::size_t(fam.first) + fam.offset);
-                        hi = std::min<std::size_t>(hi, std::size_t(fam.first) + fam.count);
+                        in0 = std::max<std::size_t>(in0, std::size_t(fam.first) + fam.offset);
+                        in1 = std::min<std::size_t>(in1, std::size_t(fam.first) + fam.count);
                     }
-                    if (lo >= hi) lo = hi = q; // no interior in this block
+                    if (in0 >= in1) in0 = in1 = q; // no interior in this block
                     const double* run[8];
                     const double* fb = groupBuf;
                     for (std::size_t r = g; r < gEnd; ++r) {
@@ -484,18 +499,19 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, Vec3List& f) {
                         const double* in = fb + c * len;
                         const double* starts = in + families[r].offset; // slot of particle p
                         const double* ends = in;                        // slot ending at p
-                        addRun(lo - p, starts, out);
-                        subtractRun(lo - p, ends, out);
-                        addRun(q - hi, starts + (hi - p), out + (hi - p));
-                        subtractRun(q - hi, ends + (hi - p), out + (hi - p));
-                        run[2 * (r - g)] = starts + (lo - p);
-                        run[2 * (r - g) + 1] = ends + (lo - p);
+                        addRun(in0 - p, starts, out);
+                        subtractRun(in0 - p, ends, out);
+                        addRun(q - in1, starts + (in1 - p), out + (in1 - p));
+                        subtractRun(q - in1, ends + (in1 - p), out + (in1 - p));
+                        run[2 * (r - g)] = starts + (in0 - p);
+                        run[2 * (r - g) + 1] = ends + (in0 - p);
                         fb += 3 * len;
                     }
-                    if (lo < hi) addFusedTerms(gEnd - g, hi - lo, run, out + (lo - p));
+                    if (in0 < in1) addFusedTerms(gEnd - g, in1 - in0, run, out + (in0 - p));
                     groupBuf = fb;
                 }
             }
+            startForces(start, p, q, f);
             const double* sx = sums;
             const double* sy = sx + block;
             const double* sz = sy + block;

@@ -146,10 +146,15 @@ class ForceModel {
     std::vector<double> looseStiffness_;
     /// Per family slot: the spring's stiffness (0 for a hole, whose force is then 0).
     std::vector<double> slotStiffness_;
-    /// Scratch of the family force pass: the positions as three coordinate arrays (x of every
-    /// particle, then y, then z).
-    std::vector<double> soaX_;
-    void addFamilySpringForces(const Vec3List& x, Vec3List& f);
+    /// The start of the force sum: gravity, and particle damping at velocities v (0 when the
+    /// integrator applies it).
+    struct ForceStart {
+        bool gravity;
+        double damping;
+        const Vec3List* v;
+    };
+    void startForces(const ForceStart& s, std::size_t b, std::size_t e, Vec3List& f) const;
+    void addFamilySpringForces(const Vec3List& x, const ForceStart& start, Vec3List& f);
     /// The common stiffness when every spring has the same (the step then reads no
     /// per-spring stiffness), else 0.
     double uniformStiffness_ = 0.0;
