@@ -31,40 +31,56 @@ void ThreadPool::parallelFor(std::size_t n,
         if (n > 0) body(0, n);
         return;
     }
+    // The range is cut into more pieces than threads, and every thread (the caller too) takes
+    // pieces until none is left. A worker that the system wakes late (on a virtual machine a
+    // sleeping thread can take milliseconds to run again) then costs nothing but its share:
+    // with one chunk per thread the caller waited for it, and two threads were as slow as one.
+    const std::size_t pieces = maxChunks * kPiecesPerThread;
     {
         std::lock_guard<std::mutex> lock(mutex_);
         job_ = &body;
         jobSize_ = n;
-        chunks_ = maxChunks;
-        pending_ = maxChunks - 1;
+        pieces_ = pieces;
+        next_.store(0, std::memory_order_relaxed);
+        done_.store(0, std::memory_order_relaxed);
         ++generation_;
     }
     start_.notify_all();
-    body(0, n / maxChunks);
+    takePieces();
     std::unique_lock<std::mutex> lock(mutex_);
-    done_.wait(lock, [&] { return pending_ == 0; });
-    job_ = nullptr;
+    finished_.wait(lock, [&] {
+        return done_.load(std::memory_order_acquire) == pieces && participants_ == 0;
+    });
+    job_ = nullptr; // a worker that wakes from now on finds no job
 }
 
-void ThreadPool::workerLoop(std::size_t index) {
+void ThreadPool::takePieces() {
+    for (;;) {
+        const std::size_t k = next_.fetch_add(1, std::memory_order_relaxed);
+        if (k >= pieces_) return;
+        (*job_)(jobSize_ * k / pieces_, jobSize_ * (k + 1) / pieces_);
+        if (done_.fetch_add(1, std::memory_order_acq_rel) + 1 == pieces_) {
+            std::lock_guard<std::mutex> lock(mutex_);
+            finished_.notify_all();
+        }
+    }
+}
+
+void ThreadPool::workerLoop(std::size_t) {
     std::uint64_t seen = 0;
     for (;;) {
-        const std::function<void(std::size_t, std::size_t)>* job;
-        std::size_t n, chunks;
         {
             std::unique_lock<std::mutex> lock(mutex_);
             start_.wait(lock, [&] { return stop_ || generation_ != seen; });
             if (stop_) return;
             seen = generation_;
-            job = job_;
-            n = jobSize_;
-            chunks = chunks_;
+            if (job_ == nullptr) continue; // woke after the caller had finished the job
+            ++participants_;
         }
-        if (index < chunks) {
-            (*job)(n * index / chunks, n * (index + 1) / chunks);
-            std::lock_guard<std::mutex> lock(mutex_);
-            if (--pending_ == 0) done_.notify_one();
-        }
+        takePieces();
+        std::lock_guard<std::mutex> lock(mutex_);
+        --participants_;
+        finished_.notify_all();
     }
 }
 
