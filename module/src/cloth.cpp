@@ -155,6 +155,7 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     // The masses live in the force model (gravity reads them); masses() returns its copy.
     forceModel_ = std::make_unique<ForceModel>(topology_, std::move(stiffness), std::move(mass),
                                                settings_, timers_, poolStorage_.get());
+    limiter_.setPool(poolStorage_.get());
     integrator_ = makeIntegrator(settings_.integrator, settings_.implicit);
     integrator_->bind(*forceModel_);
     for (const Stage& st : kStages)

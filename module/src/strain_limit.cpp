@@ -4,6 +4,7 @@
 
 #include "drape/settings.hpp"
 
+#include "parallel.hpp"
 #include "restrict.hpp"
 
 #include <algorithm>
@@ -369,51 +370,79 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology,
     const auto& inv2 = topology.familySlotInverseSquaredRestLengths();
     soa_.resize(3 * n);
     ratio2_.resize(slotSpring.size());
-    double* px = soa_.data();
-    double* py = px + n;
-    double* pz = py + n;
-    for (std::size_t i = 0; i < n; ++i) {
-        px[i] = x[i][0];
-        py[i] = x[i][1];
-        pz[i] = x[i][2];
-    }
-    for (const SpringFamily& fam : families) {
-        slotRatios(fam.count, px + fam.first, py + fam.first, pz + fam.first,
-                   px + fam.first + fam.offset, py + fam.first + fam.offset,
-                   pz + fam.first + fam.offset, inv2.data() + fam.slot, ratio2_.data() + fam.slot);
+    // Both passes split over threads by particle and by slot (each value written by one piece):
+    // the same ratios for any thread count.
+    detail::forChunks(pool_, n, [&](std::size_t b, std::size_t e) {
+        double* px = soa_.data();
+        double* py = px + n;
+        double* pz = py + n;
+        for (std::size_t i = b; i < e; ++i) {
+            px[i] = x[i][0];
+            py[i] = x[i][1];
+            pz[i] = x[i][2];
+        }
+    });
+    // The slots in segments: each measures its slots, their largest ratio and whether any is
+    // beyond the band (four running maxima: one chain of maxima would make every slot wait for
+    // the one before it). Segments run on any thread; the largest ratio is exact whatever the
+    // order, and only segments with a spring beyond the band (the rare case) are read again,
+    // in index order, to queue them.
+    const std::size_t m = slotSpring.size();
+    const std::size_t segments = (m + kScanSegment - 1) / kScanSegment;
+    segmentWorst_.resize(segments);
+    segmentBeyond_.resize(segments);
+    const double upper2 = upper2_;
+    auto measure = [&](std::size_t s0, std::size_t s1) {
+        const double* px = soa_.data();
+        const double* py = px + n;
+        const double* pz = py + n;
+        double* r2 = ratio2_.data();
+        for (std::size_t sg = s0; sg < s1; ++sg) {
+            const std::size_t b = sg * kScanSegment, e = std::min(m, b + kScanSegment);
+            for (const SpringFamily& fam : families) {
+                const std::size_t lo = std::max(b, fam.slot);
+                const std::size_t hi = std::min(e, fam.slot + fam.count);
+                if (lo >= hi) continue;
+                const std::size_t a = fam.first + (lo - fam.slot); // the first end of slot lo
+                slotRatios(hi - lo, px + a, py + a, pz + a, px + a + fam.offset,
+                           py + a + fam.offset, pz + a + fam.offset, inv2.data() + lo, r2 + lo);
+            }
+            double w0 = 0.0, w1 = 0.0, w2 = 0.0, w3 = 0.0;
+            std::size_t j = b;
+            for (; j + 4 <= e; j += 4) {
+                w0 = std::max(w0, r2[j]);
+                w1 = std::max(w1, r2[j + 1]);
+                w2 = std::max(w2, r2[j + 2]);
+                w3 = std::max(w3, r2[j + 3]);
+            }
+            for (; j < e; ++j)
+                w0 = std::max(w0, r2[j]);
+            segmentWorst_[sg] = std::max(std::max(w0, w1), std::max(w2, w3));
+            segmentBeyond_[sg] = segmentWorst_[sg] > upper2;
+        }
+    };
+    if (pool_) {
+        pool_->parallelFor(segments, measure, 2);
+    } else {
+        measure(0, segments);
     }
     st.work += topology.springCount() - topology.looseSprings().size();
-    // Springs beyond the band (the rare case: a branch the processor predicts). A hole has
-    // ratio 0. The warm-started springs below the band are found by limit() from its list.
+    // Springs beyond the band. A hole has ratio 0. The warm-started springs below the band are
+    // found by limit() from its list.
     const auto& springs = topology.springs();
     const double* r2 = ratio2_.data();
-    const double upper2 = upper2_;
-    auto decide = [&](std::size_t j) {
-        if (!(r2[j] > upper2)) return;
-        const Index si = slotSpring[j];
-        const Spring& sp = springs[si];
-        if (invMass[sp.a] + invMass[sp.b] != 0.0) queue(si, r2[j], sp.restLength, stiffness);
-    };
-    // Four slots at a time, with four running maxima (one chain of maxima would make every
-    // slot wait for the one before it).
-    double w0 = 0.0, w1 = 0.0, w2 = 0.0, w3 = 0.0;
-    const std::size_t m = slotSpring.size();
-    std::size_t j = 0;
-    for (; j + 4 <= m; j += 4) {
-        w0 = std::max(w0, r2[j]);
-        w1 = std::max(w1, r2[j + 1]);
-        w2 = std::max(w2, r2[j + 2]);
-        w3 = std::max(w3, r2[j + 3]);
-        if (std::max(std::max(r2[j], r2[j + 1]), std::max(r2[j + 2], r2[j + 3])) > upper2) {
-            for (std::size_t q = j; q < j + 4; ++q)
-                decide(q);
+    double worst2 = 0.0;
+    for (std::size_t sg = 0; sg < segments; ++sg) {
+        worst2 = std::max(worst2, segmentWorst_[sg]);
+        if (!segmentBeyond_[sg]) continue;
+        for (std::size_t j = sg * kScanSegment, e = std::min(m, j + kScanSegment); j < e; ++j) {
+            if (!(r2[j] > upper2)) continue;
+            const Index si = slotSpring[j];
+            const Spring& sp = springs[si];
+            if (invMass[sp.a] + invMass[sp.b] != 0.0) queue(si, r2[j], sp.restLength, stiffness);
         }
     }
-    for (; j < m; ++j) {
-        w0 = std::max(w0, r2[j]);
-        decide(j);
-    }
-    return std::max(std::max(w0, w1), std::max(w2, w3));
+    return worst2;
 }
 
 StrainLimitStats StrainLimiter::relimit(const ClothTopology& topology,

@@ -13,6 +13,9 @@
 #include <vector>
 
 namespace drape {
+namespace detail {
+class ThreadPool;
+}
 
 struct LimiterSettings;
 
@@ -145,6 +148,8 @@ AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Ind
 /// point of both when there is one.
 class StrainLimiter {
   public:
+    /// Threads for the scan of every spring (the walk itself is sequential); null: this thread.
+    void setPool(detail::ThreadPool* pool) { pool_ = pool; }
     /// Runs one step's limiter on x. The long-range attachments are recomputed whenever the
     /// set of zero-inverse-mass particles differs from the last call's.
     StrainLimitStats limit(const ClothTopology& topology, const std::vector<double>& invMass,
@@ -276,8 +281,13 @@ class StrainLimiter {
     std::vector<Index> movedIndex_;
     std::vector<Vec3> movedFrom_;
     AnchorField anchors_;
+    detail::ThreadPool* pool_ = nullptr;
     std::vector<double> soa_;         ///< scan scratch: x of every particle, then y, then z
     std::vector<double> ratio2_;      ///< scan scratch: (l / L0)^2 per family slot
+    /// The scan's segments of kScanSegment slots: largest ratio, any slot beyond the band.
+    static constexpr std::size_t kScanSegment = 16384;
+    std::vector<double> segmentWorst_;
+    std::vector<unsigned char> segmentBeyond_;
     ContactPlanes* planes_ = nullptr; ///< during relimit() only
     std::vector<Index> anchorList_, anchorScratch_;
     bool anchorsValid_ = false;
