@@ -2,6 +2,7 @@
 #include "parallel.hpp"
 
 #include <algorithm>
+#include <chrono>
 
 namespace drape::detail {
 
@@ -15,7 +16,7 @@ ThreadPool::ThreadPool(int threads) {
 ThreadPool::~ThreadPool() {
     {
         std::lock_guard<std::mutex> lock(mutex_);
-        stop_ = true;
+        stop_.store(true, std::memory_order_relaxed);
     }
     start_.notify_all();
     for (auto& w : workers_)
@@ -43,7 +44,7 @@ void ThreadPool::parallelFor(std::size_t n,
         pieces_ = pieces;
         next_.store(0, std::memory_order_relaxed);
         done_.store(0, std::memory_order_relaxed);
-        ++generation_;
+        generation_.fetch_add(1, std::memory_order_release);
     }
     start_.notify_all();
     takePieces();
@@ -66,14 +67,36 @@ void ThreadPool::takePieces() {
     }
 }
 
+namespace {
+/// A hint to the processor that this thread is waiting in a loop.
+inline void cpuRelax() {
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#endif
+}
+} // namespace
+
 void ThreadPool::workerLoop(std::size_t) {
     std::uint64_t seen = 0;
     for (;;) {
+        // A step runs several loops with short sequential parts between them: a worker that
+        // waits for the next one a little before it sleeps is there when it starts (waking a
+        // sleeping thread costs tens of microseconds on a virtual machine).
+        const auto until = std::chrono::steady_clock::now() + kSpin;
+        while (generation_.load(std::memory_order_acquire) == seen &&
+               !stop_.load(std::memory_order_relaxed)) {
+            for (int k = 0; k < 64; ++k)
+                cpuRelax();
+            if (std::chrono::steady_clock::now() >= until) break;
+        }
         {
             std::unique_lock<std::mutex> lock(mutex_);
-            start_.wait(lock, [&] { return stop_ || generation_ != seen; });
-            if (stop_) return;
-            seen = generation_;
+            start_.wait(lock, [&] {
+                return stop_.load(std::memory_order_relaxed) ||
+                       generation_.load(std::memory_order_relaxed) != seen;
+            });
+            if (stop_.load(std::memory_order_relaxed)) return;
+            seen = generation_.load(std::memory_order_relaxed);
             if (job_ == nullptr) continue; // woke after the caller had finished the job
             ++participants_;
         }

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <cstddef>
@@ -37,6 +38,8 @@ class ThreadPool {
                      std::size_t grain = 32768);
 
     static constexpr std::size_t kPiecesPerThread = 4;
+    /// How long a worker waits for the next loop before it sleeps.
+    static constexpr std::chrono::microseconds kSpin{200};
 
   private:
     void workerLoop(std::size_t index);
@@ -52,8 +55,8 @@ class ThreadPool {
     std::atomic<std::size_t> next_{0}; ///< the next piece to take
     std::atomic<std::size_t> done_{0}; ///< pieces finished
     std::size_t participants_ = 0;     ///< workers inside takePieces (under mutex_)
-    std::uint64_t generation_ = 0;
-    bool stop_ = false;
+    std::atomic<std::uint64_t> generation_{0}; ///< changed under mutex_, read by spinning workers
+    std::atomic<bool> stop_{false};
 };
 
 /// Runs body(begin, end) over [0, n): on the pool in chunks when there is one, else as one
