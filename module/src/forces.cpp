@@ -217,8 +217,7 @@ std::size_t ForceModel::passiveTermCount() const {
 }
 
 // f[i] = m_i g - C_d v_i for particles [b, e), with the terms that are on (the force sum's start).
-void ForceModel::startForces(const ForceStart& s, std::size_t b, std::size_t e,
-                             Vec3List& f) const {
+void ForceModel::startForces(const ForceStart& s, std::size_t b, std::size_t e, Vec3List& f) const {
     const Vec3List& v = *s.v;
     const double cd = s.damping;
     if (s.gravity && cd > 0.0) {
@@ -381,8 +380,7 @@ namespace {
 /// so that the sums may add them without checking. (px, py, pz)[i - origin] is particle i.
 void familyRange(const SpringFamily& fam, std::ptrdiff_t aLo, std::ptrdiff_t aHi,
                  std::size_t origin, const double* px, const double* py, const double* pz,
-                 const double* kSlot,
-                 const double* rest, double* ox, double* oy, double* oz) {
+                 const double* kSlot, const double* rest, double* ox, double* oy, double* oz) {
     const std::ptrdiff_t first = fam.first, last = first + std::ptrdiff_t(fam.count);
     const std::ptrdiff_t lo = std::clamp(first, aLo, aHi), hi = std::clamp(last, lo, aHi);
     const std::size_t head = std::size_t(lo - aLo), m = std::size_t(hi - lo);

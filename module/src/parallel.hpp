@@ -9,8 +9,8 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
-#include <cstdint>
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <mutex>
 #include <thread>
@@ -29,11 +29,11 @@ class ThreadPool {
     int threads() const { return static_cast<int>(workers_.size()) + 1; }
 
     /// Runs body over [0, n) in contiguous pieces (kPiecesPerThread per thread used), taken
-    /// by the calling thread and the workers until none is left. Loops shorter than `grain` per thread run inline. The default suits
-    /// the per-particle and per-slot passes (a few ns per element): waking a worker costs
-    /// tens of microseconds on a virtual machine, so below ~32k elements per thread a second
-    /// thread makes the step slower (measured: a 100 x 100 sheet took 0.40 ms/step on 2
-    /// threads and 0.32 ms on 1 with a grain of 4096).
+    /// by the calling thread and the workers until none is left. Loops shorter than `grain` per
+    /// thread run inline. The default suits the per-particle and per-slot passes (a few ns per
+    /// element): waking a worker costs tens of microseconds on a virtual machine, so below ~32k
+    /// elements per thread a second thread makes the step slower (measured: a 100 x 100 sheet took
+    /// 0.40 ms/step on 2 threads and 0.32 ms on 1 with a grain of 4096).
     void parallelFor(std::size_t n, const std::function<void(std::size_t, std::size_t)>& body,
                      std::size_t grain = 32768);
 
@@ -52,9 +52,9 @@ class ThreadPool {
     const std::function<void(std::size_t, std::size_t)>* job_ = nullptr;
     std::size_t jobSize_ = 0;
     std::size_t pieces_ = 0;
-    std::atomic<std::size_t> next_{0}; ///< the next piece to take
-    std::atomic<std::size_t> done_{0}; ///< pieces finished
-    std::size_t participants_ = 0;     ///< workers inside takePieces (under mutex_)
+    std::atomic<std::size_t> next_{0};         ///< the next piece to take
+    std::atomic<std::size_t> done_{0};         ///< pieces finished
+    std::size_t participants_ = 0;             ///< workers inside takePieces (under mutex_)
     std::atomic<std::uint64_t> generation_{0}; ///< changed under mutex_, read by spinning workers
     std::atomic<bool> stop_{false};
 };

@@ -282,8 +282,8 @@ class StrainLimiter {
     std::vector<Vec3> movedFrom_;
     AnchorField anchors_;
     detail::ThreadPool* pool_ = nullptr;
-    std::vector<double> soa_;         ///< scan scratch: x of every particle, then y, then z
-    std::vector<double> ratio2_;      ///< scan scratch: (l / L0)^2 per family slot
+    std::vector<double> soa_;    ///< scan scratch: x of every particle, then y, then z
+    std::vector<double> ratio2_; ///< scan scratch: (l / L0)^2 per family slot
     /// The scan's segments of kScanSegment slots: largest ratio, any slot beyond the band.
     static constexpr std::size_t kScanSegment = 16384;
     std::vector<double> segmentWorst_;
