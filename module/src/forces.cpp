@@ -177,6 +177,18 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
         for (std::size_t j = 0; j < slotSpring.size(); ++j)
             slotStiffness_[j] = slotSpring[j] == kNoParticle ? 0.0 : stiffness_[slotSpring[j]];
     }
+    // The blocked family pass keeps, per block, a buffer of block + offset slots for every
+    // family: right for a sheet (four families, offsets about a row), wasteful for a mesh with
+    // many families or offsets near the particle count, which take the whole-cloth pass. Both
+    // form the same sums in the same order.
+    {
+        const auto& families = topology_->springFamilies();
+        std::size_t maxOffset = 0;
+        for (const SpringFamily& fam : families)
+            maxOffset = std::max<std::size_t>(maxOffset, fam.offset);
+        blockedFamilies_ = !families.empty() && families.size() <= kMaxBlockedFamilies &&
+                           maxOffset <= kMaxBlockedOffset;
+    }
     if (settings_.springDamping > 0.0) (void)topology_->dampingSweepOrder(); // baked once, shared
     rebuildPipeline();
 }
@@ -240,11 +252,11 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
     f.resize(n);
     const ForceStart start{settings_.gravity != Vec3::Zero(),
                            velocityTermsInIntegrator_ ? 0.0 : settings_.damping, &v};
-    // The springs come first in the pipeline. With spring families their pass starts the sum
-    // itself (one pass over f instead of two); otherwise gravity (eq. (6)) and particle damping
+    // The springs come first in the pipeline. When the blocked family pass runs, it starts the
+    // sum itself (one pass over f instead of two); otherwise gravity (eq. (6)) and particle damping
     // (eq. (8)), or zero, are set here: one pass over the particles instead of three. (The sum
     // is then formed in another order than term by term: results agree to rounding.)
-    const bool familiesStart = !topology_->springFamilies().empty();
+    const bool familiesStart = blockedFamilies_;
     if (!familiesStart) {
         detail::forChunks(pool_, n,
                           [&](std::size_t b, std::size_t e) { startForces(start, b, e, f); });
@@ -258,7 +270,11 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
         ScopedPhase timer(timers_, e.timerSlot);
         switch (e.term) {
         case Term::Springs: {
-            if (familiesStart) addFamilySpringForces(x, start, f);
+            if (familiesStart) {
+                addFamilySpringForces(x, start, f);
+            } else if (!topology_->springFamilies().empty()) {
+                addFamilySpringForcesWhole(x, f);
+            }
             const PackedSprings& loose = topology_->packedLooseSprings();
             const std::size_t nb = loose.starts.size() - 2; // inner blocks; the last range crosses
             if (loose.springs.empty()) break;
@@ -333,6 +349,19 @@ void addRun(std::size_t m, const double* DRAPE_RESTRICT in, double* DRAPE_RESTRI
 void subtractRun(std::size_t m, const double* DRAPE_RESTRICT in, double* DRAPE_RESTRICT out) {
     for (std::size_t j = 0; j < m; ++j)
         out[j] -= in[j];
+}
+
+/// The slot forces of one family on particles [b, e) (one coordinate): + for the particles
+/// that start a slot, - for those that end one.
+void addFamilyTerms(const SpringFamily& fam, const double* in, double* out, std::size_t b,
+                    std::size_t e) {
+    std::size_t lo = std::max<std::size_t>(b, fam.first);
+    std::size_t hi = std::min<std::size_t>(e, std::size_t(fam.first) + fam.count);
+    if (lo < hi) addRun(hi - lo, in + fam.slot + (lo - fam.first), out + lo);
+    const std::size_t endFirst = std::size_t(fam.first) + fam.offset;
+    lo = std::max<std::size_t>(b, endFirst);
+    hi = std::min<std::size_t>(e, endFirst + fam.count);
+    if (lo < hi) subtractRun(hi - lo, in + fam.slot + (lo - endFirst), out + lo);
 }
 
 /// out[j] += sum over the G families of (start[j] - end[j]), for m particles; run holds each
@@ -518,6 +547,105 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, const ForceStart& star
                 f[i][1] += sy[i - p];
                 f[i][2] += sz[i - p];
             }
+        }
+    });
+}
+
+// The family springs of a mesh whose families do not suit the blocked pass (many families, or
+// offsets so wide that a block would span much of the cloth: an imported mesh in an arbitrary
+// vertex order), in three passes over the whole cloth, each a loop the compiler vectorises: the
+// positions are copied into coordinate arrays; each slot's force k (l - L0) / l d is computed from
+// two contiguous runs of particles (a hole has k = 0 and L0 = 0, so its force is 0 unless its ends
+// coincide, which the l > 0 test also covers); and every particle adds the slots it starts (+) and
+// ends (-), family by family, before the forces go back onto f. Each particle's sum has the same
+// terms in the same order for any split of the particles among threads, so results do not depend on
+// the thread count.
+void ForceModel::addFamilySpringForcesWhole(const Vec3List& x, Vec3List& f) {
+    const auto& families = topology_->springFamilies();
+    const std::size_t n = x.size();
+    const std::size_t slots = topology_->familySlotSprings().size();
+    soaX_.resize(3 * n);
+    soaF_.resize(3 * n);
+    slotF_.resize(3 * slots);
+    detail::forChunks(pool_, n, [&](std::size_t b, std::size_t e) {
+        double* px = soaX_.data();
+        double* py = px + n;
+        double* pz = py + n;
+        for (std::size_t i = b; i < e; ++i) {
+            px[i] = x[i][0];
+            py[i] = x[i][1];
+            pz[i] = x[i][2];
+        }
+    });
+    const double* rest = topology_->familySlotRestLengths().data();
+    const double* kSlot = slotStiffness_.data();
+    detail::forChunks(pool_, slots, [&](std::size_t b, std::size_t e) {
+        const double* px = soaX_.data();
+        const double* py = px + n;
+        const double* pz = py + n;
+        double* fx = slotF_.data();
+        double* fy = fx + slots;
+        double* fz = fy + slots;
+        for (const SpringFamily& fam : families) {
+            const std::size_t lo = std::max(b, fam.slot), hi = std::min(e, fam.slot + fam.count);
+            if (lo >= hi) continue;
+            // Slot j joins particle a = first + (j - slot) to a + offset.
+            const std::size_t m = hi - lo;
+            const double* ax = px + (fam.first + (lo - fam.slot));
+            const double* ay = py + (fam.first + (lo - fam.slot));
+            const double* az = pz + (fam.first + (lo - fam.slot));
+            const double* bx = ax + fam.offset;
+            const double* by = ay + fam.offset;
+            const double* bz = az + fam.offset;
+            const double* k = kSlot + lo;
+            const double* l0 = rest + lo;
+            double* ox = fx + lo;
+            double* oy = fy + lo;
+            double* oz = fz + lo;
+            familySlotForces(m, ax, ay, az, bx, by, bz, k, l0, ox, oy, oz);
+        }
+    });
+    detail::forChunks(pool_, n, [&](std::size_t b, std::size_t e) {
+        for (std::size_t c = 0; c < 3; ++c) {
+            double* out = soaF_.data() + c * n;
+            const double* in = slotF_.data() + c * slots;
+            std::fill(out + b, out + e, 0.0);
+            // Up to four families at a time. Inside the group's interior (the particles that
+            // start and end a slot of every family in it) one fused pass adds all its terms;
+            // the particles outside take them family by family. Which formula a particle gets
+            // depends on its index only, never on the chunk: the same sums for any thread count.
+            for (std::size_t g = 0; g < families.size(); g += 4) {
+                const std::size_t gEnd = std::min(families.size(), g + 4);
+                std::size_t lo = b, hi = e;
+                for (std::size_t q = g; q < gEnd; ++q) {
+                    const SpringFamily& fam = families[q];
+                    lo = std::max<std::size_t>(lo, std::size_t(fam.first) + fam.offset);
+                    hi = std::min<std::size_t>(hi, std::size_t(fam.first) + fam.count);
+                }
+                if (lo >= hi) lo = hi = e; // no interior in this chunk: all family by family
+                for (std::size_t q = g; q < gEnd; ++q) {
+                    addFamilyTerms(families[q], in, out, b, lo);
+                    addFamilyTerms(families[q], in, out, hi, e);
+                }
+                if (lo < hi) {
+                    const double* run[8];
+                    for (std::size_t q = g; q < gEnd; ++q) {
+                        const SpringFamily& fam = families[q];
+                        run[2 * (q - g)] = in + fam.slot + (lo - fam.first); // starts
+                        run[2 * (q - g) + 1] =
+                            in + fam.slot + (lo - fam.first - fam.offset); // ends
+                    }
+                    addFusedTerms(gEnd - g, hi - lo, run, out + lo);
+                }
+            }
+        }
+        const double* px = soaF_.data();
+        const double* py = px + n;
+        const double* pz = py + n;
+        for (std::size_t i = b; i < e; ++i) {
+            f[i][0] += px[i];
+            f[i][1] += py[i];
+            f[i][2] += pz[i];
         }
     });
 }

@@ -347,6 +347,13 @@ TEST_CASE("Spring families: every spring in one slot or loose, and the family ke
         spec.spacing = 0.1;
         checkMesh(makeSheet(spec), 11, true);
     }
+    SECTION("a sheet with rows wider than the blocked pass takes: the whole-cloth pass") {
+        SheetSpec spec; // offsets 16399 .. 16401 > 16384
+        spec.rows = 2;
+        spec.cols = 16400;
+        spec.spacing = 0.1;
+        checkMesh(makeSheet(spec), 13, true);
+    }
     SECTION("an irregular mesh: some springs loose") {
         checkMesh(irregularMesh(4, 4, 7, true), 5, false);
     }

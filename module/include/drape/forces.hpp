@@ -155,6 +155,15 @@ class ForceModel {
     };
     void startForces(const ForceStart& s, std::size_t b, std::size_t e, Vec3List& f) const;
     void addFamilySpringForces(const Vec3List& x, const ForceStart& start, Vec3List& f);
+    void addFamilySpringForcesWhole(const Vec3List& x, Vec3List& f);
+    /// Whether the family springs take the blocked pass (addFamilySpringForces, which also
+    /// starts the force sum) or the whole-cloth one (see the constructor).
+    bool blockedFamilies_ = false;
+    static constexpr std::size_t kMaxBlockedFamilies = 8;
+    static constexpr std::size_t kMaxBlockedOffset = 16384;
+    /// Scratch of the whole-cloth family pass: positions and forces as coordinate arrays, and
+    /// each slot's spring force.
+    std::vector<double> soaX_, soaF_, slotF_;
     /// The common stiffness when every spring has the same (the step then reads no
     /// per-spring stiffness), else 0.
     double uniformStiffness_ = 0.0;
