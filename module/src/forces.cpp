@@ -564,19 +564,9 @@ void ForceModel::addFamilySpringForcesWhole(const Vec3List& x, Vec3List& f) {
     const auto& families = topology_->springFamilies();
     const std::size_t n = x.size();
     const std::size_t slots = topology_->familySlotSprings().size();
-    soaX_.resize(3 * n);
     soaF_.resize(3 * n);
     slotF_.resize(3 * slots);
-    detail::forChunks(pool_, n, [&](std::size_t b, std::size_t e) {
-        double* px = soaX_.data();
-        double* py = px + n;
-        double* pz = py + n;
-        for (std::size_t i = b; i < e; ++i) {
-            px[i] = x[i][0];
-            py[i] = x[i][1];
-            pz[i] = x[i][2];
-        }
-    });
+    detail::toCoordinateArrays(pool_, x, soaX_);
     const double* rest = topology_->familySlotRestLengths().data();
     const double* kSlot = slotStiffness_.data();
     detail::forChunks(pool_, slots, [&](std::size_t b, std::size_t e) {

@@ -69,4 +69,22 @@ template <class Body> void forChunks(ThreadPool* pool, std::size_t n, Body&& bod
     }
 }
 
+/// Copies positions into coordinate arrays (x of every particle, then y, then z) in `out`,
+/// split over the pool's threads.
+template <class Points>
+void toCoordinateArrays(ThreadPool* pool, const Points& x, std::vector<double>& out) {
+    const std::size_t n = x.size();
+    out.resize(3 * n);
+    forChunks(pool, n, [&](std::size_t b, std::size_t e) {
+        double* px = out.data();
+        double* py = px + n;
+        double* pz = py + n;
+        for (std::size_t i = b; i < e; ++i) {
+            px[i] = x[i][0];
+            py[i] = x[i][1];
+            pz[i] = x[i][2];
+        }
+    });
+}
+
 } // namespace drape::detail

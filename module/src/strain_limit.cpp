@@ -368,20 +368,10 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology,
     const std::size_t n = x.size();
     const auto& slotSpring = topology.familySlotSprings();
     const auto& inv2 = topology.familySlotInverseSquaredRestLengths();
-    soa_.resize(3 * n);
     ratio2_.resize(slotSpring.size());
     // Both passes split over threads by particle and by slot (each value written by one piece):
     // the same ratios for any thread count.
-    detail::forChunks(pool_, n, [&](std::size_t b, std::size_t e) {
-        double* px = soa_.data();
-        double* py = px + n;
-        double* pz = py + n;
-        for (std::size_t i = b; i < e; ++i) {
-            px[i] = x[i][0];
-            py[i] = x[i][1];
-            pz[i] = x[i][2];
-        }
-    });
+    detail::toCoordinateArrays(pool_, x, soa_);
     // The slots in segments: each measures its slots, their largest ratio and whether any is
     // beyond the band (four running maxima: one chain of maxima would make every slot wait for
     // the one before it). Segments run on any thread; the largest ratio is exact whatever the
