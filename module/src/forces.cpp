@@ -181,14 +181,11 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
     // family: right for a sheet (four families, offsets about a row), wasteful for a mesh with
     // many families or offsets near the particle count, which take the whole-cloth pass. Both
     // form the same sums in the same order.
-    {
-        const auto& families = topology_->springFamilies();
-        std::size_t maxOffset = 0;
-        for (const SpringFamily& fam : families)
-            maxOffset = std::max<std::size_t>(maxOffset, fam.offset);
-        blockedFamilies_ = !families.empty() && families.size() <= kMaxBlockedFamilies &&
-                           maxOffset <= kMaxBlockedOffset;
-    }
+    const auto& families = topology_->springFamilies();
+    for (const SpringFamily& fam : families)
+        maxFamilyOffset_ = std::max<std::size_t>(maxFamilyOffset_, fam.offset);
+    blockedFamilies_ = !families.empty() && families.size() <= kMaxBlockedFamilies &&
+                       maxFamilyOffset_ <= kMaxBlockedOffset;
     if (settings_.springDamping > 0.0) (void)topology_->dampingSweepOrder(); // baked once, shared
     rebuildPipeline();
 }
@@ -256,8 +253,7 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
     // sum itself (one pass over f instead of two); otherwise gravity (eq. (6)) and particle damping
     // (eq. (8)), or zero, are set here: one pass over the particles instead of three. (The sum
     // is then formed in another order than term by term: results agree to rounding.)
-    const bool familiesStart = blockedFamilies_;
-    if (!familiesStart) {
+    if (!blockedFamilies_) {
         detail::forChunks(pool_, n,
                           [&](std::size_t b, std::size_t e) { startForces(start, b, e, f); });
     }
@@ -270,7 +266,7 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
         ScopedPhase timer(timers_, e.timerSlot);
         switch (e.term) {
         case Term::Springs: {
-            if (familiesStart) {
+            if (blockedFamilies_) {
                 addFamilySpringForces(x, start, f);
             } else if (!topology_->springFamilies().empty()) {
                 addFamilySpringForcesWhole(x, f);
@@ -448,9 +444,7 @@ void familyRange(const SpringFamily& fam, std::ptrdiff_t aLo, std::ptrdiff_t aHi
 void ForceModel::addFamilySpringForces(const Vec3List& x, const ForceStart& start, Vec3List& f) {
     const auto& families = topology_->springFamilies();
     const std::size_t n = x.size();
-    std::size_t maxOffset = 0;
-    for (const SpringFamily& fam : families)
-        maxOffset = std::max<std::size_t>(maxOffset, fam.offset);
+    const std::size_t maxOffset = maxFamilyOffset_;
     // The block: at least twice the widest offset, so that carrying the offset's slots over
     // costs at most half a block's copies.
     const std::size_t block = std::max<std::size_t>(2048, 2 * maxOffset);

@@ -8,9 +8,8 @@ namespace drape::detail {
 
 ThreadPool::ThreadPool(int threads) {
     const int extra = std::max(threads, 1) - 1;
-    for (int i = 0; i < extra; ++i) {
-        workers_.emplace_back([this, i] { workerLoop(static_cast<std::size_t>(i) + 1); });
-    }
+    for (int i = 0; i < extra; ++i)
+        workers_.emplace_back([this] { workerLoop(); });
 }
 
 ThreadPool::~ThreadPool() {
@@ -76,7 +75,7 @@ inline void cpuRelax() {
 }
 } // namespace
 
-void ThreadPool::workerLoop(std::size_t) {
+void ThreadPool::workerLoop() {
     std::uint64_t seen = 0;
     for (;;) {
         // A step runs several loops with short sequential parts between them: a worker that

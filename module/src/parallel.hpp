@@ -42,7 +42,7 @@ class ThreadPool {
     static constexpr std::chrono::microseconds kSpin{200};
 
   private:
-    void workerLoop(std::size_t index);
+    void workerLoop();
     void takePieces();
 
     std::vector<std::thread> workers_;

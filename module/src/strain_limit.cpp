@@ -380,8 +380,6 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology,
     const std::size_t m = slotSpring.size();
     const std::size_t segments = (m + kScanSegment - 1) / kScanSegment;
     segmentWorst_.resize(segments);
-    segmentBeyond_.resize(segments);
-    const double upper2 = upper2_;
     auto measure = [&](std::size_t s0, std::size_t s1) {
         const double* px = soa_.data();
         const double* py = px + n;
@@ -408,7 +406,6 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology,
             for (; j < e; ++j)
                 w0 = std::max(w0, r2[j]);
             segmentWorst_[sg] = std::max(std::max(w0, w1), std::max(w2, w3));
-            segmentBeyond_[sg] = segmentWorst_[sg] > upper2;
         }
     };
     if (pool_) {
@@ -421,10 +418,11 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology,
     // found by limit() from its list.
     const auto& springs = topology.springs();
     const double* r2 = ratio2_.data();
+    const double upper2 = upper2_;
     double worst2 = 0.0;
     for (std::size_t sg = 0; sg < segments; ++sg) {
         worst2 = std::max(worst2, segmentWorst_[sg]);
-        if (!segmentBeyond_[sg]) continue;
+        if (!(segmentWorst_[sg] > upper2)) continue;
         for (std::size_t j = sg * kScanSegment, e = std::min(m, j + kScanSegment); j < e; ++j) {
             if (!(r2[j] > upper2)) continue;
             const Index si = slotSpring[j];

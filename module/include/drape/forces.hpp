@@ -159,6 +159,7 @@ class ForceModel {
     /// Whether the family springs take the blocked pass (addFamilySpringForces, which also
     /// starts the force sum) or the whole-cloth one (see the constructor).
     bool blockedFamilies_ = false;
+    std::size_t maxFamilyOffset_ = 0; ///< the widest offset b - a of a spring family
     static constexpr std::size_t kMaxBlockedFamilies = 8;
     static constexpr std::size_t kMaxBlockedOffset = 16384;
     /// Scratch of the whole-cloth family pass: positions and forces as coordinate arrays, and

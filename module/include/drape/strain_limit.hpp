@@ -284,10 +284,9 @@ class StrainLimiter {
     detail::ThreadPool* pool_ = nullptr;
     std::vector<double> soa_;    ///< scan scratch: x of every particle, then y, then z
     std::vector<double> ratio2_; ///< scan scratch: (l / L0)^2 per family slot
-    /// The scan's segments of kScanSegment slots: largest ratio, any slot beyond the band.
+    /// The scan's segments of kScanSegment slots and the largest ratio of each.
     static constexpr std::size_t kScanSegment = 16384;
     std::vector<double> segmentWorst_;
-    std::vector<unsigned char> segmentBeyond_;
     ContactPlanes* planes_ = nullptr; ///< during relimit() only
     std::vector<Index> anchorList_, anchorScratch_;
     bool anchorsValid_ = false;
