@@ -49,8 +49,7 @@ struct DecayOf {
 /// (a, a), (a, b), (b, b): the factors of particles i and i + 1 over the three two-lane vectors
 /// that hold their six components (x_i y_i | z_i x_i+1 | y_i+1 z_i+1).
 struct PairFactors {
-    explicit PairFactors(__m128d ab)
-        : k{_mm_unpacklo_pd(ab, ab), ab, _mm_unpackhi_pd(ab, ab)} {}
+    explicit PairFactors(__m128d ab) : k{_mm_unpacklo_pd(ab, ab), ab, _mm_unpackhi_pd(ab, ab)} {}
     __m128d k[3];
 };
 #endif
@@ -128,8 +127,8 @@ bool closingKick(std::size_t b, std::size_t e, const double* w, const double* xs
         for (std::size_t k = 0; k < 3; ++k) {
             const std::size_t at = j + 2 * k;
             const __m128d f = _mm_loadu_pd(fs + at);
-            const __m128d vn = _mm_mul_pd(
-                decay.k[k], _mm_add_pd(_mm_loadu_pd(vs + at), _mm_mul_pd(hw.k[k], f)));
+            const __m128d vn =
+                _mm_mul_pd(decay.k[k], _mm_add_pd(_mm_loadu_pd(vs + at), _mm_mul_pd(hw.k[k], f)));
             _mm_storeu_pd(vs + at, vn);
             acc = _mm_add_pd(acc, _mm_add_pd(_mm_add_pd(_mm_loadu_pd(xs + at), vn), f));
         }
