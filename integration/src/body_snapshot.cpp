@@ -43,9 +43,22 @@ bool snapshotBody(const btCollisionObject* obj, double reach, double frictionSca
         b.planeOffset = b.planeNormal.dot(b.pose.t) + double(ps->getPlaneConstant());
         b.planeScale = std::abs(b.planeOffset) + b.pose.t.cwiseAbs().sum();
     }
+    if (obj->getCollisionShape()->getShapeType() == BOX_SHAPE_PROXYTYPE) {
+        const auto* bs = static_cast<const btBoxShape*>(obj->getCollisionShape());
+        b.box = true;
+        b.boxHalf = toVec(bs->getHalfExtentsWithMargin());
+        for (int k = 0; k < 3; ++k) {
+            for (int side = 0; side < 2; ++side) {
+                Vec3 n = Vec3::Zero();
+                n[k] = side == 0 ? 1.0 : -1.0;
+                b.boxFaceNormal[2 * k + side] = (b.pose.R * n).normalized();
+            }
+        }
+    }
     if (const btRigidBody* rb = btRigidBody::upcast(obj)) {
         b.v = toVec(rb->getLinearVelocity());
         b.w = toVec(rb->getAngularVelocity());
+        b.still = b.v == Vec3::Zero() && b.w == Vec3::Zero();
         if (!rb->isStaticOrKinematicObject() && rb->getInvMass() > 0.0f) {
             b.dynamicBody = const_cast<btRigidBody*>(rb); // impulses are applied after the step
             b.invMass = double(rb->getInvMass());

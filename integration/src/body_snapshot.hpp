@@ -31,10 +31,18 @@ struct BodySnapshot {
     Vec3 planeNormal = Vec3::UnitY();
     double planeOffset = 0.0;
     double planeScale = 0.0; ///< |offset| + |t|: the size of the numbers in the distance [m]
+    /// A box (btBoxShape): its half extents with the margin and the world normals of its faces,
+    /// (R n).normalized() for the local face normals n = +e_k (index 2k) and -e_k (2k + 1),
+    /// as the closest-point query would compute them for every particle (boxSurface).
+    bool box = false;
+    Vec3 boxHalf = Vec3::Zero();
+    Vec3 boxFaceNormal[6];
+    /// v and w are zero (a static body, a resting one): the velocity at every point is v.
+    bool still = true;
     Vec3 linearImpulse = Vec3::Zero();  ///< accumulated for the body [N s]
     Vec3 angularImpulse = Vec3::Zero(); ///< about the centre of mass [N m s]
 
-    Vec3 velocityAt(const Vec3& p) const { return v + w.cross(p - com); }
+    Vec3 velocityAt(const Vec3& p) const { return still ? v : Vec3(v + w.cross(p - com)); }
     /// Inverse effective mass of the body at p along unit direction d.
     double inverseMassAlong(const Vec3& p, const Vec3& d) const {
         if (!dynamicBody) return 0.0;
@@ -48,6 +56,7 @@ struct BodySnapshot {
         angularImpulse += torque;
         v += invMass * j;
         w += invInertia * torque;
+        still = false;
     }
     /// Gives the Bullet body the impulses accumulated on it (a sleeping body is not woken by
     /// nudges below its sleeping threshold). Returns whether the cloth pushed an active body

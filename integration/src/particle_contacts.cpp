@@ -47,7 +47,9 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
 
     SurfaceHit hit;
     if (!(sweep && pathHit(b, from, xi, hit))) {
-        hit = closestSurface(b.object->getCollisionShape(), b.pose, xi, from, h + band_, counters);
+        hit = b.box ? boxSurface(b.boxHalf, b.boxFaceNormal, b.pose, xi, counters)
+                    : closestSurface(b.object->getCollisionShape(), b.pose, xi, from, h + band_,
+                                     counters);
         if (!hit.valid || hit.distance >= h + band_) return false;
     }
     // The limiter's walk keeps the particle above the tangent plane of a contact with a static

@@ -30,12 +30,32 @@ SurfaceHit makeHit(const Pose& pose, double distance, const Vec3& localNormal,
 }
 
 // Box with half extents e centred at the origin. Outside: distance to the clamped point.
-// Inside: the nearest face (the smallest e_k - |p_k|) gives a negative distance.
-SurfaceHit boxQuery(const Vec3& e, const Vec3& p, const Pose& pose) {
+// Inside: the nearest face (the smallest e_k - |p_k|) gives a negative distance. With
+// `faceNormal` (see boxSurface), a local normal that is a face's (+-1 along one axis, +0 on
+// the others: what both branches give when the nearest feature is a face) takes its world
+// normal from the table, the value makeHit would compute.
+SurfaceHit boxQuery(const Vec3& e, const Vec3& p, const Pose& pose,
+                    const Vec3* faceNormal = nullptr) {
     const Vec3 q = p.cwiseMax(-e).cwiseMin(e);
     const Vec3 d = p - q;
     const double dist = d.norm();
-    if (dist > 0.0) return makeHit(pose, dist, d / dist, q);
+    if (dist > 0.0) {
+        const Vec3 n = d / dist;
+        if (faceNormal) {
+            for (int k = 0; k < 3; ++k) {
+                const int j = (k + 1) % 3, l = (k + 2) % 3;
+                if ((n[k] == 1.0 || n[k] == -1.0) && n[j] == 0.0 && n[l] == 0.0) {
+                    SurfaceHit h;
+                    h.valid = true;
+                    h.distance = dist;
+                    h.normal = faceNormal[2 * k + (n[k] < 0.0 ? 1 : 0)];
+                    h.point = pose.toWorld(q);
+                    return h;
+                }
+            }
+        }
+        return makeHit(pose, dist, n, q);
+    }
     int axis = 0;
     double best = std::numeric_limits<double>::infinity();
     for (int k = 0; k < 3; ++k) {
@@ -49,6 +69,14 @@ SurfaceHit boxQuery(const Vec3& e, const Vec3& p, const Pose& pose) {
     n[axis] = p[axis] >= 0.0 ? 1.0 : -1.0;
     Vec3 s = p;
     s[axis] = n[axis] * e[axis];
+    if (faceNormal) {
+        SurfaceHit h;
+        h.valid = true;
+        h.distance = -best;
+        h.normal = faceNormal[2 * axis + (n[axis] < 0.0 ? 1 : 0)];
+        h.point = pose.toWorld(s);
+        return h;
+    }
     return makeHit(pose, -best, n, s);
 }
 
@@ -376,6 +404,12 @@ TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& 
     closestPointOnTriangle(h.bodyPoint + h.distance * n, a, b, c, bary);
     h.barycentric = bary;
     return h;
+}
+
+SurfaceHit boxSurface(const Vec3& half, const Vec3* faceNormal, const Pose& pose, const Vec3& p,
+                      QueryCounters& counters) {
+    ++counters.queries;
+    return boxQuery(half, pose.toLocal(p), pose, faceNormal);
 }
 
 SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const Vec3& p,

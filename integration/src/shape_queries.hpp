@@ -36,6 +36,13 @@ struct QueryCounters {
 SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const Vec3& p,
                           const Vec3& prev, double reach, QueryCounters& counters);
 
+/// closestSurface for a box of half extents `half` (with its margin) at `pose`, whose world
+/// face normals (R n).normalized() for n = +e_k, -e_k are faceNormal[2k], faceNormal[2k + 1]:
+/// the same result, without the shape's virtual calls and, when the nearest feature is a face,
+/// without rotating and normalising the normal again.
+SurfaceHit boxSurface(const Vec3& half, const Vec3* faceNormal, const Pose& pose, const Vec3& p,
+                      QueryCounters& counters);
+
 /// Nearest points of a cloth triangle and a body's surface.
 struct TriangleHit {
     bool valid = false;

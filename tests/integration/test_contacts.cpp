@@ -51,10 +51,19 @@ TEST_CASE("a small cloth comes to rest on every supported shape at the contact d
         std::function<btCollisionShape*(TestWorld&)> make;
         double top; ///< height of the shape's top surface above the origin [m]
         bool flat;  ///< flat top: every particle rests at the band's equilibrium gap
+        /// The body's orientation (a box's face normals come from a table made per step from
+        /// it: a turned box checks that the table matches the face).
+        btQuaternion rotation = btQuaternion::getIdentity();
     };
     const std::vector<Case> cases = {
         {"box", [](TestWorld& w) { return w.shape<btBoxShape>(btVector3(0.3f, 0.1f, 0.3f)); }, 0.1,
          true},
+        {"box turned 30 degrees about the vertical",
+         [](TestWorld& w) { return w.shape<btBoxShape>(btVector3(0.3f, 0.1f, 0.3f)); }, 0.1, true,
+         btQuaternion(btVector3(0, 1, 0), btScalar(0.5235987756))},
+        {"box on a side face (turned 90 degrees about x: its local -z face is the top)",
+         [](TestWorld& w) { return w.shape<btBoxShape>(btVector3(0.3f, 0.3f, 0.1f)); }, 0.1, true,
+         btQuaternion(btVector3(1, 0, 0), btScalar(SIMD_HALF_PI))},
         {"sphere", [](TestWorld& w) { return w.shape<btSphereShape>(btScalar(0.2)); }, 0.2, false},
         {"capsule",
          [](TestWorld& w) { return w.shape<btCapsuleShapeX>(btScalar(0.1), btScalar(0.4)); }, 0.1,
@@ -114,7 +123,7 @@ TEST_CASE("a small cloth comes to rest on every supported shape at the contact d
     for (const auto& c : cases) {
         DYNAMIC_SECTION(c.name) {
             TestWorld w;
-            w.body(c.make(w), 0.0, Vec3::Zero());
+            w.body(c.make(w), 0.0, Vec3::Zero(), c.rotation);
             auto cloth = makeCloth(horizontalSheet(5, 5, 0.04, c.top + 0.05), smallCloth());
             bullet::BulletClothSettings bs;
             bs.contact.thickness = kThickness;
