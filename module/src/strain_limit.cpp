@@ -16,6 +16,10 @@
 #include <queue>
 #include <utility>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace drape {
 
 double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x) {
@@ -359,6 +363,45 @@ void slotRatios(std::size_t m, const double* DRAPE_RESTRICT ax, const double* DR
 }
 } // namespace
 
+namespace {
+/// The largest of r[0 .. m) (0 for none; the ratios are >= 0): four running maxima, so that
+/// the maxima do not wait for each other (two-lane SSE2 maxima on x86-64, which return the
+/// same value as std::max for any order of the non-negative ratios).
+double largestRatio(const double* r, std::size_t m) {
+    std::size_t j = 0;
+    double w = 0.0;
+#if defined(__SSE2__)
+    __m128d w01 = _mm_setzero_pd(), w23 = _mm_setzero_pd();
+    for (; j + 4 <= m; j += 4) {
+        w01 = _mm_max_pd(_mm_loadu_pd(r + j), w01);
+        w23 = _mm_max_pd(_mm_loadu_pd(r + j + 2), w23);
+    }
+    const __m128d both = _mm_max_pd(w01, w23);
+    w = std::max(_mm_cvtsd_f64(both), _mm_cvtsd_f64(_mm_unpackhi_pd(both, both)));
+#endif
+    for (; j < m; ++j)
+        w = std::max(w, r[j]);
+    return w;
+}
+
+/// The first j in [from, end) with r[j] > bound, or end: four slots per test with SSE2 (most
+/// slots are within the band).
+std::size_t nextAbove(const double* r, std::size_t from, std::size_t end, double bound) {
+    std::size_t j = from;
+#if defined(__SSE2__)
+    const __m128d b = _mm_set1_pd(bound);
+    for (; j + 4 <= end; j += 4) {
+        const __m128d above = _mm_or_pd(_mm_cmpgt_pd(_mm_loadu_pd(r + j), b),
+                                        _mm_cmpgt_pd(_mm_loadu_pd(r + j + 2), b));
+        if (_mm_movemask_pd(above) != 0) break;
+    }
+#endif
+    for (; j < end; ++j)
+        if (r[j] > bound) return j;
+    return end;
+}
+} // namespace
+
 double StrainLimiter::scanFamilies(const ClothTopology& topology,
                                    const std::vector<double>& invMass,
                                    const std::vector<double>& stiffness, const std::vector<Vec3>& x,
@@ -395,17 +438,7 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology,
                 slotRatios(hi - lo, px + a, py + a, pz + a, px + a + fam.offset,
                            py + a + fam.offset, pz + a + fam.offset, inv2.data() + lo, r2 + lo);
             }
-            double w0 = 0.0, w1 = 0.0, w2 = 0.0, w3 = 0.0;
-            std::size_t j = b;
-            for (; j + 4 <= e; j += 4) {
-                w0 = std::max(w0, r2[j]);
-                w1 = std::max(w1, r2[j + 1]);
-                w2 = std::max(w2, r2[j + 2]);
-                w3 = std::max(w3, r2[j + 3]);
-            }
-            for (; j < e; ++j)
-                w0 = std::max(w0, r2[j]);
-            segmentWorst_[sg] = std::max(std::max(w0, w1), std::max(w2, w3));
+            segmentWorst_[sg] = largestRatio(r2 + b, e - b);
         }
     };
     if (pool_) {
@@ -423,11 +456,14 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology,
     for (std::size_t sg = 0; sg < segments; ++sg) {
         worst2 = std::max(worst2, segmentWorst_[sg]);
         if (!(segmentWorst_[sg] > upper2)) continue;
-        for (std::size_t j = sg * kScanSegment, e = std::min(m, j + kScanSegment); j < e; ++j) {
-            if (!(r2[j] > upper2)) continue;
+        const std::size_t e = std::min(m, (sg + 1) * kScanSegment);
+        for (std::size_t j = sg * kScanSegment; j < e;) {
+            j = nextAbove(r2, j, e, upper2);
+            if (j == e) break;
             const Index si = slotSpring[j];
             const Spring& sp = springs[si];
             if (invMass[sp.a] + invMass[sp.b] != 0.0) queue(si, r2[j], sp.restLength, stiffness);
+            ++j;
         }
     }
     return worst2;
