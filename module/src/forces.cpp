@@ -244,6 +244,36 @@ void ForceModel::startForces(const ForceStart& s, std::size_t b, std::size_t e, 
     }
 }
 
+// f[i] = (m_i g - C_d v_i) + (sx, sy, sz)[i - b] for particles [b, e): startForces followed by
+// adding the sums, in one pass (the same operations in the same order).
+void ForceModel::startForcesPlus(const ForceStart& s, std::size_t b, std::size_t e,
+                                 const double* sx, const double* sy, const double* sz,
+                                 Vec3List& f) const {
+    const Vec3List& v = *s.v;
+    const double cd = s.damping;
+    const Vec3 g = settings_.gravity;
+    const double* m = mass_.data();
+    auto put = [&](std::size_t i, double fx, double fy, double fz) {
+        f[i][0] = fx + sx[i - b];
+        f[i][1] = fy + sy[i - b];
+        f[i][2] = fz + sz[i - b];
+    };
+    if (s.gravity && cd > 0.0) {
+        for (std::size_t i = b; i < e; ++i)
+            put(i, m[i] * g[0] - cd * v[i][0], m[i] * g[1] - cd * v[i][1],
+                m[i] * g[2] - cd * v[i][2]);
+    } else if (s.gravity) {
+        for (std::size_t i = b; i < e; ++i)
+            put(i, m[i] * g[0], m[i] * g[1], m[i] * g[2]);
+    } else if (cd > 0.0) {
+        for (std::size_t i = b; i < e; ++i)
+            put(i, -cd * v[i][0], -cd * v[i][1], -cd * v[i][2]);
+    } else {
+        for (std::size_t i = b; i < e; ++i)
+            put(i, 0.0, 0.0, 0.0);
+    }
+}
+
 void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
     const std::size_t n = x.size();
     f.resize(n);
@@ -532,15 +562,7 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, const ForceStart& star
                     groupBuf = fb;
                 }
             }
-            startForces(start, p, q, f);
-            const double* sx = sums;
-            const double* sy = sx + block;
-            const double* sz = sy + block;
-            for (std::size_t i = p; i < q; ++i) {
-                f[i][0] += sx[i - p];
-                f[i][1] += sy[i - p];
-                f[i][2] += sz[i - p];
-            }
+            startForcesPlus(start, p, q, sums, sums + block, sums + 2 * block, f);
         }
     });
 }

@@ -154,6 +154,8 @@ class ForceModel {
         const Vec3List* v;
     };
     void startForces(const ForceStart& s, std::size_t b, std::size_t e, Vec3List& f) const;
+    void startForcesPlus(const ForceStart& s, std::size_t b, std::size_t e, const double* sx,
+                         const double* sy, const double* sz, Vec3List& f) const;
     void addFamilySpringForces(const Vec3List& x, const ForceStart& start, Vec3List& f);
     void addFamilySpringForcesWhole(const Vec3List& x, Vec3List& f);
     /// Whether the family springs take the blocked pass (addFamilySpringForces, which also
