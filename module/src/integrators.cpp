@@ -52,6 +52,15 @@ struct PairFactors {
     explicit PairFactors(__m128d ab) : k{_mm_unpacklo_pd(ab, ab), ab, _mm_unpackhi_pd(ab, ab)} {}
     __m128d k[3];
 };
+
+/// The kick factors of particles i and i + 1: (dt/2) w and exp(-C_d dt w / 2), spread.
+struct PairKicks {
+    PairFactors hw, decay;
+};
+PairKicks pairKicks(DecayOf& decayOf, const double* w, std::size_t i, __m128d half) {
+    const double d0 = decayOf(w[i]), d1 = decayOf(w[i + 1]);
+    return {PairFactors(_mm_mul_pd(half, _mm_loadu_pd(w + i))), PairFactors(_mm_set_pd(d1, d0))};
+}
 #endif
 
 /// Velocity-Verlet's opening kick and drift of particles [b, e), after L(dt/2) (decay
@@ -66,14 +75,10 @@ void kickDrift(std::size_t b, std::size_t e, const double* w, const double* xs, 
 #if defined(__SSE2__)
     const __m128d vdt = _mm_set1_pd(dt), vhalf = _mm_set1_pd(half);
     for (; i + 1 < e; i += 2) {
-        const double d0 = decayOf(w[i]), d1 = decayOf(w[i + 1]);
-        const PairFactors hw(_mm_mul_pd(vhalf, _mm_loadu_pd(w + i)));
-        const PairFactors decay(_mm_set_pd(d1, d0));
-        const std::size_t j = 3 * i;
-        for (std::size_t k = 0; k < 3; ++k) {
-            const std::size_t at = j + 2 * k;
-            const __m128d vn = _mm_add_pd(_mm_mul_pd(decay.k[k], _mm_loadu_pd(vs + at)),
-                                          _mm_mul_pd(hw.k[k], _mm_loadu_pd(fs + at)));
+        const PairKicks kick = pairKicks(decayOf, w, i, vhalf);
+        for (std::size_t k = 0, at = 3 * i; k < 3; ++k, at += 2) {
+            const __m128d vn = _mm_add_pd(_mm_mul_pd(kick.decay.k[k], _mm_loadu_pd(vs + at)),
+                                          _mm_mul_pd(kick.hw.k[k], _mm_loadu_pd(fs + at)));
             _mm_storeu_pd(vd + at, vn);
             _mm_storeu_pd(xd + at, _mm_add_pd(_mm_loadu_pd(xs + at), _mm_mul_pd(vdt, vn)));
         }
@@ -120,15 +125,11 @@ bool closingKick(std::size_t b, std::size_t e, const double* w, const double* xs
             one(i + 1);
             continue;
         }
-        const double d0 = decayOf(w[i]), d1 = decayOf(w[i + 1]);
-        const PairFactors hw(_mm_mul_pd(vhalf, _mm_loadu_pd(w + i)));
-        const PairFactors decay(_mm_set_pd(d1, d0));
-        const std::size_t j = 3 * i;
-        for (std::size_t k = 0; k < 3; ++k) {
-            const std::size_t at = j + 2 * k;
+        const PairKicks kick = pairKicks(decayOf, w, i, vhalf);
+        for (std::size_t k = 0, at = 3 * i; k < 3; ++k, at += 2) {
             const __m128d f = _mm_loadu_pd(fs + at);
-            const __m128d vn =
-                _mm_mul_pd(decay.k[k], _mm_add_pd(_mm_loadu_pd(vs + at), _mm_mul_pd(hw.k[k], f)));
+            const __m128d vn = _mm_mul_pd(
+                kick.decay.k[k], _mm_add_pd(_mm_loadu_pd(vs + at), _mm_mul_pd(kick.hw.k[k], f)));
             _mm_storeu_pd(vs + at, vn);
             acc = _mm_add_pd(acc, _mm_add_pd(_mm_add_pd(_mm_loadu_pd(xs + at), vn), f));
         }
