@@ -29,33 +29,36 @@ SurfaceHit makeHit(const Pose& pose, double distance, const Vec3& localNormal,
     return h;
 }
 
+/// makeHit for a box, whose world face normals faceNormal[2k], faceNormal[2k + 1] (for the
+/// local normals +e_k, -e_k; see boxSurface) were made by makeHit's own expression: a local
+/// normal that is a face's (+-1 along one axis, +0 on the others, as boxQuery gives when the
+/// nearest feature is a face) takes its world normal from the table.
+SurfaceHit boxHit(const Pose& pose, double distance, const Vec3& localNormal,
+                  const Vec3& localPoint, const Vec3* faceNormal) {
+    if (faceNormal) {
+        for (int k = 0; k < 3; ++k) {
+            const Vec3& n = localNormal;
+            if ((n[k] == 1.0 || n[k] == -1.0) && n[(k + 1) % 3] == 0.0 && n[(k + 2) % 3] == 0.0) {
+                SurfaceHit h;
+                h.valid = true;
+                h.distance = distance;
+                h.normal = faceNormal[2 * k + (n[k] < 0.0 ? 1 : 0)];
+                h.point = pose.toWorld(localPoint);
+                return h;
+            }
+        }
+    }
+    return makeHit(pose, distance, localNormal, localPoint);
+}
+
 // Box with half extents e centred at the origin. Outside: distance to the clamped point.
-// Inside: the nearest face (the smallest e_k - |p_k|) gives a negative distance. With
-// `faceNormal` (see boxSurface), a local normal that is a face's (+-1 along one axis, +0 on
-// the others: what both branches give when the nearest feature is a face) takes its world
-// normal from the table, the value makeHit would compute.
+// Inside: the nearest face (the smallest e_k - |p_k|) gives a negative distance.
 SurfaceHit boxQuery(const Vec3& e, const Vec3& p, const Pose& pose,
                     const Vec3* faceNormal = nullptr) {
     const Vec3 q = p.cwiseMax(-e).cwiseMin(e);
     const Vec3 d = p - q;
     const double dist = d.norm();
-    if (dist > 0.0) {
-        const Vec3 n = d / dist;
-        if (faceNormal) {
-            for (int k = 0; k < 3; ++k) {
-                const int j = (k + 1) % 3, l = (k + 2) % 3;
-                if ((n[k] == 1.0 || n[k] == -1.0) && n[j] == 0.0 && n[l] == 0.0) {
-                    SurfaceHit h;
-                    h.valid = true;
-                    h.distance = dist;
-                    h.normal = faceNormal[2 * k + (n[k] < 0.0 ? 1 : 0)];
-                    h.point = pose.toWorld(q);
-                    return h;
-                }
-            }
-        }
-        return makeHit(pose, dist, n, q);
-    }
+    if (dist > 0.0) return boxHit(pose, dist, d / dist, q, faceNormal);
     int axis = 0;
     double best = std::numeric_limits<double>::infinity();
     for (int k = 0; k < 3; ++k) {
@@ -69,15 +72,7 @@ SurfaceHit boxQuery(const Vec3& e, const Vec3& p, const Pose& pose,
     n[axis] = p[axis] >= 0.0 ? 1.0 : -1.0;
     Vec3 s = p;
     s[axis] = n[axis] * e[axis];
-    if (faceNormal) {
-        SurfaceHit h;
-        h.valid = true;
-        h.distance = -best;
-        h.normal = faceNormal[2 * axis + (n[axis] < 0.0 ? 1 : 0)];
-        h.point = pose.toWorld(s);
-        return h;
-    }
-    return makeHit(pose, -best, n, s);
+    return boxHit(pose, -best, n, s, faceNormal);
 }
 
 SurfaceHit sphereQuery(double r, const Vec3& p, const Pose& pose) {

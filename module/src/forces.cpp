@@ -225,44 +225,17 @@ std::size_t ForceModel::passiveTermCount() const {
     return count;
 }
 
-// f[i] = m_i g - C_d v_i for particles [b, e), with the terms that are on (the force sum's start).
-void ForceModel::startForces(const ForceStart& s, std::size_t b, std::size_t e, Vec3List& f) const {
-    const Vec3List& v = *s.v;
-    const double cd = s.damping;
-    if (s.gravity && cd > 0.0) {
-        for (std::size_t i = b; i < e; ++i)
-            f[i] = mass_[i] * settings_.gravity - cd * v[i];
-    } else if (s.gravity) {
-        for (std::size_t i = b; i < e; ++i)
-            f[i] = mass_[i] * settings_.gravity;
-    } else if (cd > 0.0) {
-        for (std::size_t i = b; i < e; ++i)
-            f[i] = -cd * v[i];
-    } else {
-        for (std::size_t i = b; i < e; ++i)
-            f[i].setZero();
-    }
-}
-
-// f[i] = (m_i g - C_d v_i) + (sx, sy, sz)[i - b] for particles [b, e): startForces followed by
-// adding the sums, in one pass (the same operations in the same order).
-void ForceModel::startForcesPlus(const ForceStart& s, std::size_t b, std::size_t e,
-                                 const double* sx, const double* sy, const double* sz,
-                                 Vec3List& f) const {
-    const Vec3List& v = *s.v;
-    const double cd = s.damping;
-    const Vec3 g = settings_.gravity;
-    const double* m = mass_.data();
-    auto put = [&](std::size_t i, double fx, double fy, double fz) {
-        f[i][0] = fx + sx[i - b];
-        f[i][1] = fy + sy[i - b];
-        f[i][2] = fz + sz[i - b];
-    };
-    if (s.gravity && cd > 0.0) {
+namespace {
+/// put(i, fx, fy, fz) with f_i = m_i g - C_d v_i for particles [b, e), with the terms that are
+/// on (the force sum's start), component by component.
+template <class Put>
+void forForceStart(bool gravity, double cd, const Vec3& g, const double* m, const Vec3List& v,
+                   std::size_t b, std::size_t e, Put put) {
+    if (gravity && cd > 0.0) {
         for (std::size_t i = b; i < e; ++i)
             put(i, m[i] * g[0] - cd * v[i][0], m[i] * g[1] - cd * v[i][1],
                 m[i] * g[2] - cd * v[i][2]);
-    } else if (s.gravity) {
+    } else if (gravity) {
         for (std::size_t i = b; i < e; ++i)
             put(i, m[i] * g[0], m[i] * g[1], m[i] * g[2]);
     } else if (cd > 0.0) {
@@ -272,6 +245,24 @@ void ForceModel::startForcesPlus(const ForceStart& s, std::size_t b, std::size_t
         for (std::size_t i = b; i < e; ++i)
             put(i, 0.0, 0.0, 0.0);
     }
+}
+} // namespace
+
+// f[i] = m_i g - C_d v_i for particles [b, e), with the terms that are on (the force sum's start).
+void ForceModel::startForces(const ForceStart& s, std::size_t b, std::size_t e, Vec3List& f) const {
+    forForceStart(s.gravity, s.damping, settings_.gravity, mass_.data(), *s.v, b, e,
+                  [&](std::size_t i, double fx, double fy, double fz) { f[i] = Vec3(fx, fy, fz); });
+}
+
+// f[i] = (m_i g - C_d v_i) + (sx, sy, sz)[i - b] for particles [b, e): startForces followed by
+// adding the sums, in one pass (the same operations in the same order).
+void ForceModel::startForcesPlus(const ForceStart& s, std::size_t b, std::size_t e,
+                                 const double* sx, const double* sy, const double* sz,
+                                 Vec3List& f) const {
+    forForceStart(s.gravity, s.damping, settings_.gravity, mass_.data(), *s.v, b, e,
+                  [&](std::size_t i, double fx, double fy, double fz) {
+                      f[i] = Vec3(fx + sx[i - b], fy + sy[i - b], fz + sz[i - b]);
+                  });
 }
 
 void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {

@@ -292,16 +292,12 @@ class VelocityVerlet final : public Integrator {
     Vec3List aeroOpen_;  ///< aerodynamic forces of the opening kick [N]
     Vec3List aeroClose_; ///< aerodynamic forces of the closing kick [N]
     Vec3List predicted_; ///< predicted end velocity v* [m/s]
-    /// exp(-C_d tau / m) for cdTau = C_d tau: the exact decay of m v' = -C_d v over tau. The
-    /// last value is kept per thread (most cloths have one mass, so one exp per pass).
-    static double dampedBy(double cdTau, double invMass) {
-        thread_local double lastArg = 0.0, lastFactor = 1.0;
-        const double arg = cdTau * invMass;
-        if (arg != lastArg) {
-            lastArg = arg;
-            lastFactor = std::exp(-arg);
-        }
-        return lastFactor;
+    /// exp(-C_d (dt/2) / m) for cdh = C_d dt / 2: the exact decay of m v' = -C_d v over dt/2. A
+    /// DecayOf per thread keeps the last value (most cloths have one mass: one exp per pass).
+    static double dampedBy(double cdh, double invMass) {
+        thread_local DecayOf decayOf{0.0};
+        if (decayOf.cdh != cdh) decayOf = DecayOf{cdh};
+        return decayOf(invMass);
     }
 };
 
