@@ -52,7 +52,10 @@ void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>
     for (const auto& a : list_) {
         const btRigidBody* rb = btRigidBody::upcast(a.body);
         if (!rb || rb->isStaticOrKinematicObject() || rb->getInvMass() <= 0.0f) continue;
-        const Vec3 j = c.forces()[a.particle] * h;
+        // ... and the limiter's reaction: what its corrections pulled on the particle.
+        const auto& held = c.constraintImpulses();
+        const Vec3 j = c.forces()[a.particle] * h +
+                       (a.particle < held.size() ? held[a.particle] : Vec3::Zero());
         const Vec3 at = c.positions()[a.particle];
         stats.impulseOnBodies += j;
         auto snap = std::find_if(bodies.begin(), bodies.end(),

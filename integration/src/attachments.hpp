@@ -2,7 +2,8 @@
 // particle is a kinematic particle of the cloth whose target is its point on the body: at the
 // start of every Bullet sub-step the target moves from where the point was to where it is now,
 // and the particle's path interpolates between the two over the sub-step. For a dynamic body
-// the force the cloth puts on the particle (springs and its own weight) goes to the body.
+// the force the cloth puts on the particle (springs and its own weight) and the strain
+// limiter's reaction on it (Cloth::constraintImpulses) go to the body.
 #pragma once
 
 #include "body_snapshot.hpp"

@@ -78,7 +78,10 @@ bool BodySnapshot::applyAccumulatedImpulses() {
     if (!rb->isActive() && dv < double(rb->getLinearSleepingThreshold())) return pushedActive;
     rb->applyCentralImpulse(toBt(linearImpulse));
     rb->applyTorqueImpulse(toBt(angularImpulse));
-    rb->activate();
+    // Only a sleeping body is woken: activate() on an awake one would restart its
+    // deactivation time, and a body the cloth rests on could never fall asleep. An awake body
+    // that the cloth's impulse leaves below its sleeping thresholds sleeps as Bullet decides.
+    if (!pushedActive) rb->activate();
     return pushedActive;
 }
 

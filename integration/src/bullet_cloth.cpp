@@ -20,7 +20,8 @@
 //   1. bodies:  the ghost's broadphase overlaps, filtered (no ghosts, soft bodies, triggers),
 //               snapshotted in double precision (pose, velocities, inverse mass and inertia);
 //   2. attach:  attached particles get the body's new attachment point as a kinematic target;
-//   3. step:    cloth.step(dt / substeps), `substeps` times; our ContactStage runs inside it
+//   3. step:    cloth.step(dt / n), n times (settings.substeps, or automatic: the fewest within
+//               the cloth's stability limit); our ContactStage runs inside it
 //               after strain limiting (self-collision, then particle-body contacts), and the
 //               eq. (7) penalty is one of the cloth's force terms;
 //   4. impulses: the impulses accumulated on dynamic bodies are applied;
@@ -58,6 +59,7 @@ namespace {
 /// total += s, count by count.
 void accumulate(ContactStats& total, const ContactStats& s) {
     total.candidateBodies += s.candidateBodies;
+    total.substeps = s.substeps; // (the latest)
     total.particleBoxTests += s.particleBoxTests;
     total.narrowphaseQueries += s.narrowphaseQueries;
     total.rayQueries += s.rayQueries;
@@ -177,10 +179,15 @@ void BulletCloth::Impl::step(double dt) {
         InStep(const InStep&) = delete;
         InStep& operator=(const InStep&) = delete;
     } guard(contacts.inStep);
-    const double h = dt / settings.substeps;
+    // Given: that many; not given: the fewest within the cloth's stability limit (the cloth's
+    // own automatic sub-steps, ClothSettings::substeps), taken here so that every cloth step
+    // exchanges its impulses with the bodies.
+    const int substeps = settings.substeps ? *settings.substeps : c.substepsFor(dt);
+    last.substeps = substeps;
+    const double h = dt / substeps;
     double bodySeconds = std::chrono::duration<double>(Clock::now() - start).count();
     bool slept = true; // every sub-step was taken asleep
-    for (int s = 0; s < settings.substeps; ++s) {
+    for (int s = 0; s < substeps; ++s) {
         const bool wasAsleep = c.isAsleep();
         c.step(h); // the contact stage runs inside it, the contact force is one of its terms
         ++last.steps;

@@ -31,8 +31,9 @@ void validate(const BulletClothSettings& s) {
                 ErrorCode::InvalidArgument,
                 "contact.broadphaseMargin must be >= 0 and finite, got " +
                     num(*c.broadphaseMargin));
-    require(s.substeps >= 1, ErrorCode::InvalidArgument,
-            "substeps must be >= 1, got " + std::to_string(s.substeps));
+    if (s.substeps)
+        require(*s.substeps >= 1, ErrorCode::InvalidArgument,
+                "substeps must be >= 1, got " + std::to_string(*s.substeps));
     if (s.timeStep)
         require(std::isfinite(*s.timeStep) && *s.timeStep > 0.0, ErrorCode::InvalidArgument,
                 "timeStep must be positive and finite, got " + num(*s.timeStep));

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <sstream>
 #include <string>
 
@@ -72,22 +73,22 @@ std::vector<double> buildMasses(const ClothTopology& topo, const ClothSettings& 
 }
 
 std::vector<double> buildStiffness(const ClothTopology& topo, const ClothSettings& s,
-                                   const std::vector<double>& invMass) {
+                                   const std::vector<double>& masses) {
     if (given(s.springStiffness, "springStiffness")) {
         return std::vector<double>(topo.springCount(), *s.springStiffness);
     }
     if (s.material.youngsModulus) {
         return springStiffnessFromMaterial(topo, *s.material.youngsModulus, s.material.thickness);
     }
-    // Automatic: omega_max^2 is linear in a uniform k, so measure it at k = 1 and scale.
-    std::vector<double> k(topo.springCount(), 1.0);
-    const double omega1 = estimateMaxAngularFrequency(topo, k, invMass);
-    if (omega1 > 0.0) {
-        const double scale = kAutomaticStiffnessOmega / omega1;
-        for (double& ki : k)
-            ki = scale * scale;
-    }
-    return k;
+    // Automatic: a membrane whose stretch waves travel at c, E h = rho_A c^2, by (M1).
+    double mass = 0.0;
+    for (double m : masses)
+        mass += m;
+    const double area = topo.totalRestArea();
+    if (!(area > 0.0) || !(mass > 0.0)) return std::vector<double>(topo.springCount(), 1.0);
+    const double c = kAutomaticStretchWaveSpeed;
+    const double eh = mass / area * c * c;
+    return springStiffnessFromMaterial(topo, eh, 1.0);
 }
 
 void validateSettings(const ClothSettings& s) {
@@ -100,6 +101,16 @@ void validateSettings(const ClothSettings& s) {
     requireFinite(s.aero.wind, "aero.wind");
     requirePositive(s.limiter.maxStrain, "limiter.maxStrain");
     requireNonNegative(s.limiter.tolerance, "limiter.tolerance");
+    requirePositive(s.limiter.toleranceStep, "limiter.toleranceStep");
+    requirePositive(s.substeps.fraction, "substeps.fraction");
+    if (s.substeps.fraction > 1.0) {
+        throw Error(ErrorCode::InvalidArgument,
+                    "substeps.fraction must be in (0, 1], got " + num(s.substeps.fraction));
+    }
+    if (s.substeps.maxSubsteps < 1) {
+        throw Error(ErrorCode::InvalidArgument, "substeps.maxSubsteps must be >= 1, got " +
+                                                    std::to_string(s.substeps.maxSubsteps));
+    }
     requireFinite(s.limiter.warmStart, "limiter.warmStart");
     if (s.limiter.warmStart < 0.0 || s.limiter.warmStart >= 1.0) {
         throw Error(ErrorCode::InvalidArgument,
@@ -151,7 +162,7 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     pinned_.assign(x_.size(), 0);
     if (settings_.threads > 1)
         poolStorage_ = std::make_unique<detail::ThreadPool>(settings_.threads);
-    std::vector<double> stiffness = buildStiffness(*topology_, settings_, invMass_);
+    std::vector<double> stiffness = buildStiffness(*topology_, settings_, mass);
     // The masses live in the force model (gravity reads them); masses() returns its copy.
     forceModel_ = std::make_unique<ForceModel>(topology_, std::move(stiffness), std::move(mass),
                                                settings_, timers_, poolStorage_.get());
@@ -192,9 +203,34 @@ void Cloth::checkFinite(const char* where) {
                     "; the cloth keeps its state from before the step");
 }
 
+int Cloth::substepsFor(double dt) const {
+    if (!std::isfinite(dt)) throw Error(ErrorCode::NonFinite, "time step is not finite");
+    if (!(dt > 0.0))
+        throw Error(ErrorCode::InvalidArgument, "time step must be positive, got " + num(dt));
+    const SubstepSettings& sub = settings_.substeps;
+    if (!sub.automatic) return 1;
+    const double limit = stableTimeStep();
+    if (!(limit < std::numeric_limits<double>::infinity())) return 1; // implicit, or nothing moves
+    const double needed = std::ceil(dt / (sub.fraction * limit));
+    if (needed <= 1.0) return 1;
+    if (!(needed <= static_cast<double>(sub.maxSubsteps))) {
+        throw Error(
+            ErrorCode::UnstableTimeStep,
+            "time step " + num(dt) + " s would need " + num(needed) +
+                " automatic sub-steps of at most " + num(sub.fraction * limit) +
+                " s (the stability limit of " + toString(settings_.integrator) +
+                " for this cloth, omega_max = " + num(maxAngularFrequency()) +
+                " rad/s), more than substeps.maxSubsteps = " + std::to_string(sub.maxSubsteps) +
+                "; use a smaller dt, softer springs, heavier particles or implicit_euler");
+    }
+    return static_cast<int>(needed);
+}
+
 void Cloth::step(double dt) {
+    const int n = substepsFor(dt);
+    const double h = dt / n;
     if (asleep_) {
-        checkTimeStep(dt);
+        checkTimeStep(h);
         if (!kinematicTargetsMove(dt)) { // frozen: only the clock runs
             time_ += dt;
             ++steps_;
@@ -203,6 +239,44 @@ void Cloth::step(double dt) {
         }
         wake();
     }
+    // What a step reports (limiter stats, the held particles' impulses) sums its sub-steps.
+    limiterStats_ = StrainLimitStats{};
+    heldImpulse_.resize(x_.size(), Vec3::Zero());
+    for (Index i : heldImpulsed_)
+        heldImpulse_[i].setZero();
+    heldImpulsed_.clear();
+    if (n == 1) {
+        stepWithRetry(dt);
+    } else {
+        // A failure in any sub-step leaves the cloth as it was before the whole step.
+        const Vec3List x0 = x_, v0 = v_;
+        const std::vector<double> lambda0 = limiter_.warmStartState();
+        const double t0 = time_;
+        const std::uint64_t s0 = steps_;
+        try {
+            for (int k = 0; k < n; ++k) {
+                if (asleep_) { // fell asleep in an earlier sub-step: frozen from here
+                    time_ += h;
+                    continue;
+                }
+                stepWithRetry(h);
+            }
+        } catch (...) {
+            x_ = x0;
+            v_ = v0;
+            time_ = t0;
+            steps_ = s0;
+            if (settings_.limiter.kind == LimiterKind::StressOrdered)
+                limiter_.setWarmStartState(lambda0);
+            forcesValid_ = false;
+            throw;
+        }
+        steps_ = s0 + 1; // the sub-steps count as the one step the caller asked for
+    }
+    if (limiterStats_.capHit) ++limiterCapHits_;
+}
+
+void Cloth::stepWithRetry(double dt) {
     if (settings_.failure.retrySubsteps < 2) {
         stepOnce(dt);
         return;
@@ -319,7 +393,6 @@ void Cloth::stepOnce(double dt) {
     }
     // The state from before the step is kept (x_, v_ swapped into the scratch buffers by
     // stageIntegrate) so that a failure leaves the cloth as it was.
-    limiterStats_ = StrainLimitStats{};
     const bool keepWarmStart = settings_.limiter.kind == LimiterKind::StressOrdered;
     if (keepWarmStart) {
         const auto& lambda = limiter_.warmStartState();
@@ -352,7 +425,6 @@ void Cloth::stepOnce(double dt) {
         throw;
     }
     inStep_ = false;
-    if (limiterStats_.capHit) ++limiterCapHits_;
     updateSleep(dt);
     time_ += dt;
     ++steps_;
@@ -446,23 +518,48 @@ void Cloth::applyLimiterMoves(double dt) {
     const auto& from = limiter_.movedFrom();
     for (std::size_t j = 0; j < moved.size(); ++j)
         v_[moved[j]] += (x_[moved[j]] - from[j]) * invDt;
+    const auto& pull = limiter_.heldPull();
+    for (Index i : limiter_.heldIndex()) {
+        if (heldImpulse_[i] == Vec3::Zero()) heldImpulsed_.push_back(i);
+        heldImpulse_[i] += pull[i] * invDt;
+    }
+}
+
+void Cloth::addLimiterStats(const StrainLimitStats& st) {
+    StrainLimitStats& sum = limiterStats_;
+    sum.rounds += st.rounds;
+    sum.corrections += st.corrections;
+    sum.work += st.work;
+    sum.capHit = sum.capHit || st.capHit;
+    sum.maxStrainBefore = std::max(sum.maxStrainBefore, st.maxStrainBefore);
+    if (st.corrections || st.capHit)
+        sum.maxStrainAfter = std::max(sum.maxStrainAfter, st.maxStrainAfter);
+}
+
+LimiterSettings Cloth::limiterAt(double dt) const {
+    LimiterSettings lim = settings_.limiter;
+    lim.tolerance = bandAt(lim, dt);
+    lim.warmStart = warmStartAt(lim, dt);
+    lim.longRangeSlack = longRangeSlackAt(lim, dt);
+    return lim;
 }
 
 void Cloth::stageLimit(StepContext& ctx) {
-    const auto& lim = settings_.limiter;
+    const LimiterSettings lim = limiterAt(ctx.dt);
     if (lim.kind == LimiterKind::StressOrdered) {
         limiter_.clearMoved();
-        limiterStats_ = limiter_.limit(*topology_, invMass_, forceModel_->stiffness(), lim, x_);
+        addLimiterStats(limiter_.limit(*topology_, invMass_, forceModel_->stiffness(), lim, x_));
         applyLimiterMoves(ctx.dt);
         return;
     }
     // The comparison limiters: displacements from a copy.
     step_.beforeLimit = x_;
-    limiterStats_ =
+    const StrainLimitStats st =
         lim.kind == LimiterKind::Provot
             ? limitStrainProvot(*topology_, invMass_, lim, x_)
             : limitStrainOneSided(*topology_, invMass_, forceModel_->stiffness(), lim, x_);
-    if (limiterStats_.corrections == 0) return;
+    addLimiterStats(st);
+    if (st.corrections == 0) return;
     const double invDt = 1.0 / ctx.dt;
     for (std::size_t i = 0; i < x_.size(); ++i)
         v_[i] += (x_[i] - step_.beforeLimit[i]) * invDt;
@@ -520,17 +617,17 @@ StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt,
     StrainLimitStats st;
     limiter_.clearMoved();
     if (settings_.limiter.kind == LimiterKind::None || touched.empty()) return st;
-    if (settings_.limiter.kind == LimiterKind::StressOrdered) {
-        st = limiter_.relimit(*topology_, invMass_, forceModel_->stiffness(), settings_.limiter,
-                              touched, x_, planes);
+    const LimiterSettings lim = limiterAt(dt);
+    if (lim.kind == LimiterKind::StressOrdered) {
+        st = limiter_.relimit(*topology_, invMass_, forceModel_->stiffness(), lim, touched, x_,
+                              planes);
         applyLimiterMoves(dt);
     } else {
         // The comparison limiters have no worklist: they run whole, and report what moved.
         step_.beforeLimit = x_;
-        st = settings_.limiter.kind == LimiterKind::Provot
-                 ? limitStrainProvot(*topology_, invMass_, settings_.limiter, x_)
-                 : limitStrainOneSided(*topology_, invMass_, forceModel_->stiffness(),
-                                       settings_.limiter, x_);
+        st = lim.kind == LimiterKind::Provot
+                 ? limitStrainProvot(*topology_, invMass_, lim, x_)
+                 : limitStrainOneSided(*topology_, invMass_, forceModel_->stiffness(), lim, x_);
         step_.relimitMoved.clear();
         const double invDt = 1.0 / dt;
         for (std::size_t i = 0; i < x_.size(); ++i) {
@@ -539,12 +636,7 @@ StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt,
             step_.relimitMoved.push_back(static_cast<Index>(i));
         }
     }
-    limiterStats_.rounds += st.rounds;
-    limiterStats_.corrections += st.corrections;
-    limiterStats_.work += st.work;
-    limiterStats_.capHit = limiterStats_.capHit || st.capHit;
-    limiterStats_.maxStrainAfter =
-        st.corrections ? st.maxStrainAfter : limiterStats_.maxStrainAfter;
+    addLimiterStats(st);
     forcesValid_ = false;
     edited();
     return st;

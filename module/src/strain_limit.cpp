@@ -132,8 +132,13 @@ AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Ind
     AnchorField field;
     field.anchor = src;
     field.restDistance.assign(n, 0.0);
+    field.pathLength.assign(n, 0.0);
+    field.geodesic.assign(n, 0.0);
     for (std::size_t i = 0; i < n; ++i) {
-        if (src[i] != kNoParticle) field.restDistance[i] = std::min(path[i], slack * geo[i]);
+        if (src[i] == kNoParticle) continue;
+        field.restDistance[i] = std::min(path[i], slack * geo[i]);
+        field.pathLength[i] = path[i];
+        field.geodesic[i] = geo[i];
     }
     return field;
 }
@@ -166,6 +171,11 @@ void StrainLimiter::clearMoved() {
         moved_[i] = 0;
     movedIndex_.clear();
     movedFrom_.clear();
+    for (Index i : heldIndex_) {
+        pulled_[i] = 0;
+        heldPull_[i].setZero();
+    }
+    heldIndex_.clear();
 }
 
 void StrainLimiter::firstMove(Index i, const std::vector<Vec3>& x) {
@@ -211,6 +221,8 @@ void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<dou
     candidates_.resize(topology.adjacentSprings().size() + 1);
     dirtyAt_.resize(n, 0u);
     moved_.resize(n, 0);
+    pulled_.resize(n, 0);
+    heldPull_.resize(n, Vec3::Zero());
     const double upper = 1.0 + s.maxStrain + s.tolerance;
     const double lower = std::max(0.0, 1.0 + s.maxStrain - s.tolerance);
     upper2_ = upper * upper;
@@ -222,10 +234,9 @@ void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<dou
     list.clear();
     for (std::size_t i = 0; i < n; ++i)
         if (invMass[i] == 0.0) list.push_back(static_cast<Index>(i));
-    if (!anchorsValid_ || list != anchorList_ || anchorSlack_ != s.longRangeSlack) {
+    if (!anchorsValid_ || list != anchorList_) {
         anchorList_ = list;
-        anchorSlack_ = s.longRangeSlack;
-        anchors_ = geodesicAnchors(topology, anchorList_, anchorSlack_);
+        anchors_ = geodesicAnchors(topology, anchorList_, s.longRangeSlack);
         anchorsValid_ = true;
     }
 }
@@ -258,7 +269,9 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
         // every member's data pointer in every iteration.)
         const double f = limit_;
         const Index* anchor = anchors_.anchor.data();
-        const double* restDistance = anchors_.restDistance.data();
+        const double* path = anchors_.pathLength.data();
+        const double* geodesic = anchors_.geodesic.data();
+        const double slack = s.longRangeSlack;
         const double* w = invMass.data();
         std::size_t evaluated = 0;
         for (std::size_t i = 0; i < x.size(); ++i) {
@@ -266,8 +279,12 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
             if (a == kNoParticle || w[i] == 0.0) continue;
             ++evaluated;
             const Vec3 d = x[i] - x[a];
-            const double l2 = d.squaredNorm(), r = f * restDistance[i];
-            if (l2 > r * r) move(static_cast<Index>(i), (r / std::sqrt(l2) - 1.0) * d, x);
+            const double l2 = d.squaredNorm(), r = f * std::min(path[i], slack * geodesic[i]);
+            if (l2 > r * r) {
+                const Vec3 dx = (r / std::sqrt(l2) - 1.0) * d;
+                move(static_cast<Index>(i), dx, x);
+                pullHeld(a, -dx / w[i]);
+            }
         }
         st.work += evaluated;
     }
@@ -320,8 +337,16 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
             }
             list[kept++] = si;
             const Spring& sp = spring[si];
-            if (w[sp.a] > 0.0) move(sp.a, w[sp.a] * pull[k], x);
-            if (w[sp.b] > 0.0) move(sp.b, -w[sp.b] * pull[k], x);
+            if (w[sp.a] > 0.0) {
+                move(sp.a, w[sp.a] * pull[k], x);
+            } else {
+                pullHeld(sp.a, pull[k]);
+            }
+            if (w[sp.b] > 0.0) {
+                move(sp.b, -w[sp.b] * pull[k], x);
+            } else {
+                pullHeld(sp.b, -pull[k]);
+            }
         }
     }
     st.work += warmed;
@@ -588,6 +613,8 @@ std::size_t StrainLimiter::correctWave(const std::vector<Spring>& springs,
             if (wa > 0.0) shift(a, wa * c);
             if (wb > 0.0) shift(b, -wb * c);
         }
+        if (wa == 0.0) pullHeld(a, c);
+        if (wb == 0.0) pullHeld(b, -c);
     }
     st.work += order_.size();
     st.corrections += corrections;

@@ -162,19 +162,63 @@ TEST_CASE("Bad time steps are refused before anything moves", "[errors][timestep
     REQUIRE_DRAPE_ERROR(cloth.step(kNaN), ErrorCode::NonFinite, "time step");
     REQUIRE_DRAPE_ERROR(cloth.step(kInf), ErrorCode::NonFinite, "time step");
     // omega_max = sqrt(3 * 2 * 10 / 0.1) ~ 24.5 rad/s on this square (Laplacian bound), so the
-    // limit is ~0.08 s; 1 s is far beyond it.
+    // limit is ~0.08 s; 1 s is far beyond it. Without automatic sub-steps it is refused.
     REQUIRE(cloth.stableTimeStep() < 1.0);
-    REQUIRE_DRAPE_ERROR(cloth.step(1.0), ErrorCode::UnstableTimeStep, "stability limit");
+    ClothSettings one = basic();
+    one.substeps.automatic = false;
+    Cloth single(topo, one);
+    REQUIRE_DRAPE_ERROR(single.step(1.0), ErrorCode::UnstableTimeStep, "stability limit");
+    CHECK(single.positions() == x0);
+    CHECK(single.stepCount() == 0u);
+    CHECK(single.time() == 0.0);
+    single.step(0.5 * single.stableTimeStep()); // and a good one still works
+    CHECK(single.stepCount() == 1u);
+    // With them (the default) a step that would need more than substeps.maxSubsteps is
+    // refused by name, and the state is kept.
+    const double limit = cloth.stableTimeStep();
+    const double tooLong = 1.5 * 0.9 * limit * cloth.settings().substeps.maxSubsteps;
+    REQUIRE_DRAPE_ERROR(cloth.step(tooLong), ErrorCode::UnstableTimeStep, "substeps.maxSubsteps");
     CHECK(cloth.positions() == x0);
     CHECK(cloth.stepCount() == 0u);
-    CHECK(cloth.time() == 0.0);
-    cloth.step(0.5 * cloth.stableTimeStep()); // and a good one still works
+}
+
+TEST_CASE("A step beyond the stability limit is taken as automatic sub-steps",
+          "[errors][timestep][substeps]") {
+    // The same square: its limit is ~0.08 s, so 1 s is ceil(1 / (0.9 limit)) sub-steps. The
+    // result is exactly that many steps of dt / n taken by a cloth without automatic
+    // sub-steps, counted as one step.
+    const auto topo = ClothTopology::build(square());
+    Cloth cloth(topo, basic());
+    cloth.pin(0);
+    const double limit = cloth.stableTimeStep();
+    const int n = cloth.substepsFor(1.0);
+    CHECK(n == static_cast<int>(std::ceil(1.0 / (0.9 * limit))));
+    CHECK(cloth.substepsFor(0.5 * limit) == 1);
+    ClothSettings one = basic();
+    one.substeps.automatic = false;
+    Cloth manual(topo, one);
+    manual.pin(0);
+    cloth.step(1.0);
+    for (int k = 0; k < n; ++k)
+        manual.step(1.0 / n);
     CHECK(cloth.stepCount() == 1u);
+    CHECK(cloth.time() == Approx(1.0).epsilon(1e-12));
+    for (std::size_t i = 0; i < cloth.particleCount(); ++i) {
+        CHECK(cloth.positions()[i].allFinite());
+        CHECK((cloth.positions()[i] - manual.positions()[i]).norm() == Approx(0.0).margin(1e-12));
+    }
+    ClothSettings bad = basic();
+    bad.substeps.fraction = 1.5;
+    REQUIRE_DRAPE_ERROR(Cloth(topo, bad), ErrorCode::InvalidArgument, "substeps.fraction");
+    bad = basic();
+    bad.substeps.maxSubsteps = 0;
+    REQUIRE_DRAPE_ERROR(Cloth(topo, bad), ErrorCode::InvalidArgument, "substeps.maxSubsteps");
 }
 
 TEST_CASE("A blow-up is reported, not hidden, and the state is kept", "[errors][timestep]") {
     ClothSettings s = basic();
     s.rejectUnstableTimeStep = false;
+    s.substeps.automatic = false; // each step is the dt given
     s.limiter.kind = LimiterKind::None;
     Cloth cloth(ClothTopology::build(square()), s);
     cloth.pin(0);

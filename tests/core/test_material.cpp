@@ -222,7 +222,7 @@ TEST_CASE("Cloth takes masses and stiffness from the settings it is given", "[ma
     }
 }
 
-TEST_CASE("A default ClothSettings simulates: 200 g/m^2 cotton, stiffness for a 60 Hz step",
+TEST_CASE("A default ClothSettings simulates: 200 g/m^2 cotton, mesh-free stiffness, sub-steps",
           "[material][mass][settings]") {
     SheetSpec spec;
     spec.rows = 21;
@@ -238,19 +238,31 @@ TEST_CASE("A default ClothSettings simulates: 200 g/m^2 cotton, stiffness for a 
         mass += m;
     CHECK(mass == Approx(0.2 * topo->totalRestArea()).epsilon(1e-12));
     CHECK(topo->totalRestArea() == Approx(1.0).epsilon(1e-12));
-    // Stiffness: uniform, chosen so that omega_max is kAutomaticStiffnessOmega; Velocity-Verlet
-    // is then stable up to 2 / 60 s, twice a 60 Hz step.
-    const double k = cloth.stiffness().front();
-    for (double ks : cloth.stiffness())
-        CHECK(ks == k);
-    CHECK(cloth.maxAngularFrequency() == Approx(kAutomaticStiffnessOmega).epsilon(1e-9));
-    CHECK(cloth.stableTimeStep() == Approx(2.0 / kAutomaticStiffnessOmega).epsilon(1e-9));
-    // Twice the spacing with the same cotton: omega^2 ~ k / (rho h s^2) at a fixed omega means
-    // k ~ s^2, up to the coarser sheet's border share (the bound is not exactly scale-free).
+    // Stiffness: (M1) with E h = rho_A c^2 = 0.2 * 10^2 = 20 N/m: E h on the interior grid
+    // edges, E h / 2 on the diagonals and the border edges (one triangle each).
+    const double eh = 0.2 * kAutomaticStretchWaveSpeed * kAutomaticStretchWaveSpeed;
+    const auto expected = springStiffnessFromMaterial(*topo, eh, 1.0);
+    REQUIRE(expected.size() == cloth.stiffness().size());
+    for (std::size_t i = 0; i < expected.size(); ++i)
+        CHECK(cloth.stiffness()[i] == Approx(expected[i]).epsilon(1e-12));
+    const double kMax = *std::max_element(cloth.stiffness().begin(), cloth.stiffness().end());
+    CHECK(kMax == Approx(eh).epsilon(1e-12));
+    // The same cloth meshed twice as coarse has the same springs (a membrane's stiffness does
+    // not depend on the spacing), and so does a heavier cloth scaled by its mass.
     spec.rows = spec.cols = 11;
     spec.spacing = 0.1;
     Cloth coarse(ClothTopology::build(makeSheet(spec)), ClothSettings{});
-    CHECK(coarse.stiffness().front() / k == Approx(4.0).epsilon(0.1));
+    CHECK(*std::max_element(coarse.stiffness().begin(), coarse.stiffness().end()) ==
+          Approx(eh).epsilon(1e-12));
+    ClothSettings heavy;
+    heavy.totalMass = 1.0; // 1 kg/m^2: five times the springs
+    Cloth canvas(topo, heavy);
+    CHECK(*std::max_element(canvas.stiffness().begin(), canvas.stiffness().end()) ==
+          Approx(5.0 * eh).epsilon(1e-12));
+    // A 60 Hz step is beyond this cloth's stability limit: it takes automatic sub-steps.
+    const int n = cloth.substepsFor(1.0 / 60.0);
+    CHECK(n == static_cast<int>(std::ceil(1.0 / 60.0 / (0.9 * cloth.stableTimeStep()))));
+    CHECK(n > 1);
 
     // It hangs from two corners at 60 Hz: no error, finite, the limiter holds 10 %.
     cloth.pin(0);

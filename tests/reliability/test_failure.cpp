@@ -22,6 +22,7 @@ std::unique_ptr<Cloth> kickedSheet(const ClothSettings& base) {
     s.gravity = Vec3::Zero();
     s.limiter.kind = LimiterKind::None;
     s.rejectUnstableTimeStep = false;
+    s.substeps.automatic = false; // each step is the dt given
     auto c = std::make_unique<Cloth>(ClothTopology::build(makeSheet(spec)), s);
     c->setVelocity(14, Vec3(0.3, 0.2, 0.5));
     return c;

@@ -76,7 +76,14 @@ class Cloth {
     /// state stops being finite or fails a check of settings.failure (the state is then left
     /// as it was before the step). With failure.retrySubsteps >= 2 a failed step is first
     /// retried as that many sub-steps.
+    /// With settings.substeps.automatic (the default) a dt beyond substeps.fraction of the
+    /// stability limit is taken as substepsFor(dt) equal sub-steps; the step then counts once
+    /// (stepCount()), and what it reports (lastLimiterStats(), constraintImpulses()) sums them.
     void step(double dt);
+    /// The sub-steps step(dt) takes (1 without automatic sub-steps). Throws drape::Error on a
+    /// non-positive or non-finite dt, and on a dt that would need more than
+    /// substeps.maxSubsteps.
+    int substepsFor(double dt) const;
     /// Steps that failed and succeeded when retried as sub-steps.
     std::uint64_t retriedSteps() const { return retries_; }
 
@@ -146,13 +153,21 @@ class Cloth {
     double maxAngularFrequency() const;
     /// Largest stable time step of the cloth's integrator [s].
     double stableTimeStep() const;
-    /// What the limiter did in the last step (relimit() calls of stages included).
+    /// What the limiter did in the last step (its sub-steps and relimit() calls summed; the
+    /// strains are the largest of them).
     const StrainLimitStats& lastLimiterStats() const { return limiterStats_; }
     /// Steps whose limiter stopped at its safety cap (LimiterSettings::maxRounds): steps in
     /// which the strain bound was not promised.
     std::uint64_t limiterCapHits() const { return limiterCapHits_; }
     /// The stress-ordered limiter (its warm start and long-range attachments).
     const StrainLimiter& limiter() const { return limiter_; }
+    /// Per particle, the impulse the stress-ordered limiter's corrections (relimit() calls
+    /// included) gave each held particle (pinned, kinematic) in the last step [N s]: the
+    /// reaction to the momentum its corrections gave the free particles next to it. Zero for
+    /// free particles (empty before the first step). A body holding the particle must take it
+    /// (drape::bullet does for attachments), or the limiter's share of the load never reaches
+    /// the body. Forces on held particles (forces()) are the springs' share.
+    const Vec3List& constraintImpulses() const { return heldImpulse_; }
 
     // --- for stages ------------------------------------------------------------------------
     /// A stage moved the particles `touched` (a contact projection): their springs go into
@@ -197,6 +212,8 @@ class Cloth {
     };
     static const Stage kStages[8];
     void stepOnce(double dt);
+    void stepWithRetry(double dt);
+    void addLimiterStats(const StrainLimitStats& st);
     void stageForcesRefresh(StepContext& ctx);
     void stageIntegrate(StepContext& ctx);
     void stageKinematic(StepContext& ctx);
@@ -206,6 +223,8 @@ class Cloth {
     void stageFinish(StepContext& ctx);
     void stageVerify(StepContext& ctx);
     void applyLimiterMoves(double dt);
+    /// The limiter's settings for a step of dt, its band narrowed by bandAt.
+    LimiterSettings limiterAt(double dt) const;
     double energyScale() const;
     void evaluateForces();
     void checkFinite(const char* where);
@@ -245,7 +264,9 @@ class Cloth {
     bool inStep_ = false;
     bool asleep_ = false;
     double quietTime_ = 0.0;
-    Vec3List anchor_; ///< positions at the start of the quiet time (empty: none yet)
+    Vec3List anchor_;      ///< positions at the start of the quiet time (empty: none yet)
+    Vec3List heldImpulse_; ///< see constraintImpulses()
+    std::vector<Index> heldImpulsed_; ///< the particles whose heldImpulse_ is nonzero
     std::uint64_t sleptSteps_ = 0;
 };
 

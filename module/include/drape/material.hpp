@@ -32,8 +32,9 @@ namespace drape {
 /// Physical fabric properties. The defaults are a medium woven cotton of 200 g/m^2.
 struct FabricMaterial {
     /// E [Pa]; PET (Dacron) is about 1.2e10 Pa. Not given: ClothSettings chooses the
-    /// stiffness (see ClothSettings::springStiffness); a real fabric's E makes springs far too
-    /// stiff for an explicit step at game rates, which the strain limiter stands in for.
+    /// stiffness (see ClothSettings::springStiffness, kAutomaticStretchWaveSpeed); a real
+    /// fabric's E makes springs far too stiff for an explicit step at game rates, which the
+    /// strain limiter stands in for.
     std::optional<double> youngsModulus;
     double thickness = 5e-4; ///< h [m]; woven fabrics are 1e-4 .. 1e-3 m
     /// rho [kg/m^3] (apparent density: mass per area over h); with the default h, 0.2 kg/m^2.

@@ -58,10 +58,17 @@ struct AeroSettings {
 struct LimiterSettings {
     LimiterKind kind = LimiterKind::StressOrdered;
     double maxStrain = 0.10; ///< largest allowed (l - L0) / L0 [-]; the paper's 10 %
-    /// The promise: after every step each spring is within (1 + maxStrain + tolerance) L0.
-    /// Springs beyond it are set to exactly (1 + maxStrain) L0; the band between is left
-    /// alone (that is what lets the worklist stop) [-].
+    /// The band at steps of toleranceStep and longer: after such a step each spring is within
+    /// (1 + maxStrain + tolerance) L0. Springs beyond the band are set to exactly
+    /// (1 + maxStrain) L0; the band between is left alone (that is what lets the worklist
+    /// stop) [-]. Shorter steps get a narrower band (bandAt).
     double tolerance = 1e-3;
+    /// The band shrinks with the step: a step dt uses tolerance * min(1, (dt/toleranceStep)^2)
+    /// (bandAt). A correction jumps a spring from the band's top to the limit, a velocity of
+    /// about band L0 / dt; with a fixed band that grows as dt shrinks and the limited
+    /// trajectory does not converge. With the band ~ dt^2 it converges at first order
+    /// (samples/reports/results/error) [s]; must be > 0.
+    double toleranceStep = 0.01;
     /// Safety cap: the stress-ordered walk stops after maxRounds sweep-equivalents of spring
     /// evaluations, Provot after maxRounds sweeps. A step that hits it is counted
     /// (Cloth::limiterCapHits()) and the bound is then not promised. Experiment I needs at most
@@ -73,7 +80,10 @@ struct LimiterSettings {
     /// [0, 1) (stress-ordered only). A hanging cloth's weight is carried by the limiter
     /// step after step; re-applying most of it saves the walk the sweeps it takes to carry it
     /// again. 0 turns it off. Larger values save work and overshoot more (energy); 0.6 was
-    /// measured best on Experiment I (samples/benchmarks/LIMITER.md) [-].
+    /// measured best on Experiment I (samples/benchmarks/LIMITER.md). Steps shorter than
+    /// toleranceStep re-apply warmStart * dt / toleranceStep (warmStartAt): last step's
+    /// correction is history the trajectory must forget as dt shrinks, or it does not
+    /// converge [-].
     double warmStart = 0.6;
     /// Long-range attachments (Kim, Chentanez and Mueller 2012), stress-ordered only: each
     /// free particle stays within (1 + maxStrain) r of its nearest pinned particle, r its
@@ -81,10 +91,33 @@ struct LimiterSettings {
     /// from the pins in one pass. No effect on a cloth without pinned particles.
     bool longRangeAttachments = true;
     /// r = min(spring path, longRangeSlack * geodesic) (see geodesicAnchors): the room left
-    /// for shear. 1.02 keeps Experiment I's hanging shape within 1 % of the converged
-    /// reference; must be >= 1 [-].
+    /// for shear; must be >= 1. 1.02 keeps Experiment I's hanging shape within 1 % of the
+    /// converged reference and lets the attachments carry a soft cloth's weight at 60 Hz.
+    /// Steps shorter than toleranceStep use more room (longRangeSlackAt): where the
+    /// attachments are tighter than the springs allow, the two pull against each other in
+    /// every step and the limited trajectory stops converging as dt shrinks [-].
     double longRangeSlack = 1.02;
 };
+
+/// The limiter's band for a step of dt [s]: tolerance * min(1, (dt / toleranceStep)^2) [-].
+inline double bandAt(const LimiterSettings& s, double dt) {
+    const double r = dt / s.toleranceStep;
+    return r < 1.0 ? s.tolerance * r * r : s.tolerance;
+}
+/// The room long-range attachments leave at small steps: the slack tends to this as dt -> 0.
+inline constexpr double kFineStepLongRangeSlack = 1.05;
+/// The long-range slack for a step of dt [s]: longRangeSlack at toleranceStep and longer,
+/// moving linearly to max(longRangeSlack, kFineStepLongRangeSlack) as dt goes to 0 [-].
+inline double longRangeSlackAt(const LimiterSettings& s, double dt) {
+    const double r = dt / s.toleranceStep;
+    if (r >= 1.0 || s.longRangeSlack >= kFineStepLongRangeSlack) return s.longRangeSlack;
+    return kFineStepLongRangeSlack - (kFineStepLongRangeSlack - s.longRangeSlack) * r;
+}
+/// The warm start's share for a step of dt [s]: warmStart * min(1, dt / toleranceStep) [-].
+inline double warmStartAt(const LimiterSettings& s, double dt) {
+    const double r = dt / s.toleranceStep;
+    return r < 1.0 ? s.warmStart * r : s.warmStart;
+}
 
 /// Implicit Euler settings.
 struct ImplicitSettings {
@@ -132,13 +165,31 @@ struct SleepSettings {
     double time = 1.0;
 };
 
-/// Angular frequency the automatic stiffness aims at [rad/s] (ClothSettings::springStiffness):
-/// Velocity-Verlet's stability limit 2 / omega is then 1/30 s, twice a 60 Hz game step.
-inline constexpr double kAutomaticStiffnessOmega = 60.0;
+/// How Cloth::step(dt) divides a step into sub-steps.
+struct SubstepSettings {
+    /// Take a step as the fewest equal sub-steps of at most `fraction` times the integrator's
+    /// stability limit (Cloth::stableTimeStep()); a step within it is one step. false: every
+    /// step(dt) is one step, and a dt beyond the limit is refused (rejectUnstableTimeStep).
+    bool automatic = true;
+    double fraction = 0.9; ///< of the stability limit, in (0, 1] [-]
+    /// A step that would need more sub-steps than this is refused (UnstableTimeStep) (>= 1).
+    int maxSubsteps = 1000;
+};
+
+/// Speed of stretch waves the automatic stiffness gives a cloth [m/s] (ClothSettings::
+/// springStiffness): E h = rho_A c^2 in (M1) (material.hpp), rho_A the cloth's mass per rest
+/// area. It does not depend on the mesh (a finer mesh of the same cloth stretches the same)
+/// nor on the mass (a heavier cloth gets stiffer springs): hanging a height H it stretches
+/// about g H / c^2 at the top (10 % for 1 m; the strain limiter holds the rest), a sheet
+/// pinned on its edges sags by about 15 % of its span. Its cost: the stability limit is
+/// about 0.6 s / c with s the spacing, so a 2.5 cm mesh takes about 12 automatic sub-steps
+/// of a 60 Hz step and a 5 cm mesh about 6.
+inline constexpr double kAutomaticStretchWaveSpeed = 10.0;
 
 /// Everything a Cloth needs besides its topology. A default-constructed ClothSettings is
-/// valid: a 200 g/m^2 cotton, stiffness chosen for a 60 Hz step, Velocity-Verlet, the
-/// paper's stress-ordered limiting at 10 %, gravity -9.81 m/s^2 along y.
+/// valid: a 200 g/m^2 cotton, the automatic stiffness (kAutomaticStretchWaveSpeed) with
+/// automatic sub-steps, Velocity-Verlet, the paper's stress-ordered limiting at 10 %,
+/// gravity -9.81 m/s^2 along y.
 struct ClothSettings {
     IntegratorKind integrator = IntegratorKind::VelocityVerlet;
 
@@ -148,11 +199,10 @@ struct ClothSettings {
     std::optional<double> totalMass;            ///< mass of the whole cloth [kg]
     MassLumping lumping = MassLumping::Uniform; ///< how totalMass or material mass is spread
     /// k of every spring [N/m] (the paper's C_e); must be positive. Not given: (M1) from
-    /// material.youngsModulus if that is given; otherwise automatic: the uniform k for which
-    /// the cloth's omega_max (stability.hpp, with its masses and no pins) is
-    /// kAutomaticStiffnessOmega, so a 60 Hz Velocity-Verlet step is half its stability limit.
-    /// That k depends on the mesh: finer meshes get softer springs (the strain limiter holds
-    /// the cloth's stretch whatever k is).
+    /// material.youngsModulus if that is given; otherwise automatic: (M1) with
+    /// E h = rho_A c^2, c = kAutomaticStretchWaveSpeed and rho_A the cloth's mass per rest
+    /// area, the same for any mesh of the cloth. With a 60 Hz step that needs a few sub-steps,
+    /// which Cloth::step (substeps) and drape::bullet take automatically.
     std::optional<double> springStiffness;
     FabricMaterial material; ///< used for whatever is not given directly
 
@@ -164,6 +214,7 @@ struct ClothSettings {
     ImplicitSettings implicit;  ///< used by ImplicitEuler only
     FailureSettings failure;    ///< blow-up detection and retry
     SleepSettings sleep;        ///< sleeping at rest; off by default
+    SubstepSettings substeps;   ///< automatic sub-steps of Cloth::step; on by default
 
     /// Threads a step may use (>= 1, the caller's included). Springs, gravity, damping and
     /// the explicit integrators' particle loops are split over them; results are

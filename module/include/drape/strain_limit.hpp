@@ -87,7 +87,9 @@ struct ContactPlanes {
 /// (kNoParticle if no anchor reaches it) and the rest distance of the attachment [m].
 struct AnchorField {
     std::vector<Index> anchor;
-    std::vector<double> restDistance;
+    std::vector<double> restDistance; ///< min(pathLength, slack * geodesic) for the given slack
+    std::vector<double> pathLength;   ///< rest length of the spring path the front followed
+    std::vector<double> geodesic;     ///< geodesic rest distance to the anchor
 };
 
 /// Geodesic rest distances from a set of anchor particles, computed once per anchor set.
@@ -151,7 +153,8 @@ class StrainLimiter {
     /// Threads for the scan of every spring (the walk itself is sequential); null: this thread.
     void setPool(detail::ThreadPool* pool) { pool_ = pool; }
     /// Runs one step's limiter on x. The long-range attachments are recomputed whenever the
-    /// set of zero-inverse-mass particles differs from the last call's.
+    /// set of zero-inverse-mass particles differs from the last call's (the slack is applied
+    /// per step: it may change from step to step at no cost).
     StrainLimitStats limit(const ClothTopology& topology, const std::vector<double>& invMass,
                            const std::vector<double>& stiffness, const LimiterSettings& s,
                            std::vector<Vec3>& x);
@@ -172,6 +175,14 @@ class StrainLimiter {
     /// move: the caller adds (x - from) / dt to their velocities.
     const std::vector<Index>& movedIndex() const { return movedIndex_; }
     const std::vector<Vec3>& movedFrom() const { return movedFrom_; }
+    /// Held particles (zero inverse mass: pinned, kinematic, attached) that corrections pulled
+    /// on since the last clearMoved(), and what each took [kg m]: a correction that moves a
+    /// free particle by dx with a held one at the spring's other end (or as its long-range
+    /// anchor) changes the free particle's momentum by m dx / dt, and the held one takes the
+    /// opposite, heldPull / dt [N s]. Whatever holds the particle (a body) must take it too,
+    /// or the limiter's share of the load is lost to the momentum balance.
+    const std::vector<Index>& heldIndex() const { return heldIndex_; }
+    const std::vector<Vec3>& heldPull() const { return heldPull_; }
     void clearMoved();
 
     /// Accumulated correction of each spring in the last step [m kg^-1 ... as lambda: the
@@ -191,6 +202,14 @@ class StrainLimiter {
     void move(Index i, const Vec3& dx, std::vector<Vec3>& x) {
         if (!moved_[i]) firstMove(i, x);
         x[i] += dx;
+    }
+    /// Held particle i takes the pull p [kg m] (see heldPull()).
+    void pullHeld(Index i, const Vec3& p) {
+        if (!pulled_[i]) {
+            pulled_[i] = 1;
+            heldIndex_.push_back(i);
+        }
+        heldPull_[i] += p;
     }
     /// Records particle i's position before its first move of the step.
     void firstMove(Index i, const std::vector<Vec3>& x);
@@ -280,6 +299,9 @@ class StrainLimiter {
     std::vector<unsigned char> moved_;
     std::vector<Index> movedIndex_;
     std::vector<Vec3> movedFrom_;
+    std::vector<unsigned char> pulled_; ///< per particle: listed in heldIndex_
+    std::vector<Index> heldIndex_;
+    std::vector<Vec3> heldPull_; ///< per particle (nonzero for heldIndex_ only) [kg m]
     AnchorField anchors_;
     detail::ThreadPool* pool_ = nullptr;
     std::vector<double> soa_;    ///< scan scratch: x of every particle, then y, then z
@@ -290,7 +312,6 @@ class StrainLimiter {
     ContactPlanes* planes_ = nullptr; ///< during relimit() only
     std::vector<Index> anchorList_, anchorScratch_;
     bool anchorsValid_ = false;
-    double anchorSlack_ = 0.0;
     double upper2_ = 0.0, lower2_ = 0.0, limit_ = 0.0; ///< band edges (squared) and the limit
 };
 

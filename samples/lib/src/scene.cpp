@@ -54,6 +54,7 @@ constexpr Limits kPenaltyForce{0.0, 1e12, "N"};
 constexpr Limits kCgTolerance{1e-16, 1.0, ""};
 constexpr Limits kMaxStrain{1e-6, 10.0, ""};
 constexpr Limits kStrainTolerance{0.0, 10.0, ""};
+constexpr Limits kToleranceStep{1e-9, 1e3, ""};
 constexpr Limits kWarmStart{0.0, 1.0, "", false, true};
 constexpr Limits kLongRangeSlack{1.0, 100.0, ""};
 constexpr Limits kFov{0.0, 179.0, "degrees", true, true};
@@ -224,6 +225,10 @@ void parseSimulation(JsonObject o, SceneDesc& sc) {
     }
     sc.cloth.gravity = o.vec3("gravity", Vec3(0.0, -9.81, 0.0), kGravity);
     sc.cloth.rejectUnstableTimeStep = o.boolean("reject_unstable_time_step", true);
+    // A scene gives its sub-steps itself (simulation.substeps: a count or "auto").
+    sc.cloth.substeps.automatic = false;
+    // A scene gives its sub-steps itself (simulation.substeps: a count or "auto").
+    sc.cloth.substeps.automatic = false;
     if (auto imp = o.optObject("implicit")) {
         imp->keys({"solver", "cg_tolerance", "cg_max_iterations"});
         const std::string solver = imp->choice("solver", "cg", {"cg", "ldlt"});
@@ -242,7 +247,7 @@ void parseSimulation(JsonObject o, SceneDesc& sc) {
 }
 
 void parseStrainLimit(JsonObject o, SceneDesc& sc) {
-    o.keys({"method", "max_strain", "max_rounds", "tolerance", "warm_start",
+    o.keys({"method", "max_strain", "max_rounds", "tolerance", "tolerance_step", "warm_start",
             "long_range_attachments", "long_range_slack"});
     LimiterSettings& l = sc.cloth.limiter;
     const std::string method =
@@ -251,6 +256,7 @@ void parseStrainLimit(JsonObject o, SceneDesc& sc) {
     l.maxStrain = o.number("max_strain", 0.10, kMaxStrain);
     l.maxRounds = static_cast<int>(o.integer("max_rounds", l.maxRounds, 1, 100000));
     l.tolerance = o.number("tolerance", l.tolerance, kStrainTolerance);
+    l.toleranceStep = o.number("tolerance_step", l.toleranceStep, kToleranceStep);
     l.warmStart = o.number("warm_start", l.warmStart, kWarmStart);
     l.longRangeAttachments = o.boolean("long_range_attachments", l.longRangeAttachments);
     l.longRangeSlack = o.number("long_range_slack", l.longRangeSlack, kLongRangeSlack);

@@ -141,6 +141,7 @@ ClothSettings clothSettings(const ClothScene& scene, IntegratorKind integrator,
     s.gravity = scene.gravity;
     s.limiter.kind = limiter;
     s.rejectUnstableTimeStep = false;
+    s.substeps.automatic = false; // the step is the dt given (a sweep beyond the limit)
     return s;
 }
 

@@ -247,6 +247,7 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
                           false};
             ClothSettings s = clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::None);
             s.rejectUnstableTimeStep = true;
+            s.substeps.automatic = false; // the step is the dt given (a sweep beyond the limit)
             DrapeWorld world(sc, s);
             const Cloth& cloth = world.cloth();
             try {
@@ -325,6 +326,7 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
                           false};
             ClothSettings s = clothSettings(sc, IntegratorKind::ImplicitEuler, LimiterKind::None);
             s.rejectUnstableTimeStep = true;
+            s.substeps.automatic = false; // the step is the dt given (a sweep beyond the limit)
             DrapeWorld world(sc, s);
             const Cloth& cloth = world.cloth();
             try {
@@ -356,6 +358,7 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         s.springStiffness = 100.0;
         s.limiter.kind = LimiterKind::None;
         s.rejectUnstableTimeStep = true;
+        s.substeps.automatic = false; // the step is the dt given (a sweep beyond the limit)
         auto topo = ClothTopology::build(mesh);
         double ratio = 0.0;
         {
@@ -440,7 +443,8 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
                       false};
         ClothSettings s2 = s;
         s2.rejectUnstableTimeStep = true;
-        sc.pins.clear(); // as before: this cloth was never pinned
+        s2.substeps.automatic = false; // the step is the dt given (a sweep beyond the limit)
+        sc.pins.clear();               // as before: this cloth was never pinned
         DrapeWorld w2(sc, s2);
         const Cloth& c2 = w2.cloth();
         try {
@@ -591,6 +595,7 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
                 s.particleMass = 0.002;
                 s.springStiffness = 10.0;
                 s.rejectUnstableTimeStep = true;
+                s.substeps.automatic = false; // the step is the dt given (a sweep beyond the limit)
                 DrapeWorld world(meshScene(sliverSheet(thin), {0, 9}), s);
                 const Cloth& cloth = world.cloth();
                 const TimeStepCheck chk = checkTimeStep(cloth, 0.01);
@@ -694,6 +699,7 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         ClothSettings s =
             clothSettings(sc, IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
         s.rejectUnstableTimeStep = true;
+        s.substeps.automatic = false; // the step is the dt given (a sweep beyond the limit)
         sc.pins.clear();
         for (std::size_t i = 0; i < sc.mesh.vertices.size(); ++i)
             sc.pins.push_back(static_cast<Index>(i));
@@ -756,6 +762,7 @@ std::vector<ExtremeCase> extremeCases(bool quick) {
         s.springStiffness = 10.0;
         s.gravity = Vec3(0, -9.81, 0);
         s.rejectUnstableTimeStep = true;
+        s.substeps.automatic = false; // the step is the dt given (a sweep beyond the limit)
         DrapeWorld world(meshScene(tri), s);
         const Cloth& cloth = world.cloth();
         ExtremeCase c{"a cloth of a single triangle",

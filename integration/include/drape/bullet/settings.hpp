@@ -57,9 +57,12 @@ struct SelfCollisionSettings {
 struct BulletClothSettings {
     ContactSettings contact;             ///< particle-body contacts
     SelfCollisionSettings selfCollision; ///< particle-triangle self-collision
-    /// Cloth steps per internal Bullet sub-step (>= 1): a stiff cloth can run at
-    /// fixedTimeStep / substeps while the rigid bodies keep the world's step.
-    int substeps = 1;
+    /// Cloth steps per internal Bullet sub-step (>= 1): a stiff cloth runs at
+    /// fixedTimeStep / substeps while the rigid bodies keep the world's step. Not given (the
+    /// default): Cloth::substepsFor, chosen in every sub-step: the fewest cloth steps within
+    /// ClothSettings::substeps.fraction (90 %) of the cloth's stability limit, or 1 if the
+    /// cloth's automatic sub-steps are off.
+    std::optional<int> substeps;
     /// The cloth's exact time step [s] (> 0). Bullet hands its sub-step to the cloth as a
     /// btScalar (a float in Debian's build): 1/60 s arrives as 0.016666668. When the sub-step
     /// equals this value rounded to btScalar, the cloth steps with this double instead, so a
@@ -101,6 +104,7 @@ struct ContactStats {
     /// dynamic bodies and no attachments it is exactly -impulseOnBodies.
     Vec3 impulseOnCloth = Vec3::Zero();
     std::uint64_t steps = 0; ///< cloth steps taken by this handle since it was added
+    int substeps = 0;        ///< cloth steps per Bullet sub-step in the last sub-step
     /// Sub-steps in which the cloth would have swept out of its proxy, so the proxy was moved
     /// and the broadphase queried directly (btBroadphaseInterface::aabbTest).
     std::size_t proxyRefreshes = 0;

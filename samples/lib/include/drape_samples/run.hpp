@@ -41,7 +41,12 @@ struct RunResult {
     double stepWallSeconds = 0.0; ///< time spent stepping only
     double renderWallSeconds = 0.0;
     double finalMaxStrain = 0.0;
-    double peakMaxStrain = 0.0;
+    double peakMaxStrain = 0.0; ///< largest strain over the frames
+    /// Largest strain after any step, the time it was seen [s], and the steps that ended
+    /// beyond the strain limiter's bound (max strain + tolerance; 0 without a limiter).
+    double peakStepStrain = 0.0;
+    double peakStepTime = 0.0;
+    std::size_t stepsOverBound = 0;
     std::size_t particles = 0;
     std::size_t springs = 0;
     std::string video;                 ///< path of the MP4, or why there is none

@@ -1,0 +1,447 @@
+// The scenes of drape-bench-games: what a game is made of (a net, a curtain a character walks
+// through, a flag in gusty wind, capes on kinematic and dynamic bodies, a cloth dropped on a
+// stack of boxes, a garment on a moving body), each in a real btDiscreteDynamicsWorld with
+// drape's DEFAULT settings (ClothSettings{}, BulletClothSettings{}), changed only where the
+// scene itself needs it (pins, attachments, wind). SI units, y up, gravity -9.81 m/s^2.
+//
+// A scene builder returns a GameScene: the world with its bodies, one cloth in it, how long
+// it runs, and hooks the runner calls around every frame (move the kinematic bodies, set the
+// wind, measure). Nothing here times anything; drape_bench_games.cpp does.
+#pragma once
+
+#include <drape/bullet/bullet_cloth.hpp>
+#include <drape/cloth.hpp>
+#include <drape/mesh.hpp>
+#include <drape/topology.hpp>
+
+#include <btBulletDynamicsCommon.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace drape::games {
+
+/// The frame of a 60 Hz game: stepSimulation(kFrame) with Bullet's defaults (maxSubSteps 1,
+/// fixedTimeStep 1/60) takes exactly one internal sub-step per frame.
+inline constexpr btScalar kFrame = btScalar(1.0) / btScalar(60.0);
+inline constexpr double kGravity = 9.81; ///< [m/s^2], along -y
+inline constexpr double kPi = 3.14159265358979323846;
+
+/// A btDiscreteDynamicsWorld and everything it needs, owning its bodies. Bodies are removed
+/// from the world before they are destroyed, the world is destroyed before its parts.
+class GameWorld {
+  public:
+    GameWorld()
+        : config_(std::make_unique<btDefaultCollisionConfiguration>()),
+          dispatcher_(std::make_unique<btCollisionDispatcher>(config_.get())),
+          broadphase_(std::make_unique<btDbvtBroadphase>()),
+          solver_(std::make_unique<btSequentialImpulseConstraintSolver>()),
+          world_(std::make_unique<btDiscreteDynamicsWorld>(dispatcher_.get(), broadphase_.get(),
+                                                           solver_.get(), config_.get())) {
+        world_->setGravity(btVector3(0, btScalar(-kGravity), 0));
+    }
+    ~GameWorld() {
+        for (auto it = bodies_.rbegin(); it != bodies_.rend(); ++it)
+            world_->removeRigidBody(it->get());
+        bodies_.clear();
+        world_.reset();
+    }
+    GameWorld(const GameWorld&) = delete;
+    GameWorld& operator=(const GameWorld&) = delete;
+
+    btDiscreteDynamicsWorld* world() const { return world_.get(); }
+
+    /// Adds a body: static (mass 0), kinematic (mass 0, kinematic = true: moved through its
+    /// motion state, never deactivated) or dynamic (mass > 0). Friction and everything else
+    /// are Bullet's defaults (friction 0.5, restitution 0).
+    btRigidBody* addBody(std::unique_ptr<btCollisionShape> shape, btScalar mass,
+                         const btTransform& pose, bool kinematic = false) {
+        btVector3 inertia(0, 0, 0);
+        if (mass > 0) shape->calculateLocalInertia(mass, inertia);
+        auto motion = std::make_unique<btDefaultMotionState>(pose);
+        btRigidBody::btRigidBodyConstructionInfo info(mass, motion.get(), shape.get(), inertia);
+        auto body = std::make_unique<btRigidBody>(info);
+        if (kinematic) {
+            body->setCollisionFlags(body->getCollisionFlags() |
+                                    btCollisionObject::CF_KINEMATIC_OBJECT);
+            body->setActivationState(DISABLE_DEACTIVATION);
+        }
+        world_->addRigidBody(body.get());
+        btRigidBody* raw = body.get();
+        shapes_.push_back(std::move(shape));
+        motions_.push_back(std::move(motion));
+        bodies_.push_back(std::move(body));
+        return raw;
+    }
+
+  private:
+    std::unique_ptr<btDefaultCollisionConfiguration> config_;
+    std::unique_ptr<btCollisionDispatcher> dispatcher_;
+    std::unique_ptr<btDbvtBroadphase> broadphase_;
+    std::unique_ptr<btSequentialImpulseConstraintSolver> solver_;
+    std::unique_ptr<btDiscreteDynamicsWorld> world_;
+    std::vector<std::unique_ptr<btCollisionShape>> shapes_;
+    std::vector<std::unique_ptr<btMotionState>> motions_;
+    std::vector<std::unique_ptr<btRigidBody>> bodies_;
+};
+
+/// One scene: a world, one cloth in it and the hooks the runner calls. Members are destroyed
+/// in reverse order: the cloth leaves the world before the world goes.
+struct GameScene {
+    std::unique_ptr<GameWorld> world;
+    std::shared_ptr<Cloth> cloth;
+    std::unique_ptr<bullet::BulletCloth> handle;
+    double seconds = 1.0; ///< simulated time the scene runs [s] (before --seconds-scale)
+    /// Before the frame that ends at simulated time tEnd [s] (scene time: 0 when the runner
+    /// starts): move kinematic bodies, set the wind. Not timed.
+    std::function<void(double tEnd)> beforeFrame;
+    /// After every frame (t: scene time at its end) [s]: scene-specific measurements. Not
+    /// timed.
+    std::function<void(double t)> afterFrame;
+    /// After the last frame: the scene-specific results, one short Markdown cell.
+    std::function<std::string()> notes;
+};
+
+/// Moves a kinematic body: its motion state, read by Bullet at the start of the next
+/// stepSimulation (which derives the body's velocity from the move).
+inline void moveKinematic(btRigidBody* body, const btTransform& pose) {
+    body->getMotionState()->setWorldTransform(pose);
+}
+
+inline btTransform at(double x, double y, double z) {
+    btTransform t;
+    t.setIdentity();
+    t.setOrigin(btVector3(btScalar(x), btScalar(y), btScalar(z)));
+    return t;
+}
+
+/// Adds the cloth of `mesh` with default settings (changed by `edit`, if given) to the scene's
+/// world with default BulletClothSettings.
+inline void addDefaultCloth(GameScene& s, const TriangleMesh& mesh,
+                            const std::function<void(ClothSettings&)>& edit = {}) {
+    ClothSettings settings;
+    if (edit) edit(settings);
+    s.cloth = std::make_shared<Cloth>(ClothTopology::build(mesh), settings);
+    s.handle = bullet::addCloth(s.world->world(), s.cloth);
+}
+
+inline std::string format(const char* fmt, double a) {
+    char buf[128];
+    std::snprintf(buf, sizeof buf, fmt, a);
+    return buf;
+}
+
+inline std::string timeOrNever(double t) {
+    return t < 0.0 ? std::string("never") : format("%.2f s", t);
+}
+
+/// 1. net: 41 x 41, 0.025 m (1 m square), horizontal, pinned on all four edges, untouched.
+inline GameScene makeNet() {
+    GameScene s;
+    s.world = std::make_unique<GameWorld>();
+    SheetSpec sheet;
+    sheet.rows = 41;
+    sheet.cols = 41;
+    sheet.spacing = 0.025;
+    sheet.origin = Vec3(-0.5, 1.0, -0.5);
+    sheet.uAxis = Vec3::UnitX();
+    sheet.vAxis = Vec3::UnitZ();
+    addDefaultCloth(s, makeSheet(sheet));
+    for (Index r = 0; r < sheet.rows; ++r)
+        for (Index c = 0; c < sheet.cols; ++c)
+            if (r == 0 || c == 0 || r + 1 == sheet.rows || c + 1 == sheet.cols)
+                s.cloth->pin(sheetIndex(sheet, r, c));
+    s.seconds = 4.0;
+    return s;
+}
+
+/// 2. curtain_walk: 41 x 41, 0.05 m (2 m square), vertical in the x-y plane at z = 0, top row
+/// pinned. A kinematic upright capsule (radius 0.3, cylinder 1.0) walks along z at 1.5 m/s
+/// from -1.5 to +1.5 (2 s) and back (2 s), then stands still at z = -1.5 while the curtain
+/// swings free (2 s).
+inline GameScene makeCurtainWalk() {
+    GameScene s;
+    s.world = std::make_unique<GameWorld>();
+    constexpr double kY = 0.9, kStart = -1.5, kSpeed = 1.5;
+    btRigidBody* walker = s.world->addBody(std::make_unique<btCapsuleShape>(btScalar(0.3), 1), 0,
+                                           at(0.0, kY, kStart), true);
+    SheetSpec sheet;
+    sheet.rows = 41;
+    sheet.cols = 41;
+    sheet.spacing = 0.05;
+    sheet.origin = Vec3(-1.0, 2.2, 0.0); // top-left; bottom row at y = 0.2
+    addDefaultCloth(s, makeSheet(sheet));
+    for (Index c = 0; c < sheet.cols; ++c)
+        s.cloth->pin(sheetIndex(sheet, 0, c));
+    s.beforeFrame = [walker](double t) {
+        double z = kStart;
+        if (t < 2.0)
+            z = kStart + kSpeed * t;
+        else if (t < 4.0)
+            z = -kStart - kSpeed * (t - 2.0);
+        moveKinematic(walker, at(0.0, kY, z));
+    };
+    s.seconds = 6.0;
+    return s;
+}
+
+/// 3. flag: 25 x 17, 0.05 m (1.2 x 0.8 m) in the x-y plane, left column pinned, aerodynamics
+/// on (air 1.2 kg/m^3, C_d and C_l default), gusty wind along x with a small z component, set
+/// every frame.
+inline GameScene makeFlag() {
+    GameScene s;
+    s.world = std::make_unique<GameWorld>();
+    SheetSpec sheet;
+    sheet.rows = 17;
+    sheet.cols = 25;
+    sheet.spacing = 0.05;
+    sheet.origin = Vec3(0.0, 2.0, 0.0);
+    addDefaultCloth(s, makeSheet(sheet), [](ClothSettings& c) { c.aero.airDensity = 1.2; });
+    for (Index r = 0; r < sheet.rows; ++r)
+        s.cloth->pin(sheetIndex(sheet, r, 0));
+    Cloth* cloth = s.cloth.get();
+    s.beforeFrame = [cloth](double t) {
+        const double wx =
+            8.0 + 4.0 * std::sin(2.0 * kPi * 0.5 * t) + 2.0 * std::sin(2.0 * kPi * 1.7 * t);
+        const double wz = 0.5 + 0.5 * std::sin(2.0 * kPi * 0.23 * t);
+        cloth->setWind(Vec3(wx, 0.0, wz));
+    };
+    s.seconds = 6.0;
+    return s;
+}
+
+/// The cape of scenes 4 and 5: 13 x 19, 0.05 m (0.6 x 0.9 m) in the x-y plane, hanging from
+/// the back top edge of a box of half-extents (0.4, 0.1, 0.2) centred at `centre` (the cape's
+/// top row 3 cm behind the box's back face, beyond the default contact thickness and penalty
+/// band, at the height of its top face), top row attached.
+inline void addCape(GameScene& s, btRigidBody* shoulders, const Vec3& centre) {
+    SheetSpec sheet;
+    sheet.rows = 19;
+    sheet.cols = 13;
+    sheet.spacing = 0.05;
+    sheet.origin = centre + Vec3(-0.3, 0.1, -0.23);
+    addDefaultCloth(s, makeSheet(sheet));
+    for (Index c = 0; c < sheet.cols; ++c)
+        s.handle->attachHere(sheetIndex(sheet, 0, c), shoulders);
+}
+
+/// 4. cape_kinematic: the cape on a kinematic box moving on a circle of radius 1 m at 2 rad/s
+/// (2 m/s), turned to face where it goes; it starts at rest and runs from the first frame.
+inline GameScene makeCapeKinematic() {
+    GameScene s;
+    s.world = std::make_unique<GameWorld>();
+    constexpr double kRadius = 1.0, kOmega = 2.0, kY = 1.5;
+    btRigidBody* box = s.world->addBody(
+        std::make_unique<btBoxShape>(btVector3(btScalar(0.4), btScalar(0.1), btScalar(0.2))), 0,
+        at(kRadius, kY, 0.0), true);
+    addCape(s, box, Vec3(kRadius, kY, 0.0));
+    s.beforeFrame = [box](double t) {
+        const double a = kOmega * t;
+        btTransform pose = at(kRadius * std::cos(a), kY, kRadius * std::sin(a));
+        // Local +z (the front) along the velocity (-sin a, 0, cos a): a yaw of -a.
+        pose.setRotation(btQuaternion(btVector3(0, 1, 0), btScalar(-a)));
+        moveKinematic(box, pose);
+    };
+    s.seconds = 6.0;
+    return s;
+}
+
+/// 5. cape_dynamic: the cape on a dynamic 5 kg box with no gravity of its own, all at rest.
+/// Only the cape's weight acts on box + cape, so their momentum along y must be
+/// -m_cape g t; the note is the relative error at the end and the largest after 1 s.
+inline GameScene makeCapeDynamic() {
+    GameScene s;
+    s.world = std::make_unique<GameWorld>();
+    constexpr double kMass = 5.0, kY = 1.5;
+    btRigidBody* box = s.world->addBody(
+        std::make_unique<btBoxShape>(btVector3(btScalar(0.4), btScalar(0.1), btScalar(0.2))),
+        btScalar(kMass), at(0.0, kY, 0.0));
+    box->setGravity(btVector3(0, 0, 0));
+    box->setActivationState(DISABLE_DEACTIVATION);
+    addCape(s, box, Vec3(0.0, kY, 0.0));
+    struct State {
+        double endError = 0.0, maxError = -1.0, expected = 0.0, measured = 0.0, capeMass = 0.0;
+    };
+    auto st = std::make_shared<State>();
+    for (double m : s.cloth->masses())
+        st->capeMass += m;
+    Cloth* cloth = s.cloth.get();
+    s.afterFrame = [st, box, cloth](double) {
+        double p = kMass * static_cast<double>(box->getLinearVelocity().y());
+        const auto& m = cloth->masses();
+        const auto& v = cloth->velocities();
+        for (std::size_t i = 0; i < m.size(); ++i)
+            p += m[i] * v[i].y();
+        const double expected = -st->capeMass * kGravity * cloth->time();
+        const double err = expected != 0.0 ? 100.0 * (p - expected) / std::abs(expected) : 0.0;
+        st->endError = err;
+        st->expected = expected;
+        st->measured = p;
+        if (cloth->time() >= 1.0) st->maxError = std::max(st->maxError, std::abs(err));
+    };
+    bullet::BulletCloth* handle = s.handle.get();
+    s.notes = [st, handle]() {
+        const Vec3 j = handle->totalStats().impulseOnBodies;
+        char buf[512];
+        std::snprintf(buf, sizeof buf,
+                      "momentum y error %+.3f %% at the end (%.4f against %.4f N s), max abs error "
+                      "after 1 s %s; cape %.4f kg; impulse on bodies (%.3f, %.3f, %.3f) N s",
+                      st->endError, st->measured, st->expected,
+                      st->maxError < 0.0 ? "n/a" : format("%.3f %%", st->maxError).c_str(),
+                      st->capeMass, j.x(), j.y(), j.z());
+        return std::string(buf);
+    };
+    s.seconds = 4.0;
+    return s;
+}
+
+/// 6. stack: three dynamic 0.4 m cubes (2 kg, friction 0.5) on a static ground plane, settled
+/// for 1 s (untimed, before the cloth exists), then a 25 x 25, 0.05 m (1.2 m square)
+/// horizontal cloth is dropped from 0.3 m above the top box. Notes: the top box's
+/// displacement from where it settled, when the boxes and the cloth fell asleep (for good).
+inline GameScene makeStack() {
+    GameScene s;
+    s.world = std::make_unique<GameWorld>();
+    s.world->addBody(std::make_unique<btStaticPlaneShape>(btVector3(0, 1, 0), btScalar(0)), 0,
+                     at(0.0, 0.0, 0.0));
+    std::vector<btRigidBody*> boxes;
+    for (int i = 0; i < 3; ++i)
+        boxes.push_back(s.world->addBody(
+            std::make_unique<btBoxShape>(btVector3(btScalar(0.2), btScalar(0.2), btScalar(0.2))), 2,
+            at(0.0, 0.2 + 0.4 * i, 0.0)));
+    for (int f = 0; f < 60; ++f)
+        s.world->world()->stepSimulation(kFrame);
+    const btVector3 settled = boxes.back()->getWorldTransform().getOrigin();
+    const double top = static_cast<double>(settled.y()) + 0.2;
+
+    SheetSpec sheet;
+    sheet.rows = 25;
+    sheet.cols = 25;
+    sheet.spacing = 0.05;
+    sheet.origin = Vec3(-0.6, top + 0.3, -0.6);
+    sheet.uAxis = Vec3::UnitX();
+    sheet.vAxis = Vec3::UnitZ();
+    addDefaultCloth(s, makeSheet(sheet));
+
+    struct State {
+        double boxesAsleep = -1.0, clothAsleep = -1.0; ///< start of the last asleep run
+        double boxesFirst = -1.0, clothFirst = -1.0;
+        int boxWakes = 0, clothWakes = 0;
+        double maxDisplacement = 0.0, endDisplacement = 0.0;
+    };
+    auto st = std::make_shared<State>();
+    Cloth* cloth = s.cloth.get();
+    bullet::BulletCloth* handle = s.handle.get();
+    s.afterFrame = [st, boxes, settled, cloth](double t) {
+        bool asleep = true;
+        for (const btRigidBody* b : boxes)
+            asleep = asleep && !b->isActive();
+        if (asleep && st->boxesAsleep < 0.0) {
+            st->boxesAsleep = t;
+            if (st->boxesFirst < 0.0) st->boxesFirst = t;
+        } else if (!asleep && st->boxesAsleep >= 0.0) {
+            st->boxesAsleep = -1.0;
+            ++st->boxWakes;
+        }
+        if (cloth->isAsleep() && st->clothAsleep < 0.0) {
+            st->clothAsleep = t;
+            if (st->clothFirst < 0.0) st->clothFirst = t;
+        } else if (!cloth->isAsleep() && st->clothAsleep >= 0.0) {
+            st->clothAsleep = -1.0;
+            ++st->clothWakes;
+        }
+        const double d =
+            static_cast<double>((boxes.back()->getWorldTransform().getOrigin() - settled).length());
+        st->endDisplacement = d;
+        st->maxDisplacement = std::max(st->maxDisplacement, d);
+    };
+    s.notes = [st, handle]() {
+        const Vec3 j = handle->totalStats().impulseOnBodies;
+        char buf[512];
+        std::snprintf(buf, sizeof buf,
+                      "top box moved %.1f mm (max %.1f mm); boxes asleep %s (first %s, woke %d "
+                      "times); cloth asleep %s (first %s, woke %d times); impulse on bodies "
+                      "(%.2f, %.2f, %.2f) N s",
+                      1e3 * st->endDisplacement, 1e3 * st->maxDisplacement,
+                      timeOrNever(st->boxesAsleep).c_str(), timeOrNever(st->boxesFirst).c_str(),
+                      st->boxWakes, timeOrNever(st->clothAsleep).c_str(),
+                      timeOrNever(st->clothFirst).c_str(), st->clothWakes, j.x(), j.y(), j.z());
+        return std::string(buf);
+    };
+    s.seconds = 12.0;
+    return s;
+}
+
+/// A tube (open cylinder) around the y axis: `around` particles per ring, `rings` rings from
+/// y = top down to top - height, each quad split along alternating diagonals.
+inline TriangleMesh makeTube(const Vec3& centreTop, double radius, double height, Index around,
+                             Index rings) {
+    TriangleMesh m;
+    for (Index j = 0; j < rings; ++j)
+        for (Index i = 0; i < around; ++i) {
+            const double a = 2.0 * kPi * static_cast<double>(i) / static_cast<double>(around);
+            const double y = -height * static_cast<double>(j) / static_cast<double>(rings - 1);
+            m.vertices.push_back(centreTop + Vec3(radius * std::cos(a), y, radius * std::sin(a)));
+        }
+    for (Index j = 0; j + 1 < rings; ++j)
+        for (Index i = 0; i < around; ++i) {
+            const Index i1 = (i + 1) % around;
+            const Index a = j * around + i, b = j * around + i1;
+            const Index c = (j + 1) * around + i1, d = (j + 1) * around + i;
+            if ((i + j) % 2 == 0) {
+                m.triangles.push_back({a, d, c});
+                m.triangles.push_back({a, c, b});
+            } else {
+                m.triangles.push_back({a, d, b});
+                m.triangles.push_back({b, d, c});
+            }
+        }
+    return m;
+}
+
+/// 7. garment: a tube (radius 0.2, height 0.6, 32 around x 13 high) around a kinematic
+/// capsule "body" (radius 0.17, cylinder 0.8, centred at y = 0.9), its top ring attached to
+/// the capsule, which moves side to side along x: x = 0.25 sin(4 t) (peak speed 1 m/s).
+inline GameScene makeGarment() {
+    GameScene s;
+    s.world = std::make_unique<GameWorld>();
+    constexpr double kY = 0.9, kAmplitude = 0.25, kOmega = 4.0;
+    btRigidBody* body = s.world->addBody(
+        std::make_unique<btCapsuleShape>(btScalar(0.17), btScalar(0.8)), 0, at(0, kY, 0), true);
+    constexpr Index kAround = 32, kRings = 13;
+    addDefaultCloth(s, makeTube(Vec3(0.0, kY + 0.4, 0.0), 0.2, 0.6, kAround, kRings));
+    // No vertex is welded or dropped: particle i is vertex i, the top ring is 0 .. kAround - 1.
+    for (Index i = 0; i < kAround; ++i)
+        s.handle->attachHere(s.cloth->topology().vertexToParticle()[i], body);
+    s.beforeFrame = [body](double t) {
+        moveKinematic(body, at(kAmplitude * std::sin(kOmega * t), kY, 0.0));
+    };
+    s.seconds = 6.0;
+    return s;
+}
+
+/// The scenes, in the order they run.
+struct SceneEntry {
+    const char* name;
+    GameScene (*make)();
+};
+inline const std::vector<SceneEntry>& allScenes() {
+    static const std::vector<SceneEntry> scenes = {
+        {"net", &makeNet},
+        {"curtain_walk", &makeCurtainWalk},
+        {"flag", &makeFlag},
+        {"cape_kinematic", &makeCapeKinematic},
+        {"cape_dynamic", &makeCapeDynamic},
+        {"stack", &makeStack},
+        {"garment", &makeGarment},
+    };
+    return scenes;
+}
+
+} // namespace drape::games
