@@ -189,7 +189,8 @@ void BulletCloth::Impl::step(double dt) {
     bool slept = true; // every sub-step was taken asleep
     for (int s = 0; s < substeps; ++s) {
         const bool wasAsleep = c.isAsleep();
-        c.step(h); // the contact stage runs inside it, the contact force is one of its terms
+        c.stepPart(h, substeps); // the contact stage runs inside it, the contact force is
+                                 // one of its terms
         ++last.steps;
         if (wasAsleep && c.isAsleep()) continue; // nothing moved, nothing to hand to bodies
         slept = false;

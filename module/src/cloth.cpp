@@ -94,6 +94,7 @@ std::vector<double> buildStiffness(const ClothTopology& topo, const ClothSetting
 void validateSettings(const ClothSettings& s) {
     requireFinite(s.gravity, "gravity");
     requireNonNegative(s.damping, "damping");
+    if (s.relativeDamping) requireNonNegative(*s.relativeDamping, "relativeDamping");
     requireNonNegative(s.springDamping, "springDamping");
     requireNonNegative(s.aero.airDensity, "aero.airDensity");
     requireFinite(s.aero.dragCoefficient, "aero.dragCoefficient");
@@ -227,7 +228,22 @@ int Cloth::substepsFor(double dt) const {
 }
 
 void Cloth::step(double dt) {
+    stepPart(dt, 1);
+}
+
+void Cloth::stepPart(double dt, int parts) {
+    if (parts < 1)
+        throw Error(ErrorCode::InvalidArgument,
+                    "stepPart: parts must be >= 1, got " + std::to_string(parts));
     const int n = substepsFor(dt);
+    // The limiter's band follows the caller's whole step (see limiterAt).
+    struct Whole {
+        double& step;
+        Whole(double& s, double v) : step(s) { step = v; }
+        ~Whole() { step = 0.0; }
+        Whole(const Whole&) = delete;
+        Whole& operator=(const Whole&) = delete;
+    } whole(wholeStep_, dt * parts);
     const double h = dt / n;
     if (asleep_) {
         checkTimeStep(h);
@@ -332,6 +348,7 @@ double Cloth::energyScale() const {
 //   <stages>        the caller's stages (contacts, self-collision), in order
 //   forces          f(t + dt) at the corrected state (one timer per force term)
 //   integrate_finish Velocity-Verlet's closing half kick
+//   relative_damping the free particles' velocities relative to their mean decay (if set)
 //   verify          finiteness, the strain cap, the energy check (always)
 // A failure anywhere restores the state from before the step (see step()).
 
@@ -357,6 +374,9 @@ const Cloth::Stage Cloth::kStages[] = {
     {"integrate_finish", true,
      [](const Cloth& c) { return c.settings_.integrator == IntegratorKind::VelocityVerlet; },
      &Cloth::stageFinish},
+    {"relative_damping", true,
+     [](const Cloth& c) { return c.settings_.relativeDamping.value_or(0.0) > 0.0; },
+     &Cloth::stageRelativeDamping},
     {"verify", true, [](const Cloth&) { return true; }, &Cloth::stageVerify},
 };
 
@@ -537,6 +557,9 @@ void Cloth::addLimiterStats(const StrainLimitStats& st) {
 }
 
 LimiterSettings Cloth::limiterAt(double dt) const {
+    // Sub-steps (step()'s automatic ones, or stepPart's) share the band of the caller's step:
+    // sub-steps are there for stability, the tolerance is the caller's to choose by its step.
+    if (wholeStep_ > 0.0) dt = wholeStep_;
     LimiterSettings lim = settings_.limiter;
     lim.tolerance = bandAt(lim, dt);
     lim.warmStart = warmStartAt(lim, dt);
@@ -581,6 +604,28 @@ void Cloth::stageForces(StepContext&) {
 
 void Cloth::stageFinish(StepContext& ctx) {
     integrator_->finish(ctx.integrator);
+}
+
+// Every free particle's velocity relative to the free particles' mass-weighted mean velocity
+// vbar decays as exp(-rate dt): sum m_i (v_i - vbar) = 0, so the free particles' momentum is
+// exactly what it was (a rigid translation, free fall included, is untouched, and nothing is
+// owed to the bodies holding the others); stretch waves, flutter and spin die out. Applied
+// after the step (a first-order splitting of the damping; without it the step keeps its order).
+void Cloth::stageRelativeDamping(StepContext& ctx) {
+    const double decay = std::exp(-*settings_.relativeDamping * ctx.dt);
+    const auto& m = masses();
+    Vec3 p = Vec3::Zero();
+    double mass = 0.0;
+    for (std::size_t i = 0; i < v_.size(); ++i) {
+        if (invMass_[i] == 0.0) continue;
+        p += m[i] * v_[i];
+        mass += m[i];
+    }
+    if (!(mass > 0.0)) return;
+    const Vec3 vbar = p / mass;
+    for (std::size_t i = 0; i < v_.size(); ++i) {
+        if (invMass_[i] != 0.0) v_[i] = vbar + decay * (v_[i] - vbar);
+    }
 }
 
 void Cloth::stageVerify(StepContext& ctx) {
@@ -742,6 +787,12 @@ void Cloth::setWind(const Vec3& wind) {
     forcesValid_ = false;
     edited();
 }
+void Cloth::setRelativeDamping(double rate) {
+    requireNonNegative(rate, "relativeDamping");
+    settings_.relativeDamping = rate;
+    edited();
+}
+
 void Cloth::setGravity(const Vec3& g) {
     forceModel_->setGravity(g);
     settings_.gravity = g;

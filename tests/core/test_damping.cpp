@@ -445,3 +445,64 @@ TEST_CASE("A free plate in a steady wind is carried at the wind speed", "[aero]"
         CHECK(cloth.velocities()[i].x() < wind.x()); // approached from below, never overshot
     }
 }
+
+TEST_CASE("Relative damping keeps momentum and free fall and takes out the motion about the "
+          "mean",
+          "[damping][relative]") {
+    // A free 11 x 11 sheet with scrambled velocities, no gravity: its momentum must stay what
+    // it was (to round-off), while the kinetic energy of the motion about the mean velocity
+    // falls (by exp(-2 rate t) if the springs did nothing; they exchange it with their own
+    // energy, so only a fall below a tenth is asked). A second sheet in free fall at rest
+    // relative to itself must fall exactly as without damping.
+    SheetSpec spec;
+    spec.rows = 11;
+    spec.cols = 11;
+    spec.spacing = 0.05;
+    spec.uAxis = Vec3::UnitX();
+    spec.vAxis = Vec3::UnitZ();
+    ClothSettings s;
+    s.particleMass = 0.01;
+    s.springStiffness = 50.0;
+    s.gravity = Vec3::Zero();
+    s.limiter.kind = LimiterKind::None;
+    s.relativeDamping = 2.0;
+    Cloth cloth(ClothTopology::build(makeSheet(spec)), s);
+    for (Index i = 0; i < cloth.particleCount(); ++i)
+        cloth.setVelocity(
+            i, Vec3(std::sin(1.3 * i), std::cos(0.7 * i) - 0.5, 0.3 * std::sin(2.1 * i)));
+    auto momentum = [&] {
+        Vec3 p = Vec3::Zero();
+        for (Index i = 0; i < cloth.particleCount(); ++i)
+            p += cloth.masses()[i] * cloth.velocities()[i];
+        return p;
+    };
+    auto internalEnergy = [&] {
+        const Vec3 vbar = momentum() / (0.01 * static_cast<double>(cloth.particleCount()));
+        double e = 0.0;
+        for (Index i = 0; i < cloth.particleCount(); ++i)
+            e += 0.5 * cloth.masses()[i] * (cloth.velocities()[i] - vbar).squaredNorm();
+        return e + cloth.springEnergy();
+    };
+    const Vec3 p0 = momentum();
+    const double e0 = internalEnergy();
+    for (int k = 0; k < 480; ++k)
+        cloth.step(1.0 / 240.0);
+    INFO("momentum change " << (momentum() - p0).norm() << " of " << p0.norm()
+                            << ", internal energy " << e0 << " -> " << internalEnergy() << " J");
+    CHECK((momentum() - p0).norm() <= 1e-12 * p0.norm());
+    CHECK(internalEnergy() < 0.1 * e0);
+    CHECK(cloth.pipeline().back() == "verify");
+    CHECK(std::find(cloth.pipeline().begin(), cloth.pipeline().end(), "relative_damping") !=
+          cloth.pipeline().end());
+
+    ClothSettings fall = s;
+    fall.gravity = Vec3(0.0, -9.81, 0.0);
+    Cloth falling(ClothTopology::build(makeSheet(spec)), fall);
+    const Vec3List x0 = falling.positions();
+    for (int k = 0; k < 240; ++k)
+        falling.step(1.0 / 240.0);
+    for (Index i = 0; i < falling.particleCount(); ++i)
+        CHECK((falling.positions()[i] - x0[i] - Vec3(0.0, -0.5 * 9.81, 0.0)).norm() <= 1e-9);
+    REQUIRE_DRAPE_ERROR(falling.setRelativeDamping(-1.0), ErrorCode::InvalidArgument,
+                        "relativeDamping");
+}

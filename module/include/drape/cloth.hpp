@@ -84,6 +84,12 @@ class Cloth {
     /// non-positive or non-finite dt, and on a dt that would need more than
     /// substeps.maxSubsteps.
     int substepsFor(double dt) const;
+    /// step(dt) taken as one of `parts` equal sub-steps of a longer step (parts * dt) that the
+    /// caller cuts itself (drape::bullet does, to exchange impulses with bodies after every
+    /// cloth step): the same step, except that the strain limiter's band, warm start and
+    /// long-range slack (bandAt, warmStartAt, longRangeSlackAt) are those of the whole step,
+    /// as they are for step()'s own automatic sub-steps. Throws drape::Error on parts < 1.
+    void stepPart(double dt, int parts);
     /// Steps that failed and succeeded when retried as sub-steps.
     std::uint64_t retriedSteps() const { return retries_; }
 
@@ -113,6 +119,8 @@ class Cloth {
     void clearUserForces();
     void setWind(const Vec3& wind); ///< [m/s]; needs aero.airDensity > 0 to have effect
     void setGravity(const Vec3& g); ///< [m/s^2]
+    /// Sets ClothSettings::relativeDamping [1/s] (>= 0; throws drape::Error otherwise).
+    void setRelativeDamping(double rate);
     /// Adds a force term from outside the core (for example contact penalties).
     void addExternalForce(std::string name, ForceModel::ExternalForce force);
 
@@ -210,7 +218,7 @@ class Cloth {
         bool (*active)(const Cloth&);
         void (Cloth::*run)(StepContext&);
     };
-    static const Stage kStages[8];
+    static const Stage kStages[9];
     void stepOnce(double dt);
     void stepWithRetry(double dt);
     void addLimiterStats(const StrainLimitStats& st);
@@ -221,6 +229,7 @@ class Cloth {
     void stageCallerStages(StepContext& ctx);
     void stageForces(StepContext& ctx);
     void stageFinish(StepContext& ctx);
+    void stageRelativeDamping(StepContext& ctx);
     void stageVerify(StepContext& ctx);
     void applyLimiterMoves(double dt);
     /// The limiter's settings for a step of dt, its band narrowed by bandAt.
@@ -267,6 +276,7 @@ class Cloth {
     Vec3List anchor_;      ///< positions at the start of the quiet time (empty: none yet)
     Vec3List heldImpulse_; ///< see constraintImpulses()
     std::vector<Index> heldImpulsed_; ///< the particles whose heldImpulse_ is nonzero
+    double wholeStep_ = 0.0; ///< inside a step: the caller's whole step (limiterAt); else 0
     std::uint64_t sleptSteps_ = 0;
 };
 

@@ -180,11 +180,13 @@ struct SubstepSettings {
 /// springStiffness): E h = rho_A c^2 in (M1) (material.hpp), rho_A the cloth's mass per rest
 /// area. It does not depend on the mesh (a finer mesh of the same cloth stretches the same)
 /// nor on the mass (a heavier cloth gets stiffer springs): hanging a height H it stretches
-/// about g H / c^2 at the top (10 % for 1 m; the strain limiter holds the rest), a sheet
-/// pinned on its edges sags by about 15 % of its span. Its cost: the stability limit is
-/// about 0.6 s / c with s the spacing, so a 2.5 cm mesh takes about 12 automatic sub-steps
-/// of a 60 Hz step and a 5 cm mesh about 6.
-inline constexpr double kAutomaticStretchWaveSpeed = 10.0;
+/// about g H / c^2 at the top (2.5 % for 1 m), a 1 m sheet pinned on its edges sags to about
+/// 6 % strain at rest, and the strain limiter holds what gusts, pushes and drops add. Its
+/// cost: the stability limit is about 0.7 s / c times the spacing s [m], so a 60 Hz step takes
+/// about 22 automatic sub-steps on a 2.5 cm mesh and 11 on a 5 cm mesh. Softer springs need
+/// fewer sub-steps but leave the limiter more to carry, which costs more than they save
+/// (samples/benchmarks/GAMES.md).
+inline constexpr double kAutomaticStretchWaveSpeed = 20.0;
 
 /// Everything a Cloth needs besides its topology. A default-constructed ClothSettings is
 /// valid: a 200 g/m^2 cotton, the automatic stiffness (kAutomaticStretchWaveSpeed) with
@@ -207,7 +209,16 @@ struct ClothSettings {
     FabricMaterial material; ///< used for whatever is not given directly
 
     Vec3 gravity = Vec3(0.0, -9.81, 0.0); ///< g [m/s^2]; eq. (6)
-    double damping = 0.0;       ///< C_d of eq. (8): force -C_d v on every particle [N s/m]
+    double damping = 0.0; ///< C_d of eq. (8): force -C_d v on every particle [N s/m]
+    /// Damping of the free particles' motion relative to their mass-weighted mean velocity
+    /// [1/s] (>= 0; not given: none): after every step each free particle's velocity relative
+    /// to that mean decays by exp(-rate dt). Stretch waves, flutter and spin die out and a
+    /// hanging cloth (a net, a cape, a flag) comes to rest and can sleep: a 1 m net of the
+    /// automatic stiffness pinned on its edges sleeps after about 5 s at 2/s, never without
+    /// damping. Its momentum is left exactly as it was (free fall is untouched, the body a cape
+    /// hangs from feels its whole weight). The mean is the whole cloth's: on a cloth lying on
+    /// a body it hands a swinging flap's motion to the part at rest, so it is off by default.
+    std::optional<double> relativeDamping;
     double springDamping = 0.0; ///< damping along springs: -c (dv . n) n [N s/m]
     AeroSettings aero;          ///< air drag and lift; off by default
     LimiterSettings limiter;    ///< strain limiting; stress-ordered 10 % by default
