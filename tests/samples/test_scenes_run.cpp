@@ -558,3 +558,48 @@ TEST_CASE("\"auto\" sub-steps in a scene with rigid bodies sub-step the cloth in
     CHECK(sim.cloth().stepCount() == 2u * static_cast<unsigned>(n));
     CHECK(allFinite(sim.cloth().positions()));
 }
+
+TEST_CASE("the summary says BROKEN, with where, when the strain bound was broken",
+          "[scenes][runner][limiter]") {
+    // Experiment I with a limiter allowed one sweep per step (and no attachments or warm start
+    // to help it): it stops at its cap and the sheet stretches beyond 0.1 + 0.001. The summary
+    // must say so, with the peak measured after every step; the unchanged scene holds it.
+    const fs::path dir = fs::path(DRAPE_TEST_OUT_DIR) / "broken_bound";
+    fs::create_directories(dir);
+    std::ifstream in(kScenes / "experiment1_suspended_sheet.json");
+    std::stringstream text;
+    text << in.rdbuf();
+    std::string json = text.str();
+    const std::string limiter =
+        R"("strain_limit": {"method": "stress_ordered", "max_strain": 0.10})";
+    const auto at = json.find(limiter);
+    REQUIRE(at != std::string::npos);
+    json.replace(at, limiter.size(),
+                 R"("strain_limit": {"method": "stress_ordered", "max_strain": 0.10, )"
+                 R"("max_rounds": 1, "warm_start": 0, "long_range_attachments": false})");
+    std::ofstream(dir / "capped.json") << json;
+    auto summaryOf = [&](const fs::path& scene, const std::string& name) {
+        RunOptions o;
+        o.scene = scene;
+        o.outDir = dir / name;
+        o.steps = 100;
+        o.render = false;
+        o.video = false;
+        std::ostringstream log;
+        const RunResult r = runScene(o, log);
+        std::ifstream s(o.outDir / "summary.txt");
+        std::stringstream all;
+        all << s.rdbuf();
+        return std::make_pair(r, all.str());
+    };
+    const auto [capped, cappedText] = summaryOf(dir / "capped.json", "capped");
+    INFO(cappedText);
+    CHECK(capped.peakStepStrain > 0.101);
+    CHECK(capped.stepsOverBound > 0);
+    CHECK(cappedText.find("BROKEN after") != std::string::npos);
+    CHECK(cappedText.find("held after every step") == std::string::npos);
+    const auto [held, heldText] = summaryOf(kScenes / "experiment1_suspended_sheet.json", "held");
+    CHECK(held.peakStepStrain <= 0.101);
+    CHECK(held.stepsOverBound == 0u);
+    CHECK(heldText.find("held after every step") != std::string::npos);
+}

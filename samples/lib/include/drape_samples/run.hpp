@@ -11,6 +11,7 @@
 #include <iosfwd>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace drape::samples {
@@ -46,6 +47,8 @@ struct RunResult {
     /// beyond the strain limiter's bound (max strain + tolerance; 0 without a limiter).
     double peakStepStrain = 0.0;
     double peakStepTime = 0.0;
+    std::pair<Index, Index> peakStepSpring{0, 0}; ///< the most stretched spring then
+    Vec3 peakStepWhere = Vec3::Zero();            ///< its midpoint then [m]
     std::size_t stepsOverBound = 0;
     std::size_t particles = 0;
     std::size_t springs = 0;
