@@ -569,6 +569,7 @@ LimiterSettings Cloth::limiterAt(double dt) const {
 
 void Cloth::stageLimit(StepContext& ctx) {
     const LimiterSettings lim = limiterAt(ctx.dt);
+    limiter_.setRecordHeld(!kinematic_.empty()); // (see constraintImpulses())
     if (lim.kind == LimiterKind::StressOrdered) {
         limiter_.clearMoved();
         addLimiterStats(limiter_.limit(*topology_, invMass_, forceModel_->stiffness(), lim, x_));
@@ -663,6 +664,7 @@ StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt,
     limiter_.clearMoved();
     if (settings_.limiter.kind == LimiterKind::None || touched.empty()) return st;
     const LimiterSettings lim = limiterAt(dt);
+    limiter_.setRecordHeld(!kinematic_.empty());
     if (lim.kind == LimiterKind::StressOrdered) {
         st = limiter_.relimit(*topology_, invMass_, forceModel_->stiffness(), lim, touched, x_,
                               planes);

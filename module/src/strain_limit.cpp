@@ -238,7 +238,15 @@ void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<dou
         anchorList_ = list;
         anchors_ = geodesicAnchors(topology, anchorList_, s.longRangeSlack);
         anchorsValid_ = true;
+    } else if (anchorSlack_ != s.longRangeSlack) {
+        // Another slack (longRangeSlackAt: another dt): the rest distances again, O(n).
+        for (std::size_t i = 0; i < n; ++i) {
+            if (anchors_.anchor[i] != kNoParticle)
+                anchors_.restDistance[i] =
+                    std::min(anchors_.pathLength[i], s.longRangeSlack * anchors_.geodesic[i]);
+        }
     }
+    anchorSlack_ = s.longRangeSlack;
 }
 
 double StrainLimiter::check(std::size_t si, const ClothTopology& topology,
@@ -268,10 +276,9 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
         // (Local pointers: move() appends to vectors, which would make the compiler reload
         // every member's data pointer in every iteration.)
         const double f = limit_;
+        const bool record = recordHeld_;
         const Index* anchor = anchors_.anchor.data();
-        const double* path = anchors_.pathLength.data();
-        const double* geodesic = anchors_.geodesic.data();
-        const double slack = s.longRangeSlack;
+        const double* restDistance = anchors_.restDistance.data();
         const double* w = invMass.data();
         std::size_t evaluated = 0;
         for (std::size_t i = 0; i < x.size(); ++i) {
@@ -279,11 +286,11 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
             if (a == kNoParticle || w[i] == 0.0) continue;
             ++evaluated;
             const Vec3 d = x[i] - x[a];
-            const double l2 = d.squaredNorm(), r = f * std::min(path[i], slack * geodesic[i]);
+            const double l2 = d.squaredNorm(), r = f * restDistance[i];
             if (l2 > r * r) {
                 const Vec3 dx = (r / std::sqrt(l2) - 1.0) * d;
                 move(static_cast<Index>(i), dx, x);
-                pullHeld(a, -dx / w[i]);
+                if (record) pullHeld(a, -dx / w[i]);
             }
         }
         st.work += evaluated;
@@ -309,6 +316,7 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
         const double* w = invMass.data();
         const Vec3* xp = x.data();
         const double share = s.warmStart;
+        const bool record = recordHeld_;
         warmMove_.resize(warmList_.size());
         Vec3* pull = warmMove_.data();
         for (std::size_t k = 0; k < warmList_.size(); ++k) {
@@ -339,12 +347,12 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
             const Spring& sp = spring[si];
             if (w[sp.a] > 0.0) {
                 move(sp.a, w[sp.a] * pull[k], x);
-            } else {
+            } else if (record) {
                 pullHeld(sp.a, pull[k]);
             }
             if (w[sp.b] > 0.0) {
                 move(sp.b, -w[sp.b] * pull[k], x);
-            } else {
+            } else if (record) {
                 pullHeld(sp.b, -pull[k]);
             }
         }
@@ -543,7 +551,7 @@ std::uint64_t waveKey(double tension, std::uint32_t spring) {
 }
 } // namespace
 
-template <bool kPlanes>
+template <bool kPlanes, bool kRecordHeld>
 std::size_t StrainLimiter::correctWave(const std::vector<Spring>& springs,
                                        const std::vector<double>& invMass, std::vector<Vec3>& x,
                                        StrainLimitStats& st) {
@@ -613,8 +621,10 @@ std::size_t StrainLimiter::correctWave(const std::vector<Spring>& springs,
             if (wa > 0.0) shift(a, wa * c);
             if (wb > 0.0) shift(b, -wb * c);
         }
-        if (wa == 0.0) pullHeld(a, c);
-        if (wb == 0.0) pullHeld(b, -c);
+        if constexpr (kRecordHeld) {
+            if (wa == 0.0) pullHeld(a, c);
+            if (wb == 0.0) pullHeld(b, -c);
+        }
     }
     st.work += order_.size();
     st.corrections += corrections;
@@ -708,8 +718,14 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
             order_.push_back(waveKey(key_[si], si));
         }
         std::sort(order_.begin(), order_.end());
-        const std::size_t moved = planes_ ? correctWave<true>(springs, invMass, x, st)
-                                          : correctWave<false>(springs, invMass, x, st);
+        std::size_t moved = 0;
+        if (recordHeld_) {
+            moved = planes_ ? correctWave<true, true>(springs, invMass, x, st)
+                            : correctWave<false, true>(springs, invMass, x, st);
+        } else {
+            moved = planes_ ? correctWave<true, false>(springs, invMass, x, st)
+                            : correctWave<false, false>(springs, invMass, x, st);
+        }
         checkMoved(topology, invMass, stiffness, x, moved, st);
     }
     for (std::uint32_t si : next_)

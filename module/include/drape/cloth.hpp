@@ -170,11 +170,12 @@ class Cloth {
     /// The stress-ordered limiter (its warm start and long-range attachments).
     const StrainLimiter& limiter() const { return limiter_; }
     /// Per particle, the impulse the stress-ordered limiter's corrections (relimit() calls
-    /// included) gave each held particle (pinned, kinematic) in the last step [N s]: the
-    /// reaction to the momentum its corrections gave the free particles next to it. Zero for
-    /// free particles (empty before the first step). A body holding the particle must take it
-    /// (drape::bullet does for attachments), or the limiter's share of the load never reaches
-    /// the body. Forces on held particles (forces()) are the springs' share.
+    /// included) gave each kinematic particle (setKinematic; drape::bullet's attachments) in
+    /// the last step [N s]: the reaction to the momentum its corrections gave the free
+    /// particles next to it. Zero for free and pinned particles (nothing takes a pin's
+    /// reaction, so it is not recorded; empty before the first step). A body holding the particle
+    /// must take it (drape::bullet does for attachments), or the limiter's share of the load never
+    /// reaches the body. Forces on held particles (forces()) are the springs' share.
     const Vec3List& constraintImpulses() const { return heldImpulse_; }
 
     // --- for stages ------------------------------------------------------------------------

@@ -182,6 +182,9 @@ class StrainLimiter {
     /// opposite, heldPull / dt [N s]. Whatever holds the particle (a body) must take it too,
     /// or the limiter's share of the load is lost to the momentum balance.
     const std::vector<Index>& heldIndex() const { return heldIndex_; }
+    /// Whether heldIndex()/heldPull() are recorded (off by default: a pin's reaction goes
+    /// nowhere; Cloth turns it on while it has kinematic particles, which a body may hold).
+    void setRecordHeld(bool on) { recordHeld_ = on; }
     const std::vector<Vec3>& heldPull() const { return heldPull_; }
     void clearMoved();
 
@@ -225,8 +228,9 @@ class StrainLimiter {
     /// The move dx of particle i in a correction, kept above its contact plane (if any).
     Vec3 keepAbove(Index i, const Vec3& dx, const std::vector<Vec3>& x) const;
     /// Applies the corrections of the sorted wave order_; returns how many particles it moved
-    /// (listed in dirty_). kPlanes: contact planes are set (planes_).
-    template <bool kPlanes>
+    /// (listed in dirty_). kPlanes: contact planes are set (planes_); kRecordHeld: held ends
+    /// take the corrections' reactions (heldPull()).
+    template <bool kPlanes, bool kRecordHeld>
     std::size_t correctWave(const std::vector<Spring>& springs, const std::vector<double>& invMass,
                             std::vector<Vec3>& x, StrainLimitStats& st);
     /// Checks the springs of the first movedCount particles of dirty_ and queues those that
@@ -299,6 +303,7 @@ class StrainLimiter {
     std::vector<unsigned char> moved_;
     std::vector<Index> movedIndex_;
     std::vector<Vec3> movedFrom_;
+    bool recordHeld_ = false;
     std::vector<unsigned char> pulled_; ///< per particle: listed in heldIndex_
     std::vector<Index> heldIndex_;
     std::vector<Vec3> heldPull_; ///< per particle (nonzero for heldIndex_ only) [kg m]
@@ -312,6 +317,7 @@ class StrainLimiter {
     ContactPlanes* planes_ = nullptr; ///< during relimit() only
     std::vector<Index> anchorList_, anchorScratch_;
     bool anchorsValid_ = false;
+    double anchorSlack_ = 0.0; ///< the slack anchors_.restDistance was made with
     double upper2_ = 0.0, lower2_ = 0.0, limit_ = 0.0; ///< band edges (squared) and the limit
 };
 
