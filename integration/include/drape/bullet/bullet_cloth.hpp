@@ -109,10 +109,12 @@ class BulletCloth {
 /// stepSimulation. Throws drape::Error (InvalidArgument) on a null world or cloth, and on
 /// invalid settings (non-positive thickness, substeps < 1 ...).
 ///
-/// A cloth step that fails (for example a fixedTimeStep / substeps beyond the cloth's
-/// stability limit, see Cloth::stableTimeStep) throws its drape::Error out of
-/// stepSimulation; the cloth keeps its state from before that step. Choose substeps so that
-/// fixedTimeStep / substeps <= cloth.stableTimeStep().
+/// By default the cloth takes as many sub-steps per Bullet sub-step as its stability limit
+/// asks (BulletClothSettings::substeps not given; a given count is sub-stepped further by
+/// the cloth's own automatic sub-steps if it is not enough). A cloth step that fails (its
+/// state stops being finite, a check of ClothSettings::failure, or a step that would need
+/// more than substeps.maxSubsteps) throws its drape::Error out of stepSimulation; the cloth
+/// keeps its state from before that step.
 std::unique_ptr<BulletCloth> addCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
                                       const BulletClothSettings& settings = {});
 
