@@ -245,6 +245,13 @@ void Cloth::stepPart(double dt, int parts) {
         Whole& operator=(const Whole&) = delete;
     } whole(wholeStep_, dt * parts);
     const double h = dt / n;
+    // What a step reports (limiter stats, the held particles' impulses) sums its sub-steps; a
+    // step taken asleep reports nothing.
+    limiterStats_ = StrainLimitStats{};
+    heldImpulse_.resize(x_.size(), Vec3::Zero());
+    for (Index i : heldImpulsed_)
+        heldImpulse_[i].setZero();
+    heldImpulsed_.clear();
     if (asleep_) {
         checkTimeStep(h);
         if (!kinematicTargetsMove(dt)) { // frozen: only the clock runs
@@ -255,12 +262,6 @@ void Cloth::stepPart(double dt, int parts) {
         }
         wake();
     }
-    // What a step reports (limiter stats, the held particles' impulses) sums its sub-steps.
-    limiterStats_ = StrainLimitStats{};
-    heldImpulse_.resize(x_.size(), Vec3::Zero());
-    for (Index i : heldImpulsed_)
-        heldImpulse_[i].setZero();
-    heldImpulsed_.clear();
     if (n == 1) {
         stepWithRetry(dt);
     } else {
