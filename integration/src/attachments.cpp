@@ -48,12 +48,11 @@ void Attachments::advance(double t0, double dt) {
 void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>& bodies,
                              ContactStats& stats) const {
     // The body carries the force the cloth puts on the attached particle (springs and the
-    // particle's own weight).
+    // particle's own weight) and the strain limiter's reaction on it (its corrections' pull).
+    const Vec3List& held = c.constraintImpulses();
     for (const auto& a : list_) {
         const btRigidBody* rb = btRigidBody::upcast(a.body);
         if (!rb || rb->isStaticOrKinematicObject() || rb->getInvMass() <= 0.0f) continue;
-        // ... and the limiter's reaction: what its corrections pulled on the particle.
-        const auto& held = c.constraintImpulses();
         const Vec3 j = c.forces()[a.particle] * h +
                        (a.particle < held.size() ? held[a.particle] : Vec3::Zero());
         const Vec3 at = c.positions()[a.particle];

@@ -35,6 +35,13 @@ void requirePositive(double v, const std::string& name) {
     if (!(v > 0.0))
         throw Error(ErrorCode::InvalidArgument, name + " must be positive, got " + num(v));
 }
+/// A time step must be finite and positive.
+void requireStepValue(double dt) {
+    if (!std::isfinite(dt)) throw Error(ErrorCode::NonFinite, "time step is not finite");
+    if (!(dt > 0.0))
+        throw Error(ErrorCode::InvalidArgument, "time step must be positive, got " + num(dt));
+}
+
 void requireNonNegative(double v, const std::string& name) {
     requireFinite(v, name);
     if (v < 0.0) throw Error(ErrorCode::InvalidArgument, name + " must be >= 0, got " + num(v));
@@ -205,9 +212,7 @@ void Cloth::checkFinite(const char* where) {
 }
 
 int Cloth::substepsFor(double dt) const {
-    if (!std::isfinite(dt)) throw Error(ErrorCode::NonFinite, "time step is not finite");
-    if (!(dt > 0.0))
-        throw Error(ErrorCode::InvalidArgument, "time step must be positive, got " + num(dt));
+    requireStepValue(dt);
     const SubstepSettings& sub = settings_.substeps;
     if (!sub.automatic) return 1;
     const double limit = stableTimeStep();
@@ -266,10 +271,7 @@ void Cloth::stepPart(double dt, int parts) {
         stepWithRetry(dt);
     } else {
         // A failure in any sub-step leaves the cloth as it was before the whole step.
-        const Vec3List x0 = x_, v0 = v_;
-        const std::vector<double> lambda0 = limiter_.warmStartState();
-        const double t0 = time_;
-        const std::uint64_t s0 = steps_;
+        save(wholeStepStart_);
         try {
             for (int k = 0; k < n; ++k) {
                 if (asleep_) { // fell asleep in an earlier sub-step: frozen from here
@@ -279,16 +281,10 @@ void Cloth::stepPart(double dt, int parts) {
                 stepWithRetry(h);
             }
         } catch (...) {
-            x_ = x0;
-            v_ = v0;
-            time_ = t0;
-            steps_ = s0;
-            if (settings_.limiter.kind == LimiterKind::StressOrdered)
-                limiter_.setWarmStartState(lambda0);
-            forcesValid_ = false;
+            restore(wholeStepStart_);
             throw;
         }
-        steps_ = s0 + 1; // the sub-steps count as the one step the caller asked for
+        steps_ = wholeStepStart_.steps + 1; // the sub-steps count as the caller's one step
     }
     if (limiterStats_.capHit) ++limiterCapHits_;
 }
@@ -303,25 +299,38 @@ void Cloth::stepWithRetry(double dt) {
     } catch (const Error& e) {
         if (e.code() != ErrorCode::SimulationFailure) throw;
         // Retry the step as sub-steps; if that fails too, restore the state from before it.
-        const Vec3List x0 = x_, v0 = v_;
-        const double t0 = time_;
-        const std::uint64_t s0 = steps_;
+        Saved before;
+        save(before);
         const int k = settings_.failure.retrySubsteps;
         try {
             for (int i = 0; i < k; ++i)
                 stepOnce(dt / k);
         } catch (const Error& again) {
-            x_ = x0;
-            v_ = v0;
-            time_ = t0;
-            steps_ = s0;
-            forcesValid_ = false;
+            restore(before);
             throw Error(again.code(), std::string(e.what()) + " Retrying as " + std::to_string(k) +
                                           " sub-steps failed too: " + again.what());
         }
         ++retries_;
-        steps_ = s0 + 1; // the sub-steps count as the one step the caller asked for
+        steps_ = before.steps + 1; // the sub-steps count as the one step the caller asked for
     }
+}
+
+void Cloth::save(Saved& s) const {
+    s.x.assign(x_.begin(), x_.end());
+    s.v.assign(v_.begin(), v_.end());
+    const auto& lambda = limiter_.warmStartState();
+    s.lambda.assign(lambda.begin(), lambda.end());
+    s.time = time_;
+    s.steps = steps_;
+}
+
+void Cloth::restore(const Saved& s) {
+    x_ = s.x;
+    v_ = s.v;
+    if (settings_.limiter.kind == LimiterKind::StressOrdered) limiter_.setWarmStartState(s.lambda);
+    time_ = s.time;
+    steps_ = s.steps;
+    forcesValid_ = false;
 }
 
 double Cloth::energyScale() const {
@@ -382,9 +391,7 @@ const Cloth::Stage Cloth::kStages[] = {
 };
 
 void Cloth::checkTimeStep(double dt) const {
-    if (!std::isfinite(dt)) throw Error(ErrorCode::NonFinite, "time step is not finite");
-    if (!(dt > 0.0))
-        throw Error(ErrorCode::InvalidArgument, "time step must be positive, got " + num(dt));
+    requireStepValue(dt);
     if (settings_.rejectUnstableTimeStep) {
         const double limit = stableTimeStep();
         if (dt > limit) {
@@ -401,6 +408,9 @@ void Cloth::checkTimeStep(double dt) const {
 
 void Cloth::stepOnce(double dt) {
     checkTimeStep(dt);
+    // Reactions on held particles are worth recording only where a body may take them: the
+    // kinematic (attached) ones (see constraintImpulses()).
+    limiter_.setRecordHeld(!kinematic_.empty());
     StepContext ctx{dt, false, 0.0, 0.0,
                     IntegratorContext{x_, v_, f_, invMass_, dt, *forceModel_, poolStorage_.get()}};
     // Energy can only grow through wind, user forces, kinematic particles and stages
@@ -570,7 +580,6 @@ LimiterSettings Cloth::limiterAt(double dt) const {
 
 void Cloth::stageLimit(StepContext& ctx) {
     const LimiterSettings lim = limiterAt(ctx.dt);
-    limiter_.setRecordHeld(!kinematic_.empty()); // (see constraintImpulses())
     if (lim.kind == LimiterKind::StressOrdered) {
         limiter_.clearMoved();
         addLimiterStats(limiter_.limit(*topology_, invMass_, forceModel_->stiffness(), lim, x_));
@@ -665,7 +674,6 @@ StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt,
     limiter_.clearMoved();
     if (settings_.limiter.kind == LimiterKind::None || touched.empty()) return st;
     const LimiterSettings lim = limiterAt(dt);
-    limiter_.setRecordHeld(!kinematic_.empty());
     if (lim.kind == LimiterKind::StressOrdered) {
         st = limiter_.relimit(*topology_, invMass_, forceModel_->stiffness(), lim, touched, x_,
                               planes);

@@ -211,6 +211,17 @@ class Cloth {
         std::vector<double> lambdaBefore; ///< the limiter's warm start (restored on failure)
         std::vector<Index> relimitMoved;  ///< particles the last relimit() moved
     };
+    /// The state a step with sub-steps (or a retry) puts back when one of them fails.
+    struct Saved {
+        Vec3List x, v;
+        std::vector<double> lambda; ///< the limiter's warm start
+        double time = 0.0;
+        std::uint64_t steps = 0;
+    };
+    /// Copies the state into `s` (reusing its storage) / puts it back.
+    void save(Saved& s) const;
+    void restore(const Saved& s);
+    Saved wholeStepStart_; ///< stepPart's, kept between steps so that no step allocates
     /// One entry of the step table (see cloth.cpp): name, whether this cloth runs it,
     /// whether the driver times it (stages timed inside have their own timers), the stage.
     struct Stage {
