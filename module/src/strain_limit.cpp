@@ -42,6 +42,15 @@ double meanSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& 
 
 // --- geodesic anchors ------------------------------------------------------------------------
 
+void setSlack(AnchorField& field, double slack) {
+    const std::size_t n = field.anchor.size();
+    field.restDistance.assign(n, 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+        if (field.anchor[i] != kNoParticle)
+            field.restDistance[i] = std::min(field.pathLength[i], slack * field.geodesic[i]);
+    }
+}
+
 AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Index>& anchors,
                             double slack) {
     const std::size_t n = topology.particleCount();
@@ -131,15 +140,14 @@ AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Ind
     }
     AnchorField field;
     field.anchor = src;
-    field.restDistance.assign(n, 0.0);
     field.pathLength.assign(n, 0.0);
     field.geodesic.assign(n, 0.0);
     for (std::size_t i = 0; i < n; ++i) {
         if (src[i] == kNoParticle) continue;
-        field.restDistance[i] = std::min(path[i], slack * geo[i]);
         field.pathLength[i] = path[i];
         field.geodesic[i] = geo[i];
     }
+    setSlack(field, slack);
     return field;
 }
 
@@ -239,12 +247,7 @@ void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<dou
         anchors_ = geodesicAnchors(topology, anchorList_, s.longRangeSlack);
         anchorsValid_ = true;
     } else if (anchorSlack_ != s.longRangeSlack) {
-        // Another slack (longRangeSlackAt: another dt): the rest distances again, O(n).
-        for (std::size_t i = 0; i < n; ++i) {
-            if (anchors_.anchor[i] != kNoParticle)
-                anchors_.restDistance[i] =
-                    std::min(anchors_.pathLength[i], s.longRangeSlack * anchors_.geodesic[i]);
-        }
+        setSlack(anchors_, s.longRangeSlack); // another dt (longRangeSlackAt): O(n), no search
     }
     anchorSlack_ = s.longRangeSlack;
 }

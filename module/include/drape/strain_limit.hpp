@@ -104,6 +104,8 @@ struct AnchorField {
 /// shears); slack = 1 is the plain geodesic of Kim, Chentanez and Mueller (2012).
 AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Index>& anchors,
                             double slack);
+/// Sets field.restDistance = min(pathLength, slack * geodesic) for another slack (O(n)).
+void setSlack(AnchorField& field, double slack);
 
 /// The default limiter: the paper's stress-ordered Provot corrections (section 3.2), run as a
 /// worklist so that a step costs a few sweeps over the springs and the bound is a promise.
