@@ -34,6 +34,9 @@ void ContactSolver::run(Cloth& c, double dt) {
     if (bodies.empty() && !self) return; // no rigid collider near the cloth: no work at all
     Vec3List& x = c.mutablePositions();
     Vec3List& v = c.mutableVelocities();
+    clothMass_ = 0.0;
+    for (std::size_t i = 0; i < n; ++i)
+        if (c.inverseMasses()[i] != 0.0) clothMass_ += c.masses()[i];
 
     if (self) {
         const auto& sc = self_;

@@ -183,6 +183,9 @@ class ContactSolver {
     const SelfCollisionSettings self_;
     const double band_;
     SelfCollider selfCollider_;
+    /// The cloth's free mass this step [kg]: a dynamic body gets limiter planes when it is at
+    /// least this heavy along the contact normal.
+    double clothMass_ = 0.0;
 
     /// State carried to the next step (in the cloth's snapshots: saveState): per particle, the
     /// friction its contact forces with dynamic bodies had left in the last step, mu N - |T|

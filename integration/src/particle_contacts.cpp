@@ -53,10 +53,11 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
         if (!hit.valid || hit.distance >= h + band_) return false;
     }
     // The limiter's walk keeps the particle above the tangent plane of a contact with a static
-    // or kinematic body. (Against a dynamic body the plane's push, applied after the walk as
-    // an impulse, feeds back into the body's motion: a body much lighter than the cloth on it
-    // goes unstable. There the projection and the walk alternate instead.)
-    if (!b.dynamicBody)
+    // or kinematic body, and with a dynamic body at least as heavy, along the normal at the
+    // point, as the whole cloth. (The plane's push reaches a dynamic body after the walk as an
+    // impulse; on a body lighter than the cloth that impulse moves it by more than the push,
+    // and the exchange feeds on itself. There the projection and the walk alternate instead.)
+    if (!b.dynamicBody || b.inverseMassAlong(hit.point, hit.normal) * clothMass_ <= 1.0)
         keepPlane(c, bi, i, hit.normal, hit.normal.dot(hit.point) + h, hit.point, false, dt);
 
     // The contact record the force term reads (ContactForce): for every particle touching
