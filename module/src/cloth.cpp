@@ -101,7 +101,7 @@ std::vector<double> buildStiffness(const ClothTopology& topo, const ClothSetting
 void validateSettings(const ClothSettings& s) {
     requireFinite(s.gravity, "gravity");
     requireNonNegative(s.damping, "damping");
-    if (s.relativeDamping) requireNonNegative(*s.relativeDamping, "relativeDamping");
+    requireNonNegative(s.relativeDamping, "relativeDamping");
     requireNonNegative(s.springDamping, "springDamping");
     requireNonNegative(s.aero.airDensity, "aero.airDensity");
     requireFinite(s.aero.dragCoefficient, "aero.dragCoefficient");
@@ -384,8 +384,7 @@ const Cloth::Stage Cloth::kStages[] = {
     {"integrate_finish", true,
      [](const Cloth& c) { return c.settings_.integrator == IntegratorKind::VelocityVerlet; },
      &Cloth::stageFinish},
-    {"relative_damping", true,
-     [](const Cloth& c) { return c.settings_.relativeDamping.value_or(0.0) > 0.0; },
+    {"relative_damping", true, [](const Cloth& c) { return c.settings_.relativeDamping > 0.0; },
      &Cloth::stageRelativeDamping},
     {"verify", true, [](const Cloth&) { return true; }, &Cloth::stageVerify},
 };
@@ -618,12 +617,18 @@ void Cloth::stageFinish(StepContext& ctx) {
 }
 
 // Every free particle's velocity relative to the free particles' mass-weighted mean velocity
-// vbar decays as exp(-rate dt): sum m_i (v_i - vbar) = 0, so the free particles' momentum is
+// vbar decays as exp(-rate t): sum m_i (v_i - vbar) = 0, so the free particles' momentum is
 // exactly what it was (a rigid translation, free fall included, is untouched, and nothing is
 // owed to the bodies holding the others); stretch waves, flutter and spin die out. Applied
-// after the step (a first-order splitting of the damping; without it the step keeps its order).
+// after the step (a first-order splitting of the damping), once per kRelativeDampingInterval
+// of simulated time that the step completes (counted from time 0, so a restored snapshot
+// damps where the original did): sub-steps of a 60 Hz frame share one pass.
 void Cloth::stageRelativeDamping(StepContext& ctx) {
-    const double decay = std::exp(-*settings_.relativeDamping * ctx.dt);
+    const double k0 = std::floor(time_ / kRelativeDampingInterval);
+    const double k1 = std::floor((time_ + ctx.dt) / kRelativeDampingInterval);
+    if (!(k1 > k0)) return;
+    const double decay =
+        std::exp(-settings_.relativeDamping * (k1 - k0) * kRelativeDampingInterval);
     const auto& m = masses();
     Vec3 p = Vec3::Zero();
     double mass = 0.0;

@@ -205,7 +205,7 @@ void restart(Cloth& cloth, const std::vector<unsigned char>& start) {
 
 /// A cloth at rest, awake or asleep: a 35 x 35 sheet of cloth size (0.68 m square, 6 kg,
 /// k = 5 N/m, C_d = 0.05 N s/m, 60 Hz; the limiter carries its weight) hung from its whole top row,
-/// settled (untimed) until it sleeps (ClothSettings::sleep, defaults: 1 mm for 1 s), then stepped.
+/// settled (untimed) until it sleeps (ClothSettings::sleep, defaults: 1 cm for 1 s), then stepped.
 /// `asleep` = false runs the same settling with sleeping off: the same state, stepped awake. The
 /// ratio of the two is what a sleeping cloth saves.
 void runRest(benchmark::State& state, bool asleep) {

@@ -54,7 +54,8 @@ class CountingStage : public ClothStage {
 } // namespace
 
 TEST_CASE("A plain cloth's pipeline holds only what it uses", "[pipeline]") {
-    Cloth cloth(smallSheet(), basic()); // VV, stress-ordered limiter, gravity, no damping/aero/user
+    // VV, stress-ordered limiter, gravity, the default relative damping, no C_d/aero/user
+    Cloth cloth(smallSheet(), basic());
     cloth.pin(0);
     cloth.step(0.001);
     const auto p = cloth.pipeline();
@@ -64,8 +65,9 @@ TEST_CASE("A plain cloth's pipeline holds only what it uses", "[pipeline]") {
     REQUIRE(!p.empty());
     CHECK(p.front() == "integrate");
     CHECK(p.back() == "verify"); // the checks of the finished step come last, always
-    REQUIRE(p.size() >= 2);
-    CHECK(p[p.size() - 2] == "integrate_finish"); // Velocity-Verlet's closing half kick
+    REQUIRE(p.size() >= 3);
+    CHECK(p[p.size() - 3] == "integrate_finish"); // Velocity-Verlet's closing half kick
+    CHECK(p[p.size() - 2] == "relative_damping"); // the default damping, on the finished step
     CHECK(has(p, "strain_limit"));
     CHECK(pos(p, "integrate") < pos(p, "strain_limit"));
     CHECK(has(p, "springs"));

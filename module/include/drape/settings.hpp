@@ -155,10 +155,11 @@ struct FailureSettings {
 /// would cut short); drape::bullet turns it on when a cloth is added (BulletClothSettings).
 struct SleepSettings {
     bool enabled = false;
-    /// Largest excursion of a particle during the quiet time [m]. 1 mm: below what a viewer
-    /// sees at cloth scale, ten times the limiter's jitter at rest (its default tolerance
-    /// 1e-3 times a 0.1 m spring) and, over the default time, a mean speed of 1 mm/s.
-    double distance = 1e-3;
+    /// Largest excursion of a particle during the quiet time [m]. 1 cm: the default contact
+    /// thickness (a cloth frozen within it of where it would be is within the gap it keeps
+    /// from bodies anyway) and, over the default time, a mean speed of 1 cm/s (Jolt lets a
+    /// body sleep at 3 cm/s).
+    double distance = 1e-2;
     /// Quiet simulated time before the cloth falls asleep [s]. Like Bullet's rigid bodies
     /// (2 s before deactivation): long enough that the turning point of a slow swing is not
     /// mistaken for rest (a swing of period below ~2 s leaves the 1 mm ball within it).
@@ -188,6 +189,15 @@ struct SubstepSettings {
 /// (samples/benchmarks/GAMES.md).
 inline constexpr double kAutomaticStretchWaveSpeed = 20.0;
 
+/// ClothSettings::relativeDamping's default [1/s]: motion about the cloth's mean velocity
+/// decays with a time constant of 0.5 s, so a cloth dropped on a stack of boxes, its flaps
+/// swinging, is still within SleepSettings' 1 cm after about 6 s (samples/benchmarks/GAMES.md).
+inline constexpr double kDefaultRelativeDamping = 2.0;
+
+/// How often the relative damping acts [s]: once per this much simulated time, with the decay
+/// of that time (a step of 1/60 s and its sub-steps share one pass over the particles).
+inline constexpr double kRelativeDampingInterval = 1.0 / 60.0;
+
 /// Everything a Cloth needs besides its topology. A default-constructed ClothSettings is
 /// valid: a 200 g/m^2 cotton, the automatic stiffness (kAutomaticStretchWaveSpeed) with
 /// automatic sub-steps, Velocity-Verlet, the paper's stress-ordered limiting at 10 %,
@@ -211,14 +221,15 @@ struct ClothSettings {
     Vec3 gravity = Vec3(0.0, -9.81, 0.0); ///< g [m/s^2]; eq. (6)
     double damping = 0.0; ///< C_d of eq. (8): force -C_d v on every particle [N s/m]
     /// Damping of the free particles' motion relative to their mass-weighted mean velocity
-    /// [1/s] (>= 0; not given: none): after every step each free particle's velocity relative
-    /// to that mean decays by exp(-rate dt). Stretch waves, flutter and spin die out and a
-    /// hanging cloth (a net, a cape, a flag) comes to rest and can sleep: a 1 m net of the
-    /// automatic stiffness pinned on its edges sleeps after about 5 s at 2/s, never without
-    /// damping. Its momentum is left exactly as it was (free fall is untouched, the body a cape
-    /// hangs from feels its whole weight). The mean is the whole cloth's: on a cloth lying on
-    /// a body it hands a swinging flap's motion to the part at rest, so it is off by default.
-    std::optional<double> relativeDamping;
+    /// [1/s] (>= 0; 0 turns it off): each free particle's velocity relative to that mean
+    /// decays by exp(-rate t), applied once per kRelativeDampingInterval. Stretch waves, flutter,
+    /// swinging flaps and spin die out, so a cloth at rest comes to rest and can sleep; its
+    /// momentum is left exactly as it was (free fall is untouched, the body a cape hangs from feels
+    /// its whole weight). The default, kDefaultRelativeDamping, is the game's choice; experiments
+    /// that measure undamped motion set 0. The mean is the whole cloth's: a part pushed at speed u
+    /// drags the rest at rate * (its mass share) * u (a fifth of g for a tenth of the cloth at 1
+    /// m/s).
+    double relativeDamping = kDefaultRelativeDamping;
     double springDamping = 0.0; ///< damping along springs: -c (dv . n) n [N s/m]
     AeroSettings aero;          ///< air drag and lift; off by default
     LimiterSettings limiter;    ///< strain limiting; stress-ordered 10 % by default

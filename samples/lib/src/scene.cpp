@@ -39,6 +39,7 @@ constexpr Limits kYoungsModulus{1e-3, 1e13, "Pa"};
 constexpr Limits kMaterialThickness{1e-7, 1.0, "m"};
 constexpr Limits kDensity{1e-3, 1e5, "kg/m^3"};
 constexpr Limits kDamping{0.0, 1e9, "N s/m"};
+constexpr Limits kRate{0.0, 1e6, "1/s"};
 constexpr Limits kAirDensity{0.0, 1e4, "kg/m^3"};
 constexpr Limits kCoefficient{0.0, 100.0, ""};
 constexpr Limits kTimeStep{kMinTimeStep, kMaxTimeStep, "s"};
@@ -130,7 +131,7 @@ ParticleSelector parseSelector(JsonObject& o, bool isSheet) {
 
 void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDir) {
     o.keys({"sheet", "mesh", "particle_mass", "total_mass", "mass_lumping", "stiffness", "material",
-            "damping", "spring_damping", "air", "front_color", "back_color"});
+            "damping", "relative_damping", "spring_damping", "air", "front_color", "back_color"});
     const bool hasSheet = o.has("sheet");
     const bool hasMesh = o.has("mesh");
     if (hasSheet == hasMesh)
@@ -191,6 +192,7 @@ void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDi
         m->finish();
     }
     c.damping = o.number("damping", 0.0, kDamping);
+    c.relativeDamping = o.number("relative_damping", drape::kDefaultRelativeDamping, kRate);
     c.springDamping = o.number("spring_damping", 0.0, kDamping);
     if (auto a = o.optObject("air")) {
         a->keys({"density", "drag_coefficient", "lift_coefficient"});

@@ -138,6 +138,7 @@ ClothSettings clothSettings(const ClothScene& scene, IntegratorKind integrator,
     s.particleMass = scene.particleMass;
     s.springStiffness = scene.stiffness;
     s.damping = scene.damping;
+    s.relativeDamping = 0.0; // the paper's model: the scene's damping only
     s.gravity = scene.gravity;
     s.limiter.kind = limiter;
     s.rejectUnstableTimeStep = false;
