@@ -24,7 +24,7 @@
 //  - Sleeping (BulletClothSettings::sleep, on by default): a cloth at rest falls asleep as
 //    Cloth::isAsleep() describes and then costs a broadphase-overlap scan per sub-step. It
 //    wakes before it steps when a candidate body (a broadphase overlap of its proxy) is new,
-//    has left, moves faster than v = sleep.distance / sleep.time (1 mm/s by default) or
+//    has left, moves faster than v = sleep.distance / sleep.time (1 cm/s by default) or
 //    has moved or turned by more than v times the step since the last sub-step; when an
 //    attachment's body moves; when the world's gravity changes. It stays awake while it pushes an
 //    active dynamic body (a body resting on a sleeping cloth would lose its support).
