@@ -1,4 +1,4 @@
-// Attachments as kinematic targets (see attachments.hpp).
+// Attachments as kinematic targets set before every Bullet sub-step (see attachments.hpp).
 #include "attachments.hpp"
 
 #include <btBulletDynamicsCommon.h>
@@ -13,19 +13,15 @@ Vec3 attachmentPoint(const Attachment& a) {
 
 void Attachments::attach(Cloth& c, const Attachment& a) {
     detach(c, a.particle);
-    const Vec3 p = attachmentPoint(a);
     list_.push_back(a);
-    targets_.push_back(std::make_unique<KinematicTarget>(KinematicTarget{p, p}));
-    // The particle's path interpolates the attachment point across the current sub-step.
-    c.setKinematic(a.particle, TargetPath{targets_.back().get(), &window_});
+    c.setKinematicTarget(a.particle, attachmentPoint(a), c.time()); // there now
 }
 
 void Attachments::detach(Cloth& c, Index particle) {
     for (std::size_t k = 0; k < list_.size(); ++k) {
         if (list_[k].particle != particle) continue;
-        c.unpin(particle); // (drops its path before its target goes)
+        c.unpin(particle);
         list_.erase(list_.begin() + static_cast<std::ptrdiff_t>(k));
-        targets_.erase(targets_.begin() + static_cast<std::ptrdiff_t>(k));
         return;
     }
 }
@@ -34,15 +30,12 @@ void Attachments::clear(Cloth& c) {
     for (const auto& a : list_)
         c.unpin(a.particle);
     list_.clear();
-    targets_.clear();
 }
 
-void Attachments::advance(double t0, double dt) {
-    window_ = {t0, t0 + dt};
-    for (std::size_t a = 0; a < list_.size(); ++a) {
-        targets_[a]->from = targets_[a]->to;
-        targets_[a]->to = attachmentPoint(list_[a]);
-    }
+void Attachments::advance(Cloth& c, double dt) const {
+    const double arrival = c.time() + dt;
+    for (const auto& a : list_)
+        c.setKinematicTarget(a.particle, attachmentPoint(a), arrival);
 }
 
 void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>& bodies,

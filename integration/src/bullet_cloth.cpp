@@ -168,7 +168,7 @@ void BulletCloth::Impl::step(double dt) {
     // 1. bodies
     gatherBodies(dt);
     // 2. attach
-    attachments.advance(c.time(), dt);
+    attachments.advance(c, dt);
     followWorldGravity();
     wakeForBodies(dt); // a moving attachment body wakes it through its kinematic path
     // 3. step

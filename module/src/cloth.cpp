@@ -477,7 +477,7 @@ void Cloth::setSleep(const SleepSettings& sleep) {
 
 bool Cloth::kinematicTargetsMove(double dt) const {
     for (const auto& k : kinematic_) {
-        if (k.second(time_ + dt) != x_[k.first]) return true; // NaN too: the real step reports it
+        if (k.at(time_ + dt) != x_[k.particle]) return true; // NaN too: the real step reports it
     }
     return false;
 }
@@ -516,7 +516,7 @@ void Cloth::stageIntegrate(StepContext& ctx) {
     if (!kinematic_.empty()) {
         step_.kinematicStart.clear();
         for (const auto& k : kinematic_)
-            step_.kinematicStart.push_back(x_[k.first]);
+            step_.kinematicStart.push_back(x_[k.particle]);
     }
     // Integrators that can write the new state to other buffers get the old one swapped out
     // of x_, v_ (no copy); the others work in place on a copy.
@@ -531,8 +531,8 @@ void Cloth::stageIntegrate(StepContext& ctx) {
 
 void Cloth::stageKinematic(StepContext& ctx) {
     for (std::size_t k = 0; k < kinematic_.size(); ++k) {
-        const Index i = kinematic_[k].first;
-        const Vec3 target = kinematic_[k].second(time_ + ctx.dt);
+        const Index i = kinematic_[k].particle;
+        const Vec3 target = kinematic_[k].at(time_ + ctx.dt);
         if (!target.allFinite()) {
             throw Error(ErrorCode::NonFinite, "kinematic path of particle " + std::to_string(i) +
                                                   " returned a non-finite position");
@@ -741,7 +741,7 @@ void Cloth::setHeld(Index i, bool held) {
     pinned_[i] = held ? 1 : 0;
     invMass_[i] = held ? 0.0 : 1.0 / masses()[i];
     kinematic_.erase(std::remove_if(kinematic_.begin(), kinematic_.end(),
-                                    [&](const auto& k) { return k.first == i; }),
+                                    [&](const Kinematic& k) { return k.particle == i; }),
                      kinematic_.end());
     forcesValid_ = false;
     invalidateOmega();
@@ -771,8 +771,51 @@ void Cloth::setKinematic(Index i, KinematicPath path) {
     requireFinite(start, "kinematic path of particle " + std::to_string(i));
     pin(i);
     x_[i] = start;
-    kinematic_.emplace_back(i, std::move(path));
+    Kinematic k;
+    k.particle = i;
+    k.path = std::move(path);
+    kinematic_.push_back(std::move(k));
     edited();
+}
+
+Vec3 Cloth::Kinematic::at(double t) const {
+    if (path) return path(t);
+    if (t >= t1) return to;
+    if (t <= t0) return from;
+    return from + ((t - t0) / (t1 - t0)) * (to - from);
+}
+
+void Cloth::setKinematicTarget(Index i, const Vec3& target, double arrival) {
+    checkIndex(i, x_.size(), "setKinematicTarget");
+    const std::string what = "kinematic target of particle " + std::to_string(i);
+    requireFinite(target, what);
+    if (!std::isfinite(arrival))
+        throw Error(ErrorCode::InvalidArgument, what + ": the arrival time is not finite");
+    auto it = std::find_if(kinematic_.begin(), kinematic_.end(),
+                           [i](const Kinematic& k) { return k.particle == i; });
+    if (it == kinematic_.end()) { // a new kinematic particle: held where it is, an edit
+        pin(i);
+        Kinematic k;
+        k.particle = i;
+        k.from = k.to = x_[i];
+        kinematic_.push_back(k);
+        it = kinematic_.end() - 1;
+    }
+    it->path = nullptr;
+    it->to = target;
+    if (arrival <= time_) { // there now
+        it->from = target;
+        it->t0 = it->t1 = time_;
+        if (x_[i] != target) {
+            x_[i] = target;
+            forcesValid_ = false;
+            edited();
+        }
+        return;
+    }
+    it->from = x_[i];
+    it->t0 = time_;
+    it->t1 = arrival;
 }
 
 void Cloth::unpin(Index i) {

@@ -561,6 +561,40 @@ TEST_CASE("Pins hold, kinematic particles follow their paths", "[pins]") {
         // The cloth was dragged along: the neighbour of the driven corner moved sideways.
         CHECK(std::abs(cloth.positions()[4].z() - topo->restPositions()[4].z()) > 1e-4);
     }
+    SECTION("kinematic targets: a straight move at constant speed, then held; set by data") {
+        Cloth cloth(topo, s);
+        const Vec3 a = topo->restPositions()[5];
+        const Vec3 b = a + Vec3(0.03, -0.02, 0.04);
+        const double dt = 0.002, arrival = 20 * dt;
+        cloth.setKinematicTarget(5, b, arrival);
+        CHECK(cloth.isPinned(5));
+        CHECK(cloth.inverseMasses()[5] == 0.0);
+        for (int n = 1; n <= 30; ++n) {
+            cloth.stepPart(dt / 2, 2); // sub-steps of a caller's step interpolate too
+            cloth.stepPart(dt / 2, 2);
+            const double f = std::min(1.0, n * dt / arrival);
+            INFO("step " << n);
+            REQUIRE((cloth.positions()[5] - (a + f * (b - a))).norm() <= 1e-12);
+            // Constant speed (b - a) / arrival on the way (exactly: the path is straight), rest
+            // after the arrival.
+            const Vec3 v = n * dt <= arrival + 1e-12 ? Vec3((b - a) / arrival) : Vec3::Zero();
+            REQUIRE((cloth.velocities()[5] - v).norm() <= 1e-9);
+        }
+        // A new target starts from where the particle is; an arrival now is a jump.
+        const Vec3 c = b + Vec3(0.0, 0.05, 0.0);
+        cloth.setKinematicTarget(5, c, cloth.time());
+        CHECK(cloth.positions()[5] == c);
+        cloth.step(dt);
+        CHECK(cloth.positions()[5] == c);
+        REQUIRE_DRAPE_ERROR(cloth.setKinematicTarget(5, Vec3(NAN, 0, 0), 1.0), ErrorCode::NonFinite,
+                            "kinematic target of particle 5");
+        REQUIRE_DRAPE_ERROR(cloth.setKinematicTarget(5, c, INFINITY), ErrorCode::InvalidArgument,
+                            "arrival time");
+        REQUIRE_DRAPE_ERROR(cloth.setKinematicTarget(99, c, 1.0), ErrorCode::IndexOutOfRange,
+                            "setKinematicTarget");
+        cloth.unpin(5);
+        CHECK(!cloth.isPinned(5));
+    }
 }
 
 namespace {

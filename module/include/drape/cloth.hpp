@@ -110,6 +110,13 @@ class Cloth {
     void pin(Index i, const Vec3& position);
     /// Drives particle i along a path: x(t) = path(t); its velocity follows the path.
     void setKinematic(Index i, KinematicPath path);
+    /// Drives particle i by data: from where it is now in a straight line to `target` [m],
+    /// arriving at simulated time `arrival` [s] and held there after (steps and sub-steps in
+    /// between interpolate). An arrival at or before time() puts it at `target` now. Called
+    /// again, the move starts afresh from where the particle is; the first call makes the
+    /// particle kinematic (zero inverse mass), later ones do not count as edits (a sleeping
+    /// cloth wakes only when the target moves). drape::bullet's attachments are these.
+    void setKinematicTarget(Index i, const Vec3& target, double arrival);
     /// Returns particle i to free motion with its mass.
     void unpin(Index i);
     bool isPinned(Index i) const; ///< pinned or kinematic
@@ -266,7 +273,16 @@ class Cloth {
     Vec3List x_, v_, f_;
     StepBuffers step_; ///< per-step scratch (see StepBuffers)
     std::vector<unsigned char> pinned_;
-    std::vector<std::pair<Index, KinematicPath>> kinematic_;
+    /// A kinematic particle: a caller's path, or (path empty) a straight move from `from` at
+    /// t0 to `to` at t1 (setKinematicTarget).
+    struct Kinematic {
+        Index particle = 0;
+        KinematicPath path;
+        Vec3 from = Vec3::Zero(), to = Vec3::Zero();
+        double t0 = 0.0, t1 = 0.0;
+        Vec3 at(double t) const;
+    };
+    std::vector<Kinematic> kinematic_;
     std::unique_ptr<detail::ThreadPool> poolStorage_;
     std::unique_ptr<ForceModel> forceModel_;
     std::unique_ptr<Integrator> integrator_;
