@@ -47,7 +47,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <mutex>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace drape::bullet {
 
@@ -75,6 +78,19 @@ void accumulate(ContactStats& total, const ContactStats& s) {
     total.proxyRefreshes += s.proxyRefreshes;
 }
 
+} // namespace
+
+namespace {
+/// The cloths in a world, with their handles: a cloth can be in one world once (a second
+/// handle would step it twice per world step). Guarded: handles may live on several threads.
+struct Registry {
+    std::mutex lock;
+    std::vector<std::pair<const Cloth*, const BulletCloth::Impl*>> entries;
+};
+Registry& registry() {
+    static Registry r;
+    return r;
+}
 } // namespace
 
 struct BulletCloth::Impl {
@@ -122,6 +138,11 @@ struct BulletCloth::Impl {
     void applyImpulses();
     /// The proxy's box: where the particles can get in the next step.
     void updateBounds(double dt);
+    /// Detaches the particles whose body is no longer in the world (removed, maybe deleted:
+    /// its pointer is only compared, never read) and throws drape::Error naming them.
+    void checkAttachmentBodies();
+    /// In the world, and the world alive (a world destroyed first cleared the proxy's handle).
+    bool live() const { return inWorld && proxy.inLiveWorld(); }
 };
 
 class BulletCloth::Impl::Action final : public btActionInterface {
@@ -165,6 +186,7 @@ void BulletCloth::Impl::step(double dt) {
     const auto start = Clock::now();
     Cloth& c = *cloth;
     last = ContactStats{};
+    if (!attachments.list().empty()) checkAttachmentBodies();
     // 1. bodies
     gatherBodies(dt);
     // 2. attach
@@ -230,6 +252,38 @@ void BulletCloth::Impl::gatherBodies(double dt) {
     last.candidateBodies = bodies.size();
 }
 
+void BulletCloth::Impl::checkAttachmentBodies() {
+    std::vector<const btCollisionObject*> attached;
+    for (const auto& a : attachments.list())
+        attached.push_back(a.body);
+    std::sort(attached.begin(), attached.end());
+    attached.erase(std::unique(attached.begin(), attached.end()), attached.end());
+    std::vector<unsigned char> found(attached.size(), 0);
+    const btCollisionObjectArray& objects = world->getCollisionObjectArray();
+    for (int k = 0; k < objects.size(); ++k) {
+        const auto it = std::lower_bound(attached.begin(), attached.end(), objects[k]);
+        if (it != attached.end() && *it == objects[k])
+            found[std::size_t(it - attached.begin())] = 1;
+    }
+    std::vector<Index> lost;
+    for (const auto& a : attachments.list()) {
+        const auto it = std::lower_bound(attached.begin(), attached.end(), a.body);
+        if (!found[std::size_t(it - attached.begin())]) lost.push_back(a.particle);
+    }
+    if (lost.empty()) return;
+    std::string names;
+    for (std::size_t k = 0; k < lost.size(); ++k) {
+        attachments.detach(*cloth, lost[k]);
+        if (k < 8) names += (k ? ", " : "") + std::to_string(lost[k]);
+    }
+    if (lost.size() > 8) names += " and " + std::to_string(lost.size() - 8) + " more";
+    throw Error(ErrorCode::InvalidArgument,
+                "the body particle(s) " + names +
+                    " were attached to is no longer in the world (removed or deleted without "
+                    "detaching first); they are detached and fall free from the next step. "
+                    "Detach particles (BulletCloth::detach) before removing their body");
+}
+
 void BulletCloth::Impl::followWorldGravity() {
     if (!settings.useWorldGravity) return;
     const Vec3 g = toVec(world->getGravity());
@@ -273,6 +327,15 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
     require(world != nullptr, ErrorCode::InvalidArgument, "addCloth: the Bullet world is null");
     require(cloth != nullptr, ErrorCode::InvalidArgument, "addCloth: the cloth is null");
     detail::validate(settings);
+    {
+        Registry& r = registry();
+        std::lock_guard<std::mutex> guard(r.lock);
+        for (const auto& e : r.entries) {
+            require(e.first != cloth.get() || !e.second->live(), ErrorCode::InvalidArgument,
+                    "addCloth: this cloth is already in a world (a cloth can be in one world "
+                    "once; remove its other handle first)");
+        }
+    }
     const double h = settings.contact.thickness;
     double band = settings.contact.penaltyBand.value_or(h);
     require(band > 0.0 || settings.contact.penaltyForce == 0.0, ErrorCode::InvalidArgument,
@@ -309,6 +372,13 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
     m.action = std::make_unique<Impl::Action>(m);
     world->addAction(m.action.get());
     m.inWorld = true;
+    Registry& r = registry();
+    std::lock_guard<std::mutex> guard(r.lock);
+    auto& entries = r.entries;
+    entries.erase(std::remove_if(entries.begin(), entries.end(),
+                                 [&](const auto& e) { return e.first == m.cloth.get(); }),
+                  entries.end()); // a handle whose world was destroyed
+    entries.emplace_back(m.cloth.get(), &m);
 }
 
 BulletCloth::~BulletCloth() {
@@ -318,8 +388,20 @@ BulletCloth::~BulletCloth() {
 void BulletCloth::remove() {
     Impl& m = *impl_;
     if (!m.inWorld) return;
-    m.world->removeAction(m.action.get());
-    m.proxy.removeFromWorld();
+    if (m.proxy.inLiveWorld()) {
+        m.world->removeAction(m.action.get());
+        m.proxy.removeFromWorld();
+    } else {
+        m.proxy.forgetWorld(); // the world was destroyed first: nothing of it to touch
+    }
+    {
+        Registry& r = registry();
+        std::lock_guard<std::mutex> guard(r.lock);
+        auto& entries = r.entries;
+        entries.erase(std::remove_if(entries.begin(), entries.end(),
+                                     [&](const auto& e) { return e.second == &m; }),
+                      entries.end());
+    }
     m.cloth->removeStage(m.stage.get());
     m.contacts.records->contacts.clear();
     m.attachments.clear(*m.cloth);
@@ -328,13 +410,13 @@ void BulletCloth::remove() {
 }
 
 bool BulletCloth::inWorld() const {
-    return impl_->inWorld;
+    return impl_->live();
 }
 
 void BulletCloth::attach(Index particle, const btCollisionObject* body, const Vec3& localPoint) {
     Impl& m = *impl_;
-    require(m.inWorld, ErrorCode::InvalidArgument,
-            "attach: the cloth has been removed from its world");
+    require(m.live(), ErrorCode::InvalidArgument,
+            "attach: the cloth has been removed from its world (or the world destroyed)");
     require(particle < m.cloth->particleCount(), ErrorCode::IndexOutOfRange,
             "attach: particle " + std::to_string(particle) + " does not exist (the cloth has " +
                 std::to_string(m.cloth->particleCount()) + " particles)");
@@ -342,6 +424,11 @@ void BulletCloth::attach(Index particle, const btCollisionObject* body, const Ve
             "attach: the body for particle " + std::to_string(particle) + " is null");
     require(localPoint.allFinite(), ErrorCode::NonFinite,
             "attach: the local point for particle " + std::to_string(particle) + " is not finite");
+    const btCollisionObjectArray& objects = m.world->getCollisionObjectArray();
+    require(objects.findLinearSearch(const_cast<btCollisionObject*>(body)) < objects.size(),
+            ErrorCode::InvalidArgument,
+            "attach: the body for particle " + std::to_string(particle) +
+                " is not in the cloth's world (add it to the world first)");
     m.attachments.attach(*m.cloth, Attachment{particle, body, localPoint});
 }
 
@@ -396,8 +483,8 @@ void BulletCloth::debugDraw(btIDebugDraw* drawer) const {
 void BulletCloth::stepInWorld(double dt) {
     require(std::isfinite(dt) && dt > 0.0, ErrorCode::InvalidArgument,
             "stepInWorld: dt must be positive and finite, got " + num(dt));
-    require(impl_->inWorld, ErrorCode::InvalidArgument,
-            "stepInWorld: the cloth has been removed from its world");
+    require(impl_->live(), ErrorCode::InvalidArgument,
+            "stepInWorld: the cloth has been removed from its world (or the world destroyed)");
     impl_->step(dt);
 }
 

@@ -83,6 +83,10 @@ void ClothProxy::addTo(btDynamicsWorld* world, int group, int mask) {
     world_ = world;
 }
 
+bool ClothProxy::inLiveWorld() const {
+    return world_ != nullptr && ghost_->getBroadphaseHandle() != nullptr;
+}
+
 void ClothProxy::removeFromWorld() {
     if (!world_) return;
     world_->removeCollisionObject(ghost_.get());

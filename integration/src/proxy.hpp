@@ -31,6 +31,12 @@ class ClothProxy {
     /// overlap list); from then on setBounds updates its broadphase AABB.
     void addTo(btDynamicsWorld* world, int group, int mask);
     void removeFromWorld();
+    /// Forgets the world without touching it (it was destroyed: see inLiveWorld).
+    void forgetWorld() { world_ = nullptr; }
+    /// Whether the ghost is still in a live world: Bullet's world destructor (and
+    /// removeCollisionObject) clears the broadphase handle of every object it held, and the
+    /// ghost is ours, so this reads no freed memory.
+    bool inLiveWorld() const;
     /// The proxy's AABB [m].
     void setBounds(const Vec3& lo, const Vec3& hi);
     const Vec3& min() const { return min_; }

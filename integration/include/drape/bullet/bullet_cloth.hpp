@@ -48,9 +48,15 @@ class btIDebugDraw;
 namespace drape::bullet {
 
 /// A cloth added to a Bullet world. Created by addCloth; removed from the world by
-/// removeCloth or by its destructor. Remove it (or destroy it) before the world, and detach
-/// particles from a body before removing that body from the world. Stepping the cloth
-/// directly (Cloth::step) while it is in a world runs no contacts: the world steps it.
+/// removeCloth or by its destructor. Stepping the cloth directly (Cloth::step) while it is in
+/// a world runs no contacts: the world steps it. Wrong uses that are caught:
+/// - the world destroyed before the handle: inWorld() turns false, the handle's destructor
+///   and remove() leave the (gone) world alone, and attach/stepInWorld throw drape::Error;
+/// - a body removed from the world (or deleted) while particles are attached to it: the next
+///   world step detaches those particles and throws drape::Error naming them (detach first;
+///   a new body created at the freed body's address and added to the world is not told apart);
+/// - the same cloth added to a second world (or twice): addCloth throws drape::Error;
+/// - attaching to a body that is not in the cloth's world: attach throws drape::Error.
 class BulletCloth {
   public:
     /// Prefer addCloth(). Throws drape::Error on a null world or cloth or bad settings.
@@ -62,7 +68,7 @@ class BulletCloth {
 
     /// Takes the cloth out of the world (its proxy, its action, its stage). Idempotent.
     void remove();
-    /// True between construction and remove().
+    /// True between construction and remove(), while the world lives.
     bool inWorld() const;
 
     // --- attachments ------------------------------------------------------------------------

@@ -1,0 +1,121 @@
+// Wrong use of drape::bullet's handle that a new user's program makes (bullet_cloth.hpp): the
+// world destroyed first, a body removed and deleted while particles hang from it, one cloth
+// added twice, an attachment to a body in no world. Each ends in a drape::Error that names
+// the problem or in a documented no-op, never in freed memory (the sanitizer run checks that).
+#include "world_fixture.hpp"
+
+#include "drape/error.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <memory>
+
+using namespace drape;
+using namespace drape::testing;
+
+namespace {
+
+ClothSettings smallCloth() {
+    ClothSettings s;
+    s.particleMass = 0.01;
+    s.springStiffness = 20.0;
+    return s;
+}
+
+/// A world of its own (not TestWorld): the tests destroy it while handles live.
+struct BareWorld {
+    btDefaultCollisionConfiguration config;
+    btCollisionDispatcher dispatcher{&config};
+    btDbvtBroadphase broadphase;
+    btSequentialImpulseConstraintSolver solver;
+    std::unique_ptr<btDiscreteDynamicsWorld> world =
+        std::make_unique<btDiscreteDynamicsWorld>(&dispatcher, &broadphase, &solver, &config);
+};
+
+} // namespace
+
+TEST_CASE("a world destroyed before its cloth's handle: the handle notices and stays safe",
+          "[world][wrong_use]") {
+    BareWorld b;
+    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), smallCloth());
+    auto handle = bullet::addCloth(b.world.get(), cloth);
+    b.world->stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    REQUIRE(handle->inWorld());
+    b.world.reset(); // the user's mistake
+    CHECK_FALSE(handle->inWorld());
+    CHECK_THROWS_WITH(handle->stepInWorld(1.0 / 60.0), Catch::Contains("world destroyed"));
+    CHECK_THROWS_WITH(handle->attach(0, nullptr, Vec3::Zero()), Catch::Contains("destroyed"));
+    handle->remove(); // touches nothing of the gone world
+    CHECK_FALSE(handle->inWorld());
+    handle.reset();
+    // The cloth itself is intact and can join a new world.
+    BareWorld again;
+    auto second = bullet::addCloth(again.world.get(), cloth);
+    CHECK(second->inWorld());
+    second.reset();
+}
+
+TEST_CASE("one cloth in one world once: a second addCloth is refused until the first leaves",
+          "[world][wrong_use]") {
+    TestWorld w;
+    TestWorld other;
+    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), smallCloth());
+    auto first = bullet::addCloth(&w.world, cloth);
+    CHECK_THROWS_WITH(bullet::addCloth(&w.world, cloth), Catch::Contains("already in a world"));
+    CHECK_THROWS_WITH(bullet::addCloth(&other.world, cloth),
+                      Catch::Contains("already in a world"));
+    // The refused calls changed nothing: one handle steps the cloth, its sub-steps once.
+    const std::uint64_t before = cloth->stepCount();
+    w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    CHECK(cloth->stepCount() == before + std::uint64_t(first->lastStats().substeps));
+    first->remove();
+    auto second = bullet::addCloth(&other.world, cloth);
+    CHECK(second->inWorld());
+}
+
+TEST_CASE("attaching to a body that is not in the cloth's world is refused", "[world][wrong_use]") {
+    TestWorld w;
+    TestWorld elsewhere;
+    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), smallCloth());
+    auto& handle = w.add(cloth);
+    btRigidBody* there = elsewhere.body(elsewhere.shape<btSphereShape>(btScalar(0.1)), 1.0,
+                                        Vec3(0.0, 1.0, 0.0));
+    CHECK_THROWS_WITH(handle.attachHere(3, there), Catch::Contains("not in the cloth's world"));
+    btSphereShape shape(btScalar(0.1));
+    btDefaultMotionState motion;
+    btRigidBody loose(btRigidBody::btRigidBodyConstructionInfo(1.0f, &motion, &shape));
+    CHECK_THROWS_WITH(handle.attachHere(3, &loose), Catch::Contains("not in the cloth's world"));
+    CHECK(handle.attachments().empty());
+    CHECK_FALSE(cloth->isPinned(3));
+}
+
+TEST_CASE("a body removed and deleted while particles hang from it: the next step detaches them "
+          "and says so",
+          "[world][wrong_use]") {
+    TestWorld w;
+    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), smallCloth());
+    auto& handle = w.add(cloth);
+    btSphereShape shape(btScalar(0.05));
+    btDefaultMotionState motion(btTransform(btQuaternion::getIdentity(), btVector3(0, 1, 0)));
+    btVector3 inertia;
+    shape.calculateLocalInertia(1.0f, inertia);
+    auto body = std::make_unique<btRigidBody>(
+        btRigidBody::btRigidBodyConstructionInfo(1.0f, &motion, &shape, inertia));
+    w.world.addRigidBody(body.get());
+    handle.attachHere(0, body.get());
+    handle.attachHere(4, body.get());
+    w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    REQUIRE(handle.attachments().size() == 2);
+    w.world.removeRigidBody(body.get()); // the user's mistake: no detach first
+    body.reset();
+    CHECK_THROWS_WITH(w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0)),
+                      Catch::Contains("particle(s) 0, 4") && Catch::Contains("detach"));
+    CHECK(handle.attachments().empty());
+    CHECK_FALSE(cloth->isPinned(0));
+    CHECK_FALSE(cloth->isPinned(4));
+    // The world steps on; the freed particles fall.
+    const double y0 = cloth->positions()[0].y();
+    for (int k = 0; k < 10; ++k)
+        w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    CHECK(cloth->positions()[0].y() < y0);
+}
