@@ -1,9 +1,12 @@
 // drape-check: says, before a run, whether a time step is stable for a cloth's integrator and
 // stiffness, and which time step or how many sub-steps would be.
 //
-//   drape-check --scene samples/scenes/experiment1_suspended_sheet.json [--dt 0.05] [--integrator
-//   rk4] drape-check --rows 35 --cols 35 --spacing 10 --mass 0.5 --stiffness 20 --damping 0.05
+//   drape-check --scene samples/scenes/experiment1_suspended_sheet.json [--dt 0.05]
+//               [--integrator rk4]
+//   drape-check --rows 35 --cols 35 --spacing 10 --mass 0.5 --stiffness 20 --damping 0.05
 //               --pins top-corners --integrator velocity_verlet --dt 0.01
+// Options are parsed by CLI11: a count that is not a whole number in range (--rows 2.5,
+// --rows 4294967331) or a value that is not a finite number is refused, never rounded.
 // Exit status: 0 stable, 3 unstable, 1 bad input, 2 usage.
 #include <drape_reports/check.hpp>
 #include <drape_reports/report.hpp>
@@ -12,89 +15,110 @@
 #include <drape_samples/scene.hpp>
 #include <drape_samples/simulation.hpp>
 
+#include <CLI/CLI.hpp>
+
+#include <cmath>
 #include <iostream>
-#include <map>
 #include <optional>
 #include <string>
 
-namespace {
-
-void usage() {
-    std::cerr
-        << "usage: drape-check --scene FILE [--dt S] [--integrator NAME]\n"
-           "       drape-check [--rows N] [--cols N] [--spacing L] [--mass KG] [--stiffness N/m]\n"
-           "                   [--damping Ns/m] [--spring-damping Ns/m] [--pins top-corners|none]\n"
-           "                   [--integrator NAME] [--dt S]\n"
-           "integrators: explicit_euler symplectic_euler velocity_verlet rk4 implicit_euler\n"
-           "defaults: the paper's Experiment I (35 x 35, spacing 10, mass 0.5, k 20, C_d 0.05,\n"
-           "top corners pinned, velocity_verlet, dt 0.01)\n";
-}
-
-} // namespace
-
 int main(int argc, char** argv) {
     using namespace drape;
-    std::map<std::string, std::string> opt;
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        if (a.rfind("--", 0) != 0 || i + 1 >= argc) {
-            usage();
-            return 2;
-        }
-        opt[a.substr(2)] = argv[++i];
-    }
-    auto num = [&opt](const std::string& key, double def) {
-        auto it = opt.find(key);
-        if (it == opt.end()) return def;
-        std::size_t used = 0;
-        const double v = std::stod(it->second, &used);
-        if (used != it->second.size())
-            throw std::invalid_argument("--" + key + ": not a number: " + it->second);
-        return v;
-    };
+    CLI::App app{"drape-check: whether a time step is stable for a cloth, and what would be. "
+                 "Defaults: the paper's Experiment I (35 x 35, spacing 10, mass 0.5, k 20, "
+                 "C_d 0.05, top corners pinned, velocity_verlet, dt 0.01)"};
+    std::string scenePath, integratorName, pins = "top-corners";
+    std::optional<double> dt;
+    // Counts as 64-bit integers, checked against the range a sheet can have: CLI11 refuses a
+    // value that is not a whole number or does not fit.
+    long long rows = 35, cols = 35;
+    double spacing = 10.0, mass = 0.5, stiffness = 20.0, damping = 0.05, springDamping = 0.0;
+    // CLI11's Range lets NaN through (it tests val < min || val > max): finite first.
+    const CLI::Validator finite(
+        [](std::string& in) {
+            double v = 0.0;
+            if (!CLI::detail::lexical_cast(in, v) || !std::isfinite(v))
+                return std::string("not a finite number: ") + in;
+            return std::string();
+        },
+        "FINITE");
+    const CLI::Validator positive = finite & CLI::Range(1e-300, 1e300);
+    const CLI::Validator nonNegative = finite & CLI::Range(0.0, 1e300);
+    auto* sceneOpt = app.add_option("--scene", scenePath, "Scene file (JSON, samples/SCENES.md)");
+    app.add_option("--dt", dt, "Time step [s] (default: the scene's, or 0.01)")->check(positive);
+    app.add_option("--integrator", integratorName,
+                   "explicit_euler, symplectic_euler, velocity_verlet, rk4 or implicit_euler");
+    const char* sheetOnly = "a generated sheet (not with --scene)";
+    app.add_option("--rows", rows, "Rows of the sheet (2 to 100000)")
+        ->check(CLI::Range(2LL, 100000LL))
+        ->excludes(sceneOpt)
+        ->group(sheetOnly);
+    app.add_option("--cols", cols, "Columns of the sheet (2 to 100000)")
+        ->check(CLI::Range(2LL, 100000LL))
+        ->excludes(sceneOpt)
+        ->group(sheetOnly);
+    app.add_option("--spacing", spacing, "Grid spacing")
+        ->check(positive)
+        ->excludes(sceneOpt)
+        ->group(sheetOnly);
+    app.add_option("--mass", mass, "Particle mass")
+        ->check(positive)
+        ->excludes(sceneOpt)
+        ->group(sheetOnly);
+    app.add_option("--stiffness", stiffness, "Spring stiffness")
+        ->check(positive)
+        ->excludes(sceneOpt)
+        ->group(sheetOnly);
+    app.add_option("--damping", damping, "C_d of eq. (8)")
+        ->check(nonNegative)
+        ->excludes(sceneOpt)
+        ->group(sheetOnly);
+    app.add_option("--spring-damping", springDamping, "Damping along the springs")
+        ->check(nonNegative)
+        ->excludes(sceneOpt)
+        ->group(sheetOnly);
+    app.add_option("--pins", pins, "top-corners or none")
+        ->check(CLI::IsMember({"top-corners", "none"}))
+        ->excludes(sceneOpt)
+        ->group(sheetOnly);
     try {
-        for (const auto& [k, v] : opt) {
-            static const char* known[] = {
-                "scene", "dt",        "integrator", "rows",           "cols", "spacing",
-                "mass",  "stiffness", "damping",    "spring-damping", "pins"};
-            bool ok = false;
-            for (const char* n : known)
-                ok = ok || k == n;
-            if (!ok) throw std::invalid_argument("unknown option --" + k);
-        }
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        app.exit(e);
+        return 2;
+    }
+    try {
         std::optional<IntegratorKind> integrator;
-        if (opt.count("integrator")) integrator = integratorFromString(opt["integrator"]);
+        if (!integratorName.empty()) integrator = integratorFromString(integratorName);
         reports::TimeStepCheck result;
         std::string what;
-        if (opt.count("scene")) {
-            samples::SceneDesc scene = samples::loadScene(opt["scene"]);
+        if (!scenePath.empty()) {
+            samples::SceneDesc scene = samples::loadScene(scenePath);
             if (integrator) scene.cloth.integrator = *integrator;
             scene.cloth.rejectUnstableTimeStep = false; // we are asking, not stepping
-            const double dt = num("dt", scene.timeStep);
             samples::Simulation sim(scene);
-            result = reports::checkTimeStep(sim.cloth(), dt);
+            result = reports::checkTimeStep(sim.cloth(), dt.value_or(scene.timeStep));
             what = scene.name + " (" + std::to_string(sim.cloth().particleCount()) + " particles)";
         } else {
             SheetSpec sheet;
-            sheet.rows = static_cast<Index>(num("rows", 35));
-            sheet.cols = static_cast<Index>(num("cols", 35));
-            sheet.spacing = num("spacing", 10.0);
+            sheet.rows = static_cast<Index>(rows);
+            sheet.cols = static_cast<Index>(cols);
+            sheet.spacing = spacing;
             ClothSettings s;
             s.integrator = integrator.value_or(IntegratorKind::VelocityVerlet);
-            s.particleMass = num("mass", 0.5);
-            s.springStiffness = num("stiffness", 20.0);
-            s.damping = num("damping", 0.05);
-            s.springDamping = num("spring-damping", 0.0);
+            s.particleMass = mass;
+            s.springStiffness = stiffness;
+            s.damping = damping;
+            s.springDamping = springDamping;
             s.rejectUnstableTimeStep = false;
             Cloth cloth(ClothTopology::build(makeSheet(sheet)), s);
-            const std::string pins = opt.count("pins") ? opt["pins"] : "top-corners";
             if (pins == "top-corners") {
                 cloth.pin(sheetIndex(sheet, 0, 0));
                 cloth.pin(sheetIndex(sheet, 0, sheet.cols - 1));
-            } else if (pins != "none") {
-                throw std::invalid_argument("--pins must be top-corners or none, got " + pins);
             }
-            result = reports::checkTimeStep(cloth, num("dt", 0.01));
+            result = reports::checkTimeStep(cloth, dt.value_or(0.01));
             what = std::to_string(sheet.rows) + " x " + std::to_string(sheet.cols) + " sheet";
         }
         std::cout << what << ": " << result.message << "\n";
