@@ -62,8 +62,7 @@ TEST_CASE("one cloth in one world once: a second addCloth is refused until the f
     auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), smallCloth());
     auto first = bullet::addCloth(&w.world, cloth);
     CHECK_THROWS_WITH(bullet::addCloth(&w.world, cloth), Catch::Contains("already in a world"));
-    CHECK_THROWS_WITH(bullet::addCloth(&other.world, cloth),
-                      Catch::Contains("already in a world"));
+    CHECK_THROWS_WITH(bullet::addCloth(&other.world, cloth), Catch::Contains("already in a world"));
     // The refused calls changed nothing: one handle steps the cloth, its sub-steps once.
     const std::uint64_t before = cloth->stepCount();
     w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
@@ -78,8 +77,8 @@ TEST_CASE("attaching to a body that is not in the cloth's world is refused", "[w
     TestWorld elsewhere;
     auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), smallCloth());
     auto& handle = w.add(cloth);
-    btRigidBody* there = elsewhere.body(elsewhere.shape<btSphereShape>(btScalar(0.1)), 1.0,
-                                        Vec3(0.0, 1.0, 0.0));
+    btRigidBody* there =
+        elsewhere.body(elsewhere.shape<btSphereShape>(btScalar(0.1)), 1.0, Vec3(0.0, 1.0, 0.0));
     CHECK_THROWS_WITH(handle.attachHere(3, there), Catch::Contains("not in the cloth's world"));
     btSphereShape shape(btScalar(0.1));
     btDefaultMotionState motion;

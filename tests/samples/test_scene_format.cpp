@@ -246,6 +246,24 @@ TEST_CASE("a key given twice in one object is refused, named with its path", "[s
     CHECK_NOTHROW(parse(withCloth(R"("pins": [{"indices": [0]}, {"indices": [1]}])")));
 }
 
+TEST_CASE("nesting beyond 64 levels and strings holding NUL are refused before any work",
+          "[scene][errors]") {
+    using Catch::Matchers::Contains;
+    // 100,000 nested arrays: refused at the 65th level, not parsed into memory first.
+    const std::string deep =
+        withCloth(R"("description": )" + std::string(100000, '[') + std::string(100000, ']'));
+    CHECK_THAT(errorOf(deep), Contains("nested deeper than 64"));
+    // 64 levels are fine as JSON (the scene then says the field is of the wrong type).
+    const std::string ok =
+        withCloth(R"("description": )" + std::string(63, '[') + std::string(63, ']'));
+    CHECK_THAT(errorOf(ok), !Contains("nested deeper"));
+    // A NUL inside a string would cut a file name there and name another file.
+    CHECK_THAT(errorOf(R"({"cloth": {"mesh": "curtain.obj\u0000.junk"}})"),
+               Contains("test.json: cloth.mesh: holds a NUL character"));
+    CHECK_THAT(errorOf(withCloth(R"("name": "a\u0000b")")),
+               Contains("test.json: name: holds a NUL character"));
+}
+
 TEST_CASE("an unknown key is reported, with the key it resembles, before any missing field",
           "[scene][errors]") {
     using Catch::Matchers::Contains;

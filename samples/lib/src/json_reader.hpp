@@ -21,6 +21,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace drape::samples::detail {
@@ -61,57 +62,85 @@ inline std::string typeName(const Json& j) {
     return j.type_name();
 }
 
-/// Parses JSON text and refuses a key given twice in one object (nlohmann keeps the last
-/// one silently). Throws SceneError naming `origin` and the key's path; nlohmann's own
-/// exceptions (syntax errors, numbers out of range) pass through to the caller.
-inline Json parseJson(const std::string& text, const std::string& origin) {
+/// The deepest nesting of objects and arrays a scene file may have (a scene needs 5).
+inline constexpr std::size_t kMaxJsonDepth = 64;
+
+/// A SAX pass over the text that keeps no values: refuses a key given twice in one object,
+/// nesting deeper than kMaxJsonDepth (before any memory is spent on it) and strings holding a
+/// NUL character (no name or file name can: a path cut at the NUL would name another file).
+/// Linear in the text (nlohmann's callback parser scans an array's elements again after each
+/// object in it: quadratic for a long array of objects).
+class JsonChecker final : public nlohmann::json_sax<Json> {
+  public:
+    explicit JsonChecker(std::string origin) : origin_(std::move(origin)) {}
+    bool null() override { return done(); }
+    bool boolean(bool) override { return done(); }
+    bool number_integer(number_integer_t) override { return done(); }
+    bool number_unsigned(number_unsigned_t) override { return done(); }
+    bool number_float(number_float_t, const string_t&) override { return done(); }
+    bool string(string_t& v) override {
+        if (v.find('\0') != string_t::npos)
+            fail("holds a NUL character (\\u0000); no name or file name can");
+        return done();
+    }
+    bool binary(binary_t&) override { return done(); }
+    bool start_object(std::size_t) override { return open(false); }
+    bool key(string_t& k) override {
+        Frame& top = stack_.back();
+        top.key = k;
+        if (k.find('\0') != string_t::npos) fail("a key holds a NUL character (\\u0000)");
+        if (!top.keys.insert(k).second)
+            fail("duplicate key (the object sets \"" + k + "\" more than once; give it once)");
+        return true;
+    }
+    bool end_object() override { return close(); }
+    bool start_array(std::size_t) override { return open(true); }
+    bool end_array() override { return close(); }
+    /// A syntax error: the caller parses again to get nlohmann's message (line and column).
+    bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception&) override {
+        return false;
+    }
+
+  private:
     struct Frame {
         bool array = false;
         std::size_t index = 0; // arrays: the element being read
         std::string key;       // objects: the key being read
         std::set<std::string> keys;
     };
-    std::vector<Frame> stack;
-    // The path of what each open object or array is reading now ("pins[0].box.min").
-    auto currentPath = [&stack] {
-        std::string p;
-        for (const Frame& f : stack)
-            p += f.array ? "[" + std::to_string(f.index) + "]" : (p.empty() ? "" : ".") + f.key;
-        return p;
-    };
-    auto elementDone = [&stack] {
-        if (!stack.empty() && stack.back().array) ++stack.back().index;
-    };
-    const Json::parser_callback_t cb = [&](int, Json::parse_event_t event, Json& parsed) {
-        switch (event) {
-        case Json::parse_event_t::object_start:
-            stack.push_back(Frame{});
-            break;
-        case Json::parse_event_t::array_start:
-            stack.push_back(Frame{});
-            stack.back().array = true;
-            break;
-        case Json::parse_event_t::key: {
-            Frame& top = stack.back();
-            top.key = parsed.get<std::string>();
-            if (!top.keys.insert(top.key).second)
-                throw SceneError(origin + ": " + currentPath() +
-                                 ": duplicate key (the object sets \"" + top.key +
-                                 "\" more than once; give it once)");
-            break;
-        }
-        case Json::parse_event_t::object_end:
-        case Json::parse_event_t::array_end:
-            stack.pop_back();
-            elementDone();
-            break;
-        case Json::parse_event_t::value:
-            elementDone();
-            break;
-        }
+    bool open(bool array) {
+        if (stack_.size() >= kMaxJsonDepth)
+            fail("nested deeper than " + std::to_string(kMaxJsonDepth) +
+                 " objects and arrays; a scene needs a handful");
+        stack_.push_back(Frame{});
+        stack_.back().array = array;
         return true;
-    };
-    return Json::parse(text, cb);
+    }
+    bool close() {
+        stack_.pop_back();
+        return done();
+    }
+    bool done() {
+        if (!stack_.empty() && stack_.back().array) ++stack_.back().index;
+        return true;
+    }
+    [[noreturn]] void fail(const std::string& what) const {
+        std::string p;
+        for (const Frame& f : stack_)
+            p += f.array ? "[" + std::to_string(f.index) + "]" : (p.empty() ? "" : ".") + f.key;
+        throw SceneError(origin_ + ": " + (p.empty() ? std::string("(top level)") : p) + ": " +
+                         what);
+    }
+    std::string origin_;
+    std::vector<Frame> stack_;
+};
+
+/// Parses JSON text after JsonChecker's pass. Throws SceneError naming `origin` and the path;
+/// nlohmann's own exceptions (syntax errors, numbers out of range) pass through to the caller.
+inline Json parseJson(const std::string& text, const std::string& origin) {
+    JsonChecker checker(origin);
+    Json::sax_parse(text, &checker); // false on a syntax error: parse() below names it
+    return Json::parse(text);
 }
 
 class JsonObject {
