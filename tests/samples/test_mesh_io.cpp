@@ -176,7 +176,26 @@ TEST_CASE("broken or missing mesh files are named with what is wrong", "[mesh][e
     CHECK_THROWS_WITH(exportMesh(testMesh(), outDir() / "cloth.docx"),
                       Contains("unknown mesh format \".docx\" for export"));
     CHECK_THROWS_WITH(exportMesh(testMesh(), "/nonexistent-folder/x.obj"),
-                      Contains("x.obj: assimp cannot write it"));
+                      Contains("x.obj: cannot open it for writing"));
+}
+
+TEST_CASE("a mesh export that cannot be written completely (a full disk) is an error",
+          "[mesh][errors][io]") {
+    using Catch::Matchers::Contains;
+    // /dev/full takes the open and refuses every write (ENOSPC), like a full disk.
+    if (!fs::exists("/dev/full")) {
+        WARN("skipped: no /dev/full");
+        return;
+    }
+    for (const char* name : {"full.obj", "full.ply", "full.glb"}) {
+        const fs::path link = outDir() / name;
+        fs::remove(link);
+        fs::create_symlink("/dev/full", link);
+        INFO(name);
+        CHECK_THROWS_WITH(exportMesh(testMesh(), link),
+                          Contains(std::string(name) + ": writing it failed (disk full?)"));
+        fs::remove(link);
+    }
 }
 
 namespace {

@@ -8,9 +8,11 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <limits>
@@ -725,8 +727,21 @@ void exportMesh(const TriangleMesh& mesh, const std::filesystem::path& file) {
                         (pointPrefix ? static_cast<unsigned>(aiPrimitiveType_POINT) : 0u);
 
     Assimp::Exporter exporter;
-    if (exporter.Export(&scene, format, file.string()) != AI_SUCCESS)
-        meshFail(file, std::string("assimp cannot write it: ") + exporter.GetErrorString());
+    const aiExportDataBlob* blob = exporter.ExportToBlob(&scene, format);
+    if (!blob) meshFail(file, std::string("assimp cannot write it: ") + exporter.GetErrorString());
+    if (blob->next) { // a format of several files (.gltf and its .bin): assimp names them
+        if (exporter.Export(&scene, format, file.string()) != AI_SUCCESS)
+            meshFail(file, std::string("assimp cannot write it: ") + exporter.GetErrorString());
+        return;
+    }
+    // One file: written here, so that a failed write (a full disk) is an error, not a
+    // truncated file (assimp's own file writer does not check its writes).
+    std::ofstream out(file, std::ios::binary | std::ios::trunc);
+    if (!out) meshFail(file, "cannot open it for writing: " + std::string(std::strerror(errno)));
+    out.write(static_cast<const char*>(blob->data), static_cast<std::streamsize>(blob->size));
+    out.close();
+    if (!out)
+        meshFail(file, "writing it failed (disk full?): " + std::string(std::strerror(errno)));
 }
 
 #else // no assimp
