@@ -167,6 +167,33 @@ TEST_CASE("tablecloth_trick: the yank accelerates uniformly, then pulls at speed
     CHECK(scriptYank(YankKind::Slow, player).speed < y.speed / 5);
 }
 
+TEST_CASE("the games' fixed-step loop: exact steps per frame, and a frame owes at most 0.25 s",
+          "[samples][game]") {
+    // 60 frames of 1/60 s at 1/240 s steps: 4 steps each, 240 in all.
+    FixedStepLoop loop(1.0 / 240.0, 1.0 / 60.0);
+    int steps = 0;
+    for (int f = 0; f < 60; ++f) {
+        loop.beginFrame();
+        while (loop.nextStep())
+            ++steps;
+    }
+    CHECK(steps == 240);
+    // output.fps = 1e-6 (inside the scene format's range): a frame of 1e6 s would owe 1e8
+    // steps; it is cut to kMaxFrameTime, 25 steps of 0.01 s, and the next frame the same.
+    FixedStepLoop slow(0.01, 1e6);
+    int total = 0;
+    for (int f = 0; f < 4; ++f) {
+        slow.beginFrame();
+        int n = 0;
+        while (slow.nextStep())
+            ++n;
+        CHECK(n <= 25); // 0.25 s of 0.01 s steps (24 when rounding leaves a hair less)
+        total += n;
+    }
+    CHECK(total >= 99); // the hair carries over: 1 s of frames, 100 steps
+    CHECK_THROWS_AS(FixedStepLoop(0.01, 0.0), std::invalid_argument);
+}
+
 TEST_CASE("tablecloth_trick: a world without a table, handle or box dishes is refused",
           "[samples][game]") {
     const std::string cloth =

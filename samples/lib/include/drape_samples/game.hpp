@@ -28,16 +28,20 @@ class ScriptedPlayer {
 
 /// "Fix your time step": each rendered frame adds 1/fps of simulated time to an accumulator,
 /// which is spent in physics steps of exactly `stepDt`, so results never depend on the frame
-/// rate.
+/// rate. A frame adds at most kMaxFrameTime (the usual guard against a frame that owes more
+/// steps than it can take: with fps = 1e-6 the first frame would owe 1e6 s of steps); longer
+/// frames are cut to it, so the game's clock falls behind the frames', never the physics.
 ///
 ///   FixedStepLoop loop(scene.timeStep, 1.0 / scene.output.fps);
 ///   for (;;) { loop.beginFrame(); while (loop.nextStep()) sim.step(); render(); }
 class FixedStepLoop {
   public:
+    /// The most simulated time one frame adds [s].
+    static constexpr double kMaxFrameTime = 0.25;
     /// Throws std::invalid_argument unless both are positive and finite.
     FixedStepLoop(double stepDt, double frameDt);
-    /// Starts a frame: adds its duration to the accumulator.
-    void beginFrame() { accumulator_ += frameDt_; }
+    /// Starts a frame: adds its duration (at most kMaxFrameTime) to the accumulator.
+    void beginFrame() { accumulator_ += frameDt_ < kMaxFrameTime ? frameDt_ : kMaxFrameTime; }
     /// Whether another step of this frame is due (and takes it from the accumulator).
     bool nextStep() {
         if (accumulator_ < stepDt_) return false;
