@@ -179,6 +179,58 @@ TEST_CASE("broken or missing mesh files are named with what is wrong", "[mesh][e
                       Contains("x.obj: cannot open it for writing"));
 }
 
+TEST_CASE("deep node trees and Collada arrays shorter than their count are refused, not crashed on",
+          "[mesh][hostile]") {
+    using Catch::Matchers::Contains;
+    // A glTF chain of 30,000 nodes (assimp walks it recursively: the stack ran out).
+    const std::string tri =
+        R"("meshes": [], "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}])";
+    std::string nodes;
+    for (int i = 0; i < 30000; ++i)
+        nodes += (i ? "," : "") + std::string(R"({"children": [)") + std::to_string(i + 1) + "]}";
+    nodes += R"(,{})";
+    writeText(outDir() / "chain.gltf", "{" + tri + R"(, "nodes": [)" + nodes + "]}");
+    CHECK_THROWS_WITH(importMesh(outDir() / "chain.gltf"),
+                      Contains("chain.gltf: glTF nodes nested deeper than 1000 levels"));
+    // A cycle of children.
+    writeText(outDir() / "cycle.gltf",
+              "{" + tri +
+                  R"(, "nodes": [{"children": [1]}, {"children": [2]}, {"children": [1]}]})");
+    CHECK_THROWS_WITH(importMesh(outDir() / "cycle.gltf"), Contains("is its own ancestor"));
+
+    // Collada: 10,000 nested <node> elements.
+    auto collada = [](const std::string& geometry, const std::string& scene) {
+        return std::string(
+                   R"(<?xml version="1.0"?><COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">)") +
+               "<library_geometries>" + geometry + "</library_geometries>" +
+               R"(<library_visual_scenes><visual_scene id="s">)" + scene +
+               R"(</visual_scene></library_visual_scenes><scene><instance_visual_scene url="#s"/></scene></COLLADA>)";
+    };
+    std::string deep;
+    for (int i = 0; i < 10000; ++i)
+        deep += R"(<node id="n)" + std::to_string(i) + R"(">)";
+    for (int i = 0; i < 10000; ++i)
+        deep += "</node>";
+    writeText(outDir() / "deep.dae", collada("", deep));
+    CHECK_THROWS_WITH(importMesh(outDir() / "deep.dae"),
+                      Contains("deep.dae: Collada nodes nested deeper than 1000 levels"));
+    // A float_array declaring fewer values than it holds, none, or a negative count.
+    auto geometry = [](const std::string& count) {
+        return std::string(
+                   R"(<geometry id="g"><mesh><source id="p"><float_array id="pa" count=")") +
+               count + R"(">0 0 0 1 0 0 0 1 0</float_array></source></mesh></geometry>)";
+    };
+    for (const char* count : {"3", "0", "-9"}) {
+        INFO("count " << count);
+        writeText(outDir() / "short.dae", collada(geometry(count), ""));
+        CHECK_THROWS_WITH(importMesh(outDir() / "short.dae"),
+                          Contains("short.dae: Collada <float_array> \"pa\""));
+    }
+    writeText(outDir() / "short.dae", collada(geometry("3"), ""));
+    CHECK_THROWS_WITH(importMesh(outDir() / "short.dae"),
+                      Contains("declares count=\"3\" but holds 9 values"));
+}
+
 TEST_CASE("a mesh export that cannot be written completely (a full disk) is an error",
           "[mesh][errors][io]") {
     using Catch::Matchers::Contains;

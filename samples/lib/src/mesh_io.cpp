@@ -16,6 +16,7 @@
 #include <fstream>
 #include <iterator>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -24,9 +25,13 @@
 #include "assimp_io.hpp"
 
 #include <assimp/Exporter.hpp>
+#include <nlohmann/json.hpp>
+#include <pthread.h>
+
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <exception>
 #endif
 
 namespace drape::samples {
@@ -133,6 +138,148 @@ bool parseCount(const std::string& token, Count& out) {
 
 std::string bytesText(std::uint64_t n) {
     return std::to_string(n) + (n == 1 ? " byte" : " bytes");
+}
+
+/// The deepest node tree a mesh file may have. assimp reads node trees recursively (and
+/// frees them so); a chain of tens of thousands of nodes exhausts the stack.
+constexpr std::size_t kMaxNodeDepth = 1000;
+
+/// Collada arrays (<float_array count="N">v1 v2 ...</float_array>, and the int, bool, Name
+/// and IDREF arrays) must hold exactly the count they declare: assimp sizes the array from
+/// the count and reads the values into it, so fewer declared than written writes past it.
+void checkColladaArrays(const std::filesystem::path& file, const std::string& text) {
+    static const char* kinds[] = {"float_array", "int_array", "bool_array", "Name_array",
+                                  "IDREF_array"};
+    for (const char* kind : kinds) {
+        const std::string open = std::string("<") + kind;
+        for (std::size_t at = text.find(open); at != std::string::npos;
+             at = text.find(open, at + 1)) {
+            const std::size_t after = at + open.size();
+            if (after >= text.size() || !(std::isspace(static_cast<unsigned char>(text[after])) ||
+                                          text[after] == '>' || text[after] == '/'))
+                continue;
+            const std::size_t tagEnd = text.find('>', after);
+            if (tagEnd == std::string::npos) return; // assimp refuses the broken XML
+            const std::string tag = text.substr(at, tagEnd - at);
+            const std::size_t key = tag.find("count=\"");
+            std::string where = "<" + std::string(kind) + ">";
+            if (const std::size_t id = tag.find("id=\""); id != std::string::npos) {
+                const std::size_t idEnd = tag.find('"', id + 4);
+                if (idEnd != std::string::npos)
+                    where += " \"" + tag.substr(id + 4, std::min<std::size_t>(idEnd - id - 4, 64)) +
+                             "\"";
+            }
+            if (key == std::string::npos)
+                meshFail(file, "Collada " + where + " has no count attribute");
+            const std::size_t valueStart = key + 7;
+            const std::size_t valueEnd = tag.find('"', valueStart);
+            const std::string value =
+                valueEnd == std::string::npos ? "" : tag.substr(valueStart, valueEnd - valueStart);
+            Count c;
+            if (!parseCount(value, c) || c.text.size() != value.size())
+                meshFail(file, "Collada " + where + " count=\"" + value.substr(0, 32) +
+                                   "\" is not a non-negative whole number");
+            std::uint64_t values = 0;
+            if (text[tagEnd - 1] != '/') { // not <x/>: count the values up to the closing tag
+                const std::size_t close = text.find("</", tagEnd);
+                const std::size_t end = close == std::string::npos ? text.size() : close;
+                bool inToken = false;
+                for (std::size_t i = tagEnd + 1; i < end; ++i) {
+                    const bool space = std::isspace(static_cast<unsigned char>(text[i])) != 0;
+                    values += !space && !inToken;
+                    inToken = !space;
+                }
+            }
+            if (values != c.value)
+                meshFail(file, "Collada " + where + " declares count=\"" + c.text +
+                                   "\" but holds " + std::to_string(values) + " values");
+        }
+    }
+}
+
+/// Collada <node> elements nested deeper than kMaxNodeDepth.
+void checkColladaDepth(const std::filesystem::path& file, const std::string& text) {
+    std::size_t depth = 0;
+    for (std::size_t at = text.find('<'); at != std::string::npos; at = text.find('<', at + 1)) {
+        const bool closing = text.compare(at, 6, "</node") == 0;
+        if (!closing && text.compare(at, 5, "<node") != 0) continue;
+        const std::size_t after = at + (closing ? 6 : 5);
+        if (after < text.size() && !(std::isspace(static_cast<unsigned char>(text[after])) ||
+                                     text[after] == '>' || text[after] == '/'))
+            continue; // <nodes>, <node_x>
+        if (closing) {
+            depth -= depth > 0;
+            continue;
+        }
+        const std::size_t tagEnd = text.find('>', after);
+        if (tagEnd != std::string::npos && text[tagEnd - 1] == '/') continue; // <node/>
+        if (++depth > kMaxNodeDepth)
+            meshFail(file, "Collada nodes nested deeper than " + std::to_string(kMaxNodeDepth) +
+                               " levels");
+    }
+}
+
+/// glTF node trees deeper than kMaxNodeDepth, or whose children form a cycle: read from the
+/// JSON (a .gltf file, or a .glb's first chunk) before assimp walks them recursively.
+void checkGltfDepth(const std::filesystem::path& file, std::ifstream& in, bool binary) {
+    in.clear();
+    in.seekg(0);
+    std::string json;
+    if (binary) {
+        unsigned char head[20];
+        if (!in.read(reinterpret_cast<char*>(head), sizeof head)) return; // assimp refuses it
+        auto u32 = [&head](int at) {
+            return std::uint32_t(head[at]) | std::uint32_t(head[at + 1]) << 8 |
+                   std::uint32_t(head[at + 2]) << 16 | std::uint32_t(head[at + 3]) << 24;
+        };
+        if (u32(0) != 0x46546C67u || u32(16) != 0x4E4F534Au) return; // "glTF", "JSON"
+        json.resize(u32(12));
+        if (!in.read(json.data(), static_cast<std::streamsize>(json.size()))) return;
+    } else {
+        json.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
+    const nlohmann::json doc = nlohmann::json::parse(json, nullptr, false);
+    if (!doc.is_object() || !doc.contains("nodes") || !doc["nodes"].is_array()) return;
+    const auto& nodes = doc["nodes"];
+    const std::size_t n = nodes.size();
+    std::vector<std::vector<std::size_t>> children(n);
+    std::vector<unsigned char> isChild(n, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+        if (!nodes[i].is_object() || !nodes[i].contains("children")) continue;
+        for (const auto& c : nodes[i]["children"]) {
+            if (!c.is_number_unsigned() || c.get<std::uint64_t>() >= n) continue;
+            children[i].push_back(std::size_t(c.get<std::uint64_t>()));
+            isChild[children[i].back()] = 1;
+        }
+    }
+    // Depth-first from every root, with an explicit stack (no recursion here either).
+    std::vector<unsigned char> state(n, 0);                // 0 unseen, 1 on the path, 2 done
+    std::vector<std::pair<std::size_t, std::size_t>> path; // (node, next child)
+    for (std::size_t root = 0; root < n; ++root) {
+        if (isChild[root] || state[root]) continue;
+        path.assign(1, {root, 0});
+        state[root] = 1;
+        while (!path.empty()) {
+            auto& [node, next] = path.back();
+            if (next == children[node].size()) {
+                state[node] = 2;
+                path.pop_back();
+                continue;
+            }
+            const std::size_t child = children[node][next++];
+            if (state[child] == 1)
+                meshFail(file, "glTF node " + std::to_string(child) + " is its own ancestor");
+            if (state[child] == 2) continue;
+            state[child] = 1;
+            path.emplace_back(child, 0);
+            if (path.size() > kMaxNodeDepth)
+                meshFail(file, "glTF nodes nested deeper than " + std::to_string(kMaxNodeDepth) +
+                                   " levels");
+        }
+    }
+    for (std::size_t i = 0; i < n; ++i)
+        if (state[i] == 0)
+            meshFail(file, "glTF node " + std::to_string(i) + " lies on a cycle of children");
 }
 
 /// Header counts larger than the file can hold: assimp allocates what a header claims before
@@ -267,6 +414,12 @@ void checkHeaderCounts(const std::filesystem::path& file, const std::string& ext
             meshFail(file, "Collada " + element + " claims count=\"" + c.text +
                                "\", more items than the file (" + bytesText(size) + ") can hold");
         }
+        checkColladaArrays(file, text);
+        checkColladaDepth(file, text);
+        return;
+    }
+    if (ext == ".gltf" || ext == ".glb") {
+        checkGltfDepth(file, in, ext == ".glb");
         return;
     }
     if (ext == ".off") {
@@ -406,9 +559,53 @@ std::string whereText(std::vector<std::pair<unsigned, unsigned>> faces,
     return out;
 }
 
+/// Stack of the thread that runs an import [bytes]: assimp's readers, post-processing and
+/// scene destructor recurse over node trees (checked to at most kMaxNodeDepth levels for the
+/// formats that can nest deeply; this covers the others' recursion too).
+constexpr std::size_t kImportStackBytes = std::size_t(256) << 20;
+
+ImportedMesh importOnThisStack(const std::filesystem::path& file, const MeshImportOptions& options);
+
+/// Runs f() on a thread with a kImportStackBytes stack and returns what it returns or throws
+/// what it throws (falls back to this thread if no such thread can be made).
+template <class F> auto onLargeStack(F f) -> decltype(f()) {
+    using R = decltype(f());
+    struct Job {
+        F* f;
+        std::optional<R> result;
+        std::exception_ptr error;
+    } job{&f, std::nullopt, nullptr};
+    auto run = [](void* arg) -> void* {
+        auto* j = static_cast<Job*>(arg);
+        try {
+            j->result.emplace((*j->f)());
+        } catch (...) {
+            j->error = std::current_exception();
+        }
+        return nullptr;
+    };
+    pthread_attr_t attr;
+    pthread_t thread;
+    const bool made = pthread_attr_init(&attr) == 0 &&
+                      pthread_attr_setstacksize(&attr, kImportStackBytes) == 0 &&
+                      pthread_create(&thread, &attr, run, &job) == 0;
+    pthread_attr_destroy(&attr);
+    if (!made) return f();
+    pthread_join(thread, nullptr);
+    if (job.error) std::rethrow_exception(job.error);
+    return std::move(*job.result);
+}
+
 } // namespace
 
 ImportedMesh importMesh(const std::filesystem::path& file, const MeshImportOptions& options) {
+    return onLargeStack([&] { return importOnThisStack(file, options); });
+}
+
+namespace {
+
+ImportedMesh importOnThisStack(const std::filesystem::path& file,
+                               const MeshImportOptions& options) {
     std::error_code ec;
     if (!std::filesystem::exists(file, ec)) meshFail(file, "mesh file not found");
     if (std::filesystem::is_directory(file, ec)) meshFail(file, "is a folder, not a mesh file");
@@ -646,6 +843,8 @@ ImportedMesh importMesh(const std::filesystem::path& file, const MeshImportOptio
     out.droppedVertices = isolated;
     return out;
 }
+
+} // namespace
 
 void exportMesh(const TriangleMesh& mesh, const std::filesystem::path& file) {
     const std::string ext = lowerExtension(file);
