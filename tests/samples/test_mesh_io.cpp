@@ -490,7 +490,7 @@ TEST_CASE("degenerate and duplicate triangles are dropped with a warning saying 
     // Vertices 10-13: a copy of vertex 1's position (exact: assimp's FindDegenerates finds the
     // triangle using it), a point 1e-13 m from vertex 2 (welded: drape finds that one), a
     // vertex on the line through vertices 1 and 2 (no area), and a vertex no face uses
-    // (assimp's OBJ reader never passes that one on).
+    // (assimp's OBJ reader never passes that one on: drape counts it from the file).
     const std::string extraV = "v 0 0 0\nv 1.0000000000001 0 0\nv 3 0 0\nv 5 5 5\n";
     // Faces 8-11: collapsed exactly, collapsed by welding, zero area, and face 0 again with
     // the other winding (a duplicate).
@@ -501,14 +501,14 @@ TEST_CASE("degenerate and duplicate triangles are dropped with a warning saying 
     CHECK(m.mesh.vertices.size() == 9);
     CHECK(m.droppedDegenerate == 3);
     CHECK(m.droppedDuplicates == 1);
-    CHECK(m.droppedVertices == 1); // (3, 0, 0), whose only triangle was dropped
+    CHECK(m.droppedVertices == 2); // (3, 0, 0), whose only triangle was dropped, and (5, 5, 5)
     REQUIRE(m.warnings.size() == 1);
     INFO(m.warnings[0]);
     CHECK_THAT(m.warnings[0],
                Contains("few_collapsed.obj: dropped 3 degenerate triangles (two corners at one "
                         "point, or no area: mesh \"sheet\" faces 8, 9, 10), 1 duplicate triangle "
-                        "(the same three corners as an earlier one: mesh \"sheet\" face 11), 1 "
-                        "vertex no triangle uses; 8 of 12 triangles kept"));
+                        "(the same three corners as an earlier one: mesh \"sheet\" face 11), 2 "
+                        "vertices no triangle uses; 8 of 12 triangles kept"));
     // What is left builds a cloth (ClothTopology::build refuses all four).
     CHECK_NOTHROW(ClothTopology::build(m.mesh));
 
@@ -524,6 +524,12 @@ TEST_CASE("degenerate and duplicate triangles are dropped with a warning saying 
     writeText(dir / "clean.obj", gridObj("", ""));
     CHECK(importMesh(dir / "clean.obj").warnings.empty());
     CHECK(importMesh(dir / "clean.obj", refuse).mesh.triangles.size() == 8);
+    // The same mesh with one vertex nothing uses (written before the faces, or after them):
+    // refused when asked, as SCENES.md says.
+    writeText(dir / "unused.obj", gridObj("v 9 9 9\n", ""));
+    CHECK_THROWS_WITH(importMesh(dir / "unused.obj", refuse),
+                      Contains("unused.obj: has 1 vertex no triangle uses; refused"));
+    CHECK(importMesh(dir / "unused.obj").droppedVertices == 1);
 
     // Nothing usable left: an error, not an empty cloth.
     writeText(dir / "all_collapsed.obj", "v 0 0 0\nv 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 1 3 4\n");

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <iterator>
@@ -280,6 +281,40 @@ void checkGltfDepth(const std::filesystem::path& file, std::ifstream& in, bool b
     for (std::size_t i = 0; i < n; ++i)
         if (state[i] == 0)
             meshFail(file, "glTF node " + std::to_string(i) + " lies on a cycle of children");
+}
+
+/// Vertex positions ("v" lines) of an OBJ file that no face, line or point uses: assimp's
+/// reader leaves them out of its meshes, so drape's own count of unused vertices cannot see
+/// them. Indices as OBJ has them: 1-based, or negative counting back from the last "v".
+std::size_t unusedObjVertices(const std::filesystem::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    std::vector<unsigned char> used;
+    std::string line;
+    while (std::getline(in, line)) {
+        std::size_t at = line.find_first_not_of(" \t");
+        if (at == std::string::npos || at + 1 >= line.size()) continue;
+        const char kind = line[at];
+        const char next = line[at + 1];
+        if (kind == 'v' && (next == ' ' || next == '\t')) {
+            used.push_back(0);
+            continue;
+        }
+        if (!((kind == 'f' || kind == 'l' || kind == 'p') && (next == ' ' || next == '\t')))
+            continue;
+        std::istringstream ss(line.substr(at + 2));
+        std::string token;
+        while (ss >> token) {
+            const std::size_t slash = token.find('/');
+            const std::string first = token.substr(0, slash);
+            char* end = nullptr;
+            const long long k = std::strtoll(first.c_str(), &end, 10);
+            if (end == first.c_str()) continue;
+            const long long n = static_cast<long long>(used.size());
+            const long long i = k > 0 ? k - 1 : n + k;
+            if (i >= 0 && i < n) used[std::size_t(i)] = 1;
+        }
+    }
+    return static_cast<std::size_t>(std::count(used.begin(), used.end(), 0));
 }
 
 /// Header counts larger than the file can hold: assimp allocates what a header claims before
@@ -785,8 +820,10 @@ ImportedMesh importOnThisStack(const std::filesystem::path& file,
             compact[i] = static_cast<Index>(out.mesh.vertices.size());
             out.mesh.vertices.push_back(welded.mesh.vertices[i]);
         }
-    // Vertices no kept triangle uses (after welding: a seam's copies count once).
-    const std::size_t isolated = welded.mesh.vertices.size() - out.mesh.vertices.size();
+    // Vertices no kept triangle uses (after welding: a seam's copies count once), and in an
+    // OBJ file those nothing uses at all (assimp's reader drops them before we see them).
+    const std::size_t isolated = welded.mesh.vertices.size() - out.mesh.vertices.size() +
+                                 (lowerExtension(file) == ".obj" ? unusedObjVertices(file) : 0);
 
     if (degenerateCount + duplicate.size() + isolated > 0) {
         std::string what;
@@ -805,8 +842,8 @@ ImportedMesh importOnThisStack(const std::filesystem::path& file,
                     " (the same three corners as an earlier one: " + whereText(duplicate, names) +
                     ")";
         if (isolated > 0)
-            what += (what.empty() ? "" : ", ") + std::to_string(isolated) + " vertex" +
-                    (isolated == 1 ? "" : "es") + " no triangle uses";
+            what += (what.empty() ? "" : ", ") + std::to_string(isolated) +
+                    (isolated == 1 ? " vertex" : " vertices") + " no triangle uses";
         if (options.refuseDegenerate)
             meshFail(file, "has " + what +
                                "; refused (mesh.degenerate_triangles is \"refuse\"; \"drop\" "
