@@ -595,6 +595,36 @@ TEST_CASE("a scene's mesh with degenerate triangles runs, or is refused when ask
                       Contains("scene_mesh.obj: has 1 degenerate triangle"));
 }
 
+TEST_CASE("a mesh file that many bodies name is read once; another transform is another mesh",
+          "[mesh][scenes]") {
+    if (!meshIoAvailable() || !rigidBodiesAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "shared";
+    fs::create_directories(dir);
+    // A mesh with a vertex nothing uses: every import of it warns once.
+    writeText(dir / "rock.obj", gridObj("v 9 9 9\n", ""));
+    std::string bodies;
+    for (int i = 0; i < 5; ++i)
+        bodies += std::string(i ? "," : "") + R"({"name": "rock)" + std::to_string(i) +
+                  R"(", "position": [)" + std::to_string(i) + R"(, -1, 0], "shape": {"type": "mesh",
+                      "mesh": {"file": "rock.obj", "scale": 0.1}}})";
+    bodies += R"(, {"name": "big", "shape": {"type": "mesh", "mesh": {"file": "rock.obj",
+                   "scale": 0.2}}, "position": [0, -2, 0]})";
+    const std::string text =
+        R"({"cloth": {"sheet": {"rows": 3, "cols": 3, "spacing": 0.1}, "total_mass": 0.1,
+                      "stiffness": 5.0},
+            "simulation": {"time_step": 0.001, "duration": 0.01}, "rigid_bodies": [)" +
+        bodies + "]}";
+    Simulation sim(parseScene(text, "shared.json", dir));
+    // Five bodies at scale 0.1 share one import, the one at scale 0.2 has its own: two
+    // imports, two warnings (it was one per body).
+    std::size_t rockWarnings = 0;
+    for (const auto& w : sim.warnings())
+        rockWarnings += w.find("rock.obj") != std::string::npos;
+    CHECK(rockWarnings == 2);
+    sim.step();
+}
+
 TEST_CASE("a mesh transform that puts a vertex outside the coordinate range is refused",
           "[mesh][ranges]") {
     if (!meshIoAvailable()) return;

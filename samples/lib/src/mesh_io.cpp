@@ -60,6 +60,21 @@ void transformMesh(TriangleMesh& mesh, const Vec3& scale, const Vec3& rotationDe
             std::swap(t[1], t[2]);
 }
 
+std::string meshDescKey(const MeshDesc& d) {
+    std::string key = d.file.string();
+    auto add = [&key](double v) {
+        char buf[32];
+        std::snprintf(buf, sizeof buf, "|%.17g", v);
+        key += buf;
+    };
+    for (const Vec3* v : {&d.scale, &d.rotationDeg, &d.translation})
+        for (int k = 0; k < 3; ++k)
+            add((*v)[k]);
+    add(d.weldTolerance.value_or(-1.0));
+    add(d.refuseDegenerate ? 1.0 : 0.0);
+    return key;
+}
+
 ImportedMesh importMesh(const MeshDesc& desc) {
     MeshImportOptions o;
     o.weldTolerance = desc.weldTolerance;

@@ -13,7 +13,10 @@
 #include <Eigen/Geometry>
 
 #include <cmath>
+#include <map>
+#include <memory>
 #include <sstream>
+#include <utility>
 
 namespace drape::samples {
 
@@ -175,13 +178,18 @@ class BulletWorld final : public Simulation::RigidWorld {
 
   private:
     struct Body {
-        std::unique_ptr<btCollisionShape> shape;
-        std::unique_ptr<btTriangleMesh> triangles; // for mesh shapes
+        std::shared_ptr<btCollisionShape> shape;   // shared by the bodies of one mesh file
+        std::shared_ptr<btTriangleMesh> triangles; // for mesh shapes
         std::unique_ptr<btDefaultMotionState> motion;
         std::unique_ptr<btRigidBody> body;
         bool inWorld = false;
         bool manual = false; // launched by the program (a game), not by launch_time
     };
+
+    /// Mesh files' triangles and shapes, by path (see addBody).
+    std::map<std::string,
+             std::pair<std::shared_ptr<btTriangleMesh>, std::shared_ptr<btCollisionShape>>>
+        meshShapes_;
 
     std::size_t bodyIndex(const std::string& name) const {
         for (std::size_t i = 0; i < scene_.rigidBodies.size(); ++i)
@@ -207,12 +215,19 @@ class BulletWorld final : public Simulation::RigidWorld {
                                                            static_cast<btScalar>(d.shape.offset));
             break;
         case ShapeKind::Mesh: {
-            const ImportedMesh im = importMesh(d.shape.mesh);
-            b.triangles = std::make_unique<btTriangleMesh>(true, false);
-            for (const Triangle& t : im.mesh.triangles)
-                b.triangles->addTriangle(toBt(im.mesh.vertices[t[0]]), toBt(im.mesh.vertices[t[1]]),
-                                         toBt(im.mesh.vertices[t[2]]), false);
-            b.shape = std::make_unique<btBvhTriangleMeshShape>(b.triangles.get(), true);
+            // One import and one BVH per file, however many (static) bodies name it.
+            auto& shared = meshShapes_[meshDescKey(d.shape.mesh)];
+            if (!shared.second) {
+                const ImportedMesh im = importMesh(d.shape.mesh);
+                shared.first = std::make_shared<btTriangleMesh>(true, false);
+                for (const Triangle& t : im.mesh.triangles)
+                    shared.first->addTriangle(toBt(im.mesh.vertices[t[0]]),
+                                              toBt(im.mesh.vertices[t[1]]),
+                                              toBt(im.mesh.vertices[t[2]]), false);
+                shared.second = std::make_shared<btBvhTriangleMeshShape>(shared.first.get(), true);
+            }
+            b.triangles = shared.first;
+            b.shape = shared.second;
             break;
         }
         }

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 
 namespace drape::samples {
 
@@ -29,8 +30,12 @@ std::string origin(const SceneDesc& s) {
     return s.sourceFile.empty() ? std::string("scene") : s.sourceFile.string();
 }
 
+/// Mesh files already imported for drawing, by path: a file that many bodies name is read
+/// once.
+using ImportedMeshes = std::map<std::string, ImportedMesh>;
+
 std::vector<DrawMesh> shapeMeshes(const RigidBodyDesc& b, const Vec3& around, double planeSize,
-                                  std::vector<std::string>& warnings) {
+                                  std::vector<std::string>& warnings, ImportedMeshes& imported) {
     DrawMesh m;
     switch (b.shape.kind) {
     case ShapeKind::Box:
@@ -46,8 +51,13 @@ std::vector<DrawMesh> shapeMeshes(const RigidBodyDesc& b, const Vec3& around, do
         // Planes are infinite and static: draw a checkered square under the cloth, in world space.
         return makePlaneMeshes(b.shape.normal, b.shape.offset, around, planeSize, b.color);
     case ShapeKind::Mesh: {
-        ImportedMesh im = importMesh(b.shape.mesh);
-        warnings.insert(warnings.end(), im.warnings.begin(), im.warnings.end());
+        const std::string key = meshDescKey(b.shape.mesh);
+        auto it = imported.find(key);
+        if (it == imported.end()) {
+            it = imported.emplace(key, importMesh(b.shape.mesh)).first;
+            warnings.insert(warnings.end(), it->second.warnings.begin(), it->second.warnings.end());
+        }
+        const ImportedMesh& im = it->second;
         m = toDrawMesh(im.mesh.vertices, im.mesh.triangles, b.color, b.color);
         break;
     }
@@ -123,8 +133,9 @@ Simulation::Simulation(const SceneDesc& scene) : scene_(scene) {
     const Vec3 centre = 0.5 * (lo + hi);
     const double planeSize =
         4.0 * std::max((hi - lo).norm(), (scene_.camera.position - centre).norm());
+    ImportedMeshes imported;
     for (const RigidBodyDesc& b : scene_.rigidBodies)
-        bodyMeshes_.push_back(shapeMeshes(b, centre, planeSize, warnings_));
+        bodyMeshes_.push_back(shapeMeshes(b, centre, planeSize, warnings_, imported));
     chooseSubsteps();
     if (scene_.needsBullet()) world_ = RigidWorld::create(scene_, *cloth_, attachSets_);
     applyWind();

@@ -72,6 +72,9 @@ void transformMesh(TriangleMesh& mesh, const Vec3& scale, const Vec3& rotationDe
 /// Reads a MeshDesc's file with its weld tolerance, transform (applied before welding) and
 /// degenerate_triangles choice.
 ImportedMesh importMesh(const MeshDesc& desc);
+/// What tells apart the meshes importMesh(desc) gives: the file and every option, exactly (a
+/// key for reading a file that many bodies name once).
+std::string meshDescKey(const MeshDesc& desc);
 
 /// Writes a mesh; the format follows the extension (.obj, .ply, .gltf, .glb).
 /// Vertex i of the mesh is vertex i of the file. Throws SceneError on failure.
