@@ -70,6 +70,7 @@ void accumulate(ContactStats& total, const ContactStats& s) {
     total.triangleContacts += s.triangleContacts;
     total.contacts += s.contacts;
     total.projections += s.projections;
+    total.maxDepth = std::max(total.maxDepth, s.maxDepth);
     total.selfContacts += s.selfContacts;
     total.selfPairTests += s.selfPairTests;
     total.impulseOnBodies += s.impulseOnBodies;

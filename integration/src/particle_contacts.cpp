@@ -83,6 +83,7 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
     if (hit.distance >= h) return true; // in the band or resting on the body: no projection
 
     ++stats.projections;
+    stats.maxDepth = std::max(stats.maxDepth, h - hit.distance);
     touching_[i] = 1;
     x[i] = xi + (h - hit.distance) * hit.normal;
     const Vec3 rel = v[i] - b.velocityAt(hit.point);

@@ -61,6 +61,7 @@ double ContactSolver::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t,
     if (!(weight > 0.0)) return -1.0;
     const Vec3& n = hit.normal;
     const double depth = h - hit.distance;
+    stats.maxDepth = std::max(stats.maxDepth, depth);
     for (int k = 0; k < 3; ++k) {
         const Index i = tri[k];
         if (w[i] == 0.0 || beta[k] == 0.0) continue;

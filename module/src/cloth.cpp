@@ -336,14 +336,11 @@ void Cloth::restore(const Saved& s) {
 double Cloth::energyScale() const {
     // Kinetic plus elastic energy, floored by the work gravity does over one mean spring
     // length, so that a cloth at rest still has a finite scale.
-    double totalMass = 0.0;
-    for (double m : masses())
-        totalMass += m;
     double meanRest = 0.0;
     for (const auto& s : topology_->springs())
         meanRest += s.restLength;
     meanRest /= static_cast<double>(std::max<std::size_t>(topology_->springCount(), 1));
-    return kineticEnergy() + springEnergy() + totalMass * settings_.gravity.norm() * meanRest;
+    return kineticEnergy() + springEnergy() + totalMass() * settings_.gravity.norm() * meanRest;
 }
 
 // --- the step driver --------------------------------------------------------------------------
@@ -919,11 +916,26 @@ double Cloth::meanStrain() const {
     return meanSpringStrain(*topology_, x_);
 }
 double Cloth::kineticEnergy() const {
+    if (asleep_) return 0.0; // at rest; v_ keeps the frozen state to resume from
     const std::vector<double>& m = masses();
     double e = 0.0;
     for (std::size_t i = 0; i < v_.size(); ++i)
         e += 0.5 * m[i] * v_[i].squaredNorm();
     return e;
+}
+double Cloth::totalMass() const {
+    double sum = 0.0;
+    for (double m : masses())
+        sum += m;
+    return sum;
+}
+Vec3 Cloth::momentum() const {
+    Vec3 p = Vec3::Zero();
+    if (asleep_) return p;
+    const std::vector<double>& m = masses();
+    for (std::size_t i = 0; i < v_.size(); ++i)
+        p += m[i] * v_[i];
+    return p;
 }
 double Cloth::springEnergy() const {
     return drape::springEnergy(topology_->springs(), forceModel_->stiffness(), x_);

@@ -515,3 +515,28 @@ TEST_CASE("Relative damping keeps momentum and free fall and takes out the motio
     REQUIRE_DRAPE_ERROR(falling.setRelativeDamping(-1.0), ErrorCode::InvalidArgument,
                         "relativeDamping");
 }
+
+TEST_CASE("totalMass() and momentum(): a falling cloth's momentum is M (v0 + g t) with the "
+          "default damping",
+          "[damping][momentum]") {
+    SheetSpec spec;
+    spec.rows = 6;
+    spec.cols = 7;
+    spec.spacing = 0.05;
+    ClothSettings s; // the default relative damping keeps momentum exactly
+    s.particleMass = 0.002;
+    Cloth cloth(ClothTopology::build(makeSheet(spec)), s);
+    REQUIRE(cloth.settings().relativeDamping > 0.0);
+    const double mass = 0.002 * 42;
+    CHECK(cloth.totalMass() == Approx(mass).epsilon(1e-14));
+    const Vec3 v0(0.3, 1.0, -0.2);
+    for (Index i = 0; i < cloth.particleCount(); ++i) // a shear, not a rigid motion
+        cloth.setVelocity(i, v0 + Vec3(0.0, 0.0, 0.1 * std::sin(0.7 * i)));
+    const Vec3 p0 = cloth.momentum();
+    const double dt = 1.0 / 60.0;
+    for (int k = 0; k < 60; ++k)
+        cloth.step(dt);
+    const Vec3 expected = p0 + mass * cloth.time() * s.gravity;
+    INFO("momentum " << cloth.momentum().transpose() << ", expected " << expected.transpose());
+    CHECK((cloth.momentum() - expected).norm() <= 1e-12 * expected.norm());
+}

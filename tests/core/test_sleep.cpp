@@ -75,6 +75,13 @@ TEST_CASE("a cloth at rest falls asleep frozen, and a sleeping step does no work
         CHECK((b->positions()[i] - rest[i]).norm() <= a->settings().sleep.distance);
     }
 
+    // Asleep is at rest: no kinetic energy, no momentum (velocities() keep the frozen state).
+    CHECK(a->kineticEnergy() == 0.0);
+    CHECK(a->momentum() == Vec3::Zero());
+    double frozenKinetic = 0.0;
+    for (std::size_t i = 0; i < a->particleCount(); ++i)
+        frozenKinetic += 0.5 * a->masses()[i] * a->velocities()[i].squaredNorm();
+
     const auto frozen = stateHash(*a);
     const std::uint64_t integrations = calls(*a, "integrate"), stepsBefore = a->stepCount();
     const double timeBefore = a->time();
@@ -89,6 +96,9 @@ TEST_CASE("a cloth at rest falls asleep frozen, and a sleeping step does no work
     CHECK(a->time() == Approx(timeBefore + 1000 * kDt));
     // A sleeping cloth still rejects a bad time step.
     CHECK_THROWS_AS(a->step(-kDt), Error);
+    // Woken, it reports the state it resumes from.
+    a->wake();
+    CHECK(a->kineticEnergy() == Approx(frozenKinetic).margin(1e-300));
 }
 
 TEST_CASE("waking continues exactly as a cloth restored from the frozen state", "[sleep]") {

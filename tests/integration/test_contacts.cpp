@@ -152,6 +152,26 @@ TEST_CASE("a small cloth comes to rest on every supported shape at the contact d
     }
 }
 
+TEST_CASE("ContactStats::maxDepth reports how deep inside the thickness a particle was found",
+          "[contacts][stats]") {
+    // A sheet at rest 4 mm above a box's top face, inside the 10 mm thickness: the first step
+    // finds it 6 mm deep, plus what gravity moved it in one step (g dt^2 at most).
+    TestWorld w;
+    w.body(w.shape<btBoxShape>(btVector3(0.5f, 0.1f, 0.5f)), 0.0, Vec3(0, -0.1, 0));
+    ClothSettings s = smallCloth();
+    auto cloth = makeCloth(horizontalSheet(5, 5, 0.05, 0.004), s);
+    bullet::BulletClothSettings bs;
+    bs.contact.thickness = kThickness;
+    auto& handle = w.add(cloth, bs);
+    run(w, 1);
+    const double depth = kThickness - 0.004;
+    CHECK(handle.lastStats().maxDepth >= depth - 1e-6); // the box's float extents
+    CHECK(handle.lastStats().maxDepth <= depth + 9.81 * kStep * kStep + 1e-6);
+    run(w, 240); // at rest on it: shallow from then on; the total keeps the deepest
+    CHECK(handle.lastStats().maxDepth < 0.1 * depth);
+    CHECK(handle.totalStats().maxDepth == Approx(depth).margin(9.81 * kStep * kStep + 1e-6));
+}
+
 TEST_CASE("a cloth drapes over a static sphere", "[contacts][drape]") {
     TestWorld w;
     const double radius = 0.3;

@@ -159,9 +159,16 @@ class Cloth {
     std::uint64_t stepCount() const { return steps_; }
 
     // --- diagnostics ----------------------------------------------------------------------
-    double maxStrain() const;     ///< largest (l - L0) / L0 [-]
-    double meanStrain() const;    ///< mean (l - L0) / L0 [-]
-    double kineticEnergy() const; ///< sum m v^2 / 2 [J]
+    double maxStrain() const;  ///< largest (l - L0) / L0 [-]
+    double meanStrain() const; ///< mean (l - L0) / L0 [-]
+    /// sum m v^2 / 2 [J]; 0 while asleep (velocities() then keep the frozen state the cloth
+    /// resumes from when it wakes).
+    double kineticEnergy() const;
+    /// sum m of every particle, held ones included [kg].
+    double totalMass() const;
+    /// sum m v of every particle (held ones move with their paths; pinned ones are still)
+    /// [kg m/s]; zero while asleep.
+    Vec3 momentum() const;
     double springEnergy() const;  ///< sum k (l - L0)^2 / 2 [J]
     double gravityEnergy() const; ///< -sum m g . x [J]
     /// Upper bound on the largest angular frequency of the spring network [rad/s].

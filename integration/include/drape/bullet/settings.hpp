@@ -93,7 +93,11 @@ struct ContactStats {
     /// thickness) or, with eq. (7) on, inside its band; once per particle and body per cloth
     /// step, summed over the sub-steps.
     std::size_t contacts = 0;
-    std::size_t projections = 0;   ///< contacts that moved a particle out of a body
+    std::size_t projections = 0; ///< contacts that moved a particle out of a body
+    /// Deepest a particle (or a triangle, with contact.triangles) was found inside a body's
+    /// contact thickness before it was moved out: thickness - distance, 0 without
+    /// projections; in totalStats() the largest of any sub-step [m].
+    double maxDepth = 0.0;
     std::size_t selfContacts = 0;  ///< particle-triangle self contacts resolved
     std::size_t selfPairTests = 0; ///< particle-triangle pairs tested by self-collision
     /// Total linear impulse the cloth gave dynamic bodies, through contacts and through
