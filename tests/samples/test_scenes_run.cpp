@@ -318,6 +318,33 @@ TEST_CASE("curtain_ball: the curtain stops the ball and is pushed back by it",
     CHECK(deepestCloth < -0.2); // the ball pushed the cloth back (two-way coupling)
 }
 
+TEST_CASE("a scene with rigid bodies beyond single precision's reach is refused, naming what",
+          "[scenes][ranges]") {
+    if (!rigidBodiesAvailable()) {
+        WARN("skipped: no Bullet integration");
+        return;
+    }
+    // Near 1e6 m Bullet's float positions are 6 cm apart: a 5 mm thickness cannot hold. The
+    // reach for h = 5 mm is 0.1 h 2^23 = 4194 m.
+    auto scene = [](const std::string& x) {
+        return parseScene(R"({
+          "cloth": {"sheet": {"rows": 3, "cols": 3, "spacing": 0.1, "origin": [)" +
+                              x + R"(, 1, 0]}, "particle_mass": 0.01, "stiffness": 20.0},
+          "simulation": {"time_step": 0.002, "duration": 0.01},
+          "rigid_bodies": [{"name": "box", "shape": {"type": "box", "half_extents": [1, 0.1, 1]},
+                            "position": [)" +
+                              x + R"(, 0, 0]}],
+          "collision": {"thickness": 0.005}
+        })",
+                          "far.json", kScenes);
+    };
+    using Catch::Matchers::Contains;
+    CHECK_THROWS_WITH(Simulation(scene("999000")),
+                      Contains("the cloth's particle 0 lies 999000 m from the origin") &&
+                          Contains("within 4194.3 m") && Contains("single precision"));
+    CHECK_NOTHROW(Simulation(scene("4000")));
+}
+
 TEST_CASE("attachments follow a kinematic body along its keyframes and index pins stay put",
           "[scenes]") {
     if (!rigidBodiesAvailable()) {

@@ -12,7 +12,9 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <memory>
 #include <sstream>
@@ -67,6 +69,13 @@ class BulletWorld final : public Simulation::RigidWorld {
         : scene_(scene), dispatcher_(&config_),
           world_(&dispatcher_, &broadphase_, &solver_, &config_) {
         world_.setGravity(toBt(scene.cloth.gravity));
+        const CollisionDesc c = scene.collision.value_or(CollisionDesc{});
+        double meanEdge = 0.0;
+        for (const Spring& sp : cloth.topology().springs())
+            meanEdge += sp.restLength;
+        meanEdge /= static_cast<double>(std::max<std::size_t>(1, cloth.topology().springCount()));
+        const double thickness = c.thickness.value_or(0.1 * meanEdge);
+        checkPrecision(scene, cloth, thickness);
         for (const RigidBodyDesc& d : scene.rigidBodies)
             addBody(d);
 
@@ -74,12 +83,7 @@ class BulletWorld final : public Simulation::RigidWorld {
         // a non-owning one (the world is destroyed before the cloth).
         std::shared_ptr<Cloth> shared(&cloth, [](Cloth*) {});
         bullet::BulletClothSettings s;
-        const CollisionDesc c = scene.collision.value_or(CollisionDesc{});
-        double meanEdge = 0.0;
-        for (const Spring& sp : cloth.topology().springs())
-            meanEdge += sp.restLength;
-        meanEdge /= static_cast<double>(std::max<std::size_t>(1, cloth.topology().springCount()));
-        s.contact.thickness = c.thickness.value_or(0.1 * meanEdge);
+        s.contact.thickness = thickness;
         s.contact.frictionScale = c.frictionScale;
         s.contact.penaltyForce = c.penaltyForce;
         s.contact.continuous = c.continuous;
@@ -185,6 +189,40 @@ class BulletWorld final : public Simulation::RigidWorld {
         bool inWorld = false;
         bool manual = false; // launched by the program (a game), not by launch_time
     };
+
+    /// Bullet keeps poses in single precision: at a distance |x| from the origin it resolves
+    /// about |x| 2^-23. A scene whose cloth or bodies lie where that is coarser than a tenth
+    /// of the contact thickness would place bodies off by more than the gap the cloth keeps
+    /// (near 1e6 m: 6 cm): refused, naming what lies too far out.
+    static void checkPrecision(const SceneDesc& scene, const Cloth& cloth, double thickness) {
+        const double reach = 0.1 * thickness * 8388608.0;
+        auto refuse = [&](const std::string& what, double at) {
+            char buf[160];
+            std::snprintf(buf, sizeof buf,
+                          " lies %.6g m from the origin; with rigid bodies the scene must lie "
+                          "within %.6g m",
+                          at, reach);
+            const std::string file =
+                scene.sourceFile.empty() ? std::string("scene") : scene.sourceFile.string();
+            throw SceneError(file + ": " + what + buf +
+                             " (Bullet keeps positions in single precision, which resolves a "
+                             "tenth of the contact thickness only that far out; move the scene "
+                             "toward the origin)");
+        };
+        const auto& x = cloth.positions();
+        for (std::size_t i = 0; i < x.size(); ++i)
+            if (const double at = x[i].cwiseAbs().maxCoeff(); at > reach)
+                refuse("the cloth's particle " + std::to_string(i), at);
+        for (std::size_t k = 0; k < scene.rigidBodies.size(); ++k) {
+            const RigidBodyDesc& d = scene.rigidBodies[k];
+            const std::string name = "rigid_bodies[" + std::to_string(k) + "] \"" + d.name + "\"";
+            double at = d.position.cwiseAbs().maxCoeff();
+            for (const KeyframeDesc& f : d.keyframes)
+                at = std::max(at, f.position.cwiseAbs().maxCoeff());
+            if (d.shape.kind == ShapeKind::Plane) at = std::max(at, std::abs(d.shape.offset));
+            if (at > reach) refuse(name, at);
+        }
+    }
 
     /// Mesh files' triangles and shapes, by path (see addBody).
     std::map<std::string,
