@@ -345,6 +345,34 @@ TEST_CASE("a scene with rigid bodies beyond single precision's reach is refused,
     CHECK_NOTHROW(Simulation(scene("4000")));
 }
 
+TEST_CASE("rigid bodies piled into each other at the start are refused before Bullet pairs them",
+          "[scenes][ranges]") {
+    if (!rigidBodiesAvailable()) {
+        WARN("skipped: no Bullet integration");
+        return;
+    }
+    // 2,000 dynamic spheres at one point: 2 million pairs for Bullet. A row of 2,000 touching
+    // ones (a pair each) is a scene.
+    auto scene = [](bool piled) {
+        std::string bodies;
+        for (int i = 0; i < 2000; ++i)
+            bodies += std::string(i ? "," : "") + R"({"name": "b)" + std::to_string(i) +
+                      R"(", "shape": {"type": "sphere", "radius": 0.05}, "motion": "dynamic",
+                         "mass": 0.1, "position": [)" +
+                      (piled ? std::string("0") : std::to_string(0.1 * i)) + ", 3, 0]}";
+        return parseScene(R"({"cloth": {"sheet": {"rows": 3, "cols": 3, "spacing": 0.1},
+                                         "particle_mass": 0.01, "stiffness": 20.0},
+                              "simulation": {"time_step": 0.002, "duration": 0.01},
+                              "rigid_bodies": [)" +
+                              bodies + "]}",
+                          "pile.json", kScenes);
+    };
+    using Catch::Matchers::Contains;
+    CHECK_THROWS_WITH(Simulation(scene(true)),
+                      Contains("rigid_bodies: more than 33000 pairs of bodies overlap"));
+    CHECK_NOTHROW(Simulation(scene(false)));
+}
+
 TEST_CASE("attachments follow a kinematic body along its keyframes and index pins stay put",
           "[scenes]") {
     if (!rigidBodiesAvailable()) {

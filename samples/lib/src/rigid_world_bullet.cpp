@@ -76,6 +76,7 @@ class BulletWorld final : public Simulation::RigidWorld {
         meanEdge /= static_cast<double>(std::max<std::size_t>(1, cloth.topology().springCount()));
         const double thickness = c.thickness.value_or(0.1 * meanEdge);
         checkPrecision(scene, cloth, thickness);
+        checkOverlaps(scene);
         for (const RigidBodyDesc& d : scene.rigidBodies)
             addBody(d);
 
@@ -221,6 +222,65 @@ class BulletWorld final : public Simulation::RigidWorld {
                 at = std::max(at, f.position.cwiseAbs().maxCoeff());
             if (d.shape.kind == ShapeKind::Plane) at = std::max(at, std::abs(d.shape.offset));
             if (at > reach) refuse(name, at);
+        }
+    }
+
+    /// The most pairs of rigid bodies whose bounding spheres overlap at the start, per body
+    /// (plus a floor): a stack or a pile has a few per body; bodies piled at one point have
+    /// n^2 / 2, and Bullet's broadphase and solver work (and memory) grow with the pairs
+    /// (10,000 spheres at one point: over a minute and 3.7 GB before the first step ended).
+    static constexpr std::size_t kMaxOverlapsPerBody = 16, kMaxOverlapsFloor = 1000;
+
+    /// Refuses a scene whose bodies start piled into each other beyond kMaxOverlapsPerBody
+    /// pairs per body: sort and sweep on x over bounding spheres, stopping at the limit.
+    static void checkOverlaps(const SceneDesc& scene) {
+        struct Ball {
+            double lo, hi;
+            Vec3 c;
+            double r;
+            bool moving; // dynamic or kinematic: Bullet pairs static bodies only with these
+        };
+        std::vector<Ball> balls;
+        for (const RigidBodyDesc& d : scene.rigidBodies) {
+            double r = 0.0;
+            switch (d.shape.kind) {
+            case ShapeKind::Box:
+                r = d.shape.halfExtents.norm();
+                break;
+            case ShapeKind::Sphere:
+                r = d.shape.radius;
+                break;
+            case ShapeKind::Capsule:
+                r = d.shape.radius + 0.5 * d.shape.height;
+                break;
+            case ShapeKind::Plane:
+            case ShapeKind::Mesh:
+                continue; // static: Bullet pairs nothing static with static
+            }
+            const Vec3 c = d.keyframes.empty() ? d.position : d.keyframes.front().position;
+            balls.push_back(Ball{c.x() - r, c.x() + r, c, r, d.motion != MotionKind::Static});
+        }
+        const std::size_t limit = kMaxOverlapsFloor + kMaxOverlapsPerBody * balls.size();
+        std::sort(balls.begin(), balls.end(),
+                  [](const Ball& a, const Ball& b) { return a.lo < b.lo; });
+        std::size_t pairs = 0;
+        for (std::size_t i = 0; i < balls.size(); ++i) {
+            for (std::size_t j = i + 1; j < balls.size() && balls[j].lo <= balls[i].hi; ++j) {
+                const double reach = balls[i].r + balls[j].r;
+                if (!(balls[i].moving || balls[j].moving) ||
+                    (balls[i].c - balls[j].c).squaredNorm() > reach * reach)
+                    continue;
+                if (++pairs > limit) {
+                    const std::string file =
+                        scene.sourceFile.empty() ? std::string("scene") : scene.sourceFile.string();
+                    throw SceneError(
+                        file + ": rigid_bodies: more than " + std::to_string(limit) +
+                        " pairs of bodies overlap where they start (" +
+                        std::to_string(balls.size()) +
+                        " bodies, bounding spheres): bodies piled into each other cost Bullet "
+                        "work and memory for every pair; spread them out");
+                }
+            }
         }
     }
 
