@@ -120,7 +120,10 @@ class BulletCloth {
 /// the cloth's own automatic sub-steps if it is not enough). A cloth step that fails (its
 /// state stops being finite, a check of ClothSettings::failure, or a step that would need
 /// more than substeps.maxSubsteps) throws its drape::Error out of stepSimulation; the cloth
-/// keeps its state from before that step.
+/// keeps its state from before that step. The rigid bodies have moved in that Bullet
+/// sub-step already (Bullet integrates them before it steps its actions), so the world is a
+/// sub-step ahead of the cloth: catch the error to stop, or fix the cause (a smaller world
+/// step, stiffer limits on substeps) and step on.
 std::unique_ptr<BulletCloth> addCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
                                       const BulletClothSettings& settings = {});
 
