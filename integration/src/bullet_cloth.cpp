@@ -6,8 +6,9 @@
 //                        particle_boxes.*: the cheap tests before a particle's query)
 //   contact_force.*      the contact force term (eq. (7) and Coulomb friction) in f
 //   attachments.*        attached particles as kinematic targets
-//   shape_queries.*, self_collision.*, validate.*, pose.hpp, drape/bullet/convert.hpp,
+//   shape_queries.*, validate.*, pose.hpp, drape/bullet/convert.hpp,
 //   drape/bullet/settings.hpp
+// (Self-collision is the cloth's own stage: ClothSettings::selfCollision.)
 //
 // One Bullet sub-step (btDiscreteDynamicsWorld::internalSingleStepSimulation) runs: rigid
 // bodies predicted, broadphase and narrow-phase, constraints solved, transforms integrated,
@@ -22,8 +23,8 @@
 //   2. attach:  attached particles get the body's new attachment point as a kinematic target;
 //   3. step:    cloth.step(dt / n), n times (settings.substeps, or automatic: the fewest within
 //               the cloth's stability limit); our ContactStage runs inside it
-//               after strain limiting (self-collision, then particle-body contacts), and the
-//               eq. (7) penalty is one of the cloth's force terms;
+//               after strain limiting and the cloth's self-collision (particle-body
+//               contacts), and the eq. (7) penalty is one of the cloth's force terms;
 //   4. impulses: the impulses accumulated on dynamic bodies are applied;
 //   5. proxy:   the ghost's AABB becomes the cloth's bounding box plus margin.
 // A sleeping cloth (Cloth::isAsleep) is first woken if a candidate body is new, gone or
@@ -215,6 +216,8 @@ void BulletCloth::Impl::step(double dt) {
         c.stepPart(h, substeps); // the contact stage runs inside it, the contact force is
                                  // one of its terms
         ++last.steps;
+        last.selfPairTests += c.lastSelfCollision().pairTests;
+        last.selfContacts += c.lastSelfCollision().contacts;
         if (wasAsleep && c.isAsleep()) continue; // nothing moved, nothing to hand to bodies
         slept = false;
         const auto afterStep = Clock::now();
@@ -342,6 +345,7 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
     require(band > 0.0 || settings.contact.penaltyForce == 0.0, ErrorCode::InvalidArgument,
             "contact.penaltyBand must be positive when the penalty force is on");
     if (!(band > 0.0)) band = h;
+    if (settings.selfCollision.enabled) cloth->setSelfCollision(settings.selfCollision);
     impl_ = std::make_unique<Impl>(world, std::move(cloth), settings, band, this);
     Impl& m = *impl_;
     if (settings.contact.broadphaseMargin) {

@@ -13,8 +13,7 @@
 namespace drape::bullet::detail {
 
 ContactSolver::ContactSolver(const BulletClothSettings& settings, double band)
-    : records(std::make_shared<ContactState>()), contact_(settings.contact),
-      self_(settings.selfCollision), band_(band),
+    : records(std::make_shared<ContactState>()), contact_(settings.contact), band_(band),
       boxes_(settings.contact.thickness, band, settings.contact.continuous) {
     records->thickness = settings.contact.thickness;
     records->band = band;
@@ -30,21 +29,10 @@ void ContactSolver::run(Cloth& c, double dt) {
     from_ = &c.stepStartPositions();
     records->contacts.clear();
     records->dt = dt;
-    const bool self = self_.enabled;
-    if (bodies.empty() && !self) return; // no rigid collider near the cloth: no work at all
-    Vec3List& x = c.mutablePositions();
-    Vec3List& v = c.mutableVelocities();
+    if (bodies.empty()) return; // no rigid collider near the cloth: no work at all
     clothMass_ = 0.0;
     for (std::size_t i = 0; i < n; ++i)
         if (c.inverseMasses()[i] != 0.0) clothMass_ += c.masses()[i];
-
-    if (self) {
-        const auto& sc = self_;
-        const auto counts = selfCollider_.run(c.topology(), c.inverseMasses(), stepStart(), x, v,
-                                              sc.thickness, sc.friction, sc.iterations);
-        stats.selfPairTests += counts.pairTests;
-        stats.selfContacts += counts.contacts;
-    }
 
     QueryCounters counters;
     collideParticles(c, dt, counters);

@@ -1,6 +1,6 @@
 // contacts.hpp (private to drape::bullet): the contact stage, which runs inside every cloth
-// step after strain limiting: self-collision, particle-body contacts (contacts.cpp: the pass
-// over bodies and particles, culled by particle_boxes.hpp, the re-limiting;
+// step after strain limiting and the cloth's own self-collision: particle-body contacts
+// (contacts.cpp: the pass over bodies and particles, culled by particle_boxes.hpp, the re-limiting;
 // particle_contacts.cpp: one particle against one body, with its friction), triangle-body
 // contacts (triangle_contacts.cpp), and the reaction of the contact force term on the bodies.
 //
@@ -48,7 +48,6 @@
 #include "body_snapshot.hpp"
 #include "contact_force.hpp"
 #include "particle_boxes.hpp"
-#include "self_collision.hpp"
 #include "shape_queries.hpp"
 
 #include "drape/bullet/settings.hpp"
@@ -91,8 +90,8 @@ class ContactSolver {
     /// `band` is eq. (7)'s band width [m].
     ContactSolver(const BulletClothSettings& settings, double band);
 
-    /// The contact stage (the cloth's ClothStage runs it): self-collision, particle-body
-    /// contacts, re-limiting, friction.
+    /// The contact stage (the cloth's ClothStage runs it): particle-body contacts,
+    /// re-limiting, friction.
     void run(Cloth& c, double dt);
     /// The contact force (normal and friction) the particles got at the end of a cloth step
     /// of h [s] acts for h: dynamic bodies get the opposite, and what the friction cone left
@@ -180,9 +179,7 @@ class ContactSolver {
 
     // Copies of the handle's settings (they never change), read in the per-particle loops.
     const ContactSettings contact_;
-    const SelfCollisionSettings self_;
     const double band_;
-    SelfCollider selfCollider_;
     /// The cloth's free mass this step [kg]: a dynamic body gets limiter planes when it is at
     /// least this heavy along the contact normal.
     double clothMass_ = 0.0;

@@ -6,6 +6,7 @@
 
 #include "pose.hpp"
 
+#include "drape/geometry.hpp"
 #include "drape/mesh.hpp"
 
 #include <Eigen/Core>
@@ -59,9 +60,5 @@ struct TriangleHit {
 TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& transform,
                               const Vec3& a, const Vec3& b, const Vec3& c, double reach,
                               QueryCounters& counters);
-
-/// Closest point to p on triangle (a, b, c); also returns its barycentric weights.
-Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c,
-                            Vec3& barycentric);
 
 } // namespace drape::bullet::detail

@@ -37,15 +37,7 @@ void validate(const BulletClothSettings& s) {
     if (s.timeStep)
         require(std::isfinite(*s.timeStep) && *s.timeStep > 0.0, ErrorCode::InvalidArgument,
                 "timeStep must be positive and finite, got " + num(*s.timeStep));
-    const auto& sc = s.selfCollision;
-    if (sc.enabled) {
-        require(std::isfinite(sc.thickness) && sc.thickness > 0.0, ErrorCode::InvalidArgument,
-                "selfCollision.thickness must be positive and finite, got " + num(sc.thickness));
-        require(sc.iterations >= 1, ErrorCode::InvalidArgument,
-                "selfCollision.iterations must be >= 1, got " + std::to_string(sc.iterations));
-        require(std::isfinite(sc.friction) && sc.friction >= 0.0, ErrorCode::InvalidArgument,
-                "selfCollision.friction must be >= 0 and finite, got " + num(sc.friction));
-    }
+    // selfCollision is the cloth's own: Cloth::setSelfCollision validates it.
 }
 
 } // namespace drape::bullet::detail

@@ -1,6 +1,8 @@
 // Cloth: settings validation, the step pipeline, pins and diagnostics.
 #include "drape/cloth.hpp"
 
+#include "self_collision.hpp"
+
 #include "drape/error.hpp"
 #include "drape/stability.hpp"
 
@@ -98,8 +100,18 @@ std::vector<double> buildStiffness(const ClothTopology& topo, const ClothSetting
     return springStiffnessFromMaterial(topo, eh, 1.0);
 }
 
+void validateSelfCollision(const SelfCollisionSettings& sc) {
+    if (!sc.enabled) return; // the values matter only when it runs
+    requirePositive(sc.thickness, "selfCollision.thickness");
+    if (sc.iterations < 1)
+        throw Error(ErrorCode::InvalidArgument,
+                    "selfCollision.iterations must be >= 1, got " + std::to_string(sc.iterations));
+    requireNonNegative(sc.friction, "selfCollision.friction");
+}
+
 void validateSettings(const ClothSettings& s) {
     requireFinite(s.gravity, "gravity");
+    validateSelfCollision(s.selfCollision);
     requireNonNegative(s.damping, "damping");
     requireNonNegative(s.relativeDamping, "relativeDamping");
     requireNonNegative(s.springDamping, "springDamping");
@@ -253,6 +265,7 @@ void Cloth::stepPart(double dt, int parts) {
     // What a step reports (limiter stats, the held particles' impulses) sums its sub-steps; a
     // step taken asleep reports nothing.
     limiterStats_ = StrainLimitStats{};
+    selfStats_ = SelfCollisionStats{};
     heldImpulse_.resize(x_.size(), Vec3::Zero());
     for (Index i : heldImpulsed_)
         heldImpulse_[i].setZero();
@@ -352,6 +365,7 @@ double Cloth::energyScale() const {
 //   integrate       the integrator's advance(): for Velocity-Verlet v += f dt / 2m, x += v dt
 //   kinematic       pinned particles held, kinematic particles put on their paths
 //   strain_limit    the limiter; what it moved gets v += dx / dt
+//   self_collision  particles kept off the cloth's own triangles (if set)
 //   <stages>        the caller's stages (contacts, self-collision), in order
 //   forces          f(t + dt) at the corrected state (one timer per force term)
 //   integrate_finish Velocity-Verlet's closing half kick
@@ -375,6 +389,8 @@ const Cloth::Stage Cloth::kStages[] = {
     {"strain_limit", true,
      [](const Cloth& c) { return c.settings_.limiter.kind != LimiterKind::None; },
      &Cloth::stageLimit},
+    {"self_collision", true, [](const Cloth& c) { return c.settings_.selfCollision.enabled; },
+     &Cloth::stageSelfCollision},
     {"<stages>", false, [](const Cloth& c) { return !c.stages_.empty(); },
      &Cloth::stageCallerStages},
     {"forces", false, [](const Cloth&) { return true; }, &Cloth::stageForces},
@@ -639,6 +655,22 @@ void Cloth::stageRelativeDamping(StepContext& ctx) {
     for (std::size_t i = 0; i < v_.size(); ++i) {
         if (invMass_[i] != 0.0) v_[i] = vbar + decay * (v_[i] - vbar);
     }
+}
+
+void Cloth::stageSelfCollision(StepContext&) {
+    if (!selfCollider_) selfCollider_ = std::make_unique<detail::SelfCollider>();
+    const auto& sc = settings_.selfCollision;
+    const auto counts = selfCollider_->run(*topology_, invMass_, step_.x0, x_, v_, sc.thickness,
+                                           sc.friction, sc.iterations);
+    selfStats_.pairTests += counts.pairTests;
+    selfStats_.contacts += counts.contacts;
+    if (counts.contacts > 0) forcesValid_ = false;
+}
+
+void Cloth::setSelfCollision(const SelfCollisionSettings& self) {
+    validateSelfCollision(self);
+    settings_.selfCollision = self;
+    edited();
 }
 
 void Cloth::stageVerify(StepContext& ctx) {

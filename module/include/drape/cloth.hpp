@@ -39,6 +39,9 @@ namespace drape {
 
 class Cloth;
 namespace detail {
+class SelfCollider;
+}
+namespace detail {
 class ThreadPool;
 }
 
@@ -99,6 +102,17 @@ class Cloth {
     void wake();
     /// Changes the sleep settings (validated; throws drape::Error) and wakes the cloth.
     void setSleep(const SleepSettings& sleep);
+
+    // --- self-collision (settings.selfCollision, off by default) ---------------------------
+    /// Changes ClothSettings::selfCollision (validated; throws drape::Error) and wakes the
+    /// cloth.
+    void setSelfCollision(const SelfCollisionSettings& self);
+    /// What the self-collision stage did in the last step (its sub-steps summed).
+    struct SelfCollisionStats {
+        std::size_t pairTests = 0; ///< particle-triangle pairs given to the exact test
+        std::size_t contacts = 0;  ///< pairs closer than the thickness that were corrected
+    };
+    const SelfCollisionStats& lastSelfCollision() const { return selfStats_; }
     /// Steps taken asleep (each cost O(number of kinematic particles)).
     std::uint64_t sleptSteps() const { return sleptSteps_; }
     /// Consecutive quiet simulated time so far while awake [s].
@@ -244,7 +258,7 @@ class Cloth {
         bool (*active)(const Cloth&);
         void (Cloth::*run)(StepContext&);
     };
-    static const Stage kStages[9];
+    static const Stage kStages[10];
     void stepOnce(double dt);
     void stepWithRetry(double dt);
     void addLimiterStats(const StrainLimitStats& st);
@@ -256,6 +270,7 @@ class Cloth {
     void stageForces(StepContext& ctx);
     void stageFinish(StepContext& ctx);
     void stageRelativeDamping(StepContext& ctx);
+    void stageSelfCollision(StepContext& ctx);
     void stageVerify(StepContext& ctx);
     void applyLimiterMoves(double dt);
     /// The limiter's settings for a step of dt, its band narrowed by bandAt.
@@ -298,6 +313,8 @@ class Cloth {
     std::vector<std::size_t> callerStageSlots_; ///< timer slot of each caller stage
     StrainLimiter limiter_;
     StrainLimitStats limiterStats_;
+    std::unique_ptr<detail::SelfCollider> selfCollider_; ///< scratch of the self-collision stage
+    SelfCollisionStats selfStats_;
     std::uint64_t limiterCapHits_ = 0;
     PhaseTimers timers_;
     bool forcesValid_ = false;

@@ -166,6 +166,17 @@ struct SleepSettings {
     double time = 1.0;
 };
 
+/// Particle-triangle collision of the cloth with itself (the paper's particle against a
+/// "triangular patch of fabrics"): every free particle keeps `thickness` from every triangle
+/// it is not a corner of, on the side it was on at the step's start, with momentum kept and
+/// Coulomb friction between the layers. Runs after the strain limiter. Off by default.
+struct SelfCollisionSettings {
+    bool enabled = false;    ///< run the self-collision pass
+    double thickness = 0.01; ///< distance a particle keeps from the cloth's other triangles [m]
+    int iterations = 2;      ///< passes over all particle-triangle pairs per step (>= 1)
+    double friction = 0.2;   ///< Coulomb mu between layers of the cloth [-]
+};
+
 /// How Cloth::step(dt) divides a step into sub-steps.
 struct SubstepSettings {
     /// Take a step as the fewest equal sub-steps of at most `fraction` times the integrator's
@@ -230,13 +241,14 @@ struct ClothSettings {
     /// drags the rest at rate * (its mass share) * u (a fifth of g for a tenth of the cloth at 1
     /// m/s).
     double relativeDamping = kDefaultRelativeDamping;
-    double springDamping = 0.0; ///< damping along springs: -c (dv . n) n [N s/m]
-    AeroSettings aero;          ///< air drag and lift; off by default
-    LimiterSettings limiter;    ///< strain limiting; stress-ordered 10 % by default
-    ImplicitSettings implicit;  ///< used by ImplicitEuler only
-    FailureSettings failure;    ///< blow-up detection and retry
-    SleepSettings sleep;        ///< sleeping at rest; off by default
-    SubstepSettings substeps;   ///< automatic sub-steps of Cloth::step; on by default
+    double springDamping = 0.0;          ///< damping along springs: -c (dv . n) n [N s/m]
+    AeroSettings aero;                   ///< air drag and lift; off by default
+    LimiterSettings limiter;             ///< strain limiting; stress-ordered 10 % by default
+    ImplicitSettings implicit;           ///< used by ImplicitEuler only
+    FailureSettings failure;             ///< blow-up detection and retry
+    SleepSettings sleep;                 ///< sleeping at rest; off by default
+    SubstepSettings substeps;            ///< automatic sub-steps of Cloth::step; on by default
+    SelfCollisionSettings selfCollision; ///< the cloth against itself; off by default
 
     /// Threads a step may use (>= 1, the caller's included). Springs, gravity, damping and
     /// the explicit integrators' particle loops are split over them; results are

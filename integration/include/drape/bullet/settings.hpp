@@ -4,6 +4,7 @@
 #pragma once
 
 #include "drape/mesh.hpp"
+#include "drape/settings.hpp"
 
 #include <cstdint>
 #include <optional>
@@ -44,19 +45,17 @@ struct ContactSettings {
     std::optional<double> broadphaseMargin;
 };
 
-/// Collision of the cloth's particles with its own triangles (the paper's particle-triangle
-/// collision of the fabric with itself). Off unless `enabled`; costs nothing when off.
-struct SelfCollisionSettings {
-    bool enabled = false;    ///< run the self-collision pass
-    double thickness = 0.01; ///< distance a particle keeps from the cloth's other triangles [m]
-    int iterations = 2;      ///< passes over all particle-triangle pairs per step (>= 1)
-    double friction = 0.2;   ///< Coulomb mu between layers of the cloth [-]
-};
+/// Collision of the cloth's particles with its own triangles is the cloth's own
+/// (drape::SelfCollisionSettings, ClothSettings:: selfCollision): the name stays here for programs
+/// written against drape::bullet.
+using SelfCollisionSettings = drape::SelfCollisionSettings;
 
 /// How a cloth joins a world.
 struct BulletClothSettings {
-    ContactSettings contact;             ///< particle-body contacts
-    SelfCollisionSettings selfCollision; ///< particle-triangle self-collision
+    ContactSettings contact; ///< particle-body contacts
+    /// Particle-triangle self-collision: when enabled, addCloth sets it as the cloth's own
+    /// ClothSettings::selfCollision (Cloth::setSelfCollision), which the cloth's step runs.
+    SelfCollisionSettings selfCollision;
     /// Cloth steps per internal Bullet sub-step (>= 1): a stiff cloth runs at
     /// fixedTimeStep / substeps while the rigid bodies keep the world's step. Not given (the
     /// default): Cloth::substepsFor, chosen in every sub-step: the fewest cloth steps within

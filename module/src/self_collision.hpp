@@ -1,6 +1,6 @@
-// self_collision.hpp (private to drape::bullet): particle-triangle collision of a cloth with
-// itself (the paper's particle against "triangular patch of fabrics" test), with a spatial
-// hash as broadphase. Plain Eigen data; no Bullet types.
+// self_collision.hpp (private to the core): particle-triangle collision of a cloth with itself
+// (the paper's particle against "triangular patch of fabrics" test), with a spatial hash as
+// broadphase; the step's "self_collision" stage (ClothSettings::selfCollision) runs it.
 #pragma once
 
 #include "drape/forces.hpp"
@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-namespace drape::bullet::detail {
+namespace drape::detail {
 
 struct SelfCollisionCounts {
     std::size_t pairTests = 0; ///< particle-triangle pairs given to the exact test
@@ -32,4 +32,4 @@ class SelfCollider {
     std::vector<std::pair<std::uint64_t, Index>> cells_; ///< (cell key, triangle), sorted
 };
 
-} // namespace drape::bullet::detail
+} // namespace drape::detail

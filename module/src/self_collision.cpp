@@ -14,12 +14,12 @@
 // the same weights remove an approaching relative normal velocity and apply friction.
 #include "self_collision.hpp"
 
-#include "shape_queries.hpp"
+#include "drape/geometry.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-namespace drape::bullet::detail {
+namespace drape::detail {
 namespace {
 
 std::int64_t cellCoord(double v, double invCell) {
@@ -125,4 +125,4 @@ SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,
     return counts;
 }
 
-} // namespace drape::bullet::detail
+} // namespace drape::detail

@@ -1,0 +1,99 @@
+// Self-collision in the core (ClothSettings::selfCollision): a cloth stepped on its own, with
+// no Bullet world, keeps its particles off its own triangles.
+#include "helpers.hpp"
+
+#include "drape/cloth.hpp"
+#include "drape/geometry.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+
+using namespace drape;
+
+namespace {
+
+/// Two sheets in one cloth (two components): a 4 x 4 one `gap` above the middle of a 6 x 6
+/// one, shifted by half a cell so that its particles fall onto the lower one's triangles.
+TriangleMesh twoSheets(double gap) {
+    SheetSpec spec;
+    spec.rows = 6;
+    spec.cols = 6;
+    spec.spacing = 0.05;
+    spec.uAxis = Vec3::UnitX();
+    spec.vAxis = Vec3::UnitZ();
+    TriangleMesh lower = makeSheet(spec);
+    spec.rows = 4;
+    spec.cols = 4;
+    spec.origin = Vec3(0.075, gap, 0.075);
+    const TriangleMesh upper = makeSheet(spec);
+    const auto base = static_cast<Index>(lower.vertices.size());
+    lower.vertices.insert(lower.vertices.end(), upper.vertices.begin(), upper.vertices.end());
+    for (Triangle t : upper.triangles) {
+        for (Index& i : t)
+            i += base;
+        lower.triangles.push_back(t);
+    }
+    return lower;
+}
+
+/// The smallest distance of an upper-sheet particle to a lower-sheet triangle [m].
+double closestApproach(const Cloth& c, std::size_t lowerParticles, std::size_t lowerTriangles) {
+    double closest = 1e300;
+    const auto& x = c.positions();
+    const auto& tris = c.topology().triangles();
+    for (std::size_t p = lowerParticles; p < x.size(); ++p)
+        for (std::size_t t = 0; t < lowerTriangles; ++t) {
+            Vec3 bary;
+            const Vec3 q = closestPointOnTriangle(x[p], x[tris[t][0]], x[tris[t][1]],
+                                                  x[tris[t][2]], bary);
+            closest = std::min(closest, (x[p] - q).norm());
+        }
+    return closest;
+}
+
+} // namespace
+
+TEST_CASE("self-collision in the core: a sheet falling onto another part of the same cloth "
+          "stays a thickness above it",
+          "[self_collision]") {
+    const TriangleMesh mesh = twoSheets(0.1);
+    const std::size_t lowerParticles = 36, lowerTriangles = 50;
+    auto run = [&](bool self) {
+        ClothSettings s;
+        s.particleMass = 0.001;
+        s.selfCollision.enabled = self;
+        s.selfCollision.thickness = 0.01;
+        Cloth cloth(ClothTopology::build(mesh), s);
+        for (Index i = 0; i < lowerParticles; ++i) // the lower sheet is a table
+            cloth.pin(i);
+        double closest = 1e300;
+        std::size_t contacts = 0;
+        for (int k = 0; k < 120; ++k) { // 2 s at 60 Hz: the upper sheet falls 0.1 m onto it
+            cloth.step(1.0 / 60.0);
+            contacts += cloth.lastSelfCollision().contacts;
+            closest = std::min(closest, closestApproach(cloth, lowerParticles, lowerTriangles));
+        }
+        // The upper sheet's particles resting above the lower sheet's plane.
+        std::size_t above = 0;
+        for (std::size_t p = lowerParticles; p < cloth.particleCount(); ++p)
+            above += cloth.positions()[p].y() > 0.0;
+        return std::make_tuple(closest, contacts, above);
+    };
+    const auto [closest, contacts, above] = run(true);
+    CHECK(contacts > 0);
+    CHECK(closest >= 0.01 * (1.0 - 1e-6)); // the thickness, in every step
+    // All 16 particles of the upper sheet rest on the lower one.
+    CHECK(above == 16);
+    // Without it the upper sheet falls through the lower one.
+    const auto [closestOff, contactsOff, aboveOff] = run(false);
+    CHECK(contactsOff == 0);
+    CHECK(aboveOff == 0);
+    (void)closestOff;
+    // Its settings are validated when it is on.
+    ClothSettings bad;
+    bad.selfCollision.enabled = true;
+    bad.selfCollision.thickness = -1.0;
+    REQUIRE_DRAPE_ERROR(Cloth(ClothTopology::build(mesh), bad), ErrorCode::InvalidArgument,
+                        "selfCollision.thickness");
+}
