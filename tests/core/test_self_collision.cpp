@@ -45,8 +45,8 @@ double closestApproach(const Cloth& c, std::size_t lowerParticles, std::size_t l
     for (std::size_t p = lowerParticles; p < x.size(); ++p)
         for (std::size_t t = 0; t < lowerTriangles; ++t) {
             Vec3 bary;
-            const Vec3 q = closestPointOnTriangle(x[p], x[tris[t][0]], x[tris[t][1]],
-                                                  x[tris[t][2]], bary);
+            const Vec3 q =
+                closestPointOnTriangle(x[p], x[tris[t][0]], x[tris[t][1]], x[tris[t][2]], bary);
             closest = std::min(closest, (x[p] - q).norm());
         }
     return closest;
