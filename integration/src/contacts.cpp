@@ -55,7 +55,10 @@ void ContactSolver::run(Cloth& c, double dt) {
             ScopedPhase timeLimiter(c.timers(), limiterSlot);
             st = c.relimit(projected_, dt, &planes_);
         }
-        if (st.corrections == 0) break;
+        // Nothing left to correct; or the walk used its whole budget (maxRounds, counted as a
+        // cap hit): another pass would spend it again (a cloth projected far out of a body
+        // could make 8 passes of 1000 sweeps a step).
+        if (st.corrections == 0 || st.capHit) break;
         collideMoved(c, dt, counters);
         if (contact_.triangles) collideTriangles(c, dt, counters);
     }

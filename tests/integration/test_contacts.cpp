@@ -172,6 +172,28 @@ TEST_CASE("ContactStats::maxDepth reports how deep inside the thickness a partic
     CHECK(handle.totalStats().maxDepth == Approx(depth).margin(9.81 * kStep * kStep + 1e-6));
 }
 
+TEST_CASE("a cloth far inside a body: the contact stage's limiter stops at one budget",
+          "[contacts][limiter]") {
+    // A horizontal sheet whose every particle starts inside a tall box, at its middle: each is
+    // projected out to its nearest side face and the springs between faces tear far beyond
+    // the bound. Provot's sweeps (no worklist) stop at their cap (5 here); the re-limiting
+    // passes then stop too, so a step costs the first walk and one re-limiting walk, not
+    // kRelimitPasses (8) more capped walks (a fuzzed scene with a 5 m capsule around a flag
+    // spent 8,000 sweeps a step that way).
+    TestWorld w;
+    w.body(w.shape<btBoxShape>(btVector3(0.2f, 1.0f, 0.2f)), 0.0, Vec3(0, 0, 0));
+    ClothSettings s = smallCloth();
+    s.limiter.kind = LimiterKind::Provot;
+    s.limiter.maxRounds = 5;
+    auto cloth = makeCloth(horizontalSheet(8, 8, 0.05, 0.0), s);
+    w.add(cloth);
+    run(w, 1);
+    const StrainLimitStats& st = cloth->lastLimiterStats();
+    INFO(st.rounds << " sweeps, cap hits " << cloth->limiterCapHits());
+    CHECK(cloth->limiterCapHits() == 1);
+    CHECK(st.rounds <= 2 * s.limiter.maxRounds);
+}
+
 TEST_CASE("a cloth drapes over a static sphere", "[contacts][drape]") {
     TestWorld w;
     const double radius = 0.3;
