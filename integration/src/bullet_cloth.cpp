@@ -118,6 +118,9 @@ struct BulletCloth::Impl {
     detail::Attachments attachments;
     detail::BodyPoses poses; ///< the candidate bodies at the previous sub-step (for waking)
     std::vector<const btCollisionObject*> candidates;
+    /// Scratch of checkAttachmentBodies (kept: it runs every sub-step with attachments).
+    std::vector<const btCollisionObject*> attachedBodies;
+    std::vector<unsigned char> bodyFound;
     std::unique_ptr<Action> action;
     std::shared_ptr<Stage> stage;
     /// Timer slot in the cloth's PhaseTimers of the handle's work around the cloth's steps
@@ -257,24 +260,29 @@ void BulletCloth::Impl::gatherBodies(double dt) {
 }
 
 void BulletCloth::Impl::checkAttachmentBodies() {
-    std::vector<const btCollisionObject*> attached;
+    // The attachment bodies, each once, sorted; the world's objects are looked up among them.
+    attachedBodies.clear();
     for (const auto& a : attachments.list())
-        attached.push_back(a.body);
-    std::sort(attached.begin(), attached.end());
-    attached.erase(std::unique(attached.begin(), attached.end()), attached.end());
-    std::vector<unsigned char> found(attached.size(), 0);
+        attachedBodies.push_back(a.body);
+    std::sort(attachedBodies.begin(), attachedBodies.end());
+    attachedBodies.erase(std::unique(attachedBodies.begin(), attachedBodies.end()),
+                         attachedBodies.end());
+    bodyFound.assign(attachedBodies.size(), 0);
+    std::size_t found = 0;
     const btCollisionObjectArray& objects = world->getCollisionObjectArray();
-    for (int k = 0; k < objects.size(); ++k) {
-        const auto it = std::lower_bound(attached.begin(), attached.end(), objects[k]);
-        if (it != attached.end() && *it == objects[k])
-            found[std::size_t(it - attached.begin())] = 1;
+    for (int k = 0; k < objects.size() && found < attachedBodies.size(); ++k) {
+        const auto it = std::lower_bound(attachedBodies.begin(), attachedBodies.end(), objects[k]);
+        if (it == attachedBodies.end() || *it != objects[k]) continue;
+        unsigned char& seen = bodyFound[std::size_t(it - attachedBodies.begin())];
+        found += seen == 0;
+        seen = 1;
     }
+    if (found == attachedBodies.size()) return; // every body is still in the world
     std::vector<Index> lost;
     for (const auto& a : attachments.list()) {
-        const auto it = std::lower_bound(attached.begin(), attached.end(), a.body);
-        if (!found[std::size_t(it - attached.begin())]) lost.push_back(a.particle);
+        const auto it = std::lower_bound(attachedBodies.begin(), attachedBodies.end(), a.body);
+        if (!bodyFound[std::size_t(it - attachedBodies.begin())]) lost.push_back(a.particle);
     }
-    if (lost.empty()) return;
     std::string names;
     for (std::size_t k = 0; k < lost.size(); ++k) {
         attachments.detach(*cloth, lost[k]);

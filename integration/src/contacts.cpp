@@ -30,9 +30,12 @@ void ContactSolver::run(Cloth& c, double dt) {
     records->contacts.clear();
     records->dt = dt;
     if (bodies.empty()) return; // no rigid collider near the cloth: no work at all
+    // The free mass decides which dynamic bodies get limiter planes: only needed near one.
     clothMass_ = 0.0;
-    for (std::size_t i = 0; i < n; ++i)
-        if (c.inverseMasses()[i] != 0.0) clothMass_ += c.masses()[i];
+    if (std::any_of(bodies.begin(), bodies.end(),
+                    [](const BodySnapshot& b) { return b.dynamicBody != nullptr; }))
+        for (std::size_t i = 0; i < n; ++i)
+            if (c.inverseMasses()[i] != 0.0) clothMass_ += c.masses()[i];
 
     QueryCounters counters;
     collideParticles(c, dt, counters);

@@ -366,7 +366,7 @@ double Cloth::energyScale() const {
 //   kinematic       pinned particles held, kinematic particles put on their paths
 //   strain_limit    the limiter; what it moved gets v += dx / dt
 //   self_collision  particles kept off the cloth's own triangles (if set)
-//   <stages>        the caller's stages (contacts, self-collision), in order
+//   <stages>        the caller's stages (drape::bullet's contacts), in order
 //   forces          f(t + dt) at the corrected state (one timer per force term)
 //   integrate_finish Velocity-Verlet's closing half kick
 //   relative_damping the free particles' velocities relative to their mean decay (if set)
@@ -664,7 +664,6 @@ void Cloth::stageSelfCollision(StepContext&) {
                                            sc.friction, sc.iterations);
     selfStats_.pairTests += counts.pairTests;
     selfStats_.contacts += counts.contacts;
-    if (counts.contacts > 0) forcesValid_ = false;
 }
 
 void Cloth::setSelfCollision(const SelfCollisionSettings& self) {
@@ -816,17 +815,19 @@ Vec3 Cloth::Kinematic::at(double t) const {
 
 void Cloth::setKinematicTarget(Index i, const Vec3& target, double arrival) {
     checkIndex(i, x_.size(), "setKinematicTarget");
-    const std::string what = "kinematic target of particle " + std::to_string(i);
-    requireFinite(target, what);
+    // Called for every attachment in every Bullet sub-step: the message is built on failure only.
+    if (!target.allFinite())
+        requireFinite(target, "kinematic target of particle " + std::to_string(i));
     if (!std::isfinite(arrival))
-        throw Error(ErrorCode::InvalidArgument, what + ": the arrival time is not finite");
+        throw Error(ErrorCode::InvalidArgument, "kinematic target of particle " +
+                                                    std::to_string(i) +
+                                                    ": the arrival time is not finite");
     auto it = std::find_if(kinematic_.begin(), kinematic_.end(),
                            [i](const Kinematic& k) { return k.particle == i; });
     if (it == kinematic_.end()) { // a new kinematic particle: held where it is, an edit
         pin(i);
         Kinematic k;
         k.particle = i;
-        k.from = k.to = x_[i];
         kinematic_.push_back(k);
         it = kinematic_.end() - 1;
     }

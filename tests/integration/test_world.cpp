@@ -10,15 +10,6 @@
 using namespace drape;
 using namespace drape::testing;
 
-namespace {
-ClothSettings softCloth() {
-    ClothSettings s;
-    s.particleMass = 0.01;
-    s.springStiffness = 50.0;
-    return s;
-}
-} // namespace
-
 TEST_CASE("addCloth and removeCloth put the cloth into stepSimulation and take it out", "[world]") {
     TestWorld w;
     auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), softCloth());

@@ -15,13 +15,6 @@ using namespace drape::testing;
 
 namespace {
 
-ClothSettings smallCloth() {
-    ClothSettings s;
-    s.particleMass = 0.01;
-    s.springStiffness = 20.0;
-    return s;
-}
-
 /// A world of its own (not TestWorld): the tests destroy it while handles live.
 struct BareWorld {
     btDefaultCollisionConfiguration config;
@@ -37,7 +30,7 @@ struct BareWorld {
 TEST_CASE("a world destroyed before its cloth's handle: the handle notices and stays safe",
           "[world][wrong_use]") {
     BareWorld b;
-    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), smallCloth());
+    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), softCloth());
     auto handle = bullet::addCloth(b.world.get(), cloth);
     b.world->stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
     REQUIRE(handle->inWorld());
@@ -59,7 +52,7 @@ TEST_CASE("one cloth in one world once: a second addCloth is refused until the f
           "[world][wrong_use]") {
     TestWorld w;
     TestWorld other;
-    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), smallCloth());
+    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), softCloth());
     auto first = bullet::addCloth(&w.world, cloth);
     CHECK_THROWS_WITH(bullet::addCloth(&w.world, cloth), Catch::Contains("already in a world"));
     CHECK_THROWS_WITH(bullet::addCloth(&other.world, cloth), Catch::Contains("already in a world"));
@@ -75,7 +68,7 @@ TEST_CASE("one cloth in one world once: a second addCloth is refused until the f
 TEST_CASE("attaching to a body that is not in the cloth's world is refused", "[world][wrong_use]") {
     TestWorld w;
     TestWorld elsewhere;
-    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), smallCloth());
+    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), softCloth());
     auto& handle = w.add(cloth);
     btRigidBody* there =
         elsewhere.body(elsewhere.shape<btSphereShape>(btScalar(0.1)), 1.0, Vec3(0.0, 1.0, 0.0));
@@ -92,7 +85,7 @@ TEST_CASE("a body removed and deleted while particles hang from it: the next ste
           "and says so",
           "[world][wrong_use]") {
     TestWorld w;
-    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), smallCloth());
+    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), softCloth());
     auto& handle = w.add(cloth);
     btSphereShape shape(btScalar(0.05));
     btDefaultMotionState motion(btTransform(btQuaternion::getIdentity(), btVector3(0, 1, 0)));

@@ -97,6 +97,14 @@ inline TriangleMesh horizontalSheet(Index rows, Index cols, double spacing, doub
     return makeSheet(spec);
 }
 
+/// A small, soft cloth's settings: 10 g particles, 50 N/m springs, the rest default.
+inline ClothSettings softCloth() {
+    ClothSettings s;
+    s.particleMass = 0.01;
+    s.springStiffness = 50.0;
+    return s;
+}
+
 inline std::shared_ptr<Cloth> makeCloth(const TriangleMesh& mesh, const ClothSettings& s) {
     return std::make_shared<Cloth>(ClothTopology::build(mesh), s);
 }

@@ -48,39 +48,23 @@ int main(int argc, char** argv) {
     app.add_option("--dt", dt, "Time step [s] (default: the scene's, or 0.01)")->check(positive);
     app.add_option("--integrator", integratorName,
                    "explicit_euler, symplectic_euler, velocity_verlet, rk4 or implicit_euler");
-    const char* sheetOnly = "a generated sheet (not with --scene)";
-    app.add_option("--rows", rows, "Rows of the sheet (2 to 100000)")
-        ->check(CLI::Range(2LL, 100000LL))
-        ->excludes(sceneOpt)
-        ->group(sheetOnly);
-    app.add_option("--cols", cols, "Columns of the sheet (2 to 100000)")
-        ->check(CLI::Range(2LL, 100000LL))
-        ->excludes(sceneOpt)
-        ->group(sheetOnly);
-    app.add_option("--spacing", spacing, "Grid spacing")
-        ->check(positive)
-        ->excludes(sceneOpt)
-        ->group(sheetOnly);
-    app.add_option("--mass", mass, "Particle mass")
-        ->check(positive)
-        ->excludes(sceneOpt)
-        ->group(sheetOnly);
-    app.add_option("--stiffness", stiffness, "Spring stiffness")
-        ->check(positive)
-        ->excludes(sceneOpt)
-        ->group(sheetOnly);
-    app.add_option("--damping", damping, "C_d of eq. (8)")
-        ->check(nonNegative)
-        ->excludes(sceneOpt)
-        ->group(sheetOnly);
-    app.add_option("--spring-damping", springDamping, "Damping along the springs")
-        ->check(nonNegative)
-        ->excludes(sceneOpt)
-        ->group(sheetOnly);
-    app.add_option("--pins", pins, "top-corners or none")
-        ->check(CLI::IsMember({"top-corners", "none"}))
-        ->excludes(sceneOpt)
-        ->group(sheetOnly);
+    // The sheet's options: each checked, none together with --scene.
+    auto sheetOption = [&app, sceneOpt](const char* name, auto& value, const char* help,
+                                        const CLI::Validator& check) {
+        app.add_option(name, value, help)
+            ->check(check)
+            ->excludes(sceneOpt)
+            ->group("a generated sheet (not with --scene)");
+    };
+    const CLI::Validator count = CLI::Range(2LL, 100000LL);
+    sheetOption("--rows", rows, "Rows of the sheet (2 to 100000)", count);
+    sheetOption("--cols", cols, "Columns of the sheet (2 to 100000)", count);
+    sheetOption("--spacing", spacing, "Grid spacing", positive);
+    sheetOption("--mass", mass, "Particle mass", positive);
+    sheetOption("--stiffness", stiffness, "Spring stiffness", positive);
+    sheetOption("--damping", damping, "C_d of eq. (8)", nonNegative);
+    sheetOption("--spring-damping", springDamping, "Damping along the springs", nonNegative);
+    sheetOption("--pins", pins, "top-corners or none", CLI::IsMember({"top-corners", "none"}));
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
