@@ -21,6 +21,8 @@ const char* toString(ErrorCode code) noexcept {
         return "unstable time step";
     case ErrorCode::SimulationFailure:
         return "simulation failure";
+    case ErrorCode::FileError:
+        return "file error";
     }
     return "unknown error";
 }

@@ -4,8 +4,13 @@
 #   cmake -DBUILD_DIR=<drape build> -DCONFIG=<config> -DPREFIX=<empty folder to install into>
 #         -DCONSUMER_SOURCE=<tests/package/consumer> -DCONSUMER_BUILD=<folder>
 #         -DHEADER_DIRS=<source include folders, ;-list> -DGENERATOR=<generator>
-#         -DCXX=<compiler> [-DWERROR=ON] -P install_and_use.cmake
-foreach(var BUILD_DIR CONFIG PREFIX CONSUMER_SOURCE CONSUMER_BUILD HEADER_DIRS GENERATOR CXX)
+#         -DCXX=<compiler> -DGARMENT=<an OBJ garment> -DRENDERING=<ON|OFF> [-DWERROR=ON]
+#         -P install_and_use.cmake
+# The consumer's drape_garment reads GARMENT through drape::io, runs it in a Bullet world with
+# the default (automatic) sub-steps and writes it draped; the installed drape-run then renders
+# a frame of that OBJ (RENDERING on) and the installed drape-check answers for it.
+foreach(var BUILD_DIR CONFIG PREFIX CONSUMER_SOURCE CONSUMER_BUILD HEADER_DIRS GENERATOR CXX
+        GARMENT RENDERING)
     if(NOT DEFINED ${var})
         message(FATAL_ERROR "install_and_use.cmake: -D${var}=... is required")
     endif()
@@ -51,6 +56,11 @@ if(NOT n EQUAL 1)
     message(FATAL_ERROR "expected one drapeConfig.cmake under ${PREFIX}, found: '${config_files}'")
 endif()
 get_filename_component(config_dir ${config_files} DIRECTORY)
+foreach(program drape-run drape-check)
+    if(NOT EXISTS ${PREFIX}/bin/${program})
+        list(APPEND missing bin/${program})
+    endif()
+endforeach()
 foreach(f drapeConfigVersion.cmake drapeTargets.cmake)
     if(NOT EXISTS ${config_dir}/${f})
         list(APPEND missing ${config_dir}/${f})
@@ -81,4 +91,43 @@ if(NOT program)
 endif()
 list(GET program 0 program)
 run("run the consumer" ${program})
+message("${last_output}")
+
+# 4. The artist's garment through drape::io, in a Bullet world with automatic sub-steps.
+set(draped ${CONSUMER_BUILD}/skirt_draped.obj)
+file(GLOB_RECURSE garment_program ${CONSUMER_BUILD}/drape_garment ${CONSUMER_BUILD}/drape_garment.exe)
+if(NOT garment_program)
+    message(FATAL_ERROR "no drape_garment program under ${CONSUMER_BUILD}")
+endif()
+list(GET garment_program 0 garment_program)
+run("run the garment" ${garment_program} ${GARMENT} ${draped})
+message("${last_output}")
+
+# 5. The installed programs on the draped garment: a scene file naming it, one rendered frame.
+set(scene ${CONSUMER_BUILD}/skirt_scene.json)
+file(WRITE ${scene} "{
+  \"name\": \"installed_runner\",
+  \"cloth\": {\"mesh\": {\"file\": \"${draped}\"}, \"total_mass\": 0.2},
+  \"simulation\": {\"time_step\": 0.01, \"duration\": 0.05, \"substeps\": \"auto\"},
+  \"strain_limit\": {\"method\": \"stress_ordered\", \"max_strain\": 0.1},
+  \"rigid_bodies\": [{\"name\": \"floor\", \"shape\": {\"type\": \"plane\", \"normal\": [0, 1, 0], \"offset\": 0.0}}],
+  \"camera\": {\"position\": [1.5, 1.2, 1.5], \"target\": [0.4, 0.8, 0.0], \"width\": 160, \"height\": 120},
+  \"output\": {\"fps\": 20}
+}
+")
+set(run_out ${CONSUMER_BUILD}/runner_out)
+file(REMOVE_RECURSE ${run_out})
+run("installed drape-run" ${PREFIX}/bin/drape-run ${scene} -o ${run_out} --no-video --quiet)
+if(NOT EXISTS ${run_out}/summary.txt OR NOT EXISTS ${run_out}/cloth_final.obj)
+    message(FATAL_ERROR "the installed drape-run wrote no summary.txt or cloth_final.obj in ${run_out}")
+endif()
+if(RENDERING)
+    file(GLOB frames ${run_out}/frames/*.png ${run_out}/*.png)
+    if(NOT frames)
+        message(FATAL_ERROR "the installed drape-run rendered no PNG frame in ${run_out}")
+    endif()
+    list(LENGTH frames n_frames)
+    message(STATUS "installed drape-run: ${n_frames} PNG frame(s)")
+endif()
+run("installed drape-check" ${PREFIX}/bin/drape-check --scene ${scene})
 message("${last_output}")

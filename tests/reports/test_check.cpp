@@ -1,6 +1,6 @@
 // checkTimeStep against closed-form answers: one spring of stiffness k with one end pinned
 // and mass m on the other is a harmonic oscillator with omega = sqrt(k / m).
-#include <drape_reports/check.hpp>
+#include <drape_samples/check.hpp>
 
 #include <drape/error.hpp>
 
@@ -9,7 +9,7 @@
 #include <cmath>
 
 using namespace drape;
-using namespace drape::reports;
+using namespace drape::samples;
 
 namespace {
 

@@ -1,6 +1,6 @@
 // GuardedIOSystem, the file access assimp gets from drape (samples/lib/src/assimp_io.hpp):
 // regular files only, never blocking, read-only, size and read budgets, fseek semantics.
-#include "../../samples/lib/src/assimp_io.hpp"
+#include "../../integration/io/src/assimp_io.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -10,7 +10,7 @@
 #include <string>
 #include <sys/stat.h>
 
-using drape::samples::detail::GuardedIOSystem;
+using drape::io::detail::GuardedIOSystem;
 namespace fs = std::filesystem;
 
 namespace {

@@ -16,6 +16,7 @@ enum class ErrorCode {
     InvalidMesh,        ///< a mesh that cannot be a cloth (no triangles, too large...)
     UnstableTimeStep,   ///< the time step is beyond the integrator's stability limit
     SimulationFailure,  ///< the state blew up during a step
+    FileError, ///< a file could not be read or written, or holds what it cannot (drape::io)
 };
 
 /// Returns a short, stable name for an error code ("invalid argument", ...).

@@ -5,9 +5,9 @@
 // (2.785 / omega_max for RK4) with omega_max from drape's Laplacian bound and from the exact
 // eigenvalues of the mass-weighted 3D stiffness. Part 2 runs the extreme cases; each must end
 // in a bounded state or a detected, clean failure. Part 3 shows what checkTimeStep says.
-#include "drape_reports/check.hpp"
 #include "drape_reports/reports.hpp"
 #include "drape_reports/scenes.hpp"
+#include "drape_samples/check.hpp"
 
 #include <drape/error.hpp>
 #include <drape/stability.hpp>
@@ -20,6 +20,10 @@
 #include <sstream>
 
 namespace drape::reports {
+
+using samples::checkTimeStep;
+using samples::explicitEulerLimit;
+using samples::TimeStepCheck;
 
 const std::vector<IntegratorKind>& allIntegrators() {
     static const std::vector<IntegratorKind> all = {
@@ -992,7 +996,7 @@ StabilityResult runStabilityReport(const StabilityOptions& options, const Machin
     }
     md << "\nData: [extreme_cases.csv](extreme_cases.csv).\n\n";
     md << "## 3. Checking a time step before a run\n\n"
-       << "`drape::reports::checkTimeStep(cloth, dt)` "
+       << "`drape::samples::checkTimeStep(cloth, dt)` "
           "(samples/reports/include/drape_reports/check.hpp) "
        << "returns whether dt is stable for the cloth's integrator, stiffness, masses, damping and "
           "pins, "

@@ -1,4 +1,4 @@
-// drape_reports/check.hpp: "will this time step blow up?", asked before a run.
+// drape_samples/check.hpp: "will this time step blow up?", asked before a run.
 //
 // The answer comes from the cloth's largest angular frequency omega_max (an upper bound from
 // the mass-weighted spring Laplacian, see drape/stability.hpp) and each integrator's
@@ -19,7 +19,7 @@
 
 #include <string>
 
-namespace drape::reports {
+namespace drape::samples {
 
 /// The verdict on one (cloth, integrator, dt).
 struct TimeStepCheck {
@@ -42,4 +42,4 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
 double explicitEulerLimit(double omegaMax, double particleDamping, double springDamping,
                           double maxMass, double maxStiffness);
 
-} // namespace drape::reports
+} // namespace drape::samples

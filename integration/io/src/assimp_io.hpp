@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-namespace drape::samples::detail {
+namespace drape::io::detail {
 
 class GuardedIOSystem final : public Assimp::IOSystem {
   public:
@@ -58,4 +58,4 @@ class GuardedIOSystem final : public Assimp::IOSystem {
 /// it could not be opened.
 std::string describeNonRegular(const std::string& file, std::uint64_t& size);
 
-} // namespace drape::samples::detail
+} // namespace drape::io::detail

@@ -8,8 +8,7 @@
 // Options are parsed by CLI11: a count that is not a whole number in range (--rows 2.5,
 // --rows 4294967331) or a value that is not a finite number is refused, never rounded.
 // Exit status: 0 stable, 3 unstable, 1 bad input, 2 usage.
-#include <drape_reports/check.hpp>
-#include <drape_reports/report.hpp>
+#include <drape_samples/check.hpp>
 
 #include <drape/error.hpp>
 #include <drape_samples/scene.hpp>
@@ -20,6 +19,7 @@
 #include <cmath>
 #include <iostream>
 #include <optional>
+#include <sstream>
 #include <string>
 
 int main(int argc, char** argv) {
@@ -45,7 +45,10 @@ int main(int argc, char** argv) {
     const CLI::Validator positive = finite & CLI::Range(1e-300, 1e300);
     const CLI::Validator nonNegative = finite & CLI::Range(0.0, 1e300);
     auto* sceneOpt = app.add_option("--scene", scenePath, "Scene file (JSON, samples/SCENES.md)");
-    app.add_option("--dt", dt, "Time step [s] (default: the scene's, or 0.01)")->check(positive);
+    app.add_option(
+           "--dt", dt,
+           "Cloth time step [s] (default: the scene's time step over its sub-steps, or 0.01)")
+        ->check(positive);
     app.add_option("--integrator", integratorName,
                    "explicit_euler, symplectic_euler, velocity_verlet, rk4 or implicit_euler");
     // The sheet's options: each checked, none together with --scene.
@@ -76,15 +79,24 @@ int main(int argc, char** argv) {
     try {
         std::optional<IntegratorKind> integrator;
         if (!integratorName.empty()) integrator = integratorFromString(integratorName);
-        reports::TimeStepCheck result;
+        samples::TimeStepCheck result;
         std::string what;
         if (!scenePath.empty()) {
             samples::SceneDesc scene = samples::loadScene(scenePath);
             if (integrator) scene.cloth.integrator = *integrator;
             scene.cloth.rejectUnstableTimeStep = false; // we are asking, not stepping
             samples::Simulation sim(scene);
-            result = reports::checkTimeStep(sim.cloth(), dt.value_or(scene.timeStep));
-            what = scene.name + " (" + std::to_string(sim.cloth().particleCount()) + " particles)";
+            // The scene's own cloth step: its time step over its sub-steps (a count, or what
+            // "auto" chose); --dt asks about one cloth step of that length instead.
+            const int substeps = dt ? 1 : sim.substeps();
+            result = samples::checkTimeStep(sim.cloth(), dt.value_or(scene.timeStep / substeps));
+            what = scene.name + " (" + std::to_string(sim.cloth().particleCount()) + " particles";
+            if (substeps > 1) {
+                std::ostringstream step;
+                step << ", time_step " << scene.timeStep << " s in " << substeps << " sub-steps";
+                what += step.str();
+            }
+            what += ")";
         } else {
             SheetSpec sheet;
             sheet.rows = static_cast<Index>(rows);
@@ -102,7 +114,7 @@ int main(int argc, char** argv) {
                 cloth.pin(sheetIndex(sheet, 0, 0));
                 cloth.pin(sheetIndex(sheet, 0, sheet.cols - 1));
             }
-            result = reports::checkTimeStep(cloth, dt.value_or(0.01));
+            result = samples::checkTimeStep(cloth, dt.value_or(0.01));
             what = std::to_string(sheet.rows) + " x " + std::to_string(sheet.cols) + " sheet";
         }
         std::cout << what << ": " << result.message << "\n";

@@ -1,15 +1,26 @@
 // Time-step check before a run (the derivation is in check.hpp).
-#include "drape_reports/check.hpp"
-
-#include "drape_reports/report.hpp"
+#include "drape_samples/check.hpp"
 
 #include <drape/stability.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <limits>
+#include <sstream>
 
-namespace drape::reports {
+namespace drape::samples {
+
+namespace {
+
+/// `value` with `digits` significant digits ("nan", "inf" as such).
+std::string fmt(double value, int digits = 4) {
+    std::ostringstream o;
+    o << std::setprecision(digits) << value;
+    return o.str();
+}
+
+} // namespace
 
 double explicitEulerLimit(double omegaMax, double particleDamping, double springDamping,
                           double maxMass, double maxStiffness) {
@@ -106,4 +117,4 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
     return c;
 }
 
-} // namespace drape::reports
+} // namespace drape::samples

@@ -9,7 +9,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-namespace drape::samples::detail {
+namespace drape::io::detail {
 
 namespace {
 
@@ -196,4 +196,4 @@ std::string describeNonRegular(const std::string& file, std::uint64_t& size) {
     return {};
 }
 
-} // namespace drape::samples::detail
+} // namespace drape::io::detail
