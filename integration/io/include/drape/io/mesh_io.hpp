@@ -34,7 +34,7 @@
 namespace drape::io {
 
 /// Limits importMesh enforces before and while reading.
-inline constexpr std::size_t kMaxMeshVertices = 1u << 20;       ///< welded vertices per mesh
+inline constexpr std::size_t kMaxMeshVertices = 1u << 20;        ///< welded vertices per mesh
 inline constexpr std::uint64_t kMaxMeshFileBytes = 512ull << 20; ///< size of any one file
 inline constexpr std::uint64_t kMaxImportBytes = 2048ull << 20;  ///< bytes read per import
 /// The deepest node tree a mesh file may have: assimp reads node trees recursively (and
