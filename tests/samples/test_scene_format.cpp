@@ -137,7 +137,18 @@ TEST_CASE("Experiment II's file drops the tablecloth freely onto a desk", "[scen
 
 TEST_CASE("a minimal scene gets the documented defaults", "[scene]") {
     const SceneDesc s = parse(withCloth(""));
-    CHECK(s.cloth.limiter.kind == LimiterKind::None); // strain limiting only when asked for
+    // One set of defaults: a scene leaves out what ClothSettings leaves out (samples/SCENES.md,
+    // "Defaults"): stress-ordered limiting at 10 %, automatic sub-steps.
+    const ClothSettings cpp;
+    CHECK(s.cloth.limiter.kind == cpp.limiter.kind);
+    CHECK(s.cloth.limiter.kind == LimiterKind::StressOrdered);
+    CHECK(s.cloth.limiter.maxStrain == cpp.limiter.maxStrain);
+    CHECK(s.cloth.limiter.warmStart == cpp.limiter.warmStart);
+    CHECK(s.cloth.relativeDamping == cpp.relativeDamping);
+    CHECK(s.cloth.damping == cpp.damping);
+    CHECK(s.autoSubsteps);
+    CHECK(parse(withCloth(R"("strain_limit": {"method": "none"})")).cloth.limiter.kind ==
+          LimiterKind::None);
     CHECK(s.timeStep == 0.01);
     CHECK(s.duration == 5.0);
     CHECK(s.cloth.gravity.isApprox(Vec3(0.0, -9.81, 0.0)));
@@ -357,13 +368,16 @@ TEST_CASE("every number is checked against its physical range, named in the mess
 
 TEST_CASE("simulation.substeps: an integer or \"auto\", given once", "[scene][substeps]") {
     using Catch::Matchers::Contains;
-    CHECK(parse(withCloth("")).substeps == 1);
-    CHECK_FALSE(parse(withCloth("")).autoSubsteps);
+    CHECK(parse(withCloth("")).autoSubsteps); // the default, as Cloth::step's
     CHECK(parse(withCloth(R"("simulation": {"substeps": 7})")).substeps == 7);
+    CHECK_FALSE(parse(withCloth(R"("simulation": {"substeps": 7})")).autoSubsteps);
     CHECK(parse(withCloth(R"("simulation": {"substeps": "auto"})")).autoSubsteps);
     CHECK(parse(withCloth(R"("rigid_bodies": [{"shape": {"type": "plane"}}],
                             "collision": {"substeps": 3})"))
               .substeps == 3);
+    CHECK_FALSE(parse(withCloth(R"("rigid_bodies": [{"shape": {"type": "plane"}}],
+                                  "collision": {"substeps": 3})"))
+                    .autoSubsteps);
     CHECK_THAT(errorOf(withCloth(R"("simulation": {"substeps": "automatic"})")),
                Contains("simulation.substeps: expected an integer in [1, 10000] or \"auto\", got "
                         "\"automatic\""));

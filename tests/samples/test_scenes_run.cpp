@@ -532,12 +532,14 @@ TEST_CASE("simulation.substeps \"auto\" picks the sub-steps from the stability e
                                   "pins": [{"grid": [[0, 0]]}],
                                   "simulation": {"time_step": 0.01, "duration": 1.0)";
     {
-        Simulation refused(parseScene(cloth + "}}", "stiff.json", kScenes));
+        Simulation refused(parseScene(cloth + R"(, "substeps": 1}})", "stiff.json", kScenes));
         CHECK(refused.substeps() == 1);
         CHECK_THROWS_WITH(refused.step(), Contains("exceeds the stability limit") &&
                                               Contains("set simulation.substeps to \"auto\""));
     }
     Simulation sim(parseScene(cloth + R"(, "substeps": "auto"}})", "stiff.json", kScenes));
+    // "auto" is the default: the same count without the key.
+    CHECK(Simulation(parseScene(cloth + "}}", "stiff.json", kScenes)).substeps() == sim.substeps());
     const double limit = sim.cloth().stableTimeStep();
     const int n = sim.substeps();
     CHECK(n == static_cast<int>(std::ceil(0.01 / (kAutoSubstepMargin * limit))));

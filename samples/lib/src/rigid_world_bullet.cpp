@@ -70,11 +70,9 @@ class BulletWorld final : public Simulation::RigidWorld {
           world_(&dispatcher_, &broadphase_, &solver_, &config_) {
         world_.setGravity(toBt(scene.cloth.gravity));
         const CollisionDesc c = scene.collision.value_or(CollisionDesc{});
-        double meanEdge = 0.0;
-        for (const Spring& sp : cloth.topology().springs())
-            meanEdge += sp.restLength;
-        meanEdge /= static_cast<double>(std::max<std::size_t>(1, cloth.topology().springCount()));
-        const double thickness = c.thickness.value_or(0.1 * meanEdge);
+        // Not given: BulletClothSettings' defaults (one set of defaults, samples/SCENES.md).
+        bullet::BulletClothSettings s;
+        const double thickness = c.thickness.value_or(s.contact.thickness);
         checkPrecision(scene, cloth, thickness);
         checkOverlaps(scene);
         for (const RigidBodyDesc& d : scene.rigidBodies)
@@ -83,7 +81,6 @@ class BulletWorld final : public Simulation::RigidWorld {
         // The cloth is owned by Simulation; the integration wants a shared_ptr, so hand it
         // a non-owning one (the world is destroyed before the cloth).
         std::shared_ptr<Cloth> shared(&cloth, [](Cloth*) {});
-        bullet::BulletClothSettings s;
         s.contact.thickness = thickness;
         s.contact.frictionScale = c.frictionScale;
         s.contact.penaltyForce = c.penaltyForce;
@@ -91,7 +88,7 @@ class BulletWorld final : public Simulation::RigidWorld {
         s.contact.triangles = c.triangleContacts;
         s.substeps = scene.substeps; // simulation.substeps, collision.substeps or "auto"
         s.selfCollision.enabled = c.selfCollision;
-        s.selfCollision.thickness = c.selfThickness.value_or(s.contact.thickness);
+        s.selfCollision.thickness = c.selfThickness.value_or(s.selfCollision.thickness);
         s.useWorldGravity = false;   // the scene's gravity is already in the cloth
         s.timeStep = scene.timeStep; // the cloth steps with the scene's exact double dt
         try {

@@ -223,14 +223,11 @@ void parseSimulation(JsonObject o, SceneDesc& sc) {
             sc.autoSubsteps = true;
         } else {
             sc.substeps = static_cast<int>(o.toInteger(*n, o.pathOf("substeps"), 1, kMaxSubsteps));
+            sc.autoSubsteps = false;
         }
     }
     sc.cloth.gravity = o.vec3("gravity", Vec3(0.0, -9.81, 0.0), kGravity);
     sc.cloth.rejectUnstableTimeStep = o.boolean("reject_unstable_time_step", true);
-    // A scene gives its sub-steps itself (simulation.substeps: a count or "auto").
-    sc.cloth.substeps.automatic = false;
-    // A scene gives its sub-steps itself (simulation.substeps: a count or "auto").
-    sc.cloth.substeps.automatic = false;
     if (auto imp = o.optObject("implicit")) {
         imp->keys({"solver", "cg_tolerance", "cg_max_iterations"});
         const std::string solver = imp->choice("solver", "cg", {"cg", "ldlt"});
@@ -255,7 +252,7 @@ void parseStrainLimit(JsonObject o, SceneDesc& sc) {
     const std::string method =
         o.choice("method", "stress_ordered", {"stress_ordered", "provot", "none"});
     l.kind = limiterFromString(method);
-    l.maxStrain = o.number("max_strain", 0.10, kMaxStrain);
+    l.maxStrain = o.number("max_strain", l.maxStrain, kMaxStrain);
     l.maxRounds = static_cast<int>(o.integer("max_rounds", l.maxRounds, 1, 100000));
     l.tolerance = o.number("tolerance", l.tolerance, kStrainTolerance);
     l.toleranceStep = o.number("tolerance_step", l.toleranceStep, kToleranceStep);
@@ -433,7 +430,10 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
     SceneDesc sc;
     sc.name = top.string("name", "");
     sc.description = top.string("description", "");
-    sc.cloth.limiter.kind = LimiterKind::None; // a scene asks for strain limiting explicitly
+    // The defaults are ClothSettings' (stress-ordered limiting at 10 %, ...); the Simulation
+    // sub-steps itself (simulation.substeps: "auto", the default, or a count), so the cloth's
+    // own automatic sub-steps stay off.
+    sc.cloth.substeps.automatic = false;
     parseCloth(top.object("cloth"), sc, baseDir);
     if (auto s = top.optObject("simulation")) parseSimulation(std::move(*s), sc);
     if (auto s = top.optObject("strain_limit")) parseStrainLimit(std::move(*s), sc);
@@ -475,6 +475,7 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
                 c->failKey("substeps", "give the sub-steps once, as simulation.substeps "
                                        "(collision.substeps is its older name)");
             sc.substeps = cd.substeps;
+            sc.autoSubsteps = false;
         }
         cd.selfCollision = c->boolean("self_collision", false);
         cd.selfThickness = c->optNumber("self_thickness", kSize);

@@ -170,17 +170,18 @@ struct SceneDesc {
 
     std::optional<SheetDesc> sheet;
     std::optional<MeshDesc> mesh;
-    ClothSettings cloth; ///< everything the core needs; limiter.kind None unless asked
+    ClothSettings cloth; ///< everything the core needs, ClothSettings' defaults unless given
     Color frontColor = {0.80f, 0.18f, 0.16f};
     Color backColor = {0.95f, 0.75f, 0.30f};
 
     double timeStep = 0.01; ///< [s]
     double duration = 5.0;  ///< [s]
     /// Cloth steps per scene time step, each of timeStep / substeps (simulation.substeps, or
-    /// collision.substeps); with autoSubsteps the Simulation picks the count from the
-    /// stability estimate instead (simulation.substeps = "auto").
+    /// collision.substeps); with autoSubsteps (simulation.substeps = "auto", the default, as
+    /// Cloth::step's automatic sub-steps) the Simulation picks the count from the stability
+    /// estimate when the scene is built.
     int substeps = 1;
-    bool autoSubsteps = false;
+    bool autoSubsteps = true;
 
     std::vector<PinDesc> pins;
     std::vector<AttachmentDesc> attachments;
