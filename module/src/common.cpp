@@ -3,6 +3,8 @@
 #include "drape/settings.hpp"
 #include "drape/timers.hpp"
 
+#include <ctime>
+
 namespace drape {
 
 const char* toString(ErrorCode code) noexcept {
@@ -79,11 +81,20 @@ LimiterKind limiterFromString(const std::string& name) {
                     "' (expected none, stress_ordered, provot or stress_ordered_one_sided)");
 }
 
+double threadCpuSeconds() {
+#if defined(CLOCK_THREAD_CPUTIME_ID)
+    timespec t{};
+    if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t) == 0)
+        return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+#endif
+    return static_cast<double>(std::clock()) / CLOCKS_PER_SEC;
+}
+
 std::size_t PhaseTimers::slot(const std::string& name) {
     for (std::size_t i = 0; i < timers_.size(); ++i) {
         if (timers_[i].name == name) return i;
     }
-    timers_.push_back(PhaseTimer{name, 0, 0.0});
+    timers_.push_back(PhaseTimer{name, 0, 0.0, 0.0});
     return timers_.size() - 1;
 }
 
@@ -98,6 +109,7 @@ void PhaseTimers::reset() {
     for (auto& t : timers_) {
         t.calls = 0;
         t.seconds = 0.0;
+        t.cpuSeconds = 0.0;
     }
 }
 

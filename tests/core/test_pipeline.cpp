@@ -5,6 +5,8 @@
 #include "drape/cloth.hpp"
 
 #include <algorithm>
+#include <chrono>
+#include <thread>
 
 using namespace drape;
 using namespace drape_test;
@@ -172,6 +174,45 @@ TEST_CASE("Phase timers count calls", "[pipeline][timers]") {
         CHECK(calls(cloth, "forces_refresh") == 2u);
         CHECK_FALSE(has(cloth.pipeline(), "forces_refresh"));
     }
+}
+
+TEST_CASE("Phase timers measure thread CPU time when asked", "[pipeline][timers]") {
+    PhaseTimers timers;
+    const std::size_t sleeping = timers.slot("sleeping");
+    const std::size_t working = timers.slot("working");
+    {
+        ScopedPhase p(timers, sleeping);
+        std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    }
+    CHECK(timers.all()[sleeping].seconds >= 0.03);
+    CHECK(timers.all()[sleeping].cpuSeconds == 0.0); // off by default
+    timers.measureThreadCpuTime(true);
+    timers.reset();
+    {
+        ScopedPhase p(timers, sleeping);
+        std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    }
+    // A sleeping thread uses (almost) no CPU: wall time counts the 30 ms, CPU time does not.
+    CHECK(timers.all()[sleeping].seconds >= 0.03);
+    CHECK(timers.all()[sleeping].cpuSeconds < 0.01);
+    {
+        ScopedPhase p(timers, working);
+        const double until = threadCpuSeconds() + 0.02; // spin until 20 ms of CPU are used
+        volatile double sink = 0.0;
+        while (threadCpuSeconds() < until)
+            sink = sink + 1.0;
+    }
+    CHECK(timers.all()[working].cpuSeconds >= 0.02);
+    CHECK(timers.all()[working].seconds >= timers.all()[working].cpuSeconds * 0.9);
+    // A cloth's own phases: CPU time is counted for each.
+    Cloth cloth(smallSheet(), basic());
+    cloth.timers().measureThreadCpuTime(true);
+    for (int n = 0; n < 20; ++n)
+        cloth.step(0.001);
+    double cpu = 0.0;
+    for (const PhaseTimer& t : cloth.timers().all())
+        cpu += t.cpuSeconds;
+    CHECK(cpu > 0.0);
 }
 
 TEST_CASE("Same input, same output", "[pipeline][determinism]") {
