@@ -85,7 +85,7 @@ Outcome runMeshInput(const std::uint8_t* data, std::size_t size,
         if (!f) throw std::runtime_error("fuzz harness: cannot write " + file.string());
     }
     try {
-        const samples::ImportedMesh imported = samples::importMesh(file);
+        const samples::ImportedMesh imported = io::importMesh(file);
         const TopologyPtr topology = ClothTopology::build(imported.mesh);
         (void)topology->springCount();
         out.accepted = true;

@@ -52,7 +52,7 @@ inline constexpr std::size_t kMeshFormatCount =
 
 /// The first byte picks a file extension (kMeshExtensions[data[0] % kMeshFormatCount]); the
 /// rest is written to a file with that extension in `workDir`, read with
-/// drape::samples::importMesh and turned into a cloth with drape::ClothTopology::build.
+/// drape::io::importMesh and turned into a cloth with drape::ClothTopology::build.
 Outcome runMeshInput(const std::uint8_t* data, std::size_t size,
                      const std::filesystem::path& workDir);
 
