@@ -373,6 +373,30 @@ TEST_CASE("rigid bodies piled into each other at the start are refused before Bu
     CHECK_NOTHROW(Simulation(scene(false)));
 }
 
+TEST_CASE("pins times particles beyond the selection limit are refused before any is resolved",
+          "[scenes][ranges]") {
+    // 100,000 pin entries (the array limit) on a 64 x 64 sheet: 4e8 particle looks, more than
+    // kMaxSelectionWork; the same entries on a 16 x 16 sheet (2.6e7) are a scene.
+    auto scene = [](int side, int pins) {
+        std::string list;
+        for (int i = 0; i < pins; ++i)
+            list += std::string(i ? "," : "") + R"({"grid": [[0, 0]]})";
+        return parseScene(R"({"cloth": {"sheet": {"rows": )" + std::to_string(side) +
+                              R"(, "cols": )" + std::to_string(side) +
+                              R"(, "spacing": 0.1}, "particle_mass": 0.01, "stiffness": 20.0},
+                              "simulation": {"time_step": 0.002, "duration": 0.01},
+                              "pins": [)" +
+                              list + "]}",
+                          "pins.json", kScenes);
+    };
+    using Catch::Matchers::Contains;
+    CHECK(std::size_t(100000) * 64 * 64 > kMaxSelectionWork);
+    CHECK_THROWS_WITH(Simulation(scene(64, 100000)),
+                      Contains("pins: 100000 pins and 0 attachments on 4096 particles") &&
+                          Contains("exceeds the limit of 268435456"));
+    CHECK_NOTHROW(Simulation(scene(16, 100000)));
+}
+
 TEST_CASE("attachments follow a kinematic body along its keyframes and index pins stay put",
           "[scenes]") {
     if (!rigidBodiesAvailable()) {

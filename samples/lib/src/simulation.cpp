@@ -105,6 +105,16 @@ Simulation::Simulation(const SceneDesc& scene) : scene_(scene) {
     up_ = g.norm() > 0.0 ? Vec3(-g.normalized()) : Vec3::UnitY();
 
     const auto& v2p = topo->vertexToParticle();
+    const std::size_t entries = scene_.pins.size() + scene_.attachments.size();
+    if (entries > kMaxSelectionWork / cloth_->particleCount())
+        fail(scene_.pins.empty() ? "attachments" : "pins",
+             std::to_string(scene_.pins.size()) + " pins and " +
+                 std::to_string(scene_.attachments.size()) + " attachments on " +
+                 std::to_string(cloth_->particleCount()) +
+                 " particles: each entry looks at every particle, and entries x particles "
+                 "exceeds the limit of " +
+                 std::to_string(kMaxSelectionWork) +
+                 " (select many particles in one entry: a box, a group, a list of indices)");
     for (const PinDesc& pin : scene_.pins) {
         std::vector<Index> set = resolve(pin.select, v2p, groups);
         for (Index i : set) {

@@ -37,6 +37,10 @@ inline constexpr std::size_t kMaxSceneSteps = 50'000'000;   ///< time steps per 
 inline constexpr std::size_t kMaxSceneFrames = 100'000;     ///< rendered frames per run
 inline constexpr int kMaxImageSide = 8192;                  ///< pixels
 inline constexpr std::size_t kMaxRigidBodies = 10'000;
+/// Entries of pins and attachments times the cloth's particles: each entry's selection looks
+/// at every particle, so 100,000 entries on a cloth of a million particles would be 1e11 steps
+/// of work (and as many selected indices) before the first time step.
+inline constexpr std::size_t kMaxSelectionWork = std::size_t(1) << 28;
 /// Every position a scene or mesh puts in the world (sheet corners, mesh vertices after
 /// their transform, bodies, camera) lies within +-kMaxCoordinate on each axis [m].
 inline constexpr double kMaxCoordinate = 1e6;
