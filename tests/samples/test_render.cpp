@@ -1,10 +1,13 @@
 // The offscreen renderer: the cloth shows up in its own colours (front and back), rigid bodies
-// are drawn, and the PNG on disk holds the same pixels.
+// are drawn, normals never face away from the camera (no black triangles at folds), and the PNG on
+// disk holds the same pixels.
 #include "drape_samples/render.hpp"
 #include "drape_samples/simulation.hpp"
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 
 using namespace drape;
@@ -160,4 +163,89 @@ TEST_CASE("a rendered shipped scene shows its cloth", "[render]") {
     const double f = fraction(img, reddish);
     CHECK(f > 0.10);
     CHECK(f < 0.80);
+}
+
+TEST_CASE("a triangle whose normals point to its far side is lit on the side the camera sees",
+          "[render]") {
+    if (!renderingAvailable()) {
+        WARN("skipped: built without OSMesa");
+        return;
+    }
+    // Where cloth folds onto itself a smooth vertex normal can point to the far side of a
+    // triangle that turns the fold; two-sided lighting then lit that triangle from behind
+    // (ambient only) and it came out near black. The same fault, made on purpose: the sheet's
+    // normals all reversed. It must look as the sheet with its own normals does.
+    const DrawMesh good = sheetFacingPlusZ();
+    DrawMesh reversed = good;
+    for (float& n : reversed.normals)
+        n = -n;
+    OffscreenRenderer r(160, 120);
+    for (const double z : {3.0, -3.0}) { // front, then back
+        INFO("camera at z = " << z);
+        const Image want = r.render(cameraAt(z), {good}, kBackground);
+        const Image got = r.render(cameraAt(z), {reversed}, kBackground);
+        const auto c = got.pixel(80, 60);
+        CHECK(std::max({c[0], c[1], c[2]}) > 120); // lit, not ambient-only (about 19)
+        std::size_t differing = 0;
+        for (std::size_t i = 0; i < got.rgb.size(); ++i)
+            differing += got.rgb[i] != want.rgb[i] ? 1u : 0u;
+        CHECK(differing == 0);
+    }
+}
+
+TEST_CASE("keepNormalsFacingViewer turns only the normals that face away from the camera",
+          "[render]") {
+    // One triangle in the z = 0 plane, counter-clockwise seen from +z (its normal is +z).
+    const std::vector<float> positions = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    const std::vector<std::uint32_t> indices = {0, 1, 2};
+    // Corner 0 points to the far side, corner 1 has no normal (a smooth normal that cancelled
+    // out), corner 2 is the triangle's own normal.
+    const std::vector<float> normals = {0, 0, -1, 0, 0, 0, 0, 0, 1};
+    auto normalAt = [](const std::vector<float>& n, std::uint32_t v) {
+        return Eigen::Vector3f(n[3 * v], n[3 * v + 1], n[3 * v + 2]);
+    };
+    for (const float side : {1.0f, -1.0f}) { // the camera in front, then behind
+        INFO("camera at z = " << 5.0f * side);
+        std::vector<float> p = positions, n = normals;
+        std::vector<std::uint32_t> idx = indices;
+        const std::size_t changed =
+            keepNormalsFacingViewer(p, n, idx, Eigen::Vector3f(0.2f, 0.2f, 5.0f * side));
+        REQUIRE(changed == 2);
+        REQUIRE(p.size() == 15); // two vertices added
+        REQUIRE(n.size() == 15);
+        CHECK(idx[0] == 3);
+        CHECK(idx[1] == 4);
+        CHECK(idx[2] == 2); // left alone
+        // The new vertices sit where the old ones did and carry the triangle's normal (which
+        // OpenGL negates when the triangle is seen from behind: then it faces the camera too).
+        for (std::uint32_t k = 0; k < 2; ++k) {
+            CHECK(Eigen::Vector3f(p[3 * idx[k]], p[3 * idx[k] + 1], p[3 * idx[k] + 2]) ==
+                  Eigen::Vector3f(positions[3 * k], positions[3 * k + 1], positions[3 * k + 2]));
+            CHECK((normalAt(n, idx[k]) - Eigen::Vector3f(0, 0, 1)).norm() < 1e-6f);
+        }
+    }
+    SECTION("a normal leaning almost edge-on is blended towards the triangle's, not replaced") {
+        std::vector<float> p = positions, n = normals;
+        std::vector<std::uint32_t> idx = indices;
+        // Corner 2 leans 84 degrees from the direction to the camera: cos = 0.1, below 0.2.
+        const float s = std::sqrt(1.0f - 0.01f);
+        n = {0, 0, 1, 0, 0, 1, s, 0, 0.1f};
+        const Eigen::Vector3f eye(0.0f, 1.0f, 1.0e4f); // far away: the direction is +z
+        CHECK(keepNormalsFacingViewer(p, n, idx, eye) == 1);
+        const Eigen::Vector3f b = normalAt(n, idx[2]);
+        CHECK(b.norm() == Approx(1.0f));
+        CHECK(b.z() > 0.1f); // turned towards the camera
+        CHECK(b.z() < 0.99f);
+        CHECK(b.x() > 0.1f); // but still leaning the way it did
+    }
+    SECTION("a flat sheet seen from either side is left as it is") {
+        DrawMesh sheet = sheetFacingPlusZ();
+        for (const float z : {3.0f, -3.0f}) {
+            DrawMesh m = sheet;
+            CHECK(keepNormalsFacingViewer(m.positions, m.normals, m.indices,
+                                          Eigen::Vector3f(0.3f, -0.2f, z)) == 0);
+            CHECK(m.positions == sheet.positions);
+            CHECK(m.indices == sheet.indices);
+        }
+    }
 }

@@ -6,6 +6,7 @@
 #include <png.h>
 
 #include <Eigen/Geometry>
+#include <Eigen/LU>
 
 #include <cmath>
 #include <cstring>
@@ -142,20 +143,24 @@ Image OffscreenRenderer::render(const CameraDesc& camera, const std::vector<Draw
     glEnableClientState(GL_NORMAL_ARRAY);
     for (const DrawMesh& m : meshes) {
         if (m.indices.empty() || m.positions.empty()) continue;
-        std::vector<float> computed;
-        const std::vector<float>* normals = &m.normals;
-        if (m.normals.size() != m.positions.size()) {
-            computed = computeNormals(m.positions, m.indices);
-            normals = &computed;
-        }
         const Eigen::Matrix4f mv = view * m.model;
+        // Normals facing the camera on each triangle's seen side (keepNormalsFacingViewer:
+        // without it the triangles that turn a fold in the cloth came out near black), on
+        // copies of the mesh's arrays.
+        std::vector<float> positions = m.positions;
+        std::vector<float> normals = m.normals.size() == m.positions.size()
+                                         ? m.normals
+                                         : computeNormals(m.positions, m.indices);
+        std::vector<std::uint32_t> indices = m.indices;
+        const Eigen::Vector4f eye = mv.inverse() * Eigen::Vector4f(0.0f, 0.0f, 0.0f, 1.0f);
+        keepNormalsFacingViewer(positions, normals, indices, eye.head<3>() / eye.w());
         glLoadMatrixf(mv.data());
         setMaterial(GL_FRONT, m.front);
         setMaterial(GL_BACK, m.back);
-        glVertexPointer(3, GL_FLOAT, 0, m.positions.data());
-        glNormalPointer(GL_FLOAT, 0, normals->data());
-        glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(m.indices.size()), GL_UNSIGNED_INT,
-                       m.indices.data());
+        glVertexPointer(3, GL_FLOAT, 0, positions.data());
+        glNormalPointer(GL_FLOAT, 0, normals.data());
+        glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(indices.size()), GL_UNSIGNED_INT,
+                       indices.data());
     }
     glDisableClientState(GL_NORMAL_ARRAY);
     glDisableClientState(GL_VERTEX_ARRAY);

@@ -49,6 +49,51 @@ std::vector<float> computeNormals(const std::vector<float>& p,
     return n;
 }
 
+std::size_t keepNormalsFacingViewer(std::vector<float>& p, std::vector<float>& n,
+                                    std::vector<std::uint32_t>& idx, const Eigen::Vector3f& eye) {
+    auto vec = [](const std::vector<float>& a, std::uint32_t v) {
+        return Eigen::Vector3f(a[3 * v], a[3 * v + 1], a[3 * v + 2]);
+    };
+    std::size_t changed = 0;
+    for (std::size_t t = 0; t + 2 < idx.size(); t += 3) {
+        const Eigen::Vector3f pa = vec(p, idx[t]), pb = vec(p, idx[t + 1]), pc = vec(p, idx[t + 2]);
+        const Eigen::Vector3f face = (pb - pa).cross(pc - pa);
+        const float facing = face.dot(eye - pa); // > 0: the front is seen
+        const float area2 = face.norm();
+        if (!(area2 > 0.0f) || !std::isfinite(area2) || !(facing != 0.0f) || !std::isfinite(facing))
+            continue;
+        const float side = facing > 0.0f ? 1.0f : -1.0f;
+        const Eigen::Vector3f flat = side * face / area2; // the seen side's normal
+        for (std::size_t k = 0; k < 3; ++k) {
+            const std::uint32_t v = idx[t + k];
+            const Eigen::Vector3f x = vec(p, v);
+            const Eigen::Vector3f toEye = (eye - x).normalized();
+            Eigen::Vector3f s = side * vec(n, v); // the normal the lighting would use
+            const float len = s.norm();
+            float c = 0.0f; // a zero or non-finite normal counts as facing away
+            if (len > 0.0f && std::isfinite(len)) {
+                s /= len;
+                c = s.dot(toEye);
+            } else {
+                s = flat;
+            }
+            if (c >= kNormalViewCosine) continue;
+            const float w = c <= 0.0f ? 1.0f : 1.0f - c / kNormalViewCosine; // weight of flat
+            Eigen::Vector3f b = (1.0f - w) * s + w * flat;
+            // Both terms face the camera (c > 0 and flat), so b is never zero.
+            b.normalize();
+            const auto nv = static_cast<std::uint32_t>(p.size() / 3);
+            for (int d = 0; d < 3; ++d) {
+                p.push_back(x[d]);
+                n.push_back(side * b[d]);
+            }
+            idx[t + k] = nv;
+            ++changed;
+        }
+    }
+    return changed;
+}
+
 DrawMesh toDrawMesh(const std::vector<Vec3>& vertices, const std::vector<Triangle>& triangles,
                     const Color& front, const Color& back) {
     DrawMesh m;

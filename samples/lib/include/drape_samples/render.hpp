@@ -2,7 +2,8 @@
 //
 // OffscreenRenderer draws through OSMesa (software OpenGL, fixed-function pipeline) into
 // memory: smooth-shaded, two-sided lighting (front and back of the cloth in their own
-// colours), two lights fixed to the camera, 2x2 supersampling. No window or display needed.
+// colours, every shading normal kept facing the camera: keepNormalsFacingViewer), two lights
+// fixed to the camera, 2x2 supersampling. No window or display needed.
 // The shape builders below make triangle meshes for rigid bodies and need no OpenGL.
 #pragma once
 
@@ -42,6 +43,30 @@ struct DrawMesh {
 /// Area-weighted smooth vertex normals of a mesh given as float arrays.
 std::vector<float> computeNormals(const std::vector<float>& positions,
                                   const std::vector<std::uint32_t>& indices);
+
+/// Keeps every shading normal facing the camera on the side its triangle is seen from.
+///
+/// Why: OpenGL's two-sided lighting lights the side of a triangle that faces the camera and,
+/// for a triangle seen from behind, negates its normals. A smooth vertex normal averages the
+/// triangles around the vertex; where the cloth folds back onto itself it follows the layer
+/// on one side and can lean far from a triangle that turns the fold (or cancel out, when the
+/// fallback +y is used), so that on the seen side it points away from the camera. Such a
+/// triangle was lit as if from behind: ambient only, near black.
+///
+/// What: for each triangle corner, c is the cosine between its normal (negated if the
+/// triangle is seen from behind) and the direction from the corner to `eye`. Where c is
+/// below kNormalViewCosine the normal is blended towards the triangle's own (flat) normal on
+/// the seen side, which always faces the camera: all the way at c <= 0, not at all at
+/// c = kNormalViewCosine, so the shading changes continuously as the cloth moves. A blended
+/// corner gets a vertex of its own (its position is appended to `positions`, its index
+/// rewritten); other corners and flat meshes are left as they are. `eye` is the camera
+/// position in the mesh's coordinates, which must be the world's up to a rigid motion.
+/// Triangles with no area or seen edge-on are left alone. Returns how many corners changed.
+std::size_t keepNormalsFacingViewer(std::vector<float>& positions, std::vector<float>& normals,
+                                    std::vector<std::uint32_t>& indices,
+                                    const Eigen::Vector3f& eye);
+/// See keepNormalsFacingViewer (a cosine of 0.2: about 78 degrees from the view direction).
+constexpr float kNormalViewCosine = 0.2f;
 
 /// Converts a drape mesh (double) into a DrawMesh with normals.
 DrawMesh toDrawMesh(const std::vector<Vec3>& vertices, const std::vector<Triangle>& triangles,

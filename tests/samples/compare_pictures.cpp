@@ -1,0 +1,110 @@
+// drape_compare_pictures: compares the committed pictures (docs/pictures/*.png) with the ones
+// scripts/pictures.sh renders now, pixel by pixel, for the test
+// samples.pictures.match_the_committed_ones (pictures_expect.cmake).
+//
+//   drape_compare_pictures COMMITTED_DIR RENDERED_DIR
+//
+// Every PNG in either folder must be in both, of the same size. A pixel differs when one of
+// its channels differs by more than kChannelTolerance levels; a picture fails when more than
+// kMaxDifferingFraction of its pixels differ. Rendering is deterministic (OSMesa's llvmpipe,
+// the reference toolchain's simulation), so the tolerance only absorbs rounding in the
+// rasteriser on another CPU; a stale picture differs in hundreds or thousands of pixels.
+// Exit status 0 when every picture matches, 1 when one does not, 2 on a usage or read error.
+#include "drape_samples/render.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <set>
+#include <string>
+
+namespace fs = std::filesystem;
+using drape::samples::Image;
+using drape::samples::readPng;
+
+namespace {
+
+constexpr int kChannelTolerance = 3;               // levels of 255
+constexpr double kMaxDifferingFraction = 0.000125; // 1 pixel in 8000: 9 of 320 x 240
+
+std::set<std::string> pngsIn(const fs::path& dir) {
+    std::set<std::string> names;
+    for (const fs::directory_entry& e : fs::directory_iterator(dir))
+        if (e.is_regular_file() && e.path().extension() == ".png")
+            names.insert(e.path().filename().string());
+    return names;
+}
+
+} // namespace
+
+int main(int argc, char** argv) {
+    if (argc != 3) {
+        std::fprintf(stderr, "usage: %s COMMITTED_DIR RENDERED_DIR\n", argv[0]);
+        return 2;
+    }
+    const fs::path committed = argv[1], rendered = argv[2];
+    try {
+        const std::set<std::string> want = pngsIn(committed), got = pngsIn(rendered);
+        std::set<std::string> all = want;
+        all.insert(got.begin(), got.end());
+        int bad = 0;
+        for (const std::string& name : all) {
+            const fs::path a = committed / name, b = rendered / name;
+            if (!want.count(name)) {
+                std::printf("%s: rendered by scripts/pictures.sh but not committed\n",
+                            b.string().c_str());
+                ++bad;
+                continue;
+            }
+            if (!got.count(name)) {
+                std::printf("%s: committed but no longer rendered by scripts/pictures.sh\n",
+                            a.string().c_str());
+                ++bad;
+                continue;
+            }
+            const Image x = readPng(a), y = readPng(b);
+            if (x.width != y.width || x.height != y.height) {
+                std::printf("%s: %d x %d, but scripts/pictures.sh renders %d x %d (%s)\n",
+                            a.string().c_str(), x.width, x.height, y.width, y.height,
+                            b.string().c_str());
+                ++bad;
+                continue;
+            }
+            long differing = 0;
+            int largest = 0, lx = 0, ly = 0;
+            for (int j = 0; j < x.height; ++j)
+                for (int i = 0; i < x.width; ++i) {
+                    const auto p = x.pixel(i, j), q = y.pixel(i, j);
+                    int d = 0;
+                    for (std::size_t c = 0; c < 3; ++c)
+                        d = std::max(d, std::abs(int(p[c]) - int(q[c])));
+                    if (d > kChannelTolerance) ++differing;
+                    if (d > largest) {
+                        largest = d;
+                        lx = i;
+                        ly = j;
+                    }
+                }
+            const long pixels = static_cast<long>(x.width) * x.height;
+            const bool ok = static_cast<double>(differing) <= kMaxDifferingFraction * pixels;
+            std::printf("%s: %ld of %ld pixels differ by more than %d levels (largest "
+                        "difference %d, at x %d y %d)%s\n",
+                        a.string().c_str(), differing, pixels, kChannelTolerance, largest, lx, ly,
+                        ok ? "" : " from what scripts/pictures.sh renders now: STALE");
+            if (!ok) ++bad;
+        }
+        if (bad) {
+            std::printf("%d of %zu pictures differ from what scripts/pictures.sh renders now "
+                        "(rendered into %s). Run scripts/pictures.sh, look at the pictures and "
+                        "commit docs/pictures.\n",
+                        bad, all.size(), rendered.string().c_str());
+            return 1;
+        }
+        std::printf("all %zu pictures match what scripts/pictures.sh renders now\n", all.size());
+        return 0;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "drape_compare_pictures: %s\n", e.what());
+        return 2;
+    }
+}
