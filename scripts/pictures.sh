@@ -6,14 +6,39 @@
 # game (docs/pictures/tablecloth_trick.png: its slow and its fast yank side by side). The frame is
 # the last step of the scene's own duration unless the table below picks an earlier time
 # (in simulated seconds) at which more is going on.
-# Usage: scripts/pictures.sh        (needs root or sudo only if packages are missing)
+# Usage: scripts/pictures.sh [--out DIR] [--bin DIR]
+#   Sets up packages (needs root or sudo only if some are missing), builds the three programs
+#   in $DRAPE_BUILD_DIR (default build/, Release) and writes the pictures to docs/pictures.
+#   --out DIR  writes them to DIR instead.
+#   --bin DIR  uses drape-run, curtain_catch and tablecloth_trick as they are in DIR: no setup,
+#              no build. The test samples.pictures.match_the_committed_ones renders with this
+#              into its build folder and compares the result with docs/pictures.
 set -euo pipefail
+out=
+bin=
+while [ $# -gt 0 ]; do
+    case "$1" in
+    --out) out=$(realpath -m -- "${2:?--out needs a folder}"); shift 2 ;;
+    --bin) bin=$(realpath -m -- "${2:?--bin needs a folder}"); shift 2 ;;
+    *) echo "pictures: unknown argument '$1' (usage: scripts/pictures.sh [--out DIR] [--bin DIR])" >&2; exit 2 ;;
+    esac
+done
 cd "$(dirname "$0")/.."
-./scripts/setup.sh
-build=${DRAPE_BUILD_DIR:-build}
-cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build "$build" -j"$(nproc)" --target drape-run drape_curtain_catch \
-    drape_tablecloth_trick_game >/dev/null
+out=${out:-docs/pictures}
+if [ -z "$bin" ]; then
+    ./scripts/setup.sh
+    build=${DRAPE_BUILD_DIR:-build}
+    cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
+    cmake --build "$build" -j"$(nproc)" --target drape-run drape_curtain_catch \
+        drape_tablecloth_trick_game >/dev/null
+    bin=$build/bin
+fi
+for program in drape-run curtain_catch tablecloth_trick; do
+    if [ ! -x "$bin/$program" ]; then
+        echo "pictures: $bin/$program not found (build it, or leave out --bin)" >&2
+        exit 1
+    fi
+done
 
 # scene name -> simulated seconds to run (empty: the scene's duration)
 declare -A at=(
@@ -21,7 +46,6 @@ declare -A at=(
     [trampoline]=0.8     # the ball pressing into the sheet on its first landing
 )
 
-out=docs/pictures
 mkdir -p "$out"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
@@ -30,7 +54,7 @@ for scene in samples/scenes/*.json; do
     name=$(basename "$scene" .json)
     args=("$scene" -o "$tmp/$name" --width 320 --height 240 --fps 1 --no-video --quiet)
     if [ -n "${at[$name]:-}" ]; then args+=(--seconds "${at[$name]}"); fi
-    "$build"/bin/drape-run "${args[@]}"
+    "$bin"/drape-run "${args[@]}"
     last=$(ls "$tmp/$name"/frames/frame_*.png | tail -n 1)
     # Re-encoded by ffmpeg with the strongest PNG compression, to keep the repository small.
     ffmpeg -loglevel error -y -i "$last" -compression_level 100 -pred mixed "$out/$name.png"
@@ -45,14 +69,14 @@ ffmpeg -loglevel error -y -framerate 1 -i "$tmp/tile_%02d.png" \
 echo "pictures: $out/scenes.png ($n scenes)"
 
 # The game: two scripted throws (the default seed); frame 48 is the second ball in the curtain.
-"$build"/bin/curtain_catch -o "$tmp/curtain_catch" --throws 2 --width 320 --height 240 >/dev/null
+"$bin"/curtain_catch -o "$tmp/curtain_catch" --throws 2 --width 320 --height 240 >/dev/null
 ffmpeg -loglevel error -y -i "$tmp/curtain_catch/frames/frame_00048.png" \
     -compression_level 100 -pred mixed "$out/curtain_catch.png"
 echo "pictures: $out/curtain_catch.png"
 
 # The tablecloth trick (default seed), both rounds: slow-yank frame 23 (the dishes dragged to
 # the table's edge) beside fast-yank frame 9 (the cloth half out, the dishes in place).
-"$build"/bin/tablecloth_trick -o "$tmp/tablecloth_trick" --width 240 --height 180 >/dev/null
+"$bin"/tablecloth_trick -o "$tmp/tablecloth_trick" --width 240 --height 180 >/dev/null
 ffmpeg -loglevel error -y -i "$tmp/tablecloth_trick/slow/frames/frame_00023.png" \
     -i "$tmp/tablecloth_trick/fast/frames/frame_00009.png" \
     -filter_complex "[0][1]hstack" -compression_level 100 -pred mixed "$out/tablecloth_trick.png"
