@@ -9,7 +9,9 @@ cd "$(dirname "$0")/.."
 scene=${1:-samples/scenes/experiment2_tablecloth.json}
 out=${2:-out/experiment2}
 build=${DRAPE_BUILD_DIR:-build}
-cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release
+# The same configuration as scripts/test.sh (warnings as errors), so that the test command
+# run afterwards reuses what this one built instead of rebuilding it with other flags.
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DDRAPE_WERROR=ON
 cmake --build "$build" -j"$(nproc)" --target drape-run
 "$build"/bin/drape-run "$scene" -o "$out"
 echo "frames and results in $out/"
