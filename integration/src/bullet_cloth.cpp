@@ -72,6 +72,7 @@ void accumulate(ContactStats& total, const ContactStats& s) {
     total.contacts += s.contacts;
     total.projections += s.projections;
     total.maxDepth = std::max(total.maxDepth, s.maxDepth);
+    total.maxStrain = std::max(total.maxStrain, s.maxStrain);
     total.selfContacts += s.selfContacts;
     total.selfPairTests += s.selfPairTests;
     total.impulseOnBodies += s.impulseOnBodies;
@@ -132,6 +133,8 @@ struct BulletCloth::Impl {
     /// Snapshots the bodies among the proxy's overlaps (and the broadphase's answer for a
     /// larger box when the cloth would sweep out of the proxy in this step).
     void gatherBodies(double dt);
+    double lastStrain = 0.0;     ///< Cloth::maxStrain() at the end of the last sub-step
+    bool strainMeasured = false; ///< lastStrain holds a measurement
     /// Follows the world's gravity if the user changes it (that wakes the cloth).
     void followWorldGravity();
     /// Wakes a sleeping cloth when a candidate body is new, gone or moving; records the poses.
@@ -228,6 +231,11 @@ void BulletCloth::Impl::step(double dt) {
         bodySeconds += std::chrono::duration<double>(Clock::now() - afterStep).count();
     }
     const auto afterSteps = Clock::now();
+    // The strain the sub-step ends with, measured (one pass over the springs; a cloth that slept
+    // through it has not moved).
+    if (!slept || !strainMeasured) lastStrain = c.maxStrain();
+    strainMeasured = true;
+    last.maxStrain = lastStrain;
     // 4. impulses
     applyImpulses();
     // 5. proxy

@@ -97,6 +97,11 @@ struct ContactStats {
     /// contact thickness before it was moved out: thickness - distance, 0 without
     /// projections; in totalStats() the largest of any sub-step [m].
     double maxDepth = 0.0;
+    /// The largest spring strain (l - L0) / L0 at the end of the Bullet sub-step, measured
+    /// (Cloth::maxStrain(), one pass over the springs per sub-step); in totalStats() the
+    /// largest at the end of any sub-step [-]. Compare with the limit
+    /// (ClothSettings::limiter.maxStrain) to see whether the bound held in every world step.
+    double maxStrain = 0.0;
     std::size_t selfContacts = 0;  ///< particle-triangle self contacts resolved
     std::size_t selfPairTests = 0; ///< particle-triangle pairs tested by self-collision
     /// Total linear impulse the cloth gave dynamic bodies, through contacts and through
