@@ -75,7 +75,8 @@ bool BodySnapshot::applyAccumulatedImpulses() {
     const bool pushedActive = rb->isActive();
     // A sleeping body is not woken by nudges below its sleeping threshold.
     const double dv = linearImpulse.norm() * invMass;
-    if (!rb->isActive() && dv < double(rb->getLinearSleepingThreshold())) return pushedActive;
+    const double threshold = double(rb->getLinearSleepingThreshold());
+    if (!rb->isActive() && dv < threshold && contactSpeed < threshold) return pushedActive;
     rb->applyCentralImpulse(toBt(linearImpulse));
     rb->applyTorqueImpulse(toBt(angularImpulse));
     // Only a sleeping body is woken: activate() on an awake one would restart its

@@ -39,6 +39,10 @@ struct BodySnapshot {
     Vec3 boxFaceNormal[6];
     /// v and w are zero (a static body, a resting one): the velocity at every point is v.
     bool still = true;
+    /// The fastest a cloth particle touching the body moved relative to it in the sub-step
+    /// [m/s]: a sleeping body is woken when this reaches its linear sleeping threshold (a cloth
+    /// pushed across it moves), not only by impulses that large.
+    double contactSpeed = 0.0;
     Vec3 linearImpulse = Vec3::Zero();  ///< accumulated for the body [N s]
     Vec3 angularImpulse = Vec3::Zero(); ///< about the centre of mass [N m s]
 
@@ -58,9 +62,11 @@ struct BodySnapshot {
         w += invInertia * torque;
         still = false;
     }
-    /// Gives the Bullet body the impulses accumulated on it (a sleeping body is not woken by
-    /// nudges below its sleeping threshold). Returns whether the cloth pushed an active body
-    /// (the cloth then must not sleep: a body resting on it would lose its support).
+    /// Gives the Bullet body the impulses accumulated on it. A sleeping body is woken only by
+    /// an impulse that changes its velocity by its linear sleeping threshold, or by a cloth
+    /// that moves against it at that speed (contactSpeed); a cloth settling on it does not. Returns
+    /// whether the cloth pushed an active body (the cloth then must not sleep: a body resting on it
+    /// would lose its support).
     bool applyAccumulatedImpulses();
 };
 

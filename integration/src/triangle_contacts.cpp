@@ -78,6 +78,7 @@ double ContactSolver::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t,
     ++stats.triangleContacts;
     const Vec3 rel = beta[0] * v[tri[0]] + beta[1] * v[tri[1]] + beta[2] * v[tri[2]] -
                      b.velocityAt(hit.bodyPoint);
+    if (b.dynamicBody) b.contactSpeed = std::max(b.contactSpeed, rel.norm());
     const double vn = rel.dot(n);
     if (vn >= 0.0) return depth;
     auto share = [&](const Vec3& j) { // an impulse j at the point: the particles' shares, the

@@ -123,3 +123,57 @@ TEST_CASE("a hanging cloth sleeps and wakes when its body moves or gravity chang
     run(w, 120);
     CHECK(cloth->positions()[48].x() - before[48].x() > 0.005);
 }
+
+TEST_CASE("a cloth on a stack of dynamic boxes stays on it, lets it sleep, and wakes it when "
+          "pushed",
+          "[world][sleep][stack]") {
+    // A game's scene at 60 Hz, every setting at its default: three 2 kg boxes of 0.4 m on a
+    // floor, settled for 1 s; then a 1.2 m cloth (31 x 31) dropped centred on them from 5 cm
+    // above the top.
+    TestWorld w;
+    w.body(w.shape<btStaticPlaneShape>(btVector3(0, 1, 0), 0), 0.0, Vec3::Zero());
+    auto* boxShape = w.shape<btBoxShape>(btVector3(0.2f, 0.2f, 0.2f));
+    std::vector<btRigidBody*> boxes;
+    for (int k = 0; k < 3; ++k)
+        boxes.push_back(w.body(boxShape, 2.0, Vec3(0, 0.2 + 0.4 * k, 0)));
+    for (int frame = 0; frame < 60; ++frame)
+        w.world.stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
+    const Vec3 topStart = eig(boxes[2]->getWorldTransform().getOrigin());
+    auto cloth =
+        makeCloth(horizontalSheet(31, 31, 0.04, topStart.y() + 0.2 + 0.05), ClothSettings{});
+    w.add(cloth);
+    double peak = 0.0;
+    int frame = 0;
+    for (; frame < 12 * 60; ++frame) {
+        w.world.stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
+        peak = std::max(peak, cloth->maxStrain());
+        bool boxesAsleep = true;
+        for (btRigidBody* b : boxes)
+            boxesAsleep = boxesAsleep && !b->isActive();
+        if (boxesAsleep && cloth->isAsleep()) break;
+    }
+    const double settled = (frame + 1) / 60.0;
+    const double moved = (eig(boxes[2]->getWorldTransform().getOrigin()) - topStart).norm();
+    double mean = 0.0;
+    for (const Vec3& x : cloth->positions())
+        mean += x.y();
+    mean /= static_cast<double>(cloth->particleCount());
+    INFO("asleep after " << settled << " s, top box moved " << moved << " m, peak strain " << peak
+                         << ", cloth mean height " << mean << " m");
+    CHECK(settled < 12.0); // the boxes and the cloth all asleep
+    CHECK(moved < 0.005);  // the cloth's weight does not push the stack about
+    CHECK(peak <= ClothSettings{}.limiter.maxStrain + ClothSettings{}.limiter.tolerance);
+    // Still on the stack: the cloth drapes over the top box (top face at 1.2 m), hanging at
+    // most (1.2 m - 0.4 m) / 2 down its sides, so its mean height is well above the floor.
+    CHECK(mean > 1.2 - 0.4);
+    // A push on the cloth wakes it, and the cloth's pushes wake the boxes it lies on.
+    for (Index i = 0; i < cloth->particleCount(); ++i)
+        cloth->setVelocity(i, Vec3(1.0, -1.0, 0.0));
+    bool woke = false;
+    for (int k = 0; k < 10 && !woke; ++k) {
+        w.world.stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
+        woke = boxes[2]->isActive();
+    }
+    CHECK_FALSE(cloth->isAsleep());
+    CHECK(woke);
+}
