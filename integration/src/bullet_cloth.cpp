@@ -69,6 +69,7 @@ void accumulate(ContactStats& total, const ContactStats& s) {
     total.rayQueries += s.rayQueries;
     total.triangleQueries += s.triangleQueries;
     total.triangleContacts += s.triangleContacts;
+    total.edgeContacts += s.edgeContacts;
     total.contacts += s.contacts;
     total.projections += s.projections;
     total.maxDepth = std::max(total.maxDepth, s.maxDepth);

@@ -40,6 +40,7 @@ void ContactSolver::run(Cloth& c, double dt) {
     QueryCounters counters;
     collideParticles(c, dt, counters);
     if (contact_.triangles) collideTriangles(c, dt, counters);
+    if (contact_.boxEdges) collideEdges(c, dt);
     bool anyTouching = false;
     for (unsigned char t : touching_)
         anyTouching = anyTouching || t != 0;
@@ -64,6 +65,7 @@ void ContactSolver::run(Cloth& c, double dt) {
         if (st.corrections == 0 || st.capHit) break;
         collideMoved(c, dt, counters);
         if (contact_.triangles) collideTriangles(c, dt, counters);
+        // (not re-run after the limiter: each pass would cost a whole first pass again)
     }
 
     // What the contact planes held in the limiter's walk: the particle got m push / dt (its

@@ -177,6 +177,11 @@ class ContactSolver {
     double collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t, double dt,
                            QueryCounters& counters);
 
+    // --- springs against boxes (edge_contacts.cpp) -----------------------------------------
+    /// Springs with an end touching a box, kept the thickness away from it along their length
+    /// (contact.boxEdges).
+    void collideEdges(Cloth& c, double dt);
+
     // Copies of the handle's settings (they never change), read in the per-particle loops.
     const ContactSettings contact_;
     const double band_;
@@ -212,6 +217,9 @@ class ContactSolver {
         double mass = -1.0, dt = -1.0, gravity = -1.0, cp = 0.0, damping = 0.0;
     } penalty_;
     std::vector<MovedGroup> movedGroups_;
+    std::vector<std::int32_t> edgeBody_; ///< per particle: the box of its contact, or -1
+    std::vector<int> edgeRegion_;        ///< per particle: its region around that box
+    double maxRest_ = -1.0;              ///< the longest spring's rest length (once) [m]
 };
 
 // Defined here, inline: they run per contact in the stage's loops.

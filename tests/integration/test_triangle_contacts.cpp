@@ -34,7 +34,9 @@ double segmentDistance2d(double pu, double pv, double au, double av, double bu, 
 /// Adds a floor and a 9 x 9 sheet (spacing 5 cm, 0.162 kg, k 5 N/m) at height y whose two
 /// middle columns lie at x = -0.025 and +0.025 (a feature along z at x = 0 falls between
 /// them), with triangle contacts on or off; returns its handle.
-bullet::BulletCloth& addSheetOverFloor(TestWorld& w, double y, bool triangles) {
+/// `boxEdges` off unless asked: "particles only" below means particle contacts alone.
+bullet::BulletCloth& addSheetOverFloor(TestWorld& w, double y, bool triangles,
+                                       bool boxEdges = false) {
     w.body(w.shape<btStaticPlaneShape>(btVector3(0, 1, 0), btScalar(0.0)), 0.0, Vec3::Zero());
     ClothSettings s;
     s.particleMass = 0.002;
@@ -43,6 +45,7 @@ bullet::BulletCloth& addSheetOverFloor(TestWorld& w, double y, bool triangles) {
     bullet::BulletClothSettings bs;
     bs.contact.thickness = kThickness;
     bs.contact.triangles = triangles;
+    bs.contact.boxEdges = boxEdges;
     return w.add(makeCloth(horizontalSheet(9, 9, 0.05, y, 0.025), s), bs);
 }
 
@@ -243,14 +246,14 @@ struct EdgeDrop {
 
 /// A 9 x 9 sheet (spacing 5 cm) falls onto the ridge of a static box turned 45 degrees about z
 /// (a knife edge along z, 30 cm above a floor), the ridge between two columns of particles.
-EdgeDrop dropOnEdge(bool triangles) {
+EdgeDrop dropOnEdge(bool triangles, bool boxEdges = false) {
     TestWorld w;
     const double half = 0.05, ridgeY = 0.3;
     const double centreY = ridgeY - half * std::sqrt(2.0);
     w.body(w.shape<btBoxShape>(btVector3(btScalar(half), btScalar(half), btScalar(0.3))), 0.0,
            Vec3(0, centreY, 0),
            btQuaternion(btVector3(0, 0, 1), btScalar(0.25 * 3.14159265358979323846)));
-    const std::shared_ptr<Cloth> cloth = addSheetOverFloor(w, 0.36, triangles).clothPtr();
+    const std::shared_ptr<Cloth> cloth = addSheetOverFloor(w, 0.36, triangles, boxEdges).clothPtr();
     EdgeDrop r;
     r.worstClearance = std::numeric_limits<double>::infinity();
     for (int k = 0; k < 360; ++k) {
@@ -272,10 +275,12 @@ EdgeDrop dropOnEdge(bool triangles) {
     }
     r.lowest = lowestParticle(*cloth);
     UNSCOPED_INFO(measured(
-        "sheet dropped on a knife-edge box ridge (spacing 5 cm), triangle contacts %s: "
+        "sheet dropped on a knife-edge box ridge (spacing 5 cm), triangle contacts %s, box "
+        "edges %s: "
         "smallest height of a spring above the ridge %.5f m over the run, %.5f m at the end "
         "(thickness %.3f), lowest particle %.4f m",
-        triangles ? "on" : "off", r.worstClearance, r.finalClearance, kThickness, r.lowest));
+        triangles ? "on" : "off", boxEdges ? "on" : "off", r.worstClearance, r.finalClearance,
+        kThickness, r.lowest));
     return r;
 }
 
@@ -296,4 +301,17 @@ TEST_CASE("a sheet dropped on a knife-edge box ridge drapes over it with triangl
     CHECK(on.finalClearance >= kThickness - 5e-4);
     CHECK(on.lowest < 0.3 - 0.05);
     CHECK(on.lowest > 0.02);
+}
+
+TEST_CASE("a box's knife edge stays under a sheet dropped on it with the default box-edge "
+          "contacts",
+          "[contacts][edges]") {
+    // ContactSettings::boxEdges (on by default): the springs that cross the ridge are kept the
+    // thickness above it along their length, without triangle contacts. (Particles alone:
+    // the ridge pokes through, the test above.)
+    const EdgeDrop edges = dropOnEdge(false, true);
+    CHECK(edges.worstClearance > 0.0);
+    CHECK(edges.finalClearance >= kThickness - 5e-4);
+    CHECK(edges.lowest < 0.3 - 0.05);
+    CHECK(edges.lowest > 0.02);
 }

@@ -86,6 +86,7 @@ class BulletWorld final : public Simulation::RigidWorld {
         s.contact.penaltyForce = c.penaltyForce;
         s.contact.continuous = c.continuous;
         s.contact.triangles = c.triangleContacts;
+        s.contact.boxEdges = c.boxEdges;
         s.substeps = scene.substeps; // simulation.substeps, collision.substeps or "auto"
         s.selfCollision.enabled = c.selfCollision;
         s.selfCollision.thickness = c.selfThickness.value_or(s.selfCollision.thickness);

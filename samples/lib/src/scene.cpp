@@ -461,13 +461,14 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
     }
     if (auto c = top.optObject("collision")) {
         c->keys({"thickness", "friction_scale", "penalty_force", "continuous", "triangle_contacts",
-                 "substeps", "self_collision", "self_thickness"});
+                 "box_edges", "substeps", "self_collision", "self_thickness"});
         CollisionDesc cd;
         cd.thickness = c->optNumber("thickness", kSize);
         cd.frictionScale = c->number("friction_scale", 1.0, kCoefficient);
         cd.penaltyForce = c->optNumber("penalty_force", kPenaltyForce);
         cd.continuous = c->boolean("continuous", true);
         cd.triangleContacts = c->boolean("triangle_contacts", false);
+        cd.boxEdges = c->boolean("box_edges", true); // as ContactSettings::boxEdges
         cd.substeps = static_cast<int>(c->integer("substeps", 1, 1, 1000));
         if (c->has("substeps")) {
             const auto sim = root.find("simulation");

@@ -102,6 +102,7 @@ ClothScene fromSceneFile(const samples::SceneDesc& d) {
     s.camera = d.camera;
     s.pins = samples::fixedPins(d);
     if (d.collision && d.collision->thickness) s.thickness = *d.collision->thickness;
+    if (d.collision) s.boxEdges = d.collision->boxEdges;
     for (const samples::RigidBodyDesc& b : d.rigidBodies) {
         if (b.motion != samples::MotionKind::Static) refuse("body " + b.name + " is not static");
         if (b.rotationDeg != Vec3::Zero()) refuse("body " + b.name + " is rotated");
@@ -258,6 +259,7 @@ DrapeWorld::DrapeWorld(const ClothScene& scene, const ClothSettings& settings)
     m.world->setGravity(bullet::toBt(scene.gravity));
     m.colliders.build(m.world.get(), scene.colliders, 0.0f);
     m.options.contact.thickness = scene.thickness;
+    m.options.contact.boxEdges = scene.boxEdges;
     m.options.useWorldGravity = false; // the cloth keeps the scene's exact (double) gravity
     // Alone, the cloth keeps its own settings (the reports measure the integrators on hanging
     // sheets; the integration's default would turn sleeping on). With colliders, the

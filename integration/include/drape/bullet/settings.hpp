@@ -40,6 +40,13 @@ struct ContactSettings {
     /// bodies. Off by default: it costs a box test per triangle and body near the cloth, and
     /// a GJK query per triangle within reach of a body that not all its particles touch.
     bool triangles = false;
+    /// Keep every spring with an end touching a box (btBoxShape) `thickness` away from the
+    /// box along its whole length, so that the box's edges and corners do not show through the
+    /// cloth between particles draped over them (a segment-box test per such spring; the
+    /// spring's ends share the push and the stopping impulse by their weights, two-way with
+    /// dynamic boxes). On by default: it costs a few box distance evaluations per spring
+    /// touching a box. Other convex shapes need `triangles` for their edges.
+    bool boxEdges = true;
     /// Margin added around the cloth's bounding box for its broadphase proxy [m] (>= 0). Not
     /// given: the cloth's mean spring rest length plus four thicknesses.
     std::optional<double> broadphaseMargin;
@@ -88,6 +95,7 @@ struct ContactStats {
     std::size_t rayQueries = 0;         ///< continuous (swept) ray tests
     std::size_t triangleQueries = 0;    ///< triangle-body GJK queries (contact.triangles)
     std::size_t triangleContacts = 0;   ///< triangle-body contacts that moved a triangle
+    std::size_t edgeContacts = 0;       ///< springs moved out of a box they cut into (boxEdges)
     /// Particle-body contacts: particles touching a body (projected, or resting at the
     /// thickness) or, with eq. (7) on, inside its band; once per particle and body per cloth
     /// step, summed over the sub-steps.

@@ -137,6 +137,7 @@ struct CollisionDesc {
     std::optional<double> penaltyForce; ///< eq. (7)'s C_p [N]; not given: automatic; 0 = off
     bool continuous = true;             ///< swept tests for fast particles
     bool triangleContacts = false;      ///< triangle-body contacts too (ContactSettings::triangles)
+    bool boxEdges = true;               ///< springs against boxes (ContactSettings::boxEdges)
     int substeps = 1;           ///< cloth steps per world step (older name of SceneDesc::substeps)
     bool selfCollision = false; ///< particle-triangle self-collision
     std::optional<double> selfThickness; ///< [m]; not given: `thickness`

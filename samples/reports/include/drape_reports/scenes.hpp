@@ -46,6 +46,7 @@ struct ClothScene {
     std::vector<Index> pins; ///< fixed particles
     std::vector<Collider> colliders;
     double thickness = 1.0;     ///< contact thickness [scene length]
+    bool boxEdges = true;       ///< ContactSettings::boxEdges (the scene's collision.box_edges)
     double timeStep = 0.01;     ///< the scene's dt [s]
     double duration = 10.0;     ///< simulated time of a run [s]
     samples::CameraDesc camera; ///< for renders

@@ -1,0 +1,253 @@
+// Springs against box bodies (see contacts.hpp): a spring whose ends rest on two faces of a
+// box wraps its edge, and the straight segment between the two particles cuts the corner,
+// so the edge shows through the cloth between them. Each spring with an end touching a box is
+// tested as a segment against the box (its deepest point by the signed distance, convex
+// along the segment); a segment nearer than the thickness is moved out at that point, its
+// ends sharing the move and the stopping impulse by their weights, as triangle contacts
+// share theirs.
+#include "contacts.hpp"
+
+#include <btBulletCollisionCommon.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace drape::bullet::detail {
+
+namespace {
+
+/// Signed distance of local point p from a box of half extents `half` (negative inside) and
+/// its outward gradient (unit), in the box's frame.
+double boxSignedDistance(const Vec3& half, const Vec3& p, Vec3& gradient) {
+    const Vec3 q = p.cwiseAbs() - half;
+    const Vec3 outside = q.cwiseMax(0.0);
+    const double out = outside.norm();
+    if (out > 0.0) {
+        gradient = outside.cwiseProduct(p.cwiseSign()) / out;
+        return out;
+    }
+    int k = 0;
+    q.maxCoeff(&k);
+    gradient = Vec3::Zero();
+    gradient[k] = p[k] < 0.0 ? -1.0 : 1.0;
+    return q[k];
+}
+
+/// The region around a box a local point is in: per axis 0 (within the box's extent), 1 (beyond
+/// the + face) or 2 (beyond the - face), as base-3 digits; 0 for a point inside.
+int regionCode(const Vec3& half, const Vec3& p) {
+    int code = 0;
+    for (int k = 2; k >= 0; --k)
+        code = 3 * code + (p[k] > half[k] ? 1 : p[k] < -half[k] ? 2 : 0);
+    return code;
+}
+
+/// A face's prism: exactly one axis beyond the box.
+bool isFaceRegion(int code) {
+    int beyond = 0;
+    for (int k = 0; k < 3; ++k, code /= 3)
+        beyond += code % 3 != 0;
+    return beyond == 1;
+}
+
+/// Parameter s in [0, 1] of the point of segment p0 p1 nearest to segment q0 q1 (the closest
+/// points of two segments, with both clamped; parallel segments take the first end).
+double closestOnSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1) {
+    const Vec3 d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
+    const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
+    if (!(a > 0.0)) return 0.0;
+    const double c = d1.dot(r);
+    if (!(e > 0.0)) return std::clamp(-c / a, 0.0, 1.0);
+    const double b = d1.dot(d2), denom = a * e - b * b;
+    double s = denom > 0.0 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
+    const double t = (b * s + f) / e;
+    if (t < 0.0) s = std::clamp(-c / a, 0.0, 1.0);
+    else if (t > 1.0) s = std::clamp((b - c) / a, 0.0, 1.0);
+    return s;
+}
+
+/// Where along the segment pa pb (box frame, ends' outward gradients ga and gb from
+/// boxSignedDistance) the box's signed distance is least: the point nearest to an edge shared
+/// by the faces the two ends see (one or a few edges, each a segment-segment closest point);
+/// for ends seeing opposite faces, or no common edge, a golden-section search of the
+/// (convex) signed distance.
+double deepestAlong(const Vec3& half, const Vec3& pa, const Vec3& pb, const Vec3& ga,
+                    const Vec3& gb) {
+    // The faces either end sees: sign per axis (0: none; both signs: a spring through the box).
+    int sign[3] = {0, 0, 0};
+    bool opposite = false;
+    for (const Vec3* g : {&ga, &gb})
+        for (int k = 0; k < 3; ++k) {
+            if ((*g)[k] == 0.0) continue;
+            const int sk = (*g)[k] > 0.0 ? 1 : -1;
+            opposite = opposite || (sign[k] != 0 && sign[k] != sk);
+            sign[k] = sk;
+        }
+    double best = 0.0, bestD = std::numeric_limits<double>::infinity();
+    Vec3 g;
+    auto consider = [&](double t) {
+        const double d = boxSignedDistance(half, pa + t * (pb - pa), g);
+        if (d < bestD) {
+            bestD = d;
+            best = t;
+        }
+    };
+    bool edges = false;
+    if (!opposite)
+        for (int k = 0; k < 3; ++k) { // the edge along axis k between faces i and j
+            const int i = (k + 1) % 3, j = (k + 2) % 3;
+            if (sign[i] == 0 || sign[j] == 0) continue;
+            Vec3 e0, e1;
+            e0[i] = e1[i] = sign[i] * half[i];
+            e0[j] = e1[j] = sign[j] * half[j];
+            e0[k] = -half[k];
+            e1[k] = half[k];
+            consider(closestOnSegment(pa, pb, e0, e1));
+            edges = true;
+        }
+    if (edges) return best;
+    double lo = 0.0, hi = 1.0;
+    constexpr double kGolden = 0.6180339887498949;
+    double t1 = hi - kGolden * (hi - lo), t2 = lo + kGolden * (hi - lo);
+    double f1 = boxSignedDistance(half, pa + t1 * (pb - pa), g);
+    double f2 = boxSignedDistance(half, pa + t2 * (pb - pa), g);
+    for (int it = 0; it < 24; ++it) {
+        if (f1 < f2) {
+            hi = t2;
+            t2 = t1;
+            f2 = f1;
+            t1 = hi - kGolden * (hi - lo);
+            f1 = boxSignedDistance(half, pa + t1 * (pb - pa), g);
+        } else {
+            lo = t1;
+            t1 = t2;
+            f1 = f2;
+            t2 = lo + kGolden * (hi - lo);
+            f2 = boxSignedDistance(half, pa + t2 * (pb - pa), g);
+        }
+    }
+    return 0.5 * (lo + hi);
+}
+
+} // namespace
+
+void ContactSolver::collideEdges(Cloth& c, double dt) {
+    const auto& springs = c.topology().springs();
+    Vec3List& x = c.mutablePositions();
+    Vec3List& v = c.mutableVelocities();
+    const auto& w = c.inverseMasses();
+    const double h = contact_.thickness;
+    // Per particle with a contact on a box: the box and the region of space around it the
+    // particle is in (a face's prism, an edge's wedge, a corner; regionCode), once per pass.
+    if (std::none_of(bodies.begin(), bodies.end(), [](const BodySnapshot& b) { return b.box; }))
+        return;
+    edgeBody_.assign(c.particleCount(), -1);
+    edgeRegion_.resize(c.particleCount());
+    bool onBox = false;
+    for (const ContactRecord& r : records->contacts) {
+        const BodySnapshot& b = bodies[r.body];
+        if (!b.box || edgeBody_[r.particle] >= 0) continue;
+        edgeBody_[r.particle] = std::int32_t(r.body);
+        onBox = true;
+        edgeRegion_[r.particle] = regionCode(b.boxHalf, b.pose.toLocal(x[r.particle]));
+    }
+    // And the free particles within a spring's length of a box that have no contact yet:
+    // the box can cut a spring between two of them before either touches it (a ridge landing
+    // between two columns).
+    if (maxRest_ < 0.0) // the topology never changes: once
+        for (const Spring& sp : springs)
+            maxRest_ = std::max(maxRest_, sp.restLength);
+    const double reach = 1.1 * maxRest_;
+    for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
+        const BodySnapshot& b = bodies[bi];
+        if (!b.box) continue;
+        const Vec3 lo = b.aabbMin.array() - reach, hi = b.aabbMax.array() + reach;
+        for (std::size_t i = 0; i < x.size(); ++i) {
+            if (edgeBody_[i] >= 0 || w[i] == 0.0) continue;
+            if ((x[i].array() < lo.array()).any() || (x[i].array() > hi.array()).any()) continue;
+            edgeBody_[i] = std::int32_t(bi);
+            edgeRegion_[i] = regionCode(b.boxHalf, b.pose.toLocal(x[i]));
+            onBox = true;
+        }
+    }
+    if (!onBox) return; // no particle near a box
+    for (const Spring& s : springs) {
+        const std::int32_t ba = edgeBody_[s.a], bb = edgeBody_[s.b];
+        if ((ba < 0 && bb < 0) || (w[s.a] == 0.0 && w[s.b] == 0.0)) continue;
+        for (const std::int32_t body : {ba, bb}) {
+            if (body < 0) continue;
+            BodySnapshot& b = bodies[std::size_t(body)];
+            // A dynamic box lighter than the cloth (along the contact normal) is left to the
+            // particle contacts: the corner pushes of a whole draped cloth would tip it.
+            if (b.dynamicBody && b.invMass * clothMass_ > 1.0) continue;
+            // Both ends in one face's prism (convex): the distance is linear along the spring
+            // and its ends, which their own contacts hold, are the nearest points.
+            const int ra = ba == body ? edgeRegion_[s.a] : regionCode(b.boxHalf, b.pose.toLocal(x[s.a]));
+            const int rb = bb == body ? edgeRegion_[s.b] : regionCode(b.boxHalf, b.pose.toLocal(x[s.b]));
+            if (ra == rb && isFaceRegion(ra)) {
+                if (ba == bb) break;
+                continue;
+            }
+            const Vec3 pa = b.pose.toLocal(x[s.a]), pb = b.pose.toLocal(x[s.b]);
+            Vec3 ga, gb;
+            const double da = boxSignedDistance(b.boxHalf, pa, ga);
+            const double db = boxSignedDistance(b.boxHalf, pb, gb);
+            // The distance is 1-Lipschitz: no point of the spring is nearer than
+            // (da + db - length) / 2. An end inside the box is its particle contact's to
+            // resolve (a deep impact), not a spring cutting a corner.
+            if (ga == gb || da < 0.0 || db < 0.0 || 0.5 * (da + db - (pb - pa).norm()) >= h) {
+                if (ba == bb) break;
+                continue;
+            }
+            const double t = deepestAlong(b.boxHalf, pa, pb, ga, gb);
+            // Near an end the particle's own contact holds it; only the middle of the spring.
+            if (t < 0.05 || t > 0.95) {
+                if (ba == bb) break;
+                continue;
+            }
+            const Vec3 local = pa + t * (pb - pa);
+            Vec3 g;
+            const double d = boxSignedDistance(b.boxHalf, local, g);
+            if (!(d < h) || d < -h) { // (deeper: a particle contact's, after an impact)
+                if (ba == bb) break;
+                continue;
+            }
+            const Vec3 n = b.pose.R * g;
+            const double beta[2] = {1.0 - t, t};
+            const Index ends[2] = {s.a, s.b};
+            const double weight = beta[0] * beta[0] * w[s.a] + beta[1] * beta[1] * w[s.b];
+            if (!(weight > 0.0)) break;
+            const double depth = h - d;
+            const Vec3 point = b.pose.toWorld(local - d * g); // on the surface
+            stats.maxDepth = std::max(stats.maxDepth, depth);
+            ++stats.edgeContacts;
+            for (int k = 0; k < 2; ++k) {
+                const Index i = ends[k];
+                if (w[i] == 0.0) continue;
+                x[i] += (beta[k] * w[i] * depth / weight) * n;
+                touching_[i] = 1;
+                projected_.push_back(i);
+                boxes_.update(i, x[i], stepStart()[i], false);
+                if (!b.dynamicBody && planes_.of[i] < 0)
+                    keepPlane(c, std::uint32_t(body), i, n, n.dot(x[i]), point, false, dt);
+            }
+            const Vec3 rel = beta[0] * v[s.a] + beta[1] * v[s.b] - b.velocityAt(point);
+            const double vn = rel.dot(n);
+            if (vn < 0.0) {
+                const double lambda = -vn / (weight + b.inverseMassAlong(point, n));
+                auto share = [&](const Vec3& j) {
+                    for (int k = 0; k < 2; ++k)
+                        v[ends[k]] += (beta[k] * w[ends[k]]) * j;
+                    exchange(b, j, point);
+                };
+                share(lambda * n);
+                Vec3 j;
+                if (coulombImpulse(rel, n, weight, b, point, b.friction * lambda, j)) share(j);
+            }
+            if (ba == bb) break; // one body for both ends: tested once
+        }
+    }
+}
+
+} // namespace drape::bullet::detail
