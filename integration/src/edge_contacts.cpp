@@ -62,8 +62,10 @@ double closestOnSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Ve
     const double b = d1.dot(d2), denom = a * e - b * b;
     double s = denom > 0.0 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
     const double t = (b * s + f) / e;
-    if (t < 0.0) s = std::clamp(-c / a, 0.0, 1.0);
-    else if (t > 1.0) s = std::clamp((b - c) / a, 0.0, 1.0);
+    if (t < 0.0)
+        s = std::clamp(-c / a, 0.0, 1.0);
+    else if (t > 1.0)
+        s = std::clamp((b - c) / a, 0.0, 1.0);
     return s;
 }
 
@@ -183,8 +185,10 @@ void ContactSolver::collideEdges(Cloth& c, double dt) {
             if (b.dynamicBody && b.invMass * clothMass_ > 1.0) continue;
             // Both ends in one face's prism (convex): the distance is linear along the spring
             // and its ends, which their own contacts hold, are the nearest points.
-            const int ra = ba == body ? edgeRegion_[s.a] : regionCode(b.boxHalf, b.pose.toLocal(x[s.a]));
-            const int rb = bb == body ? edgeRegion_[s.b] : regionCode(b.boxHalf, b.pose.toLocal(x[s.b]));
+            const int ra =
+                ba == body ? edgeRegion_[s.a] : regionCode(b.boxHalf, b.pose.toLocal(x[s.a]));
+            const int rb =
+                bb == body ? edgeRegion_[s.b] : regionCode(b.boxHalf, b.pose.toLocal(x[s.b]));
             if (ra == rb && isFaceRegion(ra)) {
                 if (ba == bb) break;
                 continue;
