@@ -40,7 +40,7 @@ void ContactSolver::run(Cloth& c, double dt) {
     QueryCounters counters;
     collideParticles(c, dt, counters);
     if (contact_.triangles) collideTriangles(c, dt, counters);
-    if (contact_.boxEdges) collideEdges(c, dt);
+    if (contact_.boxEdges) collideEdges(c);
     bool anyTouching = false;
     for (unsigned char t : touching_)
         anyTouching = anyTouching || t != 0;

@@ -180,7 +180,7 @@ class ContactSolver {
     // --- springs against boxes (edge_contacts.cpp) -----------------------------------------
     /// Springs with an end touching a box, kept the thickness away from it along their length
     /// (contact.boxEdges).
-    void collideEdges(Cloth& c, double dt);
+    void collideEdges(Cloth& c);
 
     // Copies of the handle's settings (they never change), read in the per-particle loops.
     const ContactSettings contact_;

@@ -56,7 +56,8 @@ Outcome runSceneInput(const std::uint8_t* data, std::size_t size, const ScenePat
             return out;
         }
         samples::Simulation sim(scene);
-        if (sim.cloth().particleCount() <= kMaxSteppedParticles) {
+        if (sim.cloth().particleCount() <= kMaxSteppedParticles &&
+            sim.substeps() <= kMaxSteppedSubsteps) {
             for (int i = 0; i < kStepsTaken; ++i)
                 sim.step();
             (void)sim.stats();

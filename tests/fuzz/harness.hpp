@@ -35,8 +35,11 @@ struct ScenePaths {
 /// Above this many particles a parsed scene is not built: large sheets are legal (the limit is
 /// kMaxSceneParticles) but would spend the fuzzer's time in allocation, not in new code.
 inline constexpr std::size_t kMaxBuiltParticles = 1u << 14;
-/// Only cloths up to this size are stepped, and only kStepsTaken times.
+/// Only cloths up to this size are stepped, and only kStepsTaken times, and only while a scene
+/// step is at most kMaxSteppedSubsteps cloth steps ("auto", the default, sub-steps a long
+/// time step as far as 10,000 times: valid, bounded, and a long run, not input handling).
 inline constexpr std::size_t kMaxSteppedParticles = 1024;
+inline constexpr int kMaxSteppedSubsteps = 64;
 inline constexpr int kStepsTaken = 2;
 
 /// The bytes as a scene file: drape::samples::parseScene, then (within the limits above) the
