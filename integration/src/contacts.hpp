@@ -181,6 +181,8 @@ class ContactSolver {
     /// Springs with an end touching a box, kept the thickness away from it along their length
     /// (contact.boxEdges).
     void collideEdges(Cloth& c);
+    /// Spring s against box bi: moved out at its deepest point if nearer than the thickness.
+    void collideSpringWithBox(Cloth& c, const Spring& s, std::uint32_t bi);
 
     // Copies of the handle's settings (they never change), read in the per-particle loops.
     const ContactSettings contact_;

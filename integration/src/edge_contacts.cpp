@@ -6,6 +6,7 @@
 // ends sharing the move and the stopping impulse by their weights, as triangle contacts
 // share theirs.
 #include "contacts.hpp"
+#include "shape_queries.hpp"
 
 #include <btBulletCollisionCommon.h>
 
@@ -51,24 +52,6 @@ bool isFaceRegion(int code) {
     return beyond == 1;
 }
 
-/// Parameter s in [0, 1] of the point of segment p0 p1 nearest to segment q0 q1 (the closest
-/// points of two segments, with both clamped; parallel segments take the first end).
-double closestOnSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1) {
-    const Vec3 d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
-    const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
-    if (!(a > 0.0)) return 0.0;
-    const double c = d1.dot(r);
-    if (!(e > 0.0)) return std::clamp(-c / a, 0.0, 1.0);
-    const double b = d1.dot(d2), denom = a * e - b * b;
-    double s = denom > 0.0 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
-    const double t = (b * s + f) / e;
-    if (t < 0.0)
-        s = std::clamp(-c / a, 0.0, 1.0);
-    else if (t > 1.0)
-        s = std::clamp((b - c) / a, 0.0, 1.0);
-    return s;
-}
-
 /// Where along the segment pa pb (box frame, ends' outward gradients ga and gb from
 /// boxSignedDistance) the box's signed distance is least: the point nearest to an edge shared
 /// by the faces the two ends see (one or a few edges, each a segment-segment closest point);
@@ -105,7 +88,9 @@ double deepestAlong(const Vec3& half, const Vec3& pa, const Vec3& pb, const Vec3
             e0[j] = e1[j] = sign[j] * half[j];
             e0[k] = -half[k];
             e1[k] = half[k];
-            consider(closestOnSegment(pa, pb, e0, e1));
+            double sp = 0.0, se = 0.0;
+            closestSegmentSegment(pa, pb, e0, e1, sp, se);
+            consider(sp);
             edges = true;
         }
     if (edges) return best;
@@ -136,10 +121,8 @@ double deepestAlong(const Vec3& half, const Vec3& pa, const Vec3& pb, const Vec3
 
 void ContactSolver::collideEdges(Cloth& c) {
     const auto& springs = c.topology().springs();
-    Vec3List& x = c.mutablePositions();
-    Vec3List& v = c.mutableVelocities();
+    const Vec3List& x = c.positions();
     const auto& w = c.inverseMasses();
-    const double h = contact_.thickness;
     // Per particle with a contact on a box: the box and the region of space around it the
     // particle is in (a face's prism, an edge's wedge, a corner; regionCode), once per pass.
     if (std::none_of(bodies.begin(), bodies.end(), [](const BodySnapshot& b) { return b.box; }))
@@ -176,82 +159,75 @@ void ContactSolver::collideEdges(Cloth& c) {
     if (!onBox) return; // no particle near a box
     for (const Spring& s : springs) {
         const std::int32_t ba = edgeBody_[s.a], bb = edgeBody_[s.b];
-        if ((ba < 0 && bb < 0) || (w[s.a] == 0.0 && w[s.b] == 0.0)) continue;
-        for (const std::int32_t body : {ba, bb}) {
-            if (body < 0) continue;
-            BodySnapshot& b = bodies[std::size_t(body)];
-            // A dynamic box lighter than the cloth (along the contact normal) is left to the
-            // particle contacts: the corner pushes of a whole draped cloth would tip it.
-            if (b.dynamicBody && b.invMass * clothMass_ > 1.0) continue;
-            // Both ends in one face's prism (convex): the distance is linear along the spring
-            // and its ends, which their own contacts hold, are the nearest points.
-            const int ra =
-                ba == body ? edgeRegion_[s.a] : regionCode(b.boxHalf, b.pose.toLocal(x[s.a]));
-            const int rb =
-                bb == body ? edgeRegion_[s.b] : regionCode(b.boxHalf, b.pose.toLocal(x[s.b]));
-            if (ra == rb && isFaceRegion(ra)) {
-                if (ba == bb) break;
-                continue;
-            }
-            const Vec3 pa = b.pose.toLocal(x[s.a]), pb = b.pose.toLocal(x[s.b]);
-            Vec3 ga, gb;
-            const double da = boxSignedDistance(b.boxHalf, pa, ga);
-            const double db = boxSignedDistance(b.boxHalf, pb, gb);
-            // The distance is 1-Lipschitz: no point of the spring is nearer than
-            // (da + db - length) / 2. An end inside the box is its particle contact's to
-            // resolve (a deep impact), not a spring cutting a corner.
-            if (ga == gb || da < 0.0 || db < 0.0 || 0.5 * (da + db - (pb - pa).norm()) >= h) {
-                if (ba == bb) break;
-                continue;
-            }
-            const double t = deepestAlong(b.boxHalf, pa, pb, ga, gb);
-            // Near an end the particle's own contact holds it; only the middle of the spring.
-            if (t < 0.05 || t > 0.95) {
-                if (ba == bb) break;
-                continue;
-            }
-            const Vec3 local = pa + t * (pb - pa);
-            Vec3 g;
-            const double d = boxSignedDistance(b.boxHalf, local, g);
-            if (!(d < h) || d < -h) { // (deeper: a particle contact's, after an impact)
-                if (ba == bb) break;
-                continue;
-            }
-            const Vec3 n = b.pose.R * g;
-            const double beta[2] = {1.0 - t, t};
-            const Index ends[2] = {s.a, s.b};
-            const double weight = beta[0] * beta[0] * w[s.a] + beta[1] * beta[1] * w[s.b];
-            if (!(weight > 0.0)) break;
-            const double depth = h - d;
-            const Vec3 point = b.pose.toWorld(local - d * g); // on the surface
-            stats.maxDepth = std::max(stats.maxDepth, depth);
-            ++stats.edgeContacts;
-            for (int k = 0; k < 2; ++k) {
-                const Index i = ends[k];
-                if (w[i] == 0.0) continue;
-                x[i] += (beta[k] * w[i] * depth / weight) * n;
-                touching_[i] = 1;
-                projected_.push_back(i);
-                boxes_.update(i, x[i], stepStart()[i], false);
-                // No limiter plane: a spring pushed off an edge its pinned neighbours hold it
-                // against would make the walk spend its whole budget every step.
-            }
-            const Vec3 rel = beta[0] * v[s.a] + beta[1] * v[s.b] - b.velocityAt(point);
-            const double vn = rel.dot(n);
-            if (vn < 0.0) {
-                const double lambda = -vn / (weight + b.inverseMassAlong(point, n));
-                auto share = [&](const Vec3& j) {
-                    for (int k = 0; k < 2; ++k)
-                        v[ends[k]] += (beta[k] * w[ends[k]]) * j;
-                    exchange(b, j, point);
-                };
-                share(lambda * n);
-                Vec3 j;
-                if (coulombImpulse(rel, n, weight, b, point, b.friction * lambda, j)) share(j);
-            }
-            if (ba == bb) break; // one body for both ends: tested once
-        }
+        if (w[s.a] == 0.0 && w[s.b] == 0.0) continue;
+        if (ba >= 0) collideSpringWithBox(c, s, std::uint32_t(ba));
+        if (bb >= 0 && bb != ba) collideSpringWithBox(c, s, std::uint32_t(bb));
     }
+}
+
+void ContactSolver::collideSpringWithBox(Cloth& c, const Spring& s, std::uint32_t bi) {
+    BodySnapshot& b = bodies[bi];
+    // A dynamic box lighter than the cloth is left to the particle contacts: the corner
+    // pushes of a whole draped cloth would tip it.
+    if (b.dynamicBody && b.invMass * clothMass_ > 1.0) return;
+    Vec3List& x = c.mutablePositions();
+    Vec3List& v = c.mutableVelocities();
+    const auto& w = c.inverseMasses();
+    const double h = contact_.thickness;
+    // Both ends in one face's prism (convex): the distance is linear along the spring and its
+    // ends, which their own contacts hold, are the nearest points.
+    auto region = [&](Index i) {
+        return edgeBody_[i] == std::int32_t(bi) ? edgeRegion_[i]
+                                                : regionCode(b.boxHalf, b.pose.toLocal(x[i]));
+    };
+    const int ra = region(s.a);
+    if (ra == region(s.b) && isFaceRegion(ra)) return;
+    const Vec3 pa = b.pose.toLocal(x[s.a]), pb = b.pose.toLocal(x[s.b]);
+    Vec3 ga, gb;
+    const double da = boxSignedDistance(b.boxHalf, pa, ga);
+    const double db = boxSignedDistance(b.boxHalf, pb, gb);
+    // The distance is 1-Lipschitz: no point of the spring is nearer than (da + db - length) / 2.
+    // An end inside the box is its particle contact's to resolve (a deep impact), not a spring
+    // cutting a corner.
+    if (ga == gb || da < 0.0 || db < 0.0 || 0.5 * (da + db - (pb - pa).norm()) >= h) return;
+    const double t = deepestAlong(b.boxHalf, pa, pb, ga, gb);
+    // Near an end the particle's own contact holds it; only the middle of the spring.
+    if (t < 0.05 || t > 0.95) return;
+    const Vec3 local = pa + t * (pb - pa);
+    Vec3 g;
+    const double d = boxSignedDistance(b.boxHalf, local, g);
+    if (!(d < h) || d < -h) return; // (deeper: a particle contact's, after an impact)
+    const double beta[2] = {1.0 - t, t};
+    const Index ends[2] = {s.a, s.b};
+    const double weight = beta[0] * beta[0] * w[s.a] + beta[1] * beta[1] * w[s.b];
+    if (!(weight > 0.0)) return;
+    const Vec3 n = b.pose.R * g;
+    const double depth = h - d;
+    const Vec3 point = b.pose.toWorld(local - d * g); // on the surface
+    stats.maxDepth = std::max(stats.maxDepth, depth);
+    ++stats.edgeContacts;
+    for (int k = 0; k < 2; ++k) {
+        const Index i = ends[k];
+        if (w[i] == 0.0) continue;
+        x[i] += (beta[k] * w[i] * depth / weight) * n;
+        touching_[i] = 1;
+        projected_.push_back(i);
+        boxes_.update(i, x[i], stepStart()[i], false);
+        // No limiter plane: a spring pushed off an edge its pinned neighbours hold it against
+        // would make the walk spend its whole budget every step.
+    }
+    const Vec3 rel = beta[0] * v[s.a] + beta[1] * v[s.b] - b.velocityAt(point);
+    const double vn = rel.dot(n);
+    if (vn >= 0.0) return;
+    auto share = [&](const Vec3& j) {
+        for (int k = 0; k < 2; ++k)
+            v[ends[k]] += (beta[k] * w[ends[k]]) * j;
+        exchange(b, j, point);
+    };
+    const double lambda = -vn / (weight + b.inverseMassAlong(point, n));
+    share(lambda * n);
+    Vec3 j;
+    if (coulombImpulse(rel, n, weight, b, point, b.friction * lambda, j)) share(j);
 }
 
 } // namespace drape::bullet::detail

@@ -199,10 +199,6 @@ class NearestTriangle : public btTriangleCallback {
 
 } // namespace
 
-namespace {
-
-/// Closest points of segments p0-p1 and q0-q1: s, t in [0, 1] (the usual clamped solution of
-/// the 2 x 2 system, degenerate segments included).
 void closestSegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1,
                            double& s, double& t) {
     const Vec3 d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
@@ -233,6 +229,8 @@ void closestSegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const
         s = std::clamp((b - c) / a, 0.0, 1.0);
     }
 }
+
+namespace {
 
 /// A capsule (core segment p0-p1, radius r) against triangle (a, b, c), in double precision:
 /// the nearest pair among the segment's ends against the triangle and the triangle's edges
