@@ -12,8 +12,72 @@
 #include <string>
 
 namespace drape::bullet::detail {
-bool snapshotBody(const btCollisionObject* obj, double reach, double frictionScale,
-                  BodySnapshot& b) {
+namespace {
+/// The plane and box data derived from the pose.
+void derivePoseData(BodySnapshot& b) {
+    b.com = b.pose.t;
+    if (b.plane) {
+        const auto* ps = static_cast<const btStaticPlaneShape*>(b.object->getCollisionShape());
+        const Vec3 nLocal = toVec(ps->getPlaneNormal()).normalized(); // as shape_queries does
+        b.planeNormal = b.pose.R * nLocal;
+        b.planeOffset = b.planeNormal.dot(b.pose.t) + double(ps->getPlaneConstant());
+        b.planeScale = std::abs(b.planeOffset) + b.pose.t.cwiseAbs().sum();
+    }
+    if (b.box) {
+        for (int k = 0; k < 3; ++k) {
+            for (int side = 0; side < 2; ++side) {
+                Vec3 n = Vec3::Zero();
+                n[k] = side == 0 ? 1.0 : -1.0;
+                b.boxFaceNormal[2 * k + side] = (b.pose.R * n).normalized();
+            }
+        }
+    }
+}
+} // namespace
+
+void BodySnapshot::startSweep(double dt) {
+    previous = end;
+    sweeping_ = !plane && !still;
+    if (!sweeping_) return; // pose == end == previous
+    pose = poseBefore(end, v, w, dt);
+    previous = pose;
+    derivePoseData(*this);
+}
+
+void BodySnapshot::advance(double h) {
+    if (!sweeping_ && !moved_) return;
+    previous = pose;
+    pose = poseBefore(pose, -v, -w, h);
+    derivePoseData(*this);
+}
+
+void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies) {
+    std::vector<const btCollisionObject*> dynamic;
+    for (const BodySnapshot& b : bodies)
+        if (b.dynamicBody) dynamic.push_back(b.object);
+    if (dynamic.empty()) return;
+    std::sort(dynamic.begin(), dynamic.end());
+    std::vector<unsigned char> touching(dynamic.size(), 0);
+    auto mark = [&](const btCollisionObject* o, const btCollisionObject* other) {
+        if (!other->hasContactResponse()) return; // a ghost (a cloth's proxy), a trigger
+        const auto it = std::lower_bound(dynamic.begin(), dynamic.end(), o);
+        if (it != dynamic.end() && *it == o) touching[std::size_t(it - dynamic.begin())] = 1;
+    };
+    for (int k = 0; k < dispatcher.getNumManifolds(); ++k) {
+        const btPersistentManifold* m = dispatcher.getManifoldByIndexInternal(k);
+        if (m->getNumContacts() == 0) continue;
+        mark(m->getBody0(), m->getBody1());
+        mark(m->getBody1(), m->getBody0());
+    }
+    for (BodySnapshot& b : bodies) {
+        if (!b.dynamicBody) continue;
+        const auto it = std::lower_bound(dynamic.begin(), dynamic.end(), b.object);
+        b.supported = touching[std::size_t(it - dynamic.begin())] != 0;
+    }
+}
+
+bool snapshotBody(const btCollisionObject* obj, double reach, double frictionScale, BodySnapshot& b,
+                  double dt) {
     const int type = obj->getInternalType();
     if (type != btCollisionObject::CO_RIGID_BODY && type != btCollisionObject::CO_COLLISION_OBJECT)
         return false; // ghosts (other cloths' proxies, triggers), soft bodies, multibodies
@@ -35,26 +99,15 @@ bool snapshotBody(const btCollisionObject* obj, double reach, double frictionSca
     obj->getCollisionShape()->getAabb(obj->getWorldTransform(), mn, mx);
     b.aabbMin = toVec(mn).array() - reach;
     b.aabbMax = toVec(mx).array() + reach;
-    if (obj->getCollisionShape()->getShapeType() == STATIC_PLANE_PROXYTYPE) {
-        const auto* ps = static_cast<const btStaticPlaneShape*>(obj->getCollisionShape());
-        const Vec3 nLocal = toVec(ps->getPlaneNormal()).normalized(); // as shape_queries does
-        b.plane = true;
-        b.planeNormal = b.pose.R * nLocal;
-        b.planeOffset = b.planeNormal.dot(b.pose.t) + double(ps->getPlaneConstant());
-        b.planeScale = std::abs(b.planeOffset) + b.pose.t.cwiseAbs().sum();
-    }
+    b.plane = obj->getCollisionShape()->getShapeType() == STATIC_PLANE_PROXYTYPE;
     if (obj->getCollisionShape()->getShapeType() == BOX_SHAPE_PROXYTYPE) {
         const auto* bs = static_cast<const btBoxShape*>(obj->getCollisionShape());
         b.box = true;
         b.boxHalf = toVec(bs->getHalfExtentsWithMargin());
-        for (int k = 0; k < 3; ++k) {
-            for (int side = 0; side < 2; ++side) {
-                Vec3 n = Vec3::Zero();
-                n[k] = side == 0 ? 1.0 : -1.0;
-                b.boxFaceNormal[2 * k + side] = (b.pose.R * n).normalized();
-            }
-        }
     }
+    derivePoseData(b);
+    b.end = b.pose;
+    b.previous = b.pose;
     if (const btRigidBody* rb = btRigidBody::upcast(obj)) {
         b.v = toVec(rb->getLinearVelocity());
         b.w = toVec(rb->getAngularVelocity());
@@ -63,6 +116,14 @@ bool snapshotBody(const btCollisionObject* obj, double reach, double frictionSca
             b.dynamicBody = const_cast<btRigidBody*>(rb); // impulses are applied after the step
             b.invMass = double(rb->getInvMass());
             b.invInertia = toMat(rb->getInvInertiaTensorWorld());
+        }
+        // It moved there during the sub-step at these velocities: the cloth's steps see it on
+        // its way (startSweep), and its box covers the way.
+        if (!b.plane && !b.still && dt > 0.0) {
+            const Vec3 back = -dt * b.v;
+            const double turn = b.w.norm() * dt * 0.5 * (b.aabbMax - b.aabbMin).norm();
+            b.aabbMin = b.aabbMin.cwiseMin(b.aabbMin + back).array() - turn;
+            b.aabbMax = b.aabbMax.cwiseMax(b.aabbMax + back).array() + turn;
         }
     }
     return true;
@@ -79,6 +140,8 @@ bool BodySnapshot::applyAccumulatedImpulses() {
     if (!rb->isActive() && dv < threshold && contactSpeed < threshold) return pushedActive;
     rb->applyCentralImpulse(toBt(linearImpulse));
     rb->applyTorqueImpulse(toBt(angularImpulse));
+    // Where the cloth's sub-steps took it (stopped on the way, pushed back out).
+    if (moved_ && !supported) rb->setCenterOfMassTransform(toBtTransform(pose));
     // Only a sleeping body is woken: activate() on an awake one would restart its
     // deactivation time, and a body the cloth rests on could never fall asleep. An awake body
     // that the cloth's impulse leaves below its sleeping thresholds sleeps as Bullet decides.

@@ -10,6 +10,7 @@
 
 class btCollisionObject;
 class btRigidBody;
+class btDispatcher;
 
 namespace drape::bullet::detail {
 
@@ -43,6 +44,23 @@ struct BodySnapshot {
     /// [m/s]: a sleeping body is woken when this reaches its linear sleeping threshold (a cloth
     /// pushed across it moves), not only by impulses that large.
     double contactSpeed = 0.0;
+    /// A dynamic body in contact with another body in Bullet (one of Bullet's contact
+    /// manifolds with points): Bullet's solver holds its position, so the cloth moves it only
+    /// through impulses (a cloth pushing a box on the floor into the floor would make Bullet
+    /// push it back out with energy). A free one (a projectile, a thrown ball) ends the Bullet
+    /// sub-step where its sweep through the cloth's steps took it.
+    bool supported = false;
+    /// The pose at the end of the Bullet sub-step (Bullet's answer, at the velocities it had).
+    Pose end;
+    /// Where the body was at the start of the current cloth step (pose: at its end).
+    Pose previous;
+    /// The body moves through the Bullet sub-step while the cloth steps: startSweep puts it
+    /// where it was dt [s] before `end`, and each cloth step of h [s] advances it at its
+    /// velocities, which the cloth's impulses change on the way (a body the cloth stops, stops
+    /// there). A free body the cloth gave impulses to ends where the sweep took it
+    /// (applyAccumulatedImpulses).
+    void startSweep(double dt);
+    void advance(double h);
     Vec3 linearImpulse = Vec3::Zero();  ///< accumulated for the body [N s]
     Vec3 angularImpulse = Vec3::Zero(); ///< about the centre of mass [N m s]
 
@@ -61,6 +79,7 @@ struct BodySnapshot {
         v += invMass * j;
         w += invInertia * torque;
         still = false;
+        moved_ = true;
     }
     /// Gives the Bullet body the impulses accumulated on it. A sleeping body is woken only by
     /// an impulse that changes its velocity by its linear sleeping threshold, or by a cloth
@@ -68,14 +87,23 @@ struct BodySnapshot {
     /// whether the cloth pushed an active body (the cloth then must not sleep: a body resting on it
     /// would lose its support).
     bool applyAccumulatedImpulses();
+
+  private:
+    bool sweeping_ = false; ///< startSweep found it moving
+    bool moved_ = false;    ///< impulses or displacements changed its sweep
 };
 
 /// Snapshots `object` if the cloth collides with it (rigid bodies and collision objects with
 /// contact response; not ghosts, such as other cloths' proxies and triggers, soft bodies or
-/// multibodies): its AABB grown by `reach` [m], its friction times `frictionScale`. Throws
-/// drape::Error when its friction is negative or not finite.
+/// multibodies): its AABB grown by `reach` [m] and by where it came from in the sub-step of
+/// dt [s] (at its velocities), its friction times `frictionScale`. Throws drape::Error when its
+/// friction is negative or not finite.
 bool snapshotBody(const btCollisionObject* object, double reach, double frictionScale,
-                  BodySnapshot& out);
+                  BodySnapshot& out, double dt);
+
+/// Sets BodySnapshot::supported of the dynamic bodies: in one of the dispatcher's contact
+/// manifolds with points, with a body that has contact response.
+void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies);
 
 /// The candidate bodies and their poses at the previous sub-step, for waking a sleeping cloth.
 class BodyPoses {

@@ -13,13 +13,19 @@
 // One Bullet sub-step (btDiscreteDynamicsWorld::internalSingleStepSimulation) runs: rigid
 // bodies predicted, broadphase and narrow-phase, constraints solved, transforms integrated,
 // then the actions -- our updateAction. So when the cloth steps, the bodies are already at the
-// end of the sub-step, and the cloth ends the sub-step at the same instant. The impulses the
-// cloth gives dynamic bodies change their velocities for the next sub-step (the same one-step
-// lag as every Bullet action, e.g. the character controller and the raycast vehicle).
+// end of the sub-step, and the cloth ends the sub-step at the same instant. The cloth's own
+// steps see each moving body on its way there: it starts where its velocities say it was at
+// the start of the sub-step and advances with them, step by step, as the cloth's impulses change
+// them (BodySnapshot::startSweep/advance; a fast body cannot jump over the cloth between two
+// of its steps). The impulses the cloth gives dynamic bodies change their velocities for the
+// next sub-step (the same one-step lag as every Bullet action, e.g. the character controller
+// and the raycast vehicle); a free body (in no contact with other bodies) also ends the sub-step
+// where its sweep took it, so a body the cloth stopped does not stay inside it.
 //
 // Per sub-step (Impl::step, in this order):
 //   1. bodies:  the ghost's broadphase overlaps, filtered (no ghosts, soft bodies, triggers),
-//               snapshotted in double precision (pose, velocities, inverse mass and inertia);
+//               snapshotted in double precision (pose, velocities, inverse mass and inertia;
+//               dynamic bodies in contact with others in Bullet marked supported);
 //   2. attach:  attached particles get the body's new attachment point as a kinematic target;
 //   3. step:    cloth.step(dt / n), n times (settings.substeps, or automatic: the fewest within
 //               the cloth's stability limit); our ContactStage runs inside it
@@ -218,8 +224,13 @@ void BulletCloth::Impl::step(double dt) {
     const double h = dt / substeps;
     double bodySeconds = std::chrono::duration<double>(Clock::now() - start).count();
     bool slept = true; // every sub-step was taken asleep
+    for (auto& b : contacts.bodies)
+        b.startSweep(dt);
     for (int s = 0; s < substeps; ++s) {
         const bool wasAsleep = c.isAsleep();
+        // The bodies move through the Bullet sub-step with the cloth (BodySnapshot::advance).
+        for (auto& b : contacts.bodies)
+            b.advance(h);
         c.stepPart(h, substeps); // the contact stage runs inside it, the contact force is
                                  // one of its terms
         ++last.steps;
@@ -262,9 +273,10 @@ void BulletCloth::Impl::gatherBodies(double dt) {
     for (const btCollisionObject* obj : candidates) {
         if (!obj || obj == proxy.object()) continue;
         detail::BodySnapshot b;
-        if (detail::snapshotBody(obj, reach, settings.contact.frictionScale, b))
+        if (detail::snapshotBody(obj, reach, settings.contact.frictionScale, b, dt))
             bodies.push_back(b);
     }
+    detail::markSupported(*world->getDispatcher(), bodies);
     last.candidateBodies = bodies.size();
 }
 

@@ -35,8 +35,11 @@
 // impulse shared by barycentric weights), so a feature thinner than the particle spacing
 // cannot pass between particles.
 //
-// Fast particles: a particle that moved more than h in a step is also ray-tested along its
-// path (btCollisionWorld::rayTestSingle), so it cannot pass through a thin body.
+// Fast particles and fast bodies: a particle that moved more than h in a step relative to the
+// body (its path from where it started, seen from where the body was then, to where it is now,
+// seen from where the body is now) is also ray-tested along that path
+// (btCollisionWorld::rayTestSingle), so neither passes through the other.
+// A dynamic body takes a plane's push only up to what stops its approach (flushPlane).
 // After the projection, the particles it moved go into the limiter's worklist
 // (Cloth::relimit), and every particle within reach of a static or kinematic body keeps that
 // contact's tangent plane in the walk (ContactPlanes: the limiter slides it along the plane,
@@ -248,8 +251,28 @@ inline void ContactSolver::flushPlane(Cloth& c, std::size_t k, double dt) {
     const std::size_t i = planes_.particle(k);
     const Vec3 j = (c.masses()[i] / dt) * push;
     BodySnapshot& b = bodies[planeBody_[k]];
-    exchange(b, j, planePoint_[k]);
-    frictionImpulse(c, i, b, planePoint_[k], planes_.normal[k], b.friction * j.norm());
+    if (!b.dynamicBody) {
+        exchange(b, j, planePoint_[k]);
+        frictionImpulse(c, i, b, planePoint_[k], planes_.normal[k], b.friction * j.norm());
+        planes_.push[k] = Vec3::Zero();
+        return;
+    }
+    // A dynamic body takes what the plane held only up to what stops its approach to the
+    // particle (an inelastic exchange, at the particle's velocity without the push): never
+    // more, so the limiter cannot throw a body back (a net holding a ball stops it, and the
+    // ball does not take the net's whole pull on a particle it pushed). The particle keeps its
+    // position and gets the impulse that was exchanged instead of m push / dt.
+    const Vec3& n = planes_.normal[k];
+    const Vec3& p = planePoint_[k];
+    Vec3& vi = c.mutableVelocities()[i];
+    const Vec3 without = vi - push / dt;
+    const double wi = c.inverseMasses()[i];
+    const double approach = (b.velocityAt(p) - without).dot(n);
+    const double lambda = std::min(std::max(0.0, j.dot(n)),
+                                   std::max(0.0, approach) / (wi + b.inverseMassAlong(p, n)));
+    vi = without + (wi * lambda) * n;
+    exchange(b, lambda * n, p);
+    frictionImpulse(c, i, b, p, n, b.friction * lambda);
     planes_.push[k] = Vec3::Zero();
 }
 

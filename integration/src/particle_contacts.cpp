@@ -42,7 +42,9 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
     const auto& cs = contact_;
     const double h = cs.thickness;
     const Vec3 xi = x[i];
-    const Vec3 from = stepStart()[i];
+    // Where the particle started the step, seen from the body: where it is now relative to
+    // it (a moving body sweeps past particles as particles sweep past bodies).
+    const Vec3 from = b.pose.toWorld(b.previous.toLocal(stepStart()[i]));
     const bool sweep = cs.continuous && (xi - from).squaredNorm() > h * h;
 
     SurfaceHit hit;
@@ -53,11 +55,14 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
         if (!hit.valid || hit.distance >= h + band_) return false;
     }
     // The limiter's walk keeps the particle above the tangent plane of a contact with a static
-    // or kinematic body, and with a dynamic body at least as heavy, along the normal at the
-    // point, as the whole cloth. (The plane's push reaches a dynamic body after the walk as an
-    // impulse; on a body lighter than the cloth that impulse moves it by more than the push,
-    // and the exchange feeds on itself. There the projection and the walk alternate instead.)
-    if (!b.dynamicBody || b.inverseMassAlong(hit.point, hit.normal) * clothMass_ <= 1.0)
+    // or kinematic body, with a free dynamic body (nothing else holds it, see
+    // BodySnapshot::supported), and with a supported one at least as heavy, along the normal
+    // at the point, as the whole cloth. The plane's push reaches a dynamic body after the walk
+    // as an impulse, at most what stops its approach (flushPlane). (On a supported body lighter
+    // than the cloth, the plane's impulses and Bullet's contacts would feed on each other;
+    // there the projection and the walk alternate instead.)
+    if (!b.dynamicBody || !b.supported ||
+        b.inverseMassAlong(hit.point, hit.normal) * clothMass_ <= 1.0)
         keepPlane(c, bi, i, hit.normal, hit.normal.dot(hit.point) + h, hit.point, false, dt);
 
     // The contact record the force term reads (ContactForce): for every particle touching
@@ -114,8 +119,7 @@ bool ContactSolver::pathHit(const BodySnapshot& b, const Vec3& from, const Vec3&
     t1.setOrigin(toBt(xi));
     btCollisionWorld::ClosestRayResultCallback ray(t0.getOrigin(), t1.getOrigin());
     btCollisionWorld::rayTestSingle(t0, t1, const_cast<btCollisionObject*>(b.object),
-                                    b.object->getCollisionShape(), b.object->getWorldTransform(),
-                                    ray);
+                                    b.object->getCollisionShape(), toBtTransform(b.pose), ray);
     if (!ray.hasHit()) return false;
     Vec3 nrm = toVec(ray.m_hitNormalWorld);
     const double len = nrm.norm();

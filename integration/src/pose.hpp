@@ -21,4 +21,23 @@ inline Pose toPose(const btTransform& t) {
     return Pose{toMat(t.getBasis()), toVec(t.getOrigin())};
 }
 
+/// The pose as a Bullet transform (rounded to btScalar).
+inline btTransform toBtTransform(const Pose& p) {
+    const Eigen::Matrix3d& R = p.R;
+    const btMatrix3x3 basis(btScalar(R(0, 0)), btScalar(R(0, 1)), btScalar(R(0, 2)),
+                            btScalar(R(1, 0)), btScalar(R(1, 1)), btScalar(R(1, 2)),
+                            btScalar(R(2, 0)), btScalar(R(2, 1)), btScalar(R(2, 2)));
+    return btTransform(basis, toBt(p.t));
+}
+
+/// The pose a body moving at linear velocity v and angular velocity w [rad/s] had `back`
+/// seconds before `end` (its centre of mass at end.t).
+inline Pose poseBefore(const Pose& end, const Vec3& v, const Vec3& w, double back) {
+    Pose p = end;
+    p.t = end.t - back * v;
+    const double angle = w.norm() * back;
+    if (angle > 0.0) p.R = Eigen::AngleAxisd(-angle, w.normalized()).toRotationMatrix() * end.R;
+    return p;
+}
+
 } // namespace drape::bullet::detail

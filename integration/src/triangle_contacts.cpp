@@ -46,9 +46,8 @@ double ContactSolver::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t,
     Vec3List& v = c.mutableVelocities();
     const auto& w = c.inverseMasses();
     const double h = contact_.thickness;
-    const TriangleHit hit =
-        closestToTriangle(b.object->getCollisionShape(), b.object->getWorldTransform(), x[tri[0]],
-                          x[tri[1]], x[tri[2]], h, counters);
+    const TriangleHit hit = closestToTriangle(b.object->getCollisionShape(), toBtTransform(b.pose),
+                                              x[tri[0]], x[tri[1]], x[tri[2]], h, counters);
     if (!hit.valid || !(hit.distance < h)) return -1.0;
     // The triangle's nearest point moves out by the depth along n: particle k by
     // beta_k w_k / W of it, W = sum beta_k^2 w_k (the least-mass-weighted change that moves the

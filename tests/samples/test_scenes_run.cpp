@@ -296,26 +296,35 @@ TEST_CASE("cloth_on_sphere: the sheet drapes over the ball without entering it",
     CHECK(sim.stats().maxStrain <= 0.10 + 1e-2); // the limiter with contacts (compare report)
 }
 
-TEST_CASE("curtain_ball: the curtain stops the ball and is pushed back by it",
-          "[scenes][physics]") {
+TEST_CASE("curtain_ball: at 60 Hz the curtain stops a 20 m/s ball and is pushed back by it",
+          "[scenes][physics][fast]") {
     if (!rigidBodiesAvailable() || !meshIoAvailable()) {
         WARN("skipped: no Bullet or assimp");
         return;
     }
     Simulation sim(loadScene(kScenes / "curtain_ball.json"));
-    // The ball leaves z = 2.5 at 6 m/s towards the curtain (z = 0) at t = 0.5 s.
-    double deepestCloth = 0.0;
+    // The ball (r = 6 cm) leaves z = 2.5 at 20 m/s towards the curtain (z = 0) at t = 0.5 s,
+    // at a 60 Hz world step: 33 cm a step, more than its diameter plus the thickness.
+    REQUIRE(sim.scene().timeStep == Approx(1.0 / 60.0));
+    double deepestCloth = 0.0, deepestBall = 1e9, peakStrain = 0.0, speedAfter = 0.0;
     while (sim.time() < 2.0 - 1e-9) {
         sim.step();
         for (const Vec3& x : sim.cloth().positions())
             deepestCloth = std::min(deepestCloth, x.z());
+        deepestBall = std::min(deepestBall, sim.bodyPosition("ball").z());
+        peakStrain = std::max(peakStrain, sim.cloth().maxStrain());
+        if (std::abs(sim.time() - 0.8) < 1e-9) speedAfter = std::abs(sim.bodyVelocity("ball").z());
     }
-    const Vec3 ball = sim.bodyPosition("ball");
-    const Vec3 v = sim.bodyVelocity("ball");
-    // Without the curtain the ball would be at z = 2.5 - 6 * 1.5 = -6.5 by now.
-    CHECK(ball.z() > -1.0);
-    CHECK(std::abs(v.z()) < 2.0);
-    CHECK(deepestCloth < -0.2); // the ball pushed the cloth back (two-way coupling)
+    INFO("ball deepest at z = " << deepestBall << " m, |v_z| " << speedAfter
+                                << " m/s at 0.8 s; cloth deepest " << deepestCloth
+                                << " m; peak strain " << peakStrain);
+    // Without the curtain the ball would be at z = 2.5 - 20 * 1.5 = -27.5 m by t = 2 s. The
+    // curtain (2 m long, pinned at the top) catches it within its reach, and 0.3 s after the
+    // launch the ball moves at less than a quarter of its speed.
+    CHECK(deepestBall > -2.5);
+    CHECK(speedAfter < 5.0);
+    CHECK(deepestCloth < -0.2);        // the ball pushed the cloth back (two-way coupling)
+    CHECK(peakStrain <= 0.101 + 1e-3); // the bound holds against the ball
 }
 
 TEST_CASE("a scene with rigid bodies beyond single precision's reach is refused, naming what",

@@ -1,0 +1,120 @@
+// Fast bodies against cloth (issue 27): a ball thrown at a sheet at game speeds, a 60 Hz world
+// step and default settings.
+#include "world_fixture.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <cstdio>
+
+using namespace drape;
+using namespace drape::testing;
+
+namespace {
+
+struct Throw {
+    double speedIn = 0.0;
+    Vec3 ballVelocityOut = Vec3::Zero();
+    double ballY = 0.0;               ///< where the ball ends [m] (the sheet lies at y = 0)
+    double minBallY = 0.0;            ///< the lowest the ball got [m]
+    Vec3 ballImpulse = Vec3::Zero();  ///< the ball's momentum change [N s]
+    Vec3 clothImpulse = Vec3::Zero(); ///< what the cloth's stats say the bodies got [N s]
+    Vec3 clothMomentum = Vec3::Zero();
+    double peakStrain = 0.0;
+    std::size_t contacts = 0;
+    bool passed = false;
+};
+
+Vec3 momentum(const Cloth& c) {
+    Vec3 p = Vec3::Zero();
+    for (std::size_t i = 0; i < c.particleCount(); ++i)
+        p += c.masses()[i] * c.velocities()[i];
+    return p;
+}
+
+/// A ball of `radius` [m] and `mass` [kg] thrown down at `speed` [m/s] from 0.5 m above a
+/// 1 m sheet of 41 x 41 particles (pinned on all edges, or free), zero gravity, default
+/// settings, 60 Hz world steps for `seconds`.
+Throw throwBall(double radius, double mass, double speed, bool pinned, double seconds = 1.0) {
+    TestWorld w(Vec3::Zero());
+    btRigidBody* ball =
+        w.body(w.shape<btSphereShape>(btScalar(radius)), mass, Vec3(0.013, 0.5, 0.007));
+    ball->setLinearVelocity(btVector3(0, btScalar(-speed), 0));
+    ball->setActivationState(DISABLE_DEACTIVATION);
+    const Index n = 41;
+    auto cloth = makeCloth(horizontalSheet(n, n, 0.025, 0.0), ClothSettings{});
+    if (pinned) {
+        for (Index k = 0; k < n; ++k) {
+            cloth->pin(k);
+            cloth->pin((n - 1) * n + k);
+            cloth->pin(k * n);
+            cloth->pin(k * n + n - 1);
+        }
+    }
+    auto& handle = w.add(cloth);
+    Throw t;
+    t.speedIn = speed;
+    const Vec3 p0 = mass * eig(ball->getLinearVelocity());
+    t.minBallY = 1e9;
+    const int frames = int(std::lround(seconds * 60.0));
+    for (int f = 0; f < frames; ++f) {
+        w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+        t.peakStrain = std::max(t.peakStrain, handle.lastStats().maxStrain);
+        t.minBallY = std::min(t.minBallY, double(ball->getCenterOfMassPosition().y()));
+    }
+    t.ballVelocityOut = eig(ball->getLinearVelocity());
+    t.ballY = double(ball->getCenterOfMassPosition().y());
+    t.ballImpulse = mass * t.ballVelocityOut - p0;
+    t.clothImpulse = handle.totalStats().impulseOnBodies;
+    t.clothMomentum = momentum(*cloth);
+    t.contacts = handle.totalStats().contacts;
+    t.passed = t.ballY < -radius;
+    return t;
+}
+
+} // namespace
+
+TEST_CASE("a ball at up to 50 m/s and a 60 Hz world step does not pass a pinned net, is never "
+          "thrown back faster than it came, and the net takes what the ball loses",
+          "[fast][coupling][momentum]") {
+    // 0.2 kg balls of 5 and 15 cm at 2-50 m/s into a 1 m net of 41 x 41 particles pinned on all
+    // edges (0.2 kg), default settings: at 50 m/s the ball crosses the net's plane in one world
+    // step (0.83 m), 8 times its diameter.
+    for (double radius : {0.05, 0.15}) {
+        for (double speed : {2.0, 5.0, 12.0, 50.0}) {
+            const Throw t = throwBall(radius, 0.2, speed, true);
+            INFO("r " << radius << " m at " << speed << " m/s: ball ends at y = " << t.ballY
+                      << " (lowest " << t.minBallY << ") at v_y = " << t.ballVelocityOut.y()
+                      << "; its momentum changed by " << t.ballImpulse.y()
+                      << " N s, the cloth's stats say " << t.clothImpulse.y() << "; peak strain "
+                      << t.peakStrain);
+            CHECK(t.contacts > 0);
+            // Caught: a 1 m net at 10 % strain sags at most 0.23 m.
+            CHECK(t.minBallY > -0.25 - radius);
+            CHECK_FALSE(t.passed);
+            // No energy from the net: it gives back less speed than it took.
+            CHECK(t.ballVelocityOut.norm() < speed);
+            // What the ball lost is what the cloth gave it (Bullet's velocities are floats).
+            CHECK((t.ballImpulse - t.clothImpulse).norm() <= 1e-4 * 0.2 * speed);
+        }
+    }
+}
+
+TEST_CASE("a 50 m/s ball at a 60 Hz world step carries a free sheet along, momentum conserved",
+          "[fast][coupling][momentum]") {
+    // Zero gravity and no pins: ball + cloth momentum stays what the ball brought.
+    for (double speed : {12.0, 50.0}) {
+        const Throw t = throwBall(0.05, 0.2, speed, false);
+        const Vec3 p0(0.0, -0.2 * speed, 0.0);
+        const Vec3 total = 0.2 * t.ballVelocityOut + t.clothMomentum;
+        INFO(speed << " m/s: ball v_y " << t.ballVelocityOut.y() << " m/s, cloth momentum "
+                   << t.clothMomentum.y() << " N s, total " << total.transpose() << " against "
+                   << p0.transpose());
+        CHECK(t.contacts > 0);
+        CHECK((total - p0).norm() <= 1e-3 * p0.norm());
+        // The sheet took a real share (it is as heavy as the ball), and moves the ball's way.
+        CHECK(t.clothMomentum.y() < 0.2 * p0.y());
+        CHECK(t.ballVelocityOut.y() < 0.0);
+        CHECK(t.ballVelocityOut.y() > -0.9 * speed);
+    }
+}
