@@ -140,6 +140,9 @@ struct BulletCloth::Impl {
     /// Snapshots the bodies among the proxy's overlaps (and the broadphase's answer for a
     /// larger box when the cloth would sweep out of the proxy in this step).
     void gatherBodies(double dt);
+    /// Adds to the candidates the moving bodies that swept through the box lo..hi in the
+    /// sub-step of dt [s] although the broadphase did not pair them with the proxy.
+    void addFastBodies(const Vec3& lo, const Vec3& hi, double dt);
     double lastStrain = 0.0;     ///< Cloth::maxStrain() at the end of the last sub-step
     bool strainMeasured = false; ///< lastStrain holds a measurement
     /// Follows the world's gravity if the user changes it (that wakes the cloth).
@@ -270,6 +273,7 @@ void BulletCloth::Impl::gatherBodies(double dt) {
     Vec3 lo = proxy.min(), hi = proxy.max();
     if (!cloth->isAsleep()) detail::sweptBounds(*cloth, dt, reach, lo, hi);
     if (proxy.candidates(lo, hi, candidates)) ++last.proxyRefreshes;
+    addFastBodies(lo, hi, dt);
     for (const btCollisionObject* obj : candidates) {
         if (!obj || obj == proxy.object()) continue;
         detail::BodySnapshot b;
@@ -278,6 +282,32 @@ void BulletCloth::Impl::gatherBodies(double dt) {
     }
     detail::markSupported(*world->getDispatcher(), bodies);
     last.candidateBodies = bodies.size();
+}
+
+void BulletCloth::Impl::addFastBodies(const Vec3& lo, const Vec3& hi, double dt) {
+    // The broadphase pairs a body with the proxy where the body is at the end of the sub-step
+    // (a dynamic body's box also covers its start when the world's dispatch info says
+    // m_useContinuous, Bullet's default; a kinematic body's never does). A body that crossed
+    // the proxy's box between two sub-steps, farther than the proxy's margin, is found here:
+    // its box swept back along its velocity meets the proxy's box. Every object is looked at
+    // (a flag test for static ones): a kinematic body added as a static one and flagged
+    // kinematic afterwards is in no shorter list of Bullet's.
+    const btCollisionObjectArray& objects = world->getCollisionObjectArray();
+    for (int k = 0; k < objects.size(); ++k) {
+        const btCollisionObject* obj = objects[k];
+        if (obj->isStaticObject() && !obj->isKinematicObject()) continue;
+        const btRigidBody* rb = btRigidBody::upcast(obj);
+        if (!rb) continue;
+        const Vec3 step = dt * toVec(rb->getLinearVelocity());
+        if (!(step.norm() > margin)) continue; // the proxy's margin covers it
+        btVector3 mn, mx;
+        rb->getCollisionShape()->getAabb(rb->getWorldTransform(), mn, mx);
+        const Vec3 bodyLo = toVec(mn).cwiseMin(toVec(mn) - step);
+        const Vec3 bodyHi = toVec(mx).cwiseMax(toVec(mx) - step);
+        if ((bodyHi.array() < lo.array()).any() || (bodyLo.array() > hi.array()).any()) continue;
+        if (std::find(candidates.begin(), candidates.end(), obj) == candidates.end())
+            candidates.push_back(obj);
+    }
 }
 
 void BulletCloth::Impl::checkAttachmentBodies() {
