@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 ./scripts/setup.sh
 build=${DRAPE_ASAN_BUILD_DIR:-build-asan}
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DDRAPE_SANITIZE=ON -DDRAPE_WERROR=ON \
-    -DDRAPE_BUILD_BENCHMARKS=OFF "$@"
+    -DDRAPE_BUILD_BENCHMARKS=OFF -DDRAPE_SIMD=OFF "$@"
 cmake --build "$build" -j"$(nproc)"
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:strict_string_checks=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1

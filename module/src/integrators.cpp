@@ -5,16 +5,13 @@
 #include "drape/error.hpp"
 
 #include "parallel.hpp"
+#include "simd.hpp"
 
 #include <Eigen/IterativeLinearSolvers>
 #include <Eigen/SparseCholesky>
 
 #include <atomic>
 #include <cmath>
-
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 
 namespace drape {
 namespace {
@@ -45,45 +42,43 @@ struct DecayOf {
     }
 };
 
-#if defined(__SSE2__)
 /// (a, a), (a, b), (b, b): the factors of particles i and i + 1 over the three two-lane vectors
 /// that hold their six components (x_i y_i | z_i x_i+1 | y_i+1 z_i+1).
 struct PairFactors {
-    explicit PairFactors(__m128d ab) : k{_mm_unpacklo_pd(ab, ab), ab, _mm_unpackhi_pd(ab, ab)} {}
-    __m128d k[3];
+    explicit PairFactors(detail::Double2 ab) : k{ab.lowBoth(), ab, ab.highBoth()} {}
+    detail::Double2 k[3];
 };
 
 /// The kick factors of particles i and i + 1: (dt/2) w and exp(-C_d dt w / 2), spread.
 struct PairKicks {
     PairFactors hw, decay;
 };
-PairKicks pairKicks(DecayOf& decayOf, const double* w, std::size_t i, __m128d half) {
+PairKicks pairKicks(DecayOf& decayOf, const double* w, std::size_t i, detail::Double2 half) {
     const double d0 = decayOf(w[i]), d1 = decayOf(w[i + 1]);
-    return {PairFactors(_mm_mul_pd(half, _mm_loadu_pd(w + i))), PairFactors(_mm_set_pd(d1, d0))};
+    return {PairFactors(half * detail::Double2::load(w + i)),
+            PairFactors(detail::Double2::of(d0, d1))};
 }
-#endif
 
 /// Velocity-Verlet's opening kick and drift of particles [b, e), after L(dt/2) (decay
 /// exp(-cdh w), 1 for cdh = 0): v = decay v0 + (dt/2) w f, x = x0 + dt v, over the flat
 /// component arrays (three per particle; the outputs may be the inputs). Two particles at a
-/// time with SSE2 (x86-64's baseline): the same products and sums, in the same order, as the
-/// loop for the last particle, so the same bits wherever a thread's range starts.
+/// time (Double2): the same products and sums, in the same order, as the loop for the last
+/// particle, so the same bits wherever a thread's range starts.
 void kickDrift(std::size_t b, std::size_t e, const double* w, const double* xs, const double* vs,
                const double* fs, double* xd, double* vd, double cdh, double half, double dt) {
+    using detail::Double2;
     DecayOf decayOf{cdh};
     std::size_t i = b;
-#if defined(__SSE2__)
-    const __m128d vdt = _mm_set1_pd(dt), vhalf = _mm_set1_pd(half);
+    const Double2 vdt = Double2::splat(dt), vhalf = Double2::splat(half);
     for (; i + 1 < e; i += 2) {
         const PairKicks kick = pairKicks(decayOf, w, i, vhalf);
         for (std::size_t k = 0, at = 3 * i; k < 3; ++k, at += 2) {
-            const __m128d vn = _mm_add_pd(_mm_mul_pd(kick.decay.k[k], _mm_loadu_pd(vs + at)),
-                                          _mm_mul_pd(kick.hw.k[k], _mm_loadu_pd(fs + at)));
-            _mm_storeu_pd(vd + at, vn);
-            _mm_storeu_pd(xd + at, _mm_add_pd(_mm_loadu_pd(xs + at), _mm_mul_pd(vdt, vn)));
+            const Double2 vn =
+                kick.decay.k[k] * Double2::load(vs + at) + kick.hw.k[k] * Double2::load(fs + at);
+            vn.store(vd + at);
+            (Double2::load(xs + at) + vdt * vn).store(xd + at);
         }
     }
-#endif
     for (; i < e; ++i) {
         const double decay = decayOf(w[i]), hw = half * w[i];
         for (std::size_t j = 3 * i; j < 3 * i + 3; ++j) {
@@ -97,7 +92,7 @@ void kickDrift(std::size_t b, std::size_t e, const double* w, const double* xs, 
 /// Velocity-Verlet's closing kick and L(dt/2) of particles [b, e): v = decay (v + (dt/2) w f)
 /// for a free particle; a held one (w = 0) keeps v and its f carries the damping, f -= C_d v.
 /// Returns whether every x, v and f of the range is finite (their sum is). Two free particles
-/// at a time with SSE2, the same operations as the loop, as in kickDrift.
+/// at a time (Double2), the same operations as the loop, as in kickDrift.
 bool closingKick(std::size_t b, std::size_t e, const double* w, const double* xs, double* vs,
                  double* fs, double cd, double cdh, double half) {
     DecayOf decayOf{cdh};
@@ -115,10 +110,10 @@ bool closingKick(std::size_t b, std::size_t e, const double* w, const double* xs
         for (std::size_t k = j; k < j + 3; ++k)
             sum += (xs[k] + vs[k]) + fs[k];
     };
+    using detail::Double2;
     std::size_t i = b;
-#if defined(__SSE2__)
-    __m128d acc = _mm_setzero_pd();
-    const __m128d vhalf = _mm_set1_pd(half);
+    Double2 acc = Double2::zero();
+    const Double2 vhalf = Double2::splat(half);
     for (; i + 1 < e; i += 2) {
         if (w[i] == 0.0 || w[i + 1] == 0.0) {
             one(i);
@@ -127,15 +122,13 @@ bool closingKick(std::size_t b, std::size_t e, const double* w, const double* xs
         }
         const PairKicks kick = pairKicks(decayOf, w, i, vhalf);
         for (std::size_t k = 0, at = 3 * i; k < 3; ++k, at += 2) {
-            const __m128d f = _mm_loadu_pd(fs + at);
-            const __m128d vn = _mm_mul_pd(
-                kick.decay.k[k], _mm_add_pd(_mm_loadu_pd(vs + at), _mm_mul_pd(kick.hw.k[k], f)));
-            _mm_storeu_pd(vs + at, vn);
-            acc = _mm_add_pd(acc, _mm_add_pd(_mm_add_pd(_mm_loadu_pd(xs + at), vn), f));
+            const Double2 f = Double2::load(fs + at);
+            const Double2 vn = kick.decay.k[k] * (Double2::load(vs + at) + kick.hw.k[k] * f);
+            vn.store(vs + at);
+            acc = acc + ((Double2::load(xs + at) + vn) + f);
         }
     }
-    sum += _mm_cvtsd_f64(acc) + _mm_cvtsd_f64(_mm_unpackhi_pd(acc, acc));
-#endif
+    sum += acc.low() + acc.high();
     for (; i < e; ++i)
         one(i);
     return std::isfinite(sum);

@@ -6,6 +6,7 @@
 
 #include "parallel.hpp"
 #include "restrict.hpp"
+#include "simd.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -15,10 +16,6 @@
 #include <numeric>
 #include <queue>
 #include <utility>
-
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 
 namespace drape {
 
@@ -401,37 +398,32 @@ void slotRatios(std::size_t m, const double* DRAPE_RESTRICT ax, const double* DR
 
 namespace {
 /// The largest of r[0 .. m) (0 for none; the ratios are >= 0): four running maxima, so that
-/// the maxima do not wait for each other (two-lane SSE2 maxima on x86-64, which return the
-/// same value as std::max for any order of the non-negative ratios).
+/// the maxima do not wait for each other (two-lane maxima, Double2, which return the same value
+/// as std::max for any order of the non-negative ratios).
 double largestRatio(const double* r, std::size_t m) {
+    using detail::Double2;
     std::size_t j = 0;
-    double w = 0.0;
-#if defined(__SSE2__)
-    __m128d w01 = _mm_setzero_pd(), w23 = _mm_setzero_pd();
+    Double2 w01 = Double2::zero(), w23 = Double2::zero();
     for (; j + 4 <= m; j += 4) {
-        w01 = _mm_max_pd(_mm_loadu_pd(r + j), w01);
-        w23 = _mm_max_pd(_mm_loadu_pd(r + j + 2), w23);
+        w01 = max(Double2::load(r + j), w01);
+        w23 = max(Double2::load(r + j + 2), w23);
     }
-    const __m128d both = _mm_max_pd(w01, w23);
-    w = std::max(_mm_cvtsd_f64(both), _mm_cvtsd_f64(_mm_unpackhi_pd(both, both)));
-#endif
+    const Double2 both = max(w01, w23);
+    double w = std::max(both.low(), both.high());
     for (; j < m; ++j)
         w = std::max(w, r[j]);
     return w;
 }
 
-/// The first j in [from, end) with r[j] > bound, or end: four slots per test with SSE2 (most
+/// The first j in [from, end) with r[j] > bound, or end: four slots per test (Double2; most
 /// slots are within the band).
 std::size_t nextAbove(const double* r, std::size_t from, std::size_t end, double bound) {
+    using detail::Double2;
     std::size_t j = from;
-#if defined(__SSE2__)
-    const __m128d b = _mm_set1_pd(bound);
+    const Double2 b = Double2::splat(bound);
     for (; j + 4 <= end; j += 4) {
-        const __m128d above = _mm_or_pd(_mm_cmpgt_pd(_mm_loadu_pd(r + j), b),
-                                        _mm_cmpgt_pd(_mm_loadu_pd(r + j + 2), b));
-        if (_mm_movemask_pd(above) != 0) break;
+        if (anyGreater(Double2::load(r + j), b) || anyGreater(Double2::load(r + j + 2), b)) break;
     }
-#endif
     for (; j < end; ++j)
         if (r[j] > bound) return j;
     return end;
