@@ -5,6 +5,7 @@
 
 #include "parallel.hpp"
 #include "restrict.hpp"
+#include "spring.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -18,8 +19,8 @@ namespace {
 inline void addOneSpring(const Spring& sp, double k, const Vec3List& x, Vec3List& f) {
     const Vec3 d = x[sp.b] - x[sp.a];
     const double l = d.norm();
-    if (l == 0.0) return; // coincident ends: no direction, the force is undefined
-    const Vec3 force = (k * (l - sp.restLength) / l) * d;
+    if (l == 0.0) return; // coincident ends: no direction, no force
+    const Vec3 force = detail::springForceScale(k, l, sp.restLength) * d;
     f[sp.a] += force;
     f[sp.b] -= force;
 }
@@ -39,8 +40,9 @@ void addPackedSpringForces(const std::vector<Spring>& springs, const std::vector
         const Spring& sp = springs[s];
         const Vec3 d = x[sp.b] - x[sp.a];
         const double l = d.norm();
-        if (l == 0.0) continue; // coincident ends: no direction, the force is undefined
-        const Vec3 force = ((k > 0.0 ? k : stiffness[s]) * (l - sp.restLength) / l) * d;
+        if (l == 0.0) continue; // coincident ends: no direction, no force
+        const Vec3 force =
+            detail::springForceScale(k > 0.0 ? k : stiffness[s], l, sp.restLength) * d;
         f[sp.a] += force;
         f[sp.b] -= force;
     }
@@ -349,9 +351,7 @@ void familySlotForces(std::size_t m, const double* DRAPE_RESTRICT ax,
     for (std::size_t j = 0; j < m; ++j) {
         const double dx = bx[j] - ax[j], dy = by[j] - ay[j], dz = bz[j] - az[j];
         const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
-        // Coincident ends (l = 0) have d = 0: dividing by 1 instead gives them a zero force
-        // without a branch (a select, not a jump), which keeps the loop vectorisable.
-        const double t = k[j] * (l - l0[j]) / (l + static_cast<double>(l == 0.0));
+        const double t = detail::springForceScale(k[j], l, l0[j]);
         ox[j] = t * dx;
         oy[j] = t * dy;
         oz[j] = t * dz;

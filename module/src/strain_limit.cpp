@@ -7,6 +7,7 @@
 #include "parallel.hpp"
 #include "restrict.hpp"
 #include "simd.hpp"
+#include "spring.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -25,7 +26,8 @@ double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x
     const auto& inv2 = topology.inverseSquaredRestLengths();
     double worst2 = 0.0; // the largest squared length ratio, one square root at the end
     for (std::size_t s = 0; s < springs.size(); ++s) {
-        worst2 = std::max(worst2, (x[springs[s].b] - x[springs[s].a]).squaredNorm() * inv2[s]);
+        worst2 = std::max(worst2,
+                          detail::squaredLengthRatio(x[springs[s].b] - x[springs[s].a], inv2[s]));
     }
     return std::sqrt(worst2) - 1.0;
 }
@@ -391,7 +393,7 @@ void slotRatios(std::size_t m, const double* DRAPE_RESTRICT ax, const double* DR
                 const double* DRAPE_RESTRICT inv2, double* DRAPE_RESTRICT out) {
     for (std::size_t j = 0; j < m; ++j) {
         const double dx = bx[j] - ax[j], dy = by[j] - ay[j], dz = bz[j] - az[j];
-        out[j] = (dx * dx + dy * dy + dz * dz) * inv2[j];
+        out[j] = detail::squaredLengthRatio(dx, dy, dz, inv2[j]);
     }
 }
 } // namespace
@@ -659,7 +661,7 @@ void StrainLimiter::checkMoved(const ClothTopology& topology, const std::vector<
             seen[si] = mark | (word & kWarmBit);
             const double* xo = xp + 3 * std::size_t(nbrp[k]);
             const double dx = xo[0] - ex, dy = xo[1] - ey, dz = xo[2] - ez;
-            const double ratio2 = (dx * dx + dy * dy + dz * dz) * inv2p[k];
+            const double ratio2 = detail::squaredLengthRatio(dx, dy, dz, inv2p[k]);
             // needs(si, ratio2)
             const std::size_t need = (ratio2 > up) | ((ratio2 < low) & (word & kWarmBit));
             cand[found] = static_cast<Index>(k);
@@ -680,7 +682,7 @@ void StrainLimiter::checkMoved(const ClothTopology& topology, const std::vector<
         const double* xa = xp + 3 * std::size_t(sp.a);
         const double* xb = xp + 3 * std::size_t(sp.b);
         const double dx = xa[0] - xb[0], dy = xa[1] - xb[1], dz = xa[2] - xb[2];
-        queue(sprp[k], (dx * dx + dy * dy + dz * dz) * inv2p[k], rest[k], stiffness);
+        queue(sprp[k], detail::squaredLengthRatio(dx, dy, dz, inv2p[k]), rest[k], stiffness);
     }
 }
 
