@@ -8,6 +8,7 @@ packages=(
     libeigen3-dev          # module/: linear algebra, sparse solvers
     libbullet-dev          # integration/: rigid bodies, broadphase, btSoftBody comparison
     libbullet-extras-dev   # Bullet's optional libraries (serialisation, importers)
+    libtbb-dev             # integration/: the cloths of a world stepped in parallel
     libassimp-dev          # samples/: mesh import and export
     libosmesa6-dev         # samples/: offscreen OpenGL rendering
     libpng-dev             # samples/: writing PNG frames

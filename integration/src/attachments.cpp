@@ -39,7 +39,7 @@ void Attachments::advance(Cloth& c, double dt) const {
 }
 
 void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>& bodies,
-                             ContactStats& stats) const {
+                             ContactStats& stats, std::vector<OutsideImpulse>& outside) const {
     // The body carries the force the cloth puts on the attached particle (springs and the
     // particle's own weight) and the strain limiter's reaction on it (its corrections' pull).
     const Vec3List& held = c.constraintImpulses();
@@ -55,10 +55,8 @@ void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>
         if (snap != bodies.end()) {
             snap->applyImpulse(j, at);
         } else {
-            // The body is outside the proxy (possible with a long attachment): apply now.
-            auto* body = const_cast<btRigidBody*>(rb);
-            body->applyImpulse(toBt(j), toBt(at - toVec(body->getCenterOfMassPosition())));
-            body->activate();
+            // The body is outside the proxy (possible with a long attachment).
+            outside.push_back(OutsideImpulse{const_cast<btRigidBody*>(rb), j, at});
         }
     }
 }

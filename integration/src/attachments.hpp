@@ -27,11 +27,18 @@ class Attachments {
     /// A Bullet sub-step of dt begins: every attached particle gets its point on the body as
     /// the body is now as the target it reaches at the end of the sub-step.
     void advance(Cloth& c, double dt) const;
+    /// An impulse j [N s] at `at` for a dynamic body that is not among the snapshots.
+    struct OutsideImpulse {
+        btRigidBody* body = nullptr;
+        Vec3 j = Vec3::Zero(), at = Vec3::Zero();
+    };
     /// After a cloth step of h [s]: dynamic bodies get the impulse of the force the cloth put
-    /// on their attached particles (through their snapshot, or directly when the body is not
-    /// among them), counted in stats.impulseOnBodies.
+    /// on their attached particles (through their snapshot, or, when the body is not among
+    /// them, appended to `outside` for the caller to apply after the sub-step: the cloth's
+    /// steps touch no Bullet body, so cloths can step in parallel), counted in
+    /// stats.impulseOnBodies.
     void pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>& bodies,
-                    ContactStats& stats) const;
+                    ContactStats& stats, std::vector<OutsideImpulse>& outside) const;
 
   private:
     std::vector<Attachment> list_;

@@ -50,10 +50,16 @@
 #include "drape/error.hpp"
 
 #include <btBulletDynamicsCommon.h>
+#include <oneapi/tbb/blocked_range.h>
+#include <oneapi/tbb/info.h>
+#include <oneapi/tbb/parallel_for.h>
+#include <oneapi/tbb/task_arena.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <exception>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <utility>
@@ -104,7 +110,7 @@ Registry& registry() {
 } // namespace
 
 struct BulletCloth::Impl {
-    class Action;
+    class Stepper;
     class Stage;
 
     Impl(btDynamicsWorld* w, std::shared_ptr<Cloth> c, const BulletClothSettings& s, double b,
@@ -129,14 +135,34 @@ struct BulletCloth::Impl {
     /// Scratch of checkAttachmentBodies (kept: it runs every sub-step with attachments).
     std::vector<const btCollisionObject*> attachedBodies;
     std::vector<unsigned char> bodyFound;
-    std::unique_ptr<Action> action;
+    /// The action that steps the world's cloths (shared by every cloth of the world).
+    std::shared_ptr<Stepper> stepper;
     std::shared_ptr<Stage> stage;
     /// Timer slot in the cloth's PhaseTimers of the handle's work around the cloth's steps
     /// (body snapshot, proxy, impulses on bodies).
     std::size_t slotBodies = 0;
 
-    /// One Bullet sub-step of dt [s] (the action's updateAction).
+    /// One Bullet sub-step of dt [s]: prepare, advance, finish.
     void step(double dt);
+    /// Before the cloth's steps (on the world's thread): the bodies, the attachment targets,
+    /// waking, the number of cloth steps.
+    void prepare(double dt);
+    /// The cloth's steps. Touches no Bullet object but the shapes it queries (read only), so
+    /// the cloths of a world may advance in parallel (BulletClothSettings::threads).
+    void advance();
+    /// After them (on the world's thread): the impulses on the bodies, the proxy, the counts.
+    void finish();
+    /// The step being taken: its dt [s], cloth steps, their length [s], and timing.
+    double stepDt = 0.0, stepH = 0.0, bodySeconds = 0.0;
+    int stepSubsteps = 1;
+    bool slept = true; ///< every cloth step of this sub-step was taken asleep
+    std::vector<detail::Attachments::OutsideImpulse> outside;
+    /// Draws the cloth's springs (debugDraw).
+    void draw(btIDebugDraw* drawer) const;
+    /// Joins the world's stepper (creating it, and adding it to the world, for the first
+    /// cloth) and leaves it (removing it from a live world with the last cloth).
+    void joinStepper();
+    void leaveStepper(bool worldAlive);
     /// Snapshots the bodies among the proxy's overlaps (and the broadphase's answer for a
     /// larger box when the cloth would sweep out of the proxy in this step).
     void gatherBodies(double dt);
@@ -163,25 +189,147 @@ struct BulletCloth::Impl {
     bool live() const { return inWorld && proxy.inLiveWorld(); }
 };
 
-class BulletCloth::Impl::Action final : public btActionInterface {
+// The cloths of one world are stepped by one action, the world's Stepper: every Bullet sub-step
+// it prepares each cloth in the order they were added, advances them (in parallel on up to the
+// largest BulletClothSettings::threads of its cloths, one task per cloth, in a oneTBB arena of
+// that many threads; each cloth's result is the same on any number of threads), and finishes
+// them in order. A cloth that throws is left out of the rest of that sub-step; the first error,
+// by cloth order, is rethrown after the others finished.
+class BulletCloth::Impl::Stepper final : public btActionInterface {
   public:
-    explicit Action(Impl& impl) : impl_(impl) {}
+    std::vector<Impl*> cloths; ///< in the order they were added
+    bool inWorld = false;
+
     void updateAction(btCollisionWorld*, btScalar dt) override {
-        const std::optional<double>& exact = impl_.settings.timeStep;
-        impl_.step(exact && btScalar(*exact) == dt ? *exact : double(dt));
+        const std::size_t n = cloths.size();
+        errors_.assign(n, nullptr);
+        for (std::size_t k = 0; k < n; ++k) {
+            const std::optional<double>& exact = cloths[k]->settings.timeStep;
+            try {
+                cloths[k]->prepare(exact && btScalar(*exact) == dt ? *exact : double(dt));
+            } catch (...) {
+                errors_[k] = std::current_exception();
+            }
+        }
+        auto advance = [this](std::size_t k) {
+            if (errors_[k]) return;
+            try {
+                cloths[k]->advance();
+            } catch (...) {
+                errors_[k] = std::current_exception();
+            }
+        };
+        int threads = 1;
+        for (const Impl* c : cloths)
+            threads = std::max(threads, c->settings.threads);
+        // No more than the machine has (oneTBB would refuse the extra workers, with a warning).
+        threads = std::min(threads, tbb::info::default_concurrency());
+        if (threads > 1 && n > 1) {
+            if (!arena_ || arenaThreads_ != threads) {
+                arena_ = std::make_unique<tbb::task_arena>(threads);
+                arenaThreads_ = threads;
+            }
+            arena_->execute([&] {
+                tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1),
+                                  [&](const tbb::blocked_range<std::size_t>& r) {
+                                      for (std::size_t k = r.begin(); k != r.end(); ++k)
+                                          advance(k);
+                                  });
+            });
+        } else {
+            for (std::size_t k = 0; k < n; ++k)
+                advance(k);
+        }
+        for (std::size_t k = 0; k < n; ++k) {
+            if (errors_[k]) continue;
+            try {
+                cloths[k]->finish();
+            } catch (...) {
+                errors_[k] = std::current_exception();
+            }
+        }
+        for (const std::exception_ptr& e : errors_)
+            if (e) std::rethrow_exception(e);
     }
     void debugDraw(btIDebugDraw* drawer) override {
         if (!drawer) return;
-        const Cloth& c = *impl_.cloth;
-        const btVector3 colour(0.8f, 0.5f, 0.2f);
-        for (const auto& s : c.topology().springs()) {
-            drawer->drawLine(toBt(c.positions()[s.a]), toBt(c.positions()[s.b]), colour);
-        }
+        for (const Impl* c : cloths)
+            c->draw(drawer);
     }
 
   private:
-    Impl& impl_;
+    std::vector<std::exception_ptr> errors_;
+    std::unique_ptr<tbb::task_arena> arena_;
+    int arenaThreads_ = 0;
 };
+
+namespace {
+/// The worlds' steppers (a stepper lives while one of its cloths' handles does).
+struct Steppers {
+    std::mutex lock;
+    std::vector<std::pair<const btDynamicsWorld*, std::weak_ptr<BulletCloth::Impl::Stepper>>>
+        entries;
+};
+Steppers& steppers() {
+    static Steppers s;
+    return s;
+}
+} // namespace
+
+void BulletCloth::Impl::joinStepper() {
+    Steppers& all = steppers();
+    std::lock_guard<std::mutex> guard(all.lock);
+    auto& entries = all.entries;
+    entries.erase(std::remove_if(entries.begin(), entries.end(),
+                                 [](const auto& e) { return e.second.expired(); }),
+                  entries.end());
+    for (auto& e : entries) {
+        if (e.first != world) continue;
+        std::shared_ptr<Stepper> found = e.second.lock();
+        // A stepper whose cloths all left, or whose world was destroyed (a new world may
+        // have its address), is not reused.
+        if (!found->inWorld) continue;
+        bool live = false;
+        for (const Impl* c : found->cloths)
+            live = live || c->proxy.inLiveWorld();
+        if (!live) {
+            found->inWorld = false;
+            continue;
+        }
+        stepper = std::move(found);
+        break;
+    }
+    if (!stepper) {
+        stepper = std::make_shared<Stepper>();
+        world->addAction(stepper.get());
+        stepper->inWorld = true;
+        entries.emplace_back(world, stepper);
+    }
+    stepper->cloths.push_back(this);
+}
+
+void BulletCloth::Impl::leaveStepper(bool worldAlive) {
+    if (!stepper) return;
+    {
+        std::lock_guard<std::mutex> guard(steppers().lock);
+        auto& cs = stepper->cloths;
+        cs.erase(std::remove(cs.begin(), cs.end(), this), cs.end());
+        if (cs.empty() && stepper->inWorld) {
+            if (worldAlive) world->removeAction(stepper.get());
+            stepper->inWorld = false;
+        }
+    }
+    stepper.reset();
+}
+
+void BulletCloth::Impl::draw(btIDebugDraw* drawer) const {
+    if (!drawer) return;
+    const Cloth& c = *cloth;
+    const btVector3 colour(0.8f, 0.5f, 0.2f);
+    for (const auto& s : c.topology().springs()) {
+        drawer->drawLine(toBt(c.positions()[s.a]), toBt(c.positions()[s.b]), colour);
+    }
+}
 
 class BulletCloth::Impl::Stage final : public ClothStage {
   public:
@@ -200,10 +348,18 @@ class BulletCloth::Impl::Stage final : public ClothStage {
 };
 
 void BulletCloth::Impl::step(double dt) {
+    prepare(dt);
+    advance();
+    finish();
+}
+
+void BulletCloth::Impl::prepare(double dt) {
     using Clock = std::chrono::steady_clock;
     const auto start = Clock::now();
     Cloth& c = *cloth;
     last = ContactStats{};
+    outside.clear();
+    stepDt = dt;
     if (!attachments.list().empty()) checkAttachmentBodies();
     // 1. bodies
     gatherBodies(dt);
@@ -211,6 +367,21 @@ void BulletCloth::Impl::step(double dt) {
     attachments.advance(c, dt);
     followWorldGravity();
     wakeForBodies(dt); // a moving attachment body wakes it through its kinematic path
+    // Given: that many; not given: the fewest within the cloth's stability limit (the cloth's
+    // own automatic sub-steps, ClothSettings::substeps), taken here so that every cloth step
+    // exchanges its impulses with the bodies.
+    stepSubsteps = settings.substeps ? *settings.substeps : c.substepsFor(dt);
+    last.substeps = stepSubsteps;
+    stepH = dt / stepSubsteps;
+    slept = true;
+    for (auto& b : contacts.bodies)
+        b.startSweep(dt);
+    bodySeconds = std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+void BulletCloth::Impl::advance() {
+    using Clock = std::chrono::steady_clock;
+    Cloth& c = *cloth;
     // 3. step
     struct InStep {
         bool& flag;
@@ -219,32 +390,27 @@ void BulletCloth::Impl::step(double dt) {
         InStep(const InStep&) = delete;
         InStep& operator=(const InStep&) = delete;
     } guard(contacts.inStep);
-    // Given: that many; not given: the fewest within the cloth's stability limit (the cloth's
-    // own automatic sub-steps, ClothSettings::substeps), taken here so that every cloth step
-    // exchanges its impulses with the bodies.
-    const int substeps = settings.substeps ? *settings.substeps : c.substepsFor(dt);
-    last.substeps = substeps;
-    const double h = dt / substeps;
-    double bodySeconds = std::chrono::duration<double>(Clock::now() - start).count();
-    bool slept = true; // every sub-step was taken asleep
-    for (auto& b : contacts.bodies)
-        b.startSweep(dt);
-    for (int s = 0; s < substeps; ++s) {
+    for (int s = 0; s < stepSubsteps; ++s) {
         const bool wasAsleep = c.isAsleep();
         // The bodies move through the Bullet sub-step with the cloth (BodySnapshot::advance).
         for (auto& b : contacts.bodies)
-            b.advance(h);
-        c.stepPart(h, substeps); // the contact stage runs inside it, the contact force is
-                                 // one of its terms
+            b.advance(stepH);
+        c.stepPart(stepH, stepSubsteps); // the contact stage runs inside it, the contact
+                                         // force is one of its terms
         ++last.steps;
         last.selfPairTests += c.lastSelfCollision().pairTests;
         last.selfContacts += c.lastSelfCollision().contacts;
         if (wasAsleep && c.isAsleep()) continue; // nothing moved, nothing to hand to bodies
         slept = false;
         const auto afterStep = Clock::now();
-        pushBodies(h);
+        pushBodies(stepH);
         bodySeconds += std::chrono::duration<double>(Clock::now() - afterStep).count();
     }
+}
+
+void BulletCloth::Impl::finish() {
+    using Clock = std::chrono::steady_clock;
+    Cloth& c = *cloth;
     const auto afterSteps = Clock::now();
     // The strain the sub-step ends with, measured (one pass over the springs; a cloth that slept
     // through it has not moved).
@@ -254,7 +420,7 @@ void BulletCloth::Impl::step(double dt) {
     // 4. impulses
     applyImpulses();
     // 5. proxy
-    if (!slept) updateBounds(dt);
+    if (!slept) updateBounds(stepDt);
     bodySeconds += std::chrono::duration<double>(Clock::now() - afterSteps).count();
     c.timers().add(slotBodies, bodySeconds);
     accumulate(total, last);
@@ -365,7 +531,7 @@ void BulletCloth::Impl::wakeForBodies(double dt) {
 
 void BulletCloth::Impl::pushBodies(double h) {
     contacts.applyContactForces(*cloth, h);
-    attachments.pushBodies(*cloth, h, contacts.bodies, last);
+    attachments.pushBodies(*cloth, h, contacts.bodies, last, outside);
 }
 
 void BulletCloth::Impl::applyImpulses() {
@@ -373,6 +539,11 @@ void BulletCloth::Impl::applyImpulses() {
         // It carries or pushes an active body: no sleep (see the header).
         if (b.applyAccumulatedImpulses()) cloth->wake();
     }
+    for (const auto& o : outside) {
+        o.body->applyImpulse(toBt(o.j), toBt(o.at - toVec(o.body->getCenterOfMassPosition())));
+        o.body->activate();
+    }
+    outside.clear();
 }
 
 void BulletCloth::Impl::updateBounds(double dt) {
@@ -433,8 +604,7 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
 
     m.updateBounds(0.0);
     m.proxy.addTo(world, settings.collisionGroup, settings.collisionMask);
-    m.action = std::make_unique<Impl::Action>(m);
-    world->addAction(m.action.get());
+    m.joinStepper();
     m.inWorld = true;
     Registry& r = registry();
     std::lock_guard<std::mutex> guard(r.lock);
@@ -453,9 +623,10 @@ void BulletCloth::remove() {
     Impl& m = *impl_;
     if (!m.inWorld) return;
     if (m.proxy.inLiveWorld()) {
-        m.world->removeAction(m.action.get());
+        m.leaveStepper(true);
         m.proxy.removeFromWorld();
     } else {
+        m.leaveStepper(false);
         m.proxy.forgetWorld(); // the world was destroyed first: nothing of it to touch
     }
     {
@@ -541,7 +712,7 @@ const ContactStats& BulletCloth::totalStats() const {
     return impl_->total;
 }
 void BulletCloth::debugDraw(btIDebugDraw* drawer) const {
-    impl_->action->debugDraw(drawer);
+    impl_->draw(drawer);
 }
 
 void BulletCloth::stepInWorld(double dt) {

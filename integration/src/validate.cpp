@@ -37,6 +37,8 @@ void validate(const BulletClothSettings& s) {
     if (s.timeStep)
         require(std::isfinite(*s.timeStep) && *s.timeStep > 0.0, ErrorCode::InvalidArgument,
                 "timeStep must be positive and finite, got " + num(*s.timeStep));
+    require(s.threads >= 1 && s.threads <= 1024, ErrorCode::InvalidArgument,
+            "threads must be between 1 and 1024, got " + std::to_string(s.threads));
     // selfCollision is the cloth's own: Cloth::setSelfCollision validates it.
 }
 

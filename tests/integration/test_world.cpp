@@ -231,6 +231,81 @@ TEST_CASE("same scene, same result: two runs are bit-identical", "[world][determ
         CHECK(a[i] == b[i]); // exact equality
 }
 
+TEST_CASE("the cloths of a world stepped on several threads end bit-identical to one thread",
+          "[world][determinism][threads]") {
+    // Four cloths: two falling on a static sphere, two on a dynamic ball they share (its
+    // impulses from both arrive in the cloths' order whatever the threads), one with
+    // self-collision. threads = 1, 2 and 3 must give the same bits, ball included.
+    auto run = [](int threads) {
+        TestWorld w;
+        w.body(w.shape<btSphereShape>(btScalar(0.2)), 0.0, Vec3(0, 0, 0));
+        btRigidBody* ball =
+            w.body(w.shape<btSphereShape>(btScalar(0.15)), 0.3, Vec3(2.0, 0.0, 0.0));
+        ball->setActivationState(DISABLE_DEACTIVATION);
+        ball->setGravity(btVector3(0, 0, 0));
+        std::vector<std::shared_ptr<Cloth>> cloths;
+        const Vec3 where[4] = {Vec3(0.05, 0.3, 0), Vec3(-0.05, 0.5, 0.02), Vec3(1.9, 0.3, 0),
+                               Vec3(2.1, 0.35, 0.05)};
+        for (int k = 0; k < 4; ++k) {
+            auto cloth = makeCloth(
+                horizontalSheet(9, 9, 0.05, where[k].y(), where[k].x(), where[k].z()), softCloth());
+            bullet::BulletClothSettings bs;
+            bs.threads = threads;
+            bs.selfCollision.enabled = k == 1;
+            w.add(cloth, bs);
+            cloths.push_back(cloth);
+        }
+        for (int k = 0; k < 90; ++k)
+            w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+        std::vector<Vec3> state;
+        for (const auto& c : cloths) {
+            state.insert(state.end(), c->positions().begin(), c->positions().end());
+            state.insert(state.end(), c->velocities().begin(), c->velocities().end());
+        }
+        state.push_back(eig(ball->getCenterOfMassPosition()));
+        state.push_back(eig(ball->getLinearVelocity()));
+        return state;
+    };
+    const auto one = run(1);
+    // The shared ball moved: the cloths pushed it.
+    REQUIRE(one.back().norm() > 0.0);
+    for (int threads : {2, 3}) {
+        const auto many = run(threads);
+        REQUIRE(many.size() == one.size());
+        std::size_t differ = 0;
+        for (std::size_t i = 0; i < one.size(); ++i)
+            differ += one[i] != many[i]; // exact equality
+        INFO(threads << " threads: " << differ << " of " << one.size() << " vectors differ");
+        CHECK(differ == 0);
+    }
+}
+
+TEST_CASE("a cloth that fails in a parallel world step: the others step, its error is thrown",
+          "[world][threads][errors]") {
+    TestWorld w(Vec3(0, -9.81, 0));
+    btRigidBody* holder = w.body(w.shape<btSphereShape>(btScalar(0.05)), 0.0, Vec3(0, 1, 0));
+    std::vector<std::shared_ptr<Cloth>> cloths;
+    std::vector<bullet::BulletCloth*> handles;
+    for (int k = 0; k < 3; ++k) {
+        auto cloth = makeCloth(horizontalSheet(5, 5, 0.05, 0.9, 1.0 * k), softCloth());
+        bullet::BulletClothSettings bs;
+        bs.threads = 2;
+        handles.push_back(&w.add(cloth, bs));
+        cloths.push_back(cloth);
+    }
+    handles[1]->attachHere(0, holder); // the middle cloth hangs from the holder
+    w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    // The holder leaves the world without its particles being detached first: the middle
+    // cloth's next step detaches them and throws (test_wrong_use.cpp); the others step on.
+    w.world.removeRigidBody(holder);
+    const double t0 = cloths[0]->time(), t2 = cloths[2]->time();
+    CHECK_THROWS_AS(w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0)), Error);
+    CHECK(cloths[0]->time() > t0);
+    CHECK(cloths[2]->time() > t2);
+    CHECK(handles[1]->attachments().empty());
+    w.world.addRigidBody(holder); // (the fixture removes it again)
+}
+
 TEST_CASE("timeStep: stepSimulation's btScalar sub-step becomes the cloth's exact double dt",
           "[world][determinism]") {
     // Bullet hands the sub-step to the cloth as a float: 1/120 s arrives as 0.008333334. With

@@ -84,6 +84,13 @@ struct BulletClothSettings {
     /// Turn the cloth's sleeping on when it is added (with the thresholds of its
     /// ClothSettings::sleep); false leaves the cloth's own setting.
     bool sleep = true;
+    /// Threads (>= 1) on which the cloths of this cloth's world take their steps: every
+    /// Bullet sub-step, each cloth's steps are one task, run on up to the largest `threads`
+    /// among the world's cloths, and at most the machine's hardware threads (a oneTBB arena of
+    /// that many threads, the calling thread included). Each cloth's result is bit-identical for
+    /// any count. 1 (the default): every cloth steps on the thread that calls stepSimulation, one
+    /// after the other. Within one cloth, ClothSettings::threads splits its own passes.
+    int threads = 1;
 };
 
 /// Work done in the last Bullet sub-step (all cloth sub-steps summed). Counts, not times, so
