@@ -12,7 +12,10 @@
 //
 // One Bullet sub-step (btDiscreteDynamicsWorld::internalSingleStepSimulation) runs: rigid
 // bodies predicted, broadphase and narrow-phase, constraints solved, transforms integrated,
-// then the actions -- our updateAction. So when the cloth steps, the bodies are already at the
+// then the actions -- the world's cloth Stepper (one action for all of the world's cloths, see
+// Impl::Stepper: steps 1-2 and 4-5 below on the world's thread, step 3 of every cloth as one
+// task, in parallel with BulletClothSettings::threads). So when the cloth steps, the bodies are
+// already at the
 // end of the sub-step, and the cloth ends the sub-step at the same instant. The cloth's own
 // steps see each moving body on its way there: it starts where its velocities say it was at
 // the start of the sub-step and advances with them, step by step, as the cloth's impulses change
@@ -22,7 +25,7 @@
 // and the raycast vehicle); a free body (in no contact with other bodies) also ends the sub-step
 // where its sweep took it, so a body the cloth stopped does not stay inside it.
 //
-// Per sub-step (Impl::step, in this order):
+// Per sub-step (Impl::prepare: 1-2, Impl::advance: 3, Impl::finish: 4-5):
 //   1. bodies:  the ghost's broadphase overlaps, filtered (no ghosts, soft bodies, triggers),
 //               snapshotted in double precision (pose, velocities, inverse mass and inertia;
 //               dynamic bodies in contact with others in Bullet marked supported);
