@@ -183,8 +183,11 @@ struct BulletCloth::Impl {
     void pushBodies(double h);
     /// Gives the dynamic bodies the impulses accumulated on them.
     void applyImpulses();
-    /// The proxy's box: where the particles can get in the next step.
+    /// The proxy's box: where the particles can get in the next step of dt [s] (nextBounds),
+    /// set (updateBounds).
+    void nextBounds(double dt, Vec3& lo, Vec3& hi) const;
     void updateBounds(double dt);
+    Vec3 nextLo = Vec3::Zero(), nextHi = Vec3::Zero(); ///< advance's nextBounds, for finish
     /// Detaches the particles whose body is no longer in the world (removed, maybe deleted:
     /// its pointer is only compared, never read) and throws drape::Error naming them.
     void checkAttachmentBodies();
@@ -409,21 +412,25 @@ void BulletCloth::Impl::advance() {
         pushBodies(stepH);
         bodySeconds += std::chrono::duration<double>(Clock::now() - afterStep).count();
     }
+    const auto afterSteps = Clock::now();
+    // The strain the sub-step ends with, measured (one pass over the springs; a cloth that slept
+    // through it has not moved), and the proxy's next box (set by finish): both here, in the
+    // cloth's own task.
+    if (!slept || !strainMeasured) lastStrain = c.maxStrain();
+    strainMeasured = true;
+    if (!slept) nextBounds(stepDt, nextLo, nextHi);
+    bodySeconds += std::chrono::duration<double>(Clock::now() - afterSteps).count();
 }
 
 void BulletCloth::Impl::finish() {
     using Clock = std::chrono::steady_clock;
     Cloth& c = *cloth;
     const auto afterSteps = Clock::now();
-    // The strain the sub-step ends with, measured (one pass over the springs; a cloth that slept
-    // through it has not moved).
-    if (!slept || !strainMeasured) lastStrain = c.maxStrain();
-    strainMeasured = true;
     last.maxStrain = lastStrain;
     // 4. impulses
     applyImpulses();
     // 5. proxy
-    if (!slept) updateBounds(stepDt);
+    if (!slept) proxy.setBounds(nextLo, nextHi);
     bodySeconds += std::chrono::duration<double>(Clock::now() - afterSteps).count();
     c.timers().add(slotBodies, bodySeconds);
     accumulate(total, last);
@@ -549,12 +556,18 @@ void BulletCloth::Impl::applyImpulses() {
     outside.clear();
 }
 
-void BulletCloth::Impl::updateBounds(double dt) {
+void BulletCloth::Impl::nextBounds(double dt, Vec3& lo, Vec3& hi) const {
     // Where the particles can get in the next step (at the speed they have now), plus the
     // contact reach, plus the margin for bodies moving toward the cloth.
-    Vec3 lo, hi;
     detail::sweptBounds(*cloth, dt, settings.contact.thickness + band, lo, hi);
-    proxy.setBounds(lo.array() - margin, hi.array() + margin);
+    lo.array() -= margin;
+    hi.array() += margin;
+}
+
+void BulletCloth::Impl::updateBounds(double dt) {
+    Vec3 lo, hi;
+    nextBounds(dt, lo, hi);
+    proxy.setBounds(lo, hi);
 }
 
 // --------------------------------------------------------------------------------------------

@@ -2,7 +2,7 @@
 // (BulletClothSettings::threads): wall time per world step, the speed-up, and whether every
 // cloth ends bit-identical.
 //
-//   drape-bench-cloths                        8 cloths, 1 against 2 threads, 5 repetitions
+//   drape-bench-cloths                        8 cloths, 1 against 2 threads, 11 repetitions
 //   drape-bench-cloths --cloths 4 --threads 4 --steps 300 --repetitions 7
 //
 // Each cloth is the paper's Experiment I (samples/scenes/experiment1_suspended_sheet.json: a
@@ -110,7 +110,7 @@ double median(std::vector<double> v) {
 int main(int argc, char** argv) {
     CLI::App app{"drape-bench-cloths: several Experiment I cloths in one Bullet world, stepped "
                  "on 1 thread and on more"};
-    int cloths = 8, threads = 2, steps = 300, repetitions = 5;
+    int cloths = 8, threads = 2, steps = 300, repetitions = 11;
     app.add_option("--cloths", cloths, "cloths in the world")->check(CLI::Range(1, 256));
     app.add_option("--threads", threads, "threads to compare with 1")->check(CLI::Range(1, 256));
     app.add_option("--steps", steps, "timed world steps per repetition")
