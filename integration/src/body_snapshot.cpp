@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 namespace drape::bullet::detail {
@@ -133,6 +134,21 @@ bool BodySnapshot::applyAccumulatedImpulses() {
     if (!dynamicBody) return false;
     if (linearImpulse.squaredNorm() == 0.0 && angularImpulse.squaredNorm() == 0.0) return false;
     btRigidBody* rb = dynamicBody;
+    // Nothing that is not finite, in Bullet's own precision, reaches Bullet (it would spread
+    // through its solver): the impulses, the pose, and the velocities they give.
+    const auto fits = [](const auto& m) {
+        return m.allFinite() &&
+               m.cwiseAbs().maxCoeff() < double(std::numeric_limits<btScalar>::max());
+    };
+    const Vec3 newV = toVec(rb->getLinearVelocity()) + invMass * linearImpulse;
+    const Vec3 newW = toVec(rb->getAngularVelocity()) + invInertia * angularImpulse;
+    if (!(fits(linearImpulse) && fits(angularImpulse) && fits(pose.t) && fits(pose.R) &&
+          fits(newV) && fits(newW))) {
+        throw Error(ErrorCode::SimulationFailure,
+                    std::string("the cloth's impulse on a dynamic body (") +
+                        rb->getCollisionShape()->getName() +
+                        ") is not finite; the body keeps its state from before the step");
+    }
     const bool pushedActive = rb->isActive();
     // A sleeping body is not woken by nudges below its sleeping threshold.
     const double dv = linearImpulse.norm() * invMass;
