@@ -46,9 +46,9 @@ void BodySnapshot::startSweep(double dt) {
 }
 
 void BodySnapshot::advance(double h) {
-    if (!sweeping_ && !moved_) return;
+    if (!sweeps()) return;
     previous = pose;
-    pose = poseBefore(pose, -v, -w, h);
+    pose = poseBefore(pose, -v, -w, h); // h after it, at the velocities it has now
     derivePoseData(*this);
 }
 

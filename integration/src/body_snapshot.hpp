@@ -61,6 +61,8 @@ struct BodySnapshot {
     /// (applyAccumulatedImpulses).
     void startSweep(double dt);
     void advance(double h);
+    /// Whether the body moves through the cloth's steps (else pose == previous == end).
+    bool sweeps() const { return sweeping_ || moved_; }
     Vec3 linearImpulse = Vec3::Zero();  ///< accumulated for the body [N s]
     Vec3 angularImpulse = Vec3::Zero(); ///< about the centre of mass [N m s]
 

@@ -15,15 +15,14 @@
 // then the actions -- the world's cloth Stepper (one action for all of the world's cloths, see
 // Impl::Stepper: steps 1-2 and 4-5 below on the world's thread, step 3 of every cloth as one
 // task, in parallel with BulletClothSettings::threads). So when the cloth steps, the bodies are
-// already at the
-// end of the sub-step, and the cloth ends the sub-step at the same instant. The cloth's own
-// steps see each moving body on its way there: it starts where its velocities say it was at
-// the start of the sub-step and advances with them, step by step, as the cloth's impulses change
-// them (BodySnapshot::startSweep/advance; a fast body cannot jump over the cloth between two
-// of its steps). The impulses the cloth gives dynamic bodies change their velocities for the
-// next sub-step (the same one-step lag as every Bullet action, e.g. the character controller
-// and the raycast vehicle); a free body (in no contact with other bodies) also ends the sub-step
-// where its sweep took it, so a body the cloth stopped does not stay inside it.
+// already at the end of the sub-step, and the cloth ends the sub-step at the same instant. The
+// cloth's own steps see each moving body on its way there: it starts where its velocities say
+// it was at the start of the sub-step and advances with them, step by step, as the cloth's
+// impulses change them (BodySnapshot::startSweep/advance; a fast body cannot jump over the
+// cloth between two of its steps). The impulses the cloth gives dynamic bodies change their
+// velocities for the next sub-step (the same one-step lag as every Bullet action, e.g. the
+// character controller and the raycast vehicle); a free body (in no contact with other bodies) also
+// ends the sub-step where its sweep took it, so a body the cloth stopped does not stay inside it.
 //
 // Per sub-step (Impl::prepare: 1-2, Impl::advance: 3, Impl::finish: 4-5):
 //   1. bodies:  the ghost's broadphase overlaps, filtered (no ghosts, soft bodies, triggers),

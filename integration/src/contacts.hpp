@@ -251,10 +251,12 @@ inline void ContactSolver::flushPlane(Cloth& c, std::size_t k, double dt) {
     const std::size_t i = planes_.particle(k);
     const Vec3 j = (c.masses()[i] / dt) * push;
     BodySnapshot& b = bodies[planeBody_[k]];
+    const Vec3& n = planes_.normal[k];
+    const Vec3& p = planePoint_[k];
+    planes_.push[k] = Vec3::Zero();
     if (!b.dynamicBody) {
-        exchange(b, j, planePoint_[k]);
-        frictionImpulse(c, i, b, planePoint_[k], planes_.normal[k], b.friction * j.norm());
-        planes_.push[k] = Vec3::Zero();
+        exchange(b, j, p);
+        frictionImpulse(c, i, b, p, n, b.friction * j.norm());
         return;
     }
     // A dynamic body takes what the plane held only up to what stops its approach to the
@@ -262,8 +264,6 @@ inline void ContactSolver::flushPlane(Cloth& c, std::size_t k, double dt) {
     // more, so the limiter cannot throw a body back (a net holding a ball stops it, and the
     // ball does not take the net's whole pull on a particle it pushed). The particle keeps its
     // position and gets the impulse that was exchanged instead of m push / dt.
-    const Vec3& n = planes_.normal[k];
-    const Vec3& p = planePoint_[k];
     Vec3& vi = c.mutableVelocities()[i];
     const Vec3 without = vi - push / dt;
     const double wi = c.inverseMasses()[i];
@@ -273,7 +273,6 @@ inline void ContactSolver::flushPlane(Cloth& c, std::size_t k, double dt) {
     vi = without + (wi * lambda) * n;
     exchange(b, lambda * n, p);
     frictionImpulse(c, i, b, p, n, b.friction * lambda);
-    planes_.push[k] = Vec3::Zero();
 }
 
 } // namespace drape::bullet::detail

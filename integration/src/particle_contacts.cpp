@@ -44,7 +44,8 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
     const Vec3 xi = x[i];
     // Where the particle started the step, seen from the body: where it is now relative to
     // it (a moving body sweeps past particles as particles sweep past bodies).
-    const Vec3 from = b.pose.toWorld(b.previous.toLocal(stepStart()[i]));
+    const Vec3 from =
+        b.sweeps() ? b.pose.toWorld(b.previous.toLocal(stepStart()[i])) : stepStart()[i];
     const bool sweep = cs.continuous && (xi - from).squaredNorm() > h * h;
 
     SurfaceHit hit;

@@ -26,23 +26,6 @@ void stepWorld(TestWorld& w, int steps = 1) {
         w.world.stepSimulation(btScalar(kStep), 1, btScalar(kStep));
 }
 
-/// Pins the border of an n x n sheet.
-void pinBorder(Cloth& c, Index n) {
-    for (Index k = 0; k < n; ++k) {
-        c.pin(k);
-        c.pin((n - 1) * n + k);
-        c.pin(k * n);
-        c.pin(k * n + n - 1);
-    }
-}
-
-Vec3 clothMomentum(const Cloth& c) {
-    Vec3 p = Vec3::Zero();
-    for (std::size_t i = 0; i < c.particleCount(); ++i)
-        p += c.masses()[i] * c.velocities()[i];
-    return p;
-}
-
 } // namespace
 
 TEST_CASE("contacts with a dynamic body conserve momentum (zero gravity)", "[coupling][momentum]") {

@@ -46,6 +46,18 @@ double maxMove(const Vec3List& a, const Vec3List& b) {
     return m;
 }
 
+/// Three 2 kg boxes of 0.4 m stacked on a floor, settled for 1 s at 60 Hz; bottom to top.
+std::vector<btRigidBody*> settledStack(TestWorld& w) {
+    w.body(w.shape<btStaticPlaneShape>(btVector3(0, 1, 0), 0), 0.0, Vec3::Zero());
+    auto* boxShape = w.shape<btBoxShape>(btVector3(0.2f, 0.2f, 0.2f));
+    std::vector<btRigidBody*> boxes;
+    for (int k = 0; k < 3; ++k)
+        boxes.push_back(w.body(boxShape, 2.0, Vec3(0, 0.2 + 0.4 * k, 0)));
+    for (int frame = 0; frame < 60; ++frame)
+        w.world.stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
+    return boxes;
+}
+
 } // namespace
 
 TEST_CASE("a cloth resting on a box sleeps, and a ball dropped on it wakes it", "[world][sleep]") {
@@ -131,13 +143,7 @@ TEST_CASE("a cloth on a stack of dynamic boxes stays on it, lets it sleep, and w
     // floor, settled for 1 s; then a 1.2 m cloth (31 x 31) dropped centred on them from 5 cm
     // above the top.
     TestWorld w;
-    w.body(w.shape<btStaticPlaneShape>(btVector3(0, 1, 0), 0), 0.0, Vec3::Zero());
-    auto* boxShape = w.shape<btBoxShape>(btVector3(0.2f, 0.2f, 0.2f));
-    std::vector<btRigidBody*> boxes;
-    for (int k = 0; k < 3; ++k)
-        boxes.push_back(w.body(boxShape, 2.0, Vec3(0, 0.2 + 0.4 * k, 0)));
-    for (int frame = 0; frame < 60; ++frame)
-        w.world.stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
+    const std::vector<btRigidBody*> boxes = settledStack(w);
     const Vec3 topStart = eig(boxes[2]->getWorldTransform().getOrigin());
     auto cloth =
         makeCloth(horizontalSheet(31, 31, 0.04, topStart.y() + 0.2 + 0.05), ClothSettings{});
@@ -184,13 +190,7 @@ TEST_CASE("with triangle contacts on, a cloth dropped on a stack of dynamic boxe
     // contacts' Coulomb friction, so the cloth rests on the top box instead of sliding off
     // (the symptom issue 27 measured: on the floor within 1.5 s).
     TestWorld w;
-    w.body(w.shape<btStaticPlaneShape>(btVector3(0, 1, 0), 0), 0.0, Vec3::Zero());
-    auto* boxShape = w.shape<btBoxShape>(btVector3(0.2f, 0.2f, 0.2f));
-    std::vector<btRigidBody*> boxes;
-    for (int k = 0; k < 3; ++k)
-        boxes.push_back(w.body(boxShape, 2.0, Vec3(0, 0.2 + 0.4 * k, 0)));
-    for (int frame = 0; frame < 60; ++frame)
-        w.world.stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
+    const std::vector<btRigidBody*> boxes = settledStack(w);
     const Vec3 topStart = eig(boxes[2]->getWorldTransform().getOrigin());
     auto cloth =
         makeCloth(horizontalSheet(31, 31, 0.04, topStart.y() + 0.2 + 0.05), ClothSettings{});

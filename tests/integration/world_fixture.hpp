@@ -109,4 +109,22 @@ inline std::shared_ptr<Cloth> makeCloth(const TriangleMesh& mesh, const ClothSet
     return std::make_shared<Cloth>(ClothTopology::build(mesh), s);
 }
 
+/// Pins the border of an n x n sheet.
+inline void pinBorder(Cloth& c, Index n) {
+    for (Index k = 0; k < n; ++k) {
+        c.pin(k);
+        c.pin((n - 1) * n + k);
+        c.pin(k * n);
+        c.pin(k * n + n - 1);
+    }
+}
+
+/// The cloth's linear momentum [N s].
+inline Vec3 clothMomentum(const Cloth& c) {
+    Vec3 p = Vec3::Zero();
+    for (std::size_t i = 0; i < c.particleCount(); ++i)
+        p += c.masses()[i] * c.velocities()[i];
+    return p;
+}
+
 } // namespace drape::testing
