@@ -4,7 +4,7 @@
 //   body_snapshot.*      the bodies in double precision, and the impulses they get back
 //   contacts.*           the contact stage (particle_contacts.cpp, triangle_contacts.cpp,
 //                        particle_boxes.*: the cheap tests before a particle's query)
-//   contact_force.*      the contact force term (eq. (7) and Coulomb friction) in f
+//   (the contact force term, eq. (7) and Coulomb friction, is the core's: drape/contacts.hpp)
 //   attachments.*        attached particles as kinematic targets
 //   shape_queries.*, validate.*, pose.hpp, drape/bullet/convert.hpp,
 //   drape/bullet/settings.hpp
@@ -43,7 +43,6 @@
 
 #include "attachments.hpp"
 #include "body_snapshot.hpp"
-#include "contact_force.hpp"
 #include "contacts.hpp"
 #include "proxy.hpp"
 #include "validate.hpp"
@@ -611,9 +610,9 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
 
     m.contacts.limiterSlot = m.cloth->timers().slot("bullet_contacts/limiter");
     m.slotBodies = m.cloth->timers().slot("bullet_bodies");
-    // The force term lives as long as the cloth; it reads the contact list, which is empty
-    // once this handle is removed.
-    m.cloth->addExternalForce("contact_force", detail::ContactForce(m.contacts.records));
+    // The cloth's contact force term reads the records the contact stage makes (removed with
+    // this handle).
+    m.cloth->setContacts(m.contacts.records);
     m.stage = std::make_shared<Impl::Stage>(m.contacts, m.cloth->particleCount());
     m.cloth->addStage(m.stage);
 
@@ -653,6 +652,7 @@ void BulletCloth::remove() {
                       entries.end());
     }
     m.cloth->removeStage(m.stage.get());
+    m.cloth->setContacts(nullptr);
     m.contacts.records->contacts.clear();
     m.attachments.clear(*m.cloth);
     m.contacts.bodies.clear();

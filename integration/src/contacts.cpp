@@ -13,7 +13,7 @@
 namespace drape::bullet::detail {
 
 ContactSolver::ContactSolver(const BulletClothSettings& settings, double band)
-    : records(std::make_shared<ContactState>()), contact_(settings.contact), band_(band),
+    : records(std::make_shared<ContactSet>()), contact_(settings.contact), band_(band),
       boxes_(settings.contact.thickness, band, settings.contact.continuous) {
     records->thickness = settings.contact.thickness;
     records->band = band;

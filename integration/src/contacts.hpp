@@ -13,7 +13,7 @@
 //              static and kinematic ones, with a Coulomb impulse of at most mu lambda against
 //              the tangential slip.
 //   d < h (1 + 1e-6) or, with eq. (7) on, d < h + w: a contact record, which the contact
-//              force term (ContactForce, contact_force.hpp) turns into a normal force N and a
+//              force term (drape/contacts.hpp, addContactForces) turns into a normal force N and a
 //              friction force T in f(t + dt): N holds the particle (it cancels what presses it
 //              in and stops its normal motion within the step, and never more: nothing is
 //              launched, nothing bounces), bounded by eq. (7) in the band; T stops the slip
@@ -28,7 +28,7 @@
 // many particles hitting a light body do not each see it at rest. Against them the force term
 // has no terms in the velocity (they would feed back into a light body): N is eq. (7) plus the
 // inward part of f, T cancels the tangential force up to mu N, and the rest of the cone is an
-// impulse in the next stage (see ContactForce).
+// impulse in the next stage (see addContactForces).
 //
 // Triangles (contact.triangles, off by default): each cloth triangle near a convex or compound
 // body is kept h away from it too (collideTriangle: GJK/EPA, the depth and the approach
@@ -49,12 +49,12 @@
 #pragma once
 
 #include "body_snapshot.hpp"
-#include "contact_force.hpp"
 #include "particle_boxes.hpp"
 #include "shape_queries.hpp"
 
 #include "drape/bullet/settings.hpp"
 #include "drape/cloth.hpp"
+#include "drape/contacts.hpp"
 #include "drape/strain_limit.hpp"
 
 #include <algorithm>
@@ -71,21 +71,12 @@ constexpr int kRelimitPasses = 8;
 /// Extra sweeps over the triangles in contact after a triangle pass.
 constexpr int kTriangleSweeps = 4;
 
-/// Coulomb friction of a normal impulse: the tangential impulse j, of at most `budget` [N s],
-/// against the slip of a cloth point of inverse mass w whose velocity relative to body b at p
-/// is `rel`, tangent to `normal`: the impulse that stops the slip if the budget allows it.
-/// Returns false when there is nothing to give (no budget, no slip). Particle and triangle
-/// contacts alike.
+/// Coulomb friction of a normal impulse against body b at p (drape::coulombImpulse), particle
+/// and triangle contacts alike.
 inline bool coulombImpulse(const Vec3& rel, const Vec3& normal, double w, const BodySnapshot& b,
                            const Vec3& p, double budget, Vec3& j) {
-    if (!(budget > 0.0)) return false;
-    const Vec3 vt = rel - rel.dot(normal) * normal;
-    const double vtLen = vt.norm();
-    if (vtLen <= 0.0) return false;
-    const Vec3 tdir = vt / vtLen;
-    const double jt = std::min(vtLen / (w + b.inverseMassAlong(p, tdir)), budget);
-    j = -jt * tdir;
-    return true;
+    return drape::coulombImpulse(
+        rel, normal, w, [&](const Vec3& d) { return b.inverseMassAlong(p, d); }, budget, j);
 }
 
 class ContactSolver {
@@ -112,8 +103,8 @@ class ContactSolver {
     /// The work counts of the current Bullet sub-step (the handle's lastStats: the stage does
     /// most of the counting, the handle and the attachments add theirs).
     ContactStats stats;
-    /// The records the contact force term reads (shared with it).
-    std::shared_ptr<ContactState> records;
+    /// The contact records: the cloth's contact force term reads them (Cloth::setContacts).
+    std::shared_ptr<ContactSet> records;
     /// Inside a Bullet sub-step: the bodies are a fresh snapshot. Outside (the cloth stepped
     /// on its own) the stage collides with nothing.
     bool inStep = false;
@@ -196,7 +187,7 @@ class ContactSolver {
 
     /// State carried to the next step (in the cloth's snapshots: saveState): per particle, the
     /// friction its contact forces with dynamic bodies had left in the last step, mu N - |T|
-    /// [N] (see ContactForce); the next stage gives it as an impulse.
+    /// [N] (see addContactForces); the next stage gives it as an impulse.
     std::vector<double> frictionLeft_;
     // Scratch of the stage, reused every step.
     std::vector<unsigned char> touching_; ///< particle touched a body this step

@@ -66,10 +66,10 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
         b.inverseMassAlong(hit.point, hit.normal) * clothMass_ <= 1.0)
         keepPlane(c, bi, i, hit.normal, hit.normal.dot(hit.point) + h, hit.point, false, dt);
 
-    // The contact record the force term reads (ContactForce): for every particle touching
-    // the body (below the thickness, or resting at it), and with eq. (7) on for every particle
-    // in the band above it (also for particles below the thickness: they end at its bottom
-    // after the projection).
+    // The contact record the force term reads (addContactForces, drape/contacts.hpp): for every
+    // particle touching the body (below the thickness, or resting at it), and with eq. (7) on for
+    // every particle in the band above it (also for particles below the thickness: they end at its
+    // bottom after the projection).
     const bool touches = hit.distance < h * (1.0 + kTouching);
     if (touches && b.dynamicBody)
         b.contactSpeed = std::max(b.contactSpeed, (v[i] - b.velocityAt(hit.point)).norm());
@@ -99,7 +99,7 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
     if (vn < 0.0) {
         // Inelastic: the approach stops, and the normal impulse lambda allows a tangential
         // (Coulomb) impulse of mu lambda. (A resting load is carried by the contact force of
-        // ContactForce, with its own friction: each normal force counts once.)
+        // addContactForces, with its own friction: each normal force counts once.)
         const double lambda = -vn / (wi + b.inverseMassAlong(hit.point, hit.normal));
         const Vec3 j = lambda * hit.normal;
         v[i] += wi * j;

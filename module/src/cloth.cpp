@@ -893,6 +893,11 @@ void Cloth::addExternalForce(std::string name, ForceModel::ExternalForce force) 
     forcesValid_ = false;
     edited();
 }
+void Cloth::setContacts(std::shared_ptr<ContactSet> contacts) {
+    forceModel_->setContacts(std::move(contacts));
+    forcesValid_ = false;
+    edited();
+}
 
 void Cloth::addStage(std::shared_ptr<ClothStage> stage) {
     if (!stage) throw Error(ErrorCode::InvalidArgument, "addStage: stage is null");

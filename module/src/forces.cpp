@@ -1,6 +1,8 @@
 // The force terms of eq. (5) and ForceModel.
 #include "drape/forces.hpp"
 
+#include "drape/contacts.hpp"
+
 #include "drape/error.hpp"
 
 #include "parallel.hpp"
@@ -209,6 +211,7 @@ void ForceModel::rebuildPipeline() {
     for (std::size_t e = 0; e < externals_.size(); ++e) {
         add(Term::External, externals_[e].first, e);
     }
+    if (contacts_) add(Term::Contacts, "contact_force");
 }
 
 std::vector<std::string> ForceModel::activeTerms() const {
@@ -331,6 +334,9 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
             break;
         case Term::External:
             externals_[e.external].second(x, v, f);
+            break;
+        case Term::Contacts:
+            addContactForces(*contacts_, x, v, f);
             break;
         }
     }
@@ -830,6 +836,11 @@ void ForceModel::setGravity(const Vec3& g) {
 void ForceModel::addExternalForce(std::string name, ExternalForce force) {
     if (!force) throw Error(ErrorCode::InvalidArgument, "external force '" + name + "' is empty");
     externals_.emplace_back(std::move(name), std::move(force));
+    rebuildPipeline();
+}
+
+void ForceModel::setContacts(std::shared_ptr<ContactSet> contacts) {
+    contacts_ = std::move(contacts);
     rebuildPipeline();
 }
 

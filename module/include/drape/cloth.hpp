@@ -23,6 +23,7 @@
 // saved one did.
 #pragma once
 
+#include "drape/contacts.hpp"
 #include "drape/forces.hpp"
 #include "drape/integrators.hpp"
 #include "drape/settings.hpp"
@@ -144,6 +145,11 @@ class Cloth {
     void setRelativeDamping(double rate);
     /// Adds a force term from outside the core (for example contact penalties).
     void addExternalForce(std::string name, ForceModel::ExternalForce force);
+    /// Contacts as data (drape/contacts.hpp): a collision stage fills `contacts` during the
+    /// step, the cloth's contact force term ("contact_force") reads it and writes back the
+    /// force each record got, which the caller passes on to its bodies after the step. Null
+    /// removes the term.
+    void setContacts(std::shared_ptr<ContactSet> contacts);
 
     // --- stages ---------------------------------------------------------------------------
     void addStage(std::shared_ptr<ClothStage> stage);

@@ -11,9 +11,12 @@
 #include <Eigen/SparseCore>
 
 #include <functional>
+#include <memory>
 #include <vector>
 
 namespace drape {
+
+struct ContactSet; // drape/contacts.hpp
 
 namespace detail {
 class ThreadPool;
@@ -112,6 +115,9 @@ class ForceModel {
     void setWind(const Vec3& wind);
     void setGravity(const Vec3& g);
     void addExternalForce(std::string name, ExternalForce force);
+    /// The contact force term ("contact_force", after every other term) reads `contacts` and
+    /// writes each record's force back (drape/contacts.hpp); null removes the term.
+    void setContacts(std::shared_ptr<ContactSet> contacts);
 
     const std::vector<double>& stiffness() const { return stiffness_; }
     const std::vector<double>& mass() const { return mass_; }
@@ -122,7 +128,7 @@ class ForceModel {
     std::size_t passiveTermCount() const;
 
   private:
-    enum class Term { Springs, SpringDamping, Gravity, Damping, Aero, User, External };
+    enum class Term { Springs, SpringDamping, Gravity, Damping, Aero, User, External, Contacts };
     struct Entry {
         Term term;
         std::size_t timerSlot;
@@ -139,6 +145,7 @@ class ForceModel {
     std::vector<Index> userIndices_;
     Vec3List userForces_;
     std::vector<std::pair<std::string, ExternalForce>> externals_;
+    std::shared_ptr<ContactSet> contacts_;
     std::vector<Entry> pipeline_;
     detail::ThreadPool* pool_ = nullptr;
     /// The stiffness of each spring of ClothTopology::packedLooseSprings(), in its order (empty
