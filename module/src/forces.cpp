@@ -190,7 +190,7 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
         maxFamilyOffset_ = std::max<std::size_t>(maxFamilyOffset_, fam.offset);
     blockedFamilies_ = !families.empty() && families.size() <= kMaxBlockedFamilies &&
                        maxFamilyOffset_ <= kMaxBlockedOffset;
-    if (settings_.springDamping > 0.0) (void)topology_->dampingSweepOrder(); // baked once, shared
+    if (settings_.springDamping > 0.0) dampingOrder_ = dampingSweepOrder(*topology_);
     rebuildPipeline();
 }
 
@@ -683,12 +683,12 @@ void ForceModel::addFamilySpringForcesWhole(const Vec3List& x, Vec3List& f) {
 //
 // Why not evaluate the damping at a predicted end velocity v* = v(t + dt/2) + dt/2 a instead
 // (also second order, tried before): it needs a second evaluation of the velocity terms after
-// the contact stage's external forces, which read the summed force (a contact that cancels
+// the contact force term, which reads the summed force (a contact that cancels
 // what presses a resting particle into a body or along it then misses the damping), it damps
 // stiff modes only for dt lambda < 2, and it changed how Experiment II settled on the desk.
 //
 // Order of a sweep over the packed springs (by colour within each block,
-// ClothTopology::dampingSweepOrder): the inner blocks touch disjoint particles, so running them in
+// dampingSweepOrder): the inner blocks touch disjoint particles, so running them in
 // parallel is the same as running them one after the other; forward = the blocks (each front to
 // back), then the crossing springs; backward = the exact reverse. The result is the same for any
 // thread count.
@@ -702,7 +702,7 @@ void ForceModel::applySpringDampingFlow(const Vec3List& x, Vec3List& v,
         if (e.term == Term::SpringDamping) slot = e.timerSlot;
     }
     ScopedPhase timer(timers_, slot);
-    const PackedSprings& order = topology_->dampingSweepOrder();
+    const PackedSprings& order = dampingOrder_;
     const std::size_t nb = order.starts.size() - 2; // inner blocks; the last range crosses
     auto range = [&](std::size_t k) {
         const std::size_t b = order.starts[k], e = order.starts[k + 1];

@@ -80,14 +80,15 @@ std::size_t ClothTopology::springBlockCount() const {
 // greedy edge colour: a spring gets the lowest colour not yet taken at either of its ends, and
 // the springs of one colour, which share no particle, run back to back. Any fixed order gives
 // a valid sweep (the backward sweep is its exact reverse); this one only runs faster.
-const PackedSprings& ClothTopology::dampingSweepOrder() const {
-    std::call_once(dampingOrderOnce_, [this] {
-        const PackedSprings all = pack(*this, makeSpringBlocks(*this, springBlockCount()));
-        PackedSprings& out = dampingOrder_;
+PackedSprings dampingSweepOrder(const ClothTopology& topology) {
+    PackedSprings out;
+    {
+        const PackedSprings all =
+            pack(topology, makeSpringBlocks(topology, topology.springBlockCount()));
         out.starts = all.starts;
         out.springs.reserve(all.springs.size());
         out.index.reserve(all.springs.size());
-        std::vector<std::uint64_t> taken(particleCount(), 0); // colours used at each particle
+        std::vector<std::uint64_t> taken(topology.particleCount(), 0); // colours at each particle
         std::vector<unsigned> colour;
         std::vector<std::size_t> order;
         for (std::size_t r = 0; r + 1 < all.starts.size(); ++r) {
@@ -115,8 +116,8 @@ const PackedSprings& ClothTopology::dampingSweepOrder() const {
                 out.index.push_back(all.index[b + k]);
             }
         }
-    });
-    return dampingOrder_;
+    }
+    return out;
 }
 
 std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& input,

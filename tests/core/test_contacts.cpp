@@ -26,8 +26,7 @@ struct Incline {
     Incline(double th, double m) : theta(th), mu(m) {
         const Vec3 across(0.0, 0.0, 1.0);
         TriangleMesh mesh;
-        mesh.vertices = {h * n(), h * n() + 0.3 * across,
-                         h * n() + 0.15 * across - 0.26 * down()};
+        mesh.vertices = {h * n(), h * n() + 0.3 * across, h * n() + 0.15 * across - 0.26 * down()};
         mesh.triangles = {Triangle{0, 1, 2}};
         ClothSettings s;
         s.gravity = g;

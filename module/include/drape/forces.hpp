@@ -151,6 +151,8 @@ class ForceModel {
     /// The stiffness of each spring of ClothTopology::packedLooseSprings(), in its order (empty
     /// when every spring has the same); the layout itself is the topology's, baked once.
     std::vector<double> looseStiffness_;
+    /// The springs in the damping sweep's order (dampingSweepOrder), when springDamping > 0.
+    PackedSprings dampingOrder_;
     /// Per family slot: the spring's stiffness (0 for a hole, whose force is then 0).
     std::vector<double> slotStiffness_;
     /// The start of the force sum: gravity, and particle damping at velocities v (0 when the

@@ -5,7 +5,6 @@
 #include "drape/mesh.hpp"
 
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <vector>
 
@@ -133,10 +132,6 @@ class ClothTopology {
     /// The loose springs (looseSprings()) packed by block: the force pass's layout for the
     /// springs in no family, baked once.
     const PackedSprings& packedLooseSprings() const { return packedLoose_; }
-    /// Every spring packed by block, each range ordered for the spring-damping sweep (greedy
-    /// edge colours: springs that share no particle run back to back). Baked the first time
-    /// a cloth with spring damping asks (thread-safe), then shared.
-    const PackedSprings& dampingSweepOrder() const;
 
   private:
     ClothTopology() = default;
@@ -160,11 +155,14 @@ class ClothTopology {
     std::vector<Index> looseSprings_;
     std::vector<std::size_t> springSlot_;
     PackedSprings packedLoose_;
-    mutable PackedSprings dampingOrder_;
-    mutable std::once_flag dampingOrderOnce_;
     void bakeFamilies();
 };
 
 using TopologyPtr = std::shared_ptr<const ClothTopology>;
+
+/// Every spring of `topology` packed by block, each range ordered for the spring-damping sweep
+/// (greedy edge colours: springs that share no particle run back to back). A cloth with spring
+/// damping builds it once, at construction (ForceModel); the topology itself never changes.
+PackedSprings dampingSweepOrder(const ClothTopology& topology);
 
 } // namespace drape
