@@ -130,7 +130,8 @@ bool snapshotBody(const btCollisionObject* obj, double reach, double frictionSca
     return true;
 }
 
-bool BodySnapshot::applyAccumulatedImpulses() {
+bool BodySnapshot::applyAccumulatedImpulses(double clothSpeed) {
+    refused = false;
     if (!dynamicBody) return false;
     if (linearImpulse.squaredNorm() == 0.0 && angularImpulse.squaredNorm() == 0.0) return false;
     btRigidBody* rb = dynamicBody;
@@ -148,6 +149,17 @@ bool BodySnapshot::applyAccumulatedImpulses() {
                     std::string("the cloth's impulse on a dynamic body (") +
                         rb->getCollisionShape()->getName() +
                         ") is not finite; the body keeps its state from before the step");
+    }
+    // No cloth throws a body far faster than anything in the contact moved (see the header).
+    btVector3 centre;
+    btScalar radius = 0;
+    rb->getCollisionShape()->getBoundingSphere(centre, radius);
+    const double r = double(radius) + double(centre.length());
+    const Vec3 v0 = toVec(rb->getLinearVelocity()), w0 = toVec(rb->getAngularVelocity());
+    const double before = std::max({v0.norm() + w0.norm() * r, clothSpeed, 1.0});
+    if (newV.norm() + newW.norm() * r > kRefusedSpeedFactor * before) {
+        refused = true;
+        return false;
     }
     const bool pushedActive = rb->isActive();
     // A sleeping body is not woken by nudges below its sleeping threshold.

@@ -14,6 +14,8 @@ class btDispatcher;
 
 namespace drape::bullet::detail {
 
+constexpr double kRefusedSpeedFactor = 10.0;
+
 /// A rigid body as the cloth sees it during one Bullet sub-step.
 struct BodySnapshot {
     const btCollisionObject* object = nullptr;
@@ -87,8 +89,15 @@ struct BodySnapshot {
     /// an impulse that changes its velocity by its linear sleeping threshold, or by a cloth
     /// that moves against it at that speed (contactSpeed); a cloth settling on it does not. Returns
     /// whether the cloth pushed an active body (the cloth then must not sleep: a body resting on it
-    /// would lose its support).
-    bool applyAccumulatedImpulses();
+    /// would lose its support). Refuses them (sets `refused`, gives nothing) when they would
+    /// leave a point of the body moving more than kRefusedSpeedFactor times faster than
+    /// anything in the contact: the body's fastest point before, `clothSpeed` (the cloth's
+    /// fastest particle before the sub-step [m/s]) and 1 m/s. A cloth pushes a body at most
+    /// as fast as it moves itself, or, caught and thrown back by the strain limiter, as fast
+    /// as the body came; what goes far beyond is the limiter's walk fighting a body wedged
+    /// between particles (ContactStats::refusedBodyImpulses).
+    bool applyAccumulatedImpulses(double clothSpeed);
+    bool refused = false;
 
   private:
     bool sweeping_ = false; ///< startSweep found it moving

@@ -91,8 +91,17 @@ void accumulate(ContactStats& total, const ContactStats& s) {
     total.selfPairTests += s.selfPairTests;
     total.impulseOnBodies += s.impulseOnBodies;
     total.impulseOnCloth += s.impulseOnCloth;
+    total.refusedBodyImpulses += s.refusedBodyImpulses;
     total.steps += s.steps;
     total.proxyRefreshes += s.proxyRefreshes;
+}
+
+/// The speed of the cloth's fastest free particle [m/s] (> 0, so that it is computed once).
+double fastestParticle(const Cloth& c) {
+    double v2 = 0.0;
+    for (std::size_t i = 0; i < c.particleCount(); ++i)
+        if (c.inverseMasses()[i] != 0.0) v2 = std::max(v2, c.velocities()[i].squaredNorm());
+    return std::max(std::sqrt(v2), 1e-300);
 }
 
 } // namespace
@@ -130,6 +139,9 @@ struct BulletCloth::Impl {
     detail::ContactSolver contacts;      ///< the contact stage's state, and the bodies
     ContactStats& last = contacts.stats; ///< this Bullet sub-step's counts
     ContactStats total;
+    /// The cloth's fastest free particle at the start of the Bullet sub-step [m/s] (computed
+    /// when a dynamic body is among the candidates; see ContactStats::refusedBodyImpulses).
+    double clothSpeed = 0.0;
     detail::Attachments attachments;
     detail::BodyPoses poses; ///< the candidate bodies at the previous sub-step (for waking)
     std::vector<const btCollisionObject*> candidates;
@@ -378,8 +390,11 @@ void BulletCloth::Impl::prepare(double dt) {
     last.substeps = stepSubsteps;
     stepH = dt / stepSubsteps;
     slept = true;
-    for (auto& b : contacts.bodies)
+    clothSpeed = 0.0;
+    for (auto& b : contacts.bodies) {
         b.startSweep(dt);
+        if (b.dynamicBody && clothSpeed == 0.0) clothSpeed = fastestParticle(c);
+    }
     bodySeconds = std::chrono::duration<double>(Clock::now() - start).count();
 }
 
@@ -544,8 +559,13 @@ void BulletCloth::Impl::pushBodies(double h) {
 
 void BulletCloth::Impl::applyImpulses() {
     for (auto& b : contacts.bodies) {
+        if (b.dynamicBody == nullptr) continue;
         // It carries or pushes an active body: no sleep (see the header).
-        if (b.applyAccumulatedImpulses()) cloth->wake();
+        if (b.applyAccumulatedImpulses(clothSpeed)) cloth->wake();
+        if (b.refused) {
+            ++last.refusedBodyImpulses;
+            last.impulseOnBodies -= b.linearImpulse;
+        }
     }
     for (const auto& o : outside) {
         o.body->applyImpulse(toBt(o.j), toBt(o.at - toVec(o.body->getCenterOfMassPosition())));

@@ -12,9 +12,9 @@
 // blocked_range with the same grain and a static_partitioner (fixed pieces: determinism) in
 // a task_arena of the same thread count; and tbb::parallel_for with its default (auto)
 // partitioner and a grain of a quarter of the pool's, work stealing deciding the pieces (allowed
-// here: the core's loops give the same bits for any split, see parallel.hpp). Also the fork-join cost alone: an empty body over a
-// range just long enough to engage every thread. Figures: median of the repetitions, each the
-// mean of many calls, the two alternating.
+// here: the core's loops give the same bits for any split, see parallel.hpp). Also the fork-join
+// cost alone: an empty body over a range just long enough to engage every thread. Figures: median
+// of the repetitions, each the mean of many calls, the two alternating.
 #include "parallel.hpp"
 
 #include <CLI/CLI.hpp>
@@ -69,7 +69,8 @@ template <class Call> double timePerCall(Call&& call) {
 int main(int argc, char** argv) {
     int threads = 2, repetitions = 11;
     CLI::App app{"drape-bench-pool: the core's thread pool against oneTBB on the same loops"};
-    app.add_option("--threads", threads, "threads (the caller's included)")->check(CLI::Range(2, 64));
+    app.add_option("--threads", threads, "threads (the caller's included)")
+        ->check(CLI::Range(2, 64));
     app.add_option("--repetitions", repetitions, "alternating repetitions (median)")
         ->check(CLI::Range(1, 99));
     CLI11_PARSE(app, argc, argv);
@@ -79,8 +80,9 @@ int main(int argc, char** argv) {
     const std::size_t grain = 32768; // the pool's default (parallel.hpp)
     std::printf("threads %d, grain %zu, %d repetitions (median), us per call\n\n", threads, grain,
                 repetitions);
-    std::printf("| loop | particles | pool | oneTBB, static | pool / static | oneTBB, auto | pool / "
-                "auto |\n|---|---:|---:|---:|---:|---:|---:|\n");
+    std::printf(
+        "| loop | particles | pool | oneTBB, static | pool / static | oneTBB, auto | pool / "
+        "auto |\n|---|---:|---:|---:|---:|---:|---:|\n");
 
     auto row = [&](const char* name, std::size_t n, auto&& body) {
         // The same pieces for both: the pool's (kPiecesPerThread a thread, at least `grain`
@@ -123,11 +125,10 @@ int main(int argc, char** argv) {
 
     const std::size_t fork = std::size_t(threads) * grain;
     row("fork-join, empty body", fork, [](std::size_t, std::size_t) {});
-    for (std::size_t n : {std::size_t(1225), std::size_t(10000), std::size_t(100000),
-                          std::size_t(1000000)}) {
+    for (std::size_t n :
+         {std::size_t(1225), std::size_t(10000), std::size_t(100000), std::size_t(1000000)}) {
         State s(n);
-        row("kick and drift", n,
-            [&s](std::size_t b, std::size_t e) { s.kickDrift(b, e, 1e-3); });
+        row("kick and drift", n, [&s](std::size_t b, std::size_t e) { s.kickDrift(b, e, 1e-3); });
     }
     return 0;
 }
