@@ -30,9 +30,10 @@
 //               dynamic bodies in contact with others in Bullet marked supported);
 //   2. attach:  attached particles get the body's new attachment point as a kinematic target;
 //   3. step:    cloth.step(dt / n), n times (settings.substeps, or automatic: the fewest within
-//               the cloth's stability limit); our ContactStage runs inside it
-//               after strain limiting and the cloth's self-collision (particle-body
-//               contacts), and the eq. (7) penalty is one of the cloth's force terms;
+//               the cloth's stability limit); our contact stage runs inside it, before
+//               the strain limiter (contacts found, their planes given to the limiter's
+//               walk) and after it (what the walk moved projected again, the planes' pushes
+//               to the bodies), and the eq. (7) penalty is one of the cloth's force terms;
 //   4. impulses: the impulses accumulated on dynamic bodies are applied;
 //   5. proxy:   the ghost's AABB becomes the cloth's bounding box plus margin.
 // A sleeping cloth (Cloth::isAsleep) is first woken if a candidate body is new, gone or
@@ -352,7 +353,8 @@ class BulletCloth::Impl::Stage final : public ClothStage {
     Stage(detail::ContactSolver& contacts, std::size_t particles)
         : contacts_(contacts), particles_(particles) {}
     std::string name() const override { return "bullet_contacts"; }
-    void run(Cloth& c, double dt) override { contacts_.run(c, dt); }
+    void beforeLimit(Cloth& c, double dt) override { contacts_.detect(c, dt); }
+    void run(Cloth& c, double dt) override { contacts_.finish(c, dt); }
     std::vector<unsigned char> saveState() const override { return contacts_.saveState(); }
     void loadState(const std::vector<unsigned char>& bytes) override {
         contacts_.loadState(particles_, bytes);

@@ -19,12 +19,13 @@ ContactSolver::ContactSolver(const BulletClothSettings& settings, double band)
     records->band = band;
 }
 
-void ContactSolver::run(Cloth& c, double dt) {
+void ContactSolver::detect(Cloth& c, double dt) {
     const std::size_t n = c.particleCount();
-    planes_.reset(n);
+    records->planes.reset(n);
     if (contact_.triangles) trianglePlane_.assign(n, 0);
     planeBody_.clear();
     planePoint_.clear();
+    anyTouching_ = false;
     if (!inStep) return; // the cloth was stepped outside the world: no bodies to collide with
     from_ = &c.stepStartPositions();
     records->contacts.clear();
@@ -41,37 +42,71 @@ void ContactSolver::run(Cloth& c, double dt) {
     collideParticles(c, dt, counters);
     if (contact_.triangles) collideTriangles(c, dt, counters);
     if (contact_.boxEdges) collideEdges(c);
-    bool anyTouching = false;
     for (unsigned char t : touching_)
-        anyTouching = anyTouching || t != 0;
+        anyTouching_ = anyTouching_ || t != 0;
+    stats.narrowphaseQueries += counters.queries;
+    stats.triangleQueries += counters.triangleQueries;
+}
 
-    // The projection may have overstretched springs the limiter had just fixed (a cloth
-    // pressed onto a sphere by its hanging sides: projecting along diverging normals lengthens
-    // the springs between touching particles). The particles it moved go into the limiter's
-    // worklist; what the limiter then moves is projected again, and so on. Holding the
-    // touching particles fixed instead does not work: springs between two of them could
-    // never be shortened.
+void ContactSolver::finish(Cloth& c, double dt) {
+    if (!inStep || bodies.empty()) return;
+    QueryCounters counters;
     const auto& lim = c.settings().limiter;
-    for (int pass = 0; anyTouching && lim.kind != LimiterKind::None && pass < kRelimitPasses;
-         ++pass) {
-        StrainLimitStats st;
-        {
-            ScopedPhase timeLimiter(c.timers(), limiterSlot);
-            st = c.relimit(projected_, dt, &planes_);
-        }
-        // Nothing left to correct; or the walk used its whole budget (maxRounds, counted as a
-        // cap hit): another pass would spend it again (a cloth projected far out of a body
-        // could make 8 passes of 1000 sweeps a step).
-        if (st.corrections == 0 || st.capHit) break;
-        collideMoved(c, dt, counters);
+    if (anyTouching_ && lim.kind == LimiterKind::StressOrdered) {
+        // The limiter's walk kept every particle above its contact plane. What it moved is
+        // projected again (a curved body, a box's other face, a body it had no plane of, a
+        // dynamic body lighter than the cloth, which gets none); only where that moves
+        // particles does the walk run again from them, and so on (at most kRelimitPasses).
+        collideMoved(c, dt, c.limiter().movedIndex(), counters);
         if (contact_.triangles) collideTriangles(c, dt, counters);
-        // (not re-run after the limiter: each pass would cost a whole first pass again)
+        for (int pass = 0; pass < kRelimitPasses && !projected_.empty(); ++pass) {
+            StrainLimitStats st;
+            {
+                ScopedPhase timeLimiter(c.timers(), limiterSlot);
+                st = c.relimit(projected_, dt, &records->planes);
+            }
+            // Nothing left to correct; or the walk used its whole budget (maxRounds, counted
+            // as a cap hit): another pass would spend it again.
+            if (st.corrections == 0 || st.capHit) break;
+            collideMoved(c, dt, c.relimitMoved(), counters);
+            if (contact_.triangles) collideTriangles(c, dt, counters);
+        }
+    } else if (anyTouching_ && lim.kind != LimiterKind::None) {
+        // The comparison limiters keep no planes and list no moves: every particle is
+        // projected again after them; what that overstretched, they correct again (whole), and
+        // what they move is projected again.
+        everyParticle_.clear();
+        for (std::size_t i = 0; i < c.particleCount(); ++i)
+            if (c.inverseMasses()[i] != 0.0) everyParticle_.push_back(static_cast<Index>(i));
+        collideMoved(c, dt, everyParticle_, counters);
+        for (int pass = 0; pass < kRelimitPasses && !projected_.empty(); ++pass) {
+            StrainLimitStats st;
+            {
+                ScopedPhase timeLimiter(c.timers(), limiterSlot);
+                st = c.relimit(projected_, dt);
+            }
+            if (st.corrections == 0 || st.capHit) break;
+            collideMoved(c, dt, c.relimitMoved(), counters);
+            if (contact_.triangles) collideTriangles(c, dt, counters);
+        }
     }
 
     // What the contact planes held in the limiter's walk: the particle got m push / dt (its
     // velocity follows its position), the body gets the opposite.
-    for (std::size_t k = 0; k < planes_.size(); ++k)
+    for (std::size_t k = 0; k < records->planes.size(); ++k)
         flushPlane(c, k, dt);
+
+    // How fast the particles touching a dynamic body move against it, once the step's
+    // constraints are met (BodySnapshot::contactSpeed: a sleeping body wakes at its threshold).
+    const double h = contact_.thickness;
+    for (const ContactRecord& r : records->contacts) {
+        BodySnapshot& b = bodies[r.body];
+        if (!b.dynamicBody) continue;
+        const Vec3& xi = c.positions()[r.particle];
+        if ((xi - r.point).dot(r.normal) - h > kTouching * h) continue;
+        b.contactSpeed =
+            std::max(b.contactSpeed, (c.velocities()[r.particle] - b.velocityAt(r.point)).norm());
+    }
 
     stats.narrowphaseQueries += counters.queries;
     stats.triangleQueries += counters.triangleQueries;
@@ -140,9 +175,10 @@ void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counter
     }
 }
 
-void ContactSolver::collideMoved(Cloth& c, double dt, QueryCounters& counters) {
+void ContactSolver::collideMoved(Cloth& c, double dt, const std::vector<Index>& moved,
+                                 QueryCounters& counters) {
     const Vec3List& x = c.positions();
-    moved_.assign(c.relimitMoved().begin(), c.relimitMoved().end());
+    moved_.assign(moved.begin(), moved.end());
     std::sort(moved_.begin(), moved_.end());
     projected_.clear();
     // Re-project what the limiter moved, in index order per body as before; the moved

@@ -1,5 +1,6 @@
 // contacts.hpp (private to drape::bullet): the contact stage, which runs inside every cloth
-// step after strain limiting and the cloth's own self-collision: particle-body contacts
+// step before the strain limiter (detect) and after it and the cloth's own self-collision
+// (finish): particle-body contacts
 // (contacts.cpp: the pass over bodies and particles, culled by particle_boxes.hpp, the re-limiting;
 // particle_contacts.cpp: one particle against one body, with its friction), triangle-body
 // contacts (triangle_contacts.cpp), and the reaction of the contact force term on the bodies.
@@ -40,12 +41,13 @@
 // seen from where the body is now) is also ray-tested along that path
 // (btCollisionWorld::rayTestSingle), so neither passes through the other.
 // A dynamic body takes a plane's push only up to what stops its approach (flushPlane).
-// After the projection, the particles it moved go into the limiter's worklist
-// (Cloth::relimit), and every particle within reach of a static or kinematic body keeps that
-// contact's tangent plane in the walk (ContactPlanes: the limiter slides it along the plane,
-// so the strain bound and the contact hold together; the plane's push reaches the body as an
-// impulse). What the limiter then moves is projected again (curved bodies, other bodies,
-// dynamic bodies, which get no plane), until nothing moves or kRelimitPasses rounds have run.
+// Every particle within reach of a static or kinematic body keeps that contact's tangent plane
+// in the limiter's one walk of the step, which runs after detect (ContactSet::planes: the
+// limiter slides it along the plane, so the strain bound and the contact hold together; the
+// plane's push reaches the body as an impulse, flushPlane). What the walk moved is projected
+// again in finish (curved bodies, other bodies, dynamic bodies, which get no plane); where
+// that moves particles, the walk runs again from them (Cloth::relimit), until nothing moves or
+// kRelimitPasses rounds have run.
 #pragma once
 
 #include "body_snapshot.hpp"
@@ -66,7 +68,7 @@
 
 namespace drape::bullet::detail {
 
-/// Limiter and re-projection passes after the contact projection.
+/// Follow-up walks and re-projections after the limiter's walk, at most.
 constexpr int kRelimitPasses = 8;
 /// Extra sweeps over the triangles in contact after a triangle pass.
 constexpr int kTriangleSweeps = 4;
@@ -84,9 +86,13 @@ class ContactSolver {
     /// `band` is eq. (7)'s band width [m].
     ContactSolver(const BulletClothSettings& settings, double band);
 
-    /// The contact stage (the cloth's ClothStage runs it): particle-body contacts,
-    /// re-limiting, friction.
-    void run(Cloth& c, double dt);
+    /// The contact stage, before the cloth's strain limiter (ClothStage::beforeLimit):
+    /// particle-body contacts (projection, velocity response, friction, contact records) and
+    /// each contact's tangent plane in the ContactSet, which the limiter's walk keeps.
+    void detect(Cloth& c, double dt);
+    /// After the limiter (ClothStage::run): what its walk moved is projected again (curved
+    /// bodies, bodies without a plane), and what the planes pushed goes to the bodies.
+    void finish(Cloth& c, double dt);
     /// The contact force (normal and friction) the particles got at the end of a cloth step
     /// of h [s] acts for h: dynamic bodies get the opposite, and what the friction cone left
     /// becomes next step's frictionLeft.
@@ -128,8 +134,9 @@ class ContactSolver {
     // --- the pass (contacts.cpp) ---------------------------------------------------------
     /// Every particle against every body whose box its block's box meets.
     void collideParticles(Cloth& c, double dt, QueryCounters& counters);
-    /// The particles the limiter moved, against every body again.
-    void collideMoved(Cloth& c, double dt, QueryCounters& counters);
+    /// The particles the limiter moved (`moved`), against every body again.
+    void collideMoved(Cloth& c, double dt, const std::vector<Index>& moved,
+                      QueryCounters& counters);
 
     // --- one particle (particle_contacts.cpp) ----------------------------------------------
     /// Contact of particle i with body bi (projection, velocity response, friction, and its
@@ -191,11 +198,11 @@ class ContactSolver {
     std::vector<double> frictionLeft_;
     // Scratch of the stage, reused every step.
     std::vector<unsigned char> touching_; ///< particle touched a body this step
+    bool anyTouching_ = false;            ///< some particle did (detect)
     std::vector<std::int64_t> recordOf_;  ///< per particle: its latest ContactRecord, or -1
     std::vector<Index> projected_;        ///< particles the last contact pass moved
     /// The tangent plane of each particle's contact this step (n . x >= n . P + h), which the
     /// limiter's walk keeps, with the body and the point it belongs to.
-    ContactPlanes planes_;
     std::vector<std::uint32_t> planeBody_;
     std::vector<Vec3> planePoint_;
     /// Per particle: its contact plane this step comes from a triangle contact (a particle
@@ -207,6 +214,7 @@ class ContactSolver {
     ParticleBoxes boxes_; ///< the cheap tests before a particle's contact query
     std::vector<Block> blocks_;
     std::vector<std::size_t> moved_;
+    std::vector<Index> everyParticle_; ///< the free particles (after a comparison limiter)
     /// eq. (7)'s C_p and normal damping for the last particle mass and step seen (a cloth's
     /// particles mostly share one mass: limitPenalty's roots and divisions once per step).
     struct Penalty {
@@ -223,9 +231,10 @@ class ContactSolver {
 inline void ContactSolver::keepPlane(Cloth& c, std::uint32_t bi, std::size_t i, const Vec3& n,
                                      double offset, const Vec3& point, bool fromTriangle,
                                      double dt) {
-    if (const std::int32_t was = planes_.of[i]; was >= 0 && planeBody_[std::size_t(was)] != bi)
+    if (const std::int32_t was = records->planes.of[i];
+        was >= 0 && planeBody_[std::size_t(was)] != bi)
         flushPlane(c, std::size_t(was), dt);
-    const auto plane = std::size_t(planes_.set(static_cast<Index>(i), n, offset));
+    const auto plane = std::size_t(records->planes.set(static_cast<Index>(i), n, offset));
     if (!trianglePlane_.empty()) trianglePlane_[i] = fromTriangle ? 1 : 0;
     if (plane == planeBody_.size()) {
         planeBody_.push_back(bi);
@@ -237,14 +246,14 @@ inline void ContactSolver::keepPlane(Cloth& c, std::uint32_t bi, std::size_t i, 
 }
 
 inline void ContactSolver::flushPlane(Cloth& c, std::size_t k, double dt) {
-    const Vec3 push = planes_.push[k];
+    const Vec3 push = records->planes.push[k];
     if (push == Vec3::Zero()) return;
-    const std::size_t i = planes_.particle(k);
+    const std::size_t i = records->planes.particle(k);
     const Vec3 j = (c.masses()[i] / dt) * push;
     BodySnapshot& b = bodies[planeBody_[k]];
-    const Vec3& n = planes_.normal[k];
+    const Vec3& n = records->planes.normal[k];
     const Vec3& p = planePoint_[k];
-    planes_.push[k] = Vec3::Zero();
+    records->planes.push[k] = Vec3::Zero();
     if (!b.dynamicBody) {
         exchange(b, j, p);
         frictionImpulse(c, i, b, p, n, b.friction * j.norm());

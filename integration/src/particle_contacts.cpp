@@ -71,8 +71,6 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
     // every particle in the band above it (also for particles below the thickness: they end at its
     // bottom after the projection).
     const bool touches = hit.distance < h * (1.0 + kTouching);
-    if (touches && b.dynamicBody)
-        b.contactSpeed = std::max(b.contactSpeed, (v[i] - b.velocityAt(hit.point)).norm());
     const double mi = c.masses()[i];
     const double g = c.settings().gravity.squaredNorm();
     if (mi != penalty_.mass || dt != penalty_.dt || g != penalty_.gravity) {

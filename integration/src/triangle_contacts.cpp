@@ -71,7 +71,7 @@ double ContactSolver::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t,
         // Against a static or kinematic body the limiter's walk keeps the particle from going
         // back along n (its own contact's plane, if it has one, comes first), so the strain
         // bound and the triangle's contact hold together, as for particle contacts.
-        if (!b.dynamicBody && (planes_.of[i] < 0 || trianglePlane_[i]))
+        if (!b.dynamicBody && (records->planes.of[i] < 0 || trianglePlane_[i]))
             keepPlane(c, bi, i, n, n.dot(x[i]), hit.bodyPoint, true, dt);
     }
     ++stats.triangleContacts;

@@ -364,7 +364,10 @@ double Cloth::energyScale() const {
 //   forces_refresh  f(t), only when the cached forces are stale (first step, after edits)
 //   integrate       the integrator's advance(): for Velocity-Verlet v += f dt / 2m, x += v dt
 //   kinematic       pinned particles held, kinematic particles put on their paths
-//   strain_limit    the limiter; what it moved gets v += dx / dt
+//   <stages before limit> the caller's stages' beforeLimit (drape::bullet finds its contacts
+//                   and puts their planes into the cloth's ContactSet), in order
+//   strain_limit    the limiter (its walk keeps the contact planes); what it moved gets
+//                   v += dx / dt
 //   self_collision  particles kept off the cloth's own triangles (if set)
 //   <stages>        the caller's stages (drape::bullet's contacts), in order
 //   forces          f(t + dt) at the corrected state (one timer per force term)
@@ -386,6 +389,8 @@ const Cloth::Stage Cloth::kStages[] = {
     {"integrate", true, [](const Cloth&) { return true; }, &Cloth::stageIntegrate},
     {"kinematic", true, [](const Cloth& c) { return !c.kinematic_.empty(); },
      &Cloth::stageKinematic},
+    {"<stages before limit>", false, [](const Cloth& c) { return !c.stages_.empty(); },
+     &Cloth::stageCallerStagesBefore},
     {"strain_limit", true,
      [](const Cloth& c) { return c.settings_.limiter.kind != LimiterKind::None; },
      &Cloth::stageLimit},
@@ -594,7 +599,8 @@ void Cloth::stageLimit(StepContext& ctx) {
     const LimiterSettings lim = limiterAt(ctx.dt);
     if (lim.kind == LimiterKind::StressOrdered) {
         limiter_.clearMoved();
-        addLimiterStats(limiter_.limit(*topology_, invMass_, forceModel_->stiffness(), lim, x_));
+        addLimiterStats(limiter_.limit(*topology_, invMass_, forceModel_->stiffness(), lim, x_,
+                                       contactPlanes()));
         applyLimiterMoves(ctx.dt);
         return;
     }
@@ -609,6 +615,19 @@ void Cloth::stageLimit(StepContext& ctx) {
     const double invDt = 1.0 / ctx.dt;
     for (std::size_t i = 0; i < x_.size(); ++i)
         v_[i] += (x_[i] - step_.beforeLimit[i]) * invDt;
+}
+
+ContactPlanes* Cloth::contactPlanes() {
+    if (!contacts_) return nullptr;
+    ContactPlanes& p = contacts_->planes;
+    return p.size() > 0 && p.of.size() == x_.size() ? &p : nullptr;
+}
+
+void Cloth::stageCallerStagesBefore(StepContext& ctx) {
+    for (std::size_t s = 0; s < stages_.size(); ++s) {
+        ScopedPhase t(timers_, callerStageBeforeSlots_[s]);
+        stages_[s]->beforeLimit(*this, ctx.dt);
+    }
 }
 
 void Cloth::stageCallerStages(StepContext& ctx) {
@@ -740,7 +759,9 @@ std::vector<std::string> Cloth::pipeline() const {
     std::vector<std::string> p;
     for (const Stage& st : kStages) {
         if (!st.active(*this)) continue;
-        if (st.run == &Cloth::stageCallerStages) {
+        if (st.run == &Cloth::stageCallerStagesBefore) {
+            continue; // the caller's stages are listed once, where they run after the limiter
+        } else if (st.run == &Cloth::stageCallerStages) {
             for (const auto& s : stages_)
                 p.push_back(s->name());
         } else if (st.run == &Cloth::stageForces) {
@@ -894,6 +915,7 @@ void Cloth::addExternalForce(std::string name, ForceModel::ExternalForce force) 
     edited();
 }
 void Cloth::setContacts(std::shared_ptr<ContactSet> contacts) {
+    contacts_ = contacts;
     forceModel_->setContacts(std::move(contacts));
     forcesValid_ = false;
     edited();
@@ -902,6 +924,7 @@ void Cloth::setContacts(std::shared_ptr<ContactSet> contacts) {
 void Cloth::addStage(std::shared_ptr<ClothStage> stage) {
     if (!stage) throw Error(ErrorCode::InvalidArgument, "addStage: stage is null");
     callerStageSlots_.push_back(timers_.slot(stage->name()));
+    callerStageBeforeSlots_.push_back(timers_.slot(stage->name() + "_before_limit"));
     stages_.push_back(std::move(stage));
     edited();
 }
@@ -911,6 +934,8 @@ void Cloth::removeStage(const ClothStage* stage) {
         if (stages_[s].get() == stage) {
             stages_.erase(stages_.begin() + static_cast<std::ptrdiff_t>(s));
             callerStageSlots_.erase(callerStageSlots_.begin() + static_cast<std::ptrdiff_t>(s));
+            callerStageBeforeSlots_.erase(callerStageBeforeSlots_.begin() +
+                                          static_cast<std::ptrdiff_t>(s));
             edited();
             return;
         }

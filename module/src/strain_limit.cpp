@@ -268,9 +268,12 @@ double StrainLimiter::check(std::size_t si, const ClothTopology& topology,
 StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
                                       const std::vector<double>& invMass,
                                       const std::vector<double>& stiffness,
-                                      const LimiterSettings& s, std::vector<Vec3>& x) {
+                                      const LimiterSettings& s, std::vector<Vec3>& x,
+                                      ContactPlanes* planes) {
     StrainLimitStats st;
     prepare(topology, invMass, s);
+    planes_ =
+        planes != nullptr && planes->size() > 0 && planes->of.size() == x.size() ? planes : nullptr;
     const auto& springs = topology.springs();
     const std::size_t ns = springs.size();
     // 1. Long-range attachments.
@@ -291,7 +294,7 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
             const double l2 = d.squaredNorm(), r = f * restDistance[i];
             if (l2 > r * r) {
                 const Vec3 dx = (r / std::sqrt(l2) - 1.0) * d;
-                move(static_cast<Index>(i), dx, x);
+                move(static_cast<Index>(i), planes_ ? keepAbove(Index(i), dx, x) : dx, x);
                 if (record) pullHeld(a, -dx / w[i]);
             }
         }
@@ -348,12 +351,14 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
             list[kept++] = si;
             const Spring& sp = spring[si];
             if (w[sp.a] > 0.0) {
-                move(sp.a, w[sp.a] * pull[k], x);
+                const Vec3 dx = w[sp.a] * pull[k];
+                move(sp.a, planes_ ? keepAbove(sp.a, dx, x) : dx, x);
             } else if (record) {
                 pullHeld(sp.a, pull[k]);
             }
             if (w[sp.b] > 0.0) {
-                move(sp.b, -w[sp.b] * pull[k], x);
+                const Vec3 dx = -w[sp.b] * pull[k];
+                move(sp.b, planes_ ? keepAbove(sp.b, dx, x) : dx, x);
             } else if (record) {
                 pullHeld(sp.b, -pull[k]);
             }
@@ -380,6 +385,7 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
     st.maxStrainBefore = ns ? std::sqrt(worst2) - 1.0 : 0.0;
     // 4. The waves.
     runWaves(topology, invMass, stiffness, s, x, st);
+    planes_ = nullptr;
     finish(topology, x, st);
     return st;
 }

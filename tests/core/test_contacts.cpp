@@ -108,3 +108,86 @@ TEST_CASE("Removing the contact set removes the term from the pipeline", "[conta
     in.cloth->setContacts(nullptr);
     CHECK_FALSE(has());
 }
+
+namespace {
+/// A "table" y >= h as data: before the limiter, every free particle gets the plane
+/// n = +y, offset h (what drape::bullet's contact stage does with the bodies it finds).
+class TableStage final : public ClothStage {
+  public:
+    TableStage(std::shared_ptr<ContactSet> set, double h) : set_(std::move(set)), h_(h) {}
+    std::string name() const override { return "table"; }
+    void beforeLimit(Cloth& c, double) override {
+        set_->planes.reset(c.particleCount());
+        for (Index i = 0; i < c.particleCount(); ++i)
+            if (c.inverseMasses()[i] != 0.0) set_->planes.set(i, Vec3::UnitY(), h_);
+        ++before;
+    }
+    void run(Cloth& c, double) override {
+        // After the limiter: no free particle below the table.
+        for (Index i = 0; i < c.particleCount(); ++i)
+            if (c.inverseMasses()[i] != 0.0) lowest = std::min(lowest, c.positions()[i].y());
+        ++after;
+    }
+    int before = 0, after = 0;
+    double lowest = 1e300;
+
+  private:
+    std::shared_ptr<ContactSet> set_;
+    double h_;
+};
+} // namespace
+
+TEST_CASE("Contact planes set before the limiter are kept by the step's one walk, with the "
+          "strain bound",
+          "[contacts][limiter]") {
+    // A 5 x 5 sheet (0.1 m spacing) lying at y = h on a table, its first row pinned 5 cm below
+    // the table's top (a cloth pulled down over an edge): the springs to the second row are
+    // 11.8 % long, and the limiter pulls that row down towards the pins.
+    const double h = 0.01, spacing = 0.1;
+    auto make = [&] {
+        TriangleMesh m;
+        for (int r = 0; r < 5; ++r)
+            for (int c = 0; c < 5; ++c)
+                m.vertices.push_back(Vec3(spacing * c, h, spacing * r));
+        for (int r = 0; r < 4; ++r)
+            for (int c = 0; c < 4; ++c) {
+                const auto i = static_cast<Index>(5 * r + c);
+                m.triangles.push_back(Triangle{i, i + 1, i + 5});
+                m.triangles.push_back(Triangle{i + 1, i + 6, i + 5});
+            }
+        ClothSettings s;
+        s.gravity = Vec3::Zero();
+        auto cloth = std::make_unique<Cloth>(ClothTopology::build(m), s);
+        for (Index c = 0; c < 5; ++c)
+            cloth->pin(c, Vec3(spacing * c, h - 0.05, 0.0));
+        return cloth;
+    };
+    const double bound = 0.1 + 1e-3;
+    {
+        // Without the table, the walk pulls the second row below y = h.
+        auto cloth = make();
+        cloth->step(1e-3);
+        double lowest = 1e300;
+        for (Index i = 5; i < 25; ++i)
+            lowest = std::min(lowest, cloth->positions()[i].y());
+        CHECK(lowest < h - 1e-4); // 0.8 mm below
+        CHECK(cloth->maxStrain() <= bound);
+    }
+    auto cloth = make();
+    auto set = std::make_shared<ContactSet>();
+    cloth->setContacts(set);
+    auto table = std::make_shared<TableStage>(set, h);
+    cloth->addStage(table);
+    cloth->step(1e-3);
+    CHECK(table->before == 1);
+    CHECK(table->after == 1);
+    // The walk met both: no particle below the table, every spring within the bound (the
+    // second row slid back along the table instead).
+    CHECK(table->lowest >= h - 1e-12);
+    CHECK(cloth->maxStrain() <= bound);
+    // And it recorded how far the table pushed (what a body would get as an impulse).
+    double pushed = 0.0;
+    for (const Vec3& p : set->planes.push)
+        pushed += p.y();
+    CHECK(pushed > 0.0);
+}

@@ -2,10 +2,11 @@
 // and the step driver.
 //
 // A step runs a fixed table of stages (Cloth::kStages in cloth.cpp), each only when this
-// cloth needs it: forces_refresh (stale cached forces), integrate, kinematic, strain_limit,
-// the caller's stages (collisions...), forces (one timer per active force term),
-// integrate_finish (Velocity-Verlet) and verify. pipeline() lists what a step runs, from the
-// same table; timers() reports each stage's calls and seconds.
+// cloth needs it: forces_refresh (stale cached forces), integrate, kinematic, the caller's
+// stages' beforeLimit (contacts found; their planes go to the limiter through the cloth's
+// ContactSet), strain_limit, the caller's stages (collisions...), forces (one timer per active
+// force term), integrate_finish (Velocity-Verlet) and verify. pipeline() lists what a step runs,
+// from the same table; timers() reports each stage's calls and seconds.
 //
 // Sleeping (settings.sleep, off by default): after settings.sleep.time seconds in which no
 // particle strayed farther than settings.sleep.distance (see SleepSettings) the cloth falls asleep
@@ -46,15 +47,23 @@ namespace detail {
 class ThreadPool;
 }
 
-/// A stage the caller plugs into the step after strain limiting (a collision stage, for
-/// example). It may move particles (Cloth::mutablePositions()) and change velocities.
+/// A stage the caller plugs into the step (a collision stage, for example): beforeLimit runs
+/// before the strain limiter, run after it. It may move particles (Cloth::mutablePositions())
+/// and change velocities.
 class ClothStage {
   public:
     virtual ~ClothStage() = default;
     /// Name used for the stage's timer.
     virtual std::string name() const = 0;
-    /// Runs once per step; dt is the step's time step [s].
+    /// Runs once per step after the strain limiter; dt is the step's time step [s].
     virtual void run(Cloth& cloth, double dt) = 0;
+    /// Runs once per step before the strain limiter, after integration and the kinematic
+    /// targets (a collision stage finds its contacts here, and puts their planes into the
+    /// cloth's ContactSet, which the limiter's walk then keeps). Default: nothing.
+    virtual void beforeLimit(Cloth& cloth, double dt) {
+        (void)cloth;
+        (void)dt;
+    }
     /// What the stage carries from one step to the next, for the cloth's snapshots
     /// (drape/snapshot.hpp). Default: nothing.
     virtual std::vector<unsigned char> saveState() const { return {}; }
@@ -264,7 +273,7 @@ class Cloth {
         bool (*active)(const Cloth&);
         void (Cloth::*run)(StepContext&);
     };
-    static const Stage kStages[10];
+    static const Stage kStages[11];
     void stepOnce(double dt);
     void stepWithRetry(double dt);
     void addLimiterStats(const StrainLimitStats& st);
@@ -273,6 +282,9 @@ class Cloth {
     void stageKinematic(StepContext& ctx);
     void stageLimit(StepContext& ctx);
     void stageCallerStages(StepContext& ctx);
+    void stageCallerStagesBefore(StepContext& ctx);
+    /// The planes of the ContactSet (setContacts) for the limiter's walk, or null.
+    ContactPlanes* contactPlanes();
     void stageForces(StepContext& ctx);
     void stageFinish(StepContext& ctx);
     void stageRelativeDamping(StepContext& ctx);
@@ -315,8 +327,11 @@ class Cloth {
     std::unique_ptr<ForceModel> forceModel_;
     std::unique_ptr<Integrator> integrator_;
     std::vector<std::shared_ptr<ClothStage>> stages_;
+    std::shared_ptr<ContactSet> contacts_;      ///< see setContacts
     std::vector<std::size_t> stageSlots_;       ///< timer slot of each kStages entry
     std::vector<std::size_t> callerStageSlots_; ///< timer slot of each caller stage
+    /// Timer slot of each caller stage's beforeLimit ("<name>_before_limit").
+    std::vector<std::size_t> callerStageBeforeSlots_;
     StrainLimiter limiter_;
     StrainLimitStats limiterStats_;
     std::unique_ptr<detail::SelfCollider> selfCollider_; ///< scratch of the self-collision stage

@@ -6,6 +6,7 @@
 #pragma once
 
 #include "drape/forces.hpp"
+#include "drape/strain_limit.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -43,6 +44,11 @@ struct ContactRecord {
 /// again by the caller after the step (the forces its bodies get).
 struct ContactSet {
     std::vector<ContactRecord> contacts;
+    /// Contact planes a stage sets before the strain limiter (ClothStage::beforeLimit): the
+    /// stress-ordered walk keeps each particle above its plane while it corrects the springs
+    /// (one walk for the strain bound and the contacts), recording in `push` how far each
+    /// plane pushed; the stage passes that on to the bodies after it.
+    ContactPlanes planes;
     double thickness = 0.0; ///< h [m]
     double band = 1.0;      ///< eq. (7)'s band width w above the thickness [m]
     double dt = 1.0;        ///< the step the records were made in [s]

@@ -36,15 +36,16 @@ struct StrainLimitStats {
 };
 
 /// One-sided constraints n . x >= offset on some particles: the tangent planes of their
-/// contacts. StrainLimiter::relimit keeps them while it corrects springs, so a contact stage
-/// gets the strain bound and non-penetration from one walk instead of alternating the two.
+/// contacts. StrainLimiter::limit and relimit keep them while they correct springs, so a
+/// contact stage gets the strain bound and non-penetration from one walk instead of
+/// alternating the two (Cloth passes its ContactSet's planes to the step's walk).
 /// For a convex body the tangent plane lies outside the body, so staying above it is staying
 /// outside the body.
 struct ContactPlanes {
     std::vector<std::int32_t> of; ///< per particle: its plane, or -1 (empty: no planes)
     std::vector<Vec3> normal;     ///< per plane: unit outward normal
     std::vector<double> offset;   ///< per plane: the particle stays where n . x >= offset [m]
-    /// Per plane, filled by relimit: the sum of the displacements by which the plane pushed
+    /// Per plane, filled by the walk: the sum of the displacements by which the plane pushed
     /// its particle back out [m] (the contact's share of the constraint: an impulse
     /// m push / dt on the particle, and its opposite on the body). A vector, so that a plane
     /// replaced by set() keeps what its earlier normals pushed.
@@ -142,9 +143,10 @@ void setSlack(AnchorField& field, double slack);
 /// kinetic energy (an inelastic projection) except for the warm start's overshoot, which the
 /// let-out in step 4 bounds by the band. Measured on Experiment I: samples/benchmarks/LIMITER.md.
 ///
-/// Contacts and other stages that move particles call relimit() with the particles they
-/// moved: their springs go into the same worklist, and the walk runs again from there. With
-/// contact planes, a correction never takes a particle below its plane: a particle lying on
+/// Contact planes found before the step's walk are kept by it (limit()'s `planes`); stages
+/// that move particles after it call relimit() with the particles they moved: their springs
+/// go into the same worklist, and the walk runs again from there. With contact planes, a
+/// correction never takes a particle below its plane: a particle lying on
 /// its plane counts with the inverse mass w (1 - (u . n)^2) for a correction along u into the
 /// plane (it can only slide), so the correction still reaches the limit to first order, and
 /// what is left below the plane is pushed back out along n (recorded in ContactPlanes::push).
@@ -157,9 +159,11 @@ class StrainLimiter {
     /// Runs one step's limiter on x. The long-range attachments are recomputed whenever the
     /// set of zero-inverse-mass particles differs from the last call's (the slack is applied
     /// per step: it may change from step to step at no cost).
+    /// With `planes`, every move (long-range attachments, warm start, the waves) keeps the
+    /// particles above their contact planes, as relimit() does.
     StrainLimitStats limit(const ClothTopology& topology, const std::vector<double>& invMass,
                            const std::vector<double>& stiffness, const LimiterSettings& s,
-                           std::vector<Vec3>& x);
+                           std::vector<Vec3>& x, ContactPlanes* planes = nullptr);
     /// Queues the springs of `touched` (particles a stage moved) and runs the waves again.
     StrainLimitStats relimit(const ClothTopology& topology, const std::vector<double>& invMass,
                              const std::vector<double>& stiffness, const LimiterSettings& s,
@@ -316,7 +320,7 @@ class StrainLimiter {
     /// The scan's segments of kScanSegment slots and the largest ratio of each.
     static constexpr std::size_t kScanSegment = 16384;
     std::vector<double> segmentWorst_;
-    ContactPlanes* planes_ = nullptr; ///< during relimit() only
+    ContactPlanes* planes_ = nullptr; ///< during a walk with planes only
     std::vector<Index> anchorList_, anchorScratch_;
     bool anchorsValid_ = false;
     double anchorSlack_ = 0.0; ///< the slack anchors_.restDistance was made with
