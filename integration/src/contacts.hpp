@@ -223,7 +223,12 @@ class ContactSolver {
     std::vector<MovedGroup> movedGroups_;
     std::vector<std::int32_t> edgeBody_; ///< per particle: the box of its contact, or -1
     std::vector<int> edgeRegion_;        ///< per particle: its region around that box
-    double maxRest_ = -1.0;              ///< the longest spring's rest length (once) [m]
+    /// Per particle near a box: its place in the box's frame, signed distance and gradient,
+    /// valid while edgeCached_ is set (collideSpringWithBox; cleared when a spring moves it).
+    std::vector<unsigned char> edgeCached_;
+    std::vector<Vec3> edgeLocal_, edgeGradient_;
+    std::vector<double> edgeDistance_;
+    double maxRest_ = -1.0; ///< the longest spring's rest length (once) [m]
 };
 
 // Defined here, inline: they run per contact in the stage's loops.

@@ -129,6 +129,10 @@ void ContactSolver::collideEdges(Cloth& c) {
         return;
     edgeBody_.assign(c.particleCount(), -1);
     edgeRegion_.resize(c.particleCount());
+    edgeCached_.assign(c.particleCount(), 0);
+    edgeLocal_.resize(c.particleCount());
+    edgeGradient_.resize(c.particleCount());
+    edgeDistance_.resize(c.particleCount());
     bool onBox = false;
     for (const ContactRecord& r : records->contacts) {
         const BodySnapshot& b = bodies[r.body];
@@ -182,10 +186,25 @@ void ContactSolver::collideSpringWithBox(Cloth& c, const Spring& s, std::uint32_
     };
     const int ra = region(s.a);
     if (ra == region(s.b) && isFaceRegion(ra)) return;
-    const Vec3 pa = b.pose.toLocal(x[s.a]), pb = b.pose.toLocal(x[s.b]);
-    Vec3 ga, gb;
-    const double da = boxSignedDistance(b.boxHalf, pa, ga);
-    const double db = boxSignedDistance(b.boxHalf, pb, gb);
+    // An end's place in the box's frame and its signed distance, once per particle and pass
+    // for the particles near this box (a particle has about six springs), until it moves.
+    auto endOf = [&](Index i, Vec3& p, Vec3& g) {
+        if (edgeBody_[i] != std::int32_t(bi)) {
+            p = b.pose.toLocal(x[i]);
+            return boxSignedDistance(b.boxHalf, p, g);
+        }
+        if (!edgeCached_[i]) {
+            edgeLocal_[i] = b.pose.toLocal(x[i]);
+            edgeDistance_[i] = boxSignedDistance(b.boxHalf, edgeLocal_[i], edgeGradient_[i]);
+            edgeCached_[i] = 1;
+        }
+        p = edgeLocal_[i];
+        g = edgeGradient_[i];
+        return edgeDistance_[i];
+    };
+    Vec3 pa, pb, ga, gb;
+    const double da = endOf(s.a, pa, ga);
+    const double db = endOf(s.b, pb, gb);
     // The distance is 1-Lipschitz: no point of the spring is nearer than (da + db - length) / 2.
     // An end inside the box is its particle contact's to resolve (a deep impact), not a spring
     // cutting a corner.
@@ -210,6 +229,7 @@ void ContactSolver::collideSpringWithBox(Cloth& c, const Spring& s, std::uint32_
         const Index i = ends[k];
         if (w[i] == 0.0) continue;
         x[i] += (beta[k] * w[i] * depth / weight) * n;
+        edgeCached_[i] = 0;
         touching_[i] = 1;
         projected_.push_back(i);
         boxes_.update(i, x[i], stepStart()[i], false);
