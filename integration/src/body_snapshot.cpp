@@ -141,8 +141,9 @@ bool BodySnapshot::applyAccumulatedImpulses(double clothSpeed) {
         return m.allFinite() &&
                m.cwiseAbs().maxCoeff() < double(std::numeric_limits<btScalar>::max());
     };
-    const Vec3 newV = toVec(rb->getLinearVelocity()) + invMass * linearImpulse;
-    const Vec3 newW = toVec(rb->getAngularVelocity()) + invInertia * angularImpulse;
+    const Vec3 v0 = toVec(rb->getLinearVelocity()), w0 = toVec(rb->getAngularVelocity());
+    const Vec3 newV = v0 + invMass * linearImpulse;
+    const Vec3 newW = w0 + invInertia * angularImpulse;
     if (!(fits(linearImpulse) && fits(angularImpulse) && fits(pose.t) && fits(pose.R) &&
           fits(newV) && fits(newW))) {
         throw Error(ErrorCode::SimulationFailure,
@@ -155,7 +156,6 @@ bool BodySnapshot::applyAccumulatedImpulses(double clothSpeed) {
     btScalar radius = 0;
     rb->getCollisionShape()->getBoundingSphere(centre, radius);
     const double r = double(radius) + double(centre.length());
-    const Vec3 v0 = toVec(rb->getLinearVelocity()), w0 = toVec(rb->getAngularVelocity());
     const double before = std::max({v0.norm() + w0.norm() * r, clothSpeed, 1.0});
     if (newV.norm() + newW.norm() * r > kRefusedSpeedFactor * before) {
         refused = true;

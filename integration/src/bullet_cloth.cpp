@@ -97,12 +97,12 @@ void accumulate(ContactStats& total, const ContactStats& s) {
     total.proxyRefreshes += s.proxyRefreshes;
 }
 
-/// The speed of the cloth's fastest free particle [m/s] (> 0, so that it is computed once).
+/// The speed of the cloth's fastest free particle [m/s].
 double fastestParticle(const Cloth& c) {
     double v2 = 0.0;
     for (std::size_t i = 0; i < c.particleCount(); ++i)
         if (c.inverseMasses()[i] != 0.0) v2 = std::max(v2, c.velocities()[i].squaredNorm());
-    return std::max(std::sqrt(v2), 1e-300);
+    return std::sqrt(v2);
 }
 
 } // namespace
@@ -392,11 +392,11 @@ void BulletCloth::Impl::prepare(double dt) {
     last.substeps = stepSubsteps;
     stepH = dt / stepSubsteps;
     slept = true;
-    clothSpeed = 0.0;
-    for (auto& b : contacts.bodies) {
+    for (auto& b : contacts.bodies)
         b.startSweep(dt);
-        if (b.dynamicBody && clothSpeed == 0.0) clothSpeed = fastestParticle(c);
-    }
+    const bool dynamic = std::any_of(contacts.bodies.begin(), contacts.bodies.end(),
+                                     [](const detail::BodySnapshot& b) { return b.dynamicBody; });
+    clothSpeed = dynamic ? fastestParticle(c) : 0.0;
     bodySeconds = std::chrono::duration<double>(Clock::now() - start).count();
 }
 

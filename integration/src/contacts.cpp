@@ -52,39 +52,29 @@ void ContactSolver::finish(Cloth& c, double dt) {
     if (!inStep || bodies.empty()) return;
     QueryCounters counters;
     const auto& lim = c.settings().limiter;
-    if (anyTouching_ && lim.kind == LimiterKind::StressOrdered) {
-        // The limiter's walk kept every particle above its contact plane. What it moved is
-        // projected again (a curved body, a box's other face, a body it had no plane of, a
-        // dynamic body lighter than the cloth, which gets none); only where that moves
-        // particles does the walk run again from them, and so on (at most kRelimitPasses).
-        collideMoved(c, dt, c.limiter().movedIndex(), counters);
-        if (contact_.triangles) collideTriangles(c, dt, counters);
+    if (anyTouching_ && lim.kind != LimiterKind::None) {
+        // The stress-ordered walk kept every particle above its contact plane: what it moved
+        // is projected again (a curved body, a box's other face, a body it had no plane of, a
+        // dynamic body lighter than the cloth, which gets none). The comparison limiters keep
+        // no planes and list no moves: every free particle is projected again after them.
+        const bool planes = lim.kind == LimiterKind::StressOrdered;
+        if (!planes) {
+            everyParticle_.clear();
+            for (std::size_t i = 0; i < c.particleCount(); ++i)
+                if (c.inverseMasses()[i] != 0.0) everyParticle_.push_back(static_cast<Index>(i));
+        }
+        collideMoved(c, dt, planes ? c.limiter().movedIndex() : everyParticle_, counters);
+        if (planes && contact_.triangles) collideTriangles(c, dt, counters);
+        // Only where that moved particles does the limiter run again from them, and so on (at
+        // most kRelimitPasses).
         for (int pass = 0; pass < kRelimitPasses && !projected_.empty(); ++pass) {
             StrainLimitStats st;
             {
                 ScopedPhase timeLimiter(c.timers(), limiterSlot);
-                st = c.relimit(projected_, dt, &records->planes);
+                st = c.relimit(projected_, dt, planes ? &records->planes : nullptr);
             }
             // Nothing left to correct; or the walk used its whole budget (maxRounds, counted
             // as a cap hit): another pass would spend it again.
-            if (st.corrections == 0 || st.capHit) break;
-            collideMoved(c, dt, c.relimitMoved(), counters);
-            if (contact_.triangles) collideTriangles(c, dt, counters);
-        }
-    } else if (anyTouching_ && lim.kind != LimiterKind::None) {
-        // The comparison limiters keep no planes and list no moves: every particle is
-        // projected again after them; what that overstretched, they correct again (whole), and
-        // what they move is projected again.
-        everyParticle_.clear();
-        for (std::size_t i = 0; i < c.particleCount(); ++i)
-            if (c.inverseMasses()[i] != 0.0) everyParticle_.push_back(static_cast<Index>(i));
-        collideMoved(c, dt, everyParticle_, counters);
-        for (int pass = 0; pass < kRelimitPasses && !projected_.empty(); ++pass) {
-            StrainLimitStats st;
-            {
-                ScopedPhase timeLimiter(c.timers(), limiterSlot);
-                st = c.relimit(projected_, dt);
-            }
             if (st.corrections == 0 || st.capHit) break;
             collideMoved(c, dt, c.relimitMoved(), counters);
             if (contact_.triangles) collideTriangles(c, dt, counters);

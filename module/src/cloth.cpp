@@ -599,8 +599,10 @@ void Cloth::stageLimit(StepContext& ctx) {
     const LimiterSettings lim = limiterAt(ctx.dt);
     if (lim.kind == LimiterKind::StressOrdered) {
         limiter_.clearMoved();
+        // The walk keeps the planes of the ContactSet (setContacts) a stage filled before it.
+        ContactSet* contacts = forceModel_->contacts();
         addLimiterStats(limiter_.limit(*topology_, invMass_, forceModel_->stiffness(), lim, x_,
-                                       contactPlanes()));
+                                       contacts ? &contacts->planes : nullptr));
         applyLimiterMoves(ctx.dt);
         return;
     }
@@ -615,12 +617,6 @@ void Cloth::stageLimit(StepContext& ctx) {
     const double invDt = 1.0 / ctx.dt;
     for (std::size_t i = 0; i < x_.size(); ++i)
         v_[i] += (x_[i] - step_.beforeLimit[i]) * invDt;
-}
-
-ContactPlanes* Cloth::contactPlanes() {
-    if (!contacts_) return nullptr;
-    ContactPlanes& p = contacts_->planes;
-    return p.size() > 0 && p.of.size() == x_.size() ? &p : nullptr;
 }
 
 void Cloth::stageCallerStagesBefore(StepContext& ctx) {
@@ -915,7 +911,6 @@ void Cloth::addExternalForce(std::string name, ForceModel::ExternalForce force) 
     edited();
 }
 void Cloth::setContacts(std::shared_ptr<ContactSet> contacts) {
-    contacts_ = contacts;
     forceModel_->setContacts(std::move(contacts));
     forcesValid_ = false;
     edited();

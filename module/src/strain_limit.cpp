@@ -272,8 +272,7 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
                                       ContactPlanes* planes) {
     StrainLimitStats st;
     prepare(topology, invMass, s);
-    planes_ =
-        planes != nullptr && planes->size() > 0 && planes->of.size() == x.size() ? planes : nullptr;
+    usePlanes(planes, x.size());
     const auto& springs = topology.springs();
     const std::size_t ns = springs.size();
     // 1. Long-range attachments.
@@ -294,7 +293,7 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
             const double l2 = d.squaredNorm(), r = f * restDistance[i];
             if (l2 > r * r) {
                 const Vec3 dx = (r / std::sqrt(l2) - 1.0) * d;
-                move(static_cast<Index>(i), planes_ ? keepAbove(Index(i), dx, x) : dx, x);
+                move(static_cast<Index>(i), abovePlanes(Index(i), dx, x), x);
                 if (record) pullHeld(a, -dx / w[i]);
             }
         }
@@ -351,14 +350,12 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
             list[kept++] = si;
             const Spring& sp = spring[si];
             if (w[sp.a] > 0.0) {
-                const Vec3 dx = w[sp.a] * pull[k];
-                move(sp.a, planes_ ? keepAbove(sp.a, dx, x) : dx, x);
+                move(sp.a, abovePlanes(sp.a, w[sp.a] * pull[k], x), x);
             } else if (record) {
                 pullHeld(sp.a, pull[k]);
             }
             if (w[sp.b] > 0.0) {
-                const Vec3 dx = -w[sp.b] * pull[k];
-                move(sp.b, planes_ ? keepAbove(sp.b, dx, x) : dx, x);
+                move(sp.b, abovePlanes(sp.b, -w[sp.b] * pull[k], x), x);
             } else if (record) {
                 pullHeld(sp.b, -pull[k]);
             }
@@ -512,8 +509,7 @@ StrainLimitStats StrainLimiter::relimit(const ClothTopology& topology,
                                         std::vector<Vec3>& x, ContactPlanes* planes) {
     StrainLimitStats st;
     prepare(topology, invMass, s);
-    planes_ =
-        planes != nullptr && planes->size() > 0 && planes->of.size() == x.size() ? planes : nullptr;
+    usePlanes(planes, x.size());
     next_.clear();
     const auto& off = topology.adjacencyOffsets();
     const auto& spr = topology.adjacentSprings();

@@ -283,8 +283,6 @@ class Cloth {
     void stageLimit(StepContext& ctx);
     void stageCallerStages(StepContext& ctx);
     void stageCallerStagesBefore(StepContext& ctx);
-    /// The planes of the ContactSet (setContacts) for the limiter's walk, or null.
-    ContactPlanes* contactPlanes();
     void stageForces(StepContext& ctx);
     void stageFinish(StepContext& ctx);
     void stageRelativeDamping(StepContext& ctx);
@@ -327,7 +325,6 @@ class Cloth {
     std::unique_ptr<ForceModel> forceModel_;
     std::unique_ptr<Integrator> integrator_;
     std::vector<std::shared_ptr<ClothStage>> stages_;
-    std::shared_ptr<ContactSet> contacts_;      ///< see setContacts
     std::vector<std::size_t> stageSlots_;       ///< timer slot of each kStages entry
     std::vector<std::size_t> callerStageSlots_; ///< timer slot of each caller stage
     /// Timer slot of each caller stage's beforeLimit ("<name>_before_limit").

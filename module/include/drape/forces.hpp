@@ -118,6 +118,7 @@ class ForceModel {
     /// The contact force term ("contact_force", after every other term) reads `contacts` and
     /// writes each record's force back (drape/contacts.hpp); null removes the term.
     void setContacts(std::shared_ptr<ContactSet> contacts);
+    ContactSet* contacts() const { return contacts_.get(); }
 
     const std::vector<double>& stiffness() const { return stiffness_; }
     const std::vector<double>& mass() const { return mass_; }

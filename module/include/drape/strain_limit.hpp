@@ -233,6 +233,15 @@ class StrainLimiter {
                          double eps) const;
     /// The move dx of particle i in a correction, kept above its contact plane (if any).
     Vec3 keepAbove(Index i, const Vec3& dx, const std::vector<Vec3>& x) const;
+    /// keepAbove when the walk has planes, else dx.
+    Vec3 abovePlanes(Index i, const Vec3& dx, const std::vector<Vec3>& x) const {
+        return planes_ ? keepAbove(i, dx, x) : dx;
+    }
+    /// The walk keeps `planes` when there are any, one entry of `of` per particle (n).
+    void usePlanes(ContactPlanes* planes, std::size_t n) {
+        planes_ =
+            planes != nullptr && planes->size() > 0 && planes->of.size() == n ? planes : nullptr;
+    }
     /// Applies the corrections of the sorted wave order_; returns how many particles it moved
     /// (listed in dirty_). kPlanes: contact planes are set (planes_); kRecordHeld: held ends
     /// take the corrections' reactions (heldPull()).
