@@ -52,6 +52,17 @@ void BodySnapshot::advance(double h) {
     derivePoseData(*this);
 }
 
+void BodySnapshot::displace(const Vec3& shift, const Vec3& turn) {
+    if (!dynamicBody) return;
+    pose.t += shift;
+    const double angle = turn.norm();
+    if (angle > 0.0) pose.R = Eigen::AngleAxisd(angle, turn / angle).toRotationMatrix() * pose.R;
+    derivePoseData(*this);
+    aabbMin += shift.cwiseMin(Vec3::Zero());
+    aabbMax += shift.cwiseMax(Vec3::Zero());
+    moved_ = true;
+}
+
 void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies) {
     std::vector<const btCollisionObject*> dynamic;
     for (const BodySnapshot& b : bodies)

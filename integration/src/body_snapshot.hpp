@@ -63,6 +63,9 @@ struct BodySnapshot {
     /// (applyAccumulatedImpulses).
     void startSweep(double dt);
     void advance(double h);
+    /// Moves the body by `shift` [m] and turns it by `turn` [rad] about its centre of mass
+    /// (where the limiter's walk pushed a body that gives way: ContactPlanes::Mover).
+    void displace(const Vec3& shift, const Vec3& turn);
     /// Whether the body moves through the cloth's steps (else pose == previous == end).
     bool sweeps() const { return sweeping_ || moved_; }
     Vec3 linearImpulse = Vec3::Zero();  ///< accumulated for the body [N s]

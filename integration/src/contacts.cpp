@@ -31,6 +31,15 @@ void ContactSolver::detect(Cloth& c, double dt) {
     records->contacts.clear();
     records->dt = dt;
     if (bodies.empty()) return; // no rigid collider near the cloth: no work at all
+    // A free dynamic body (in no Bullet contact: a projectile, a thrown rod) gives way in the
+    // walk with its mass; a supported one is held by Bullet's contacts, and Bullet moves it.
+    moverOf_.assign(bodies.size(), -1);
+    for (std::size_t bi = 0; bi < bodies.size(); ++bi) {
+        const BodySnapshot& b = bodies[bi];
+        if (!b.dynamicBody || b.supported || !(b.invMass > 0.0)) continue;
+        moverOf_[bi] = static_cast<std::int32_t>(records->planes.movers.size());
+        records->planes.movers.push_back(ContactPlanes::Mover{b.invMass, b.invInertia});
+    }
     // The free mass decides which dynamic bodies get limiter planes: only needed near one.
     clothMass_ = 0.0;
     if (std::any_of(bodies.begin(), bodies.end(),
@@ -50,6 +59,7 @@ void ContactSolver::detect(Cloth& c, double dt) {
 
 void ContactSolver::finish(Cloth& c, double dt) {
     if (!inStep || bodies.empty()) return;
+    settleMovers(c, dt);
     QueryCounters counters;
     const auto& lim = c.settings().limiter;
     if (anyTouching_ && lim.kind != LimiterKind::None) {
@@ -73,6 +83,7 @@ void ContactSolver::finish(Cloth& c, double dt) {
                 ScopedPhase timeLimiter(c.timers(), limiterSlot);
                 st = c.relimit(projected_, dt, planes ? &records->planes : nullptr);
             }
+            settleMovers(c, dt);
             // Nothing left to correct; or the walk used its whole budget (maxRounds, counted
             // as a cap hit): another pass would spend it again.
             if (st.corrections == 0 || st.capHit) break;
@@ -100,6 +111,21 @@ void ContactSolver::finish(Cloth& c, double dt) {
 
     stats.narrowphaseQueries += counters.queries;
     stats.triangleQueries += counters.triangleQueries;
+}
+
+void ContactSolver::settleMovers(Cloth& c, double dt) {
+    ContactPlanes& pl = records->planes;
+    if (pl.movers.empty()) return;
+    for (std::size_t k = 0; k < pl.size(); ++k)
+        if (pl.mover[k] >= 0) flushPlane(c, k, dt);
+    for (std::size_t bi = 0; bi < bodies.size(); ++bi)
+        if (const std::int32_t m = moverOf_[bi]; m >= 0) {
+            const ContactPlanes::Mover& mv = pl.movers[std::size_t(m)];
+            bodies[bi].displace(mv.shift, mv.turn);
+        }
+    pl.settleMovers();
+    for (std::size_t k = 0; k < pl.size(); ++k)
+        if (pl.mover[k] >= 0) planePoint_[k] = bodies[planeBody_[k]].com + pl.lever[k];
 }
 
 void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counters) {

@@ -158,6 +158,9 @@ class ContactSolver {
     /// by in the limiter's walk (m push / dt), with the Coulomb friction that normal impulse
     /// allows, and clears the push.
     void flushPlane(Cloth& c, std::size_t k, double dt);
+    /// After a limiter walk: the bodies that gave way in it (ContactPlanes::Mover) take the
+    /// impulses of their planes and move where the walk pushed them.
+    void settleMovers(Cloth& c, double dt);
     /// Coulomb friction of a normal impulse on particle i (coulombImpulse); the body gets the
     /// opposite.
     void frictionImpulse(Cloth& c, std::size_t i, BodySnapshot& b, const Vec3& p,
@@ -204,6 +207,8 @@ class ContactSolver {
     /// The tangent plane of each particle's contact this step (n . x >= n . P + h), which the
     /// limiter's walk keeps, with the body and the point it belongs to.
     std::vector<std::uint32_t> planeBody_;
+    /// Per body: its ContactPlanes::Mover this step (a free dynamic body), or -1.
+    std::vector<std::int32_t> moverOf_;
     std::vector<Vec3> planePoint_;
     /// Per particle: its contact plane this step comes from a triangle contact (a particle
     /// contact's plane replaces it; a later triangle contact may update it). Sized only when
@@ -240,6 +245,8 @@ inline void ContactSolver::keepPlane(Cloth& c, std::uint32_t bi, std::size_t i, 
         was >= 0 && planeBody_[std::size_t(was)] != bi)
         flushPlane(c, std::size_t(was), dt);
     const auto plane = std::size_t(records->planes.set(static_cast<Index>(i), n, offset));
+    if (const std::int32_t m = moverOf_[bi]; m >= 0)
+        records->planes.moveWith(plane, m, point - bodies[bi].com);
     if (!trianglePlane_.empty()) trianglePlane_[i] = fromTriangle ? 1 : 0;
     if (plane == planeBody_.size()) {
         planeBody_.push_back(bi);
@@ -259,7 +266,7 @@ inline void ContactSolver::flushPlane(Cloth& c, std::size_t k, double dt) {
     const Vec3& n = records->planes.normal[k];
     const Vec3& p = planePoint_[k];
     records->planes.push[k] = Vec3::Zero();
-    if (!b.dynamicBody) {
+    if (!b.dynamicBody || records->planes.mover[k] >= 0) { // held, or the walk gave way
         exchange(b, j, p);
         frictionImpulse(c, i, b, p, n, b.friction * j.norm());
         return;

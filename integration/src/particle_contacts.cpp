@@ -128,7 +128,24 @@ bool ContactSolver::pathHit(const BodySnapshot& b, const Vec3& from, const Vec3&
     hit.valid = true;
     hit.point = toVec(ray.m_hitPointWorld);
     hit.normal = nrm;
-    hit.distance = std::min((xi - hit.point).dot(nrm), 0.0);
+    if (b.dynamicBody) {
+        // Bullet's ray cast against a convex shape stops within its margin, with a normal
+        // up to tens of degrees off: on a thin rod that is a lever about its axis, where it
+        // has almost no inertia. A primitive's exact surface point and normal nearest to the
+        // hit replace them (the body's answer to the walk's pushes depends on them).
+        const int type = b.object->getCollisionShape()->getShapeType();
+        if (type == SPHERE_SHAPE_PROXYTYPE || type == CAPSULE_SHAPE_PROXYTYPE ||
+            type == CYLINDER_SHAPE_PROXYTYPE || type == BOX_SHAPE_PROXYTYPE) {
+            QueryCounters local;
+            const SurfaceHit q =
+                closestSurface(b.object->getCollisionShape(), b.pose, hit.point, from, 0.0, local);
+            if (q.valid && q.normal.dot(from - xi) >= 0.0) {
+                hit.point = q.point;
+                hit.normal = q.normal;
+            }
+        }
+    }
+    hit.distance = std::min((xi - hit.point).dot(hit.normal), 0.0);
     return true;
 }
 

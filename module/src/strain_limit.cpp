@@ -197,8 +197,8 @@ double StrainLimiter::slidingWeight(Index i, double w, const Vec3& dir, const st
     if (k < 0 || w == 0.0) return w;
     const Vec3& n = planes_->normal[std::size_t(k)];
     const double dn = dir.dot(n);
-    if (dn >= 0.0) return w;                                           // away from the plane
-    if (n.dot(x[i]) - planes_->offset[std::size_t(k)] > eps) return w; // above it: free
+    if (dn >= 0.0) return w;                                              // away from the plane
+    if (n.dot(x[i]) - planes_->offsetNow(std::size_t(k)) > eps) return w; // above it: free
     return w * std::max(0.0, 1.0 - dn * dn);
 }
 
@@ -207,8 +207,9 @@ Vec3 StrainLimiter::keepAbove(Index i, const Vec3& dx, const std::vector<Vec3>& 
     if (k < 0) return dx;
     const std::size_t kk = std::size_t(k);
     const Vec3& n = planes_->normal[kk];
-    const double below = planes_->offset[kk] - n.dot(x[i] + dx);
+    double below = planes_->offsetNow(kk) - n.dot(x[i] + dx);
     if (!(below > 0.0)) return dx;
+    if (planes_->mover[kk] >= 0) below = planes_->giveWay(kk, below, (*planeInvMass_)[i]);
     planes_->push[kk] += below * n;
     return dx + below * n;
 }
@@ -272,7 +273,7 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
                                       ContactPlanes* planes) {
     StrainLimitStats st;
     prepare(topology, invMass, s);
-    usePlanes(planes, x.size());
+    usePlanes(planes, invMass);
     const auto& springs = topology.springs();
     const std::size_t ns = springs.size();
     // 1. Long-range attachments.
@@ -509,7 +510,7 @@ StrainLimitStats StrainLimiter::relimit(const ClothTopology& topology,
                                         std::vector<Vec3>& x, ContactPlanes* planes) {
     StrainLimitStats st;
     prepare(topology, invMass, s);
-    usePlanes(planes, x.size());
+    usePlanes(planes, invMass);
     next_.clear();
     const auto& off = topology.adjacencyOffsets();
     const auto& spr = topology.adjacentSprings();

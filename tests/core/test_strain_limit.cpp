@@ -432,6 +432,84 @@ TEST_CASE("relimit keeps particles above their contact planes and reaches the bo
     }
 }
 
+TEST_CASE("a body that gives way in the walk takes what its planes push, momentum conserved",
+          "[limiter][contact]") {
+    // The sheet of the test above, its left half lying on a free body (ContactPlanes::Mover)
+    // instead of a table, the right half pulled far down. The walk must reach the bound with
+    // every planed particle on or above its plane where the body moved it, and the body's
+    // momentum change M shift must be the opposite of the cloth's, sum m dx (the planes are
+    // the only outside push). A light body gives way more than a heavy one.
+    const auto topo = ClothTopology::build(irregularMesh(8, 6, 5));
+    const std::size_t n = topo->particleCount();
+    std::vector<double> mass, invMass;
+    Rng rng(3);
+    randomMasses(rng, n, mass, invMass);
+    double clothMass = 0.0;
+    for (double m : mass)
+        clothMass += m;
+    const std::vector<double> k(topo->springCount(), 1.0);
+    LimiterSettings s = limiterSettings();
+    s.longRangeAttachments = false;
+    double xMid = 0.0;
+    for (const Vec3& p : topo->restPositions())
+        xMid += p.x() / double(n);
+    const Vec3 normal = Vec3(0.3, 1, 0.2).normalized();
+    double shiftOf[2] = {0.0, 0.0};
+    for (int heavy = 0; heavy < 2; ++heavy) {
+        const double bodyMass = heavy ? 100.0 * clothMass : 0.01 * clothMass;
+        std::vector<Vec3> x = topo->restPositions();
+        ContactPlanes planes;
+        planes.reset(n);
+        const Vec3 centre(xMid, -0.2, 0.1);
+        // A box-like inertia for a body of that mass about 0.5 m across.
+        const Eigen::Matrix3d invInertia =
+            Eigen::Matrix3d::Identity() / (bodyMass * (0.25 + 0.25) / 12.0);
+        planes.movers.push_back(ContactPlanes::Mover{1.0 / bodyMass, invInertia});
+        std::vector<Index> all;
+        for (std::size_t i = 0; i < n; ++i) {
+            all.push_back(static_cast<Index>(i));
+            if (x[i].x() < xMid) {
+                x[i] -= normal.dot(x[i]) * normal; // on the plane through the origin
+                const auto plane = std::size_t(planes.set(static_cast<Index>(i), normal, 0.0));
+                planes.moveWith(plane, 0, x[i] - centre);
+            } else {
+                x[i] += Vec3(0.3 * (x[i].x() - xMid), -2.0 * (x[i].x() - xMid), 0.0);
+            }
+        }
+        const std::vector<Vec3> before = x;
+        StrainLimiter limiter;
+        limiter.clearMoved();
+        const auto st = limiter.relimit(*topo, invMass, k, s, all, x, &planes);
+        const ContactPlanes::Mover& body = planes.movers[0];
+        INFO("body mass " << bodyMass << " kg, waves " << st.rounds << ", shift "
+                          << body.shift.transpose() << ", turn " << body.turn.transpose());
+        CHECK_FALSE(st.capHit);
+        CHECK(maxSpringStrain(*topo, x) <= s.maxStrain + s.tolerance + 1e-12);
+        Vec3 dp = Vec3::Zero(), pushed = Vec3::Zero();
+        for (std::size_t i = 0; i < n; ++i)
+            dp += mass[i] * (x[i] - before[i]);
+        for (std::size_t p = 0; p < planes.size(); ++p) {
+            const Index i = planes.particle(p);
+            CHECK(normal.dot(x[i]) >= planes.offsetNow(p) - 1e-12);
+            pushed += mass[i] * planes.push[p];
+        }
+        CHECK(pushed.norm() > 1e-3);
+        CHECK((dp - pushed).norm() <= 1e-10);
+        CHECK((dp + bodyMass * body.shift).norm() <= 1e-10 * (1.0 + dp.norm()));
+        CHECK(body.shift.dot(normal) < 0.0); // pushed into its side, away from the cloth
+        shiftOf[heavy] = body.shift.norm();
+        // settleMovers makes the receded planes the planes, and the body starts from rest.
+        std::vector<double> offsetNow;
+        for (std::size_t p = 0; p < planes.size(); ++p)
+            offsetNow.push_back(planes.offsetNow(p));
+        planes.settleMovers();
+        for (std::size_t p = 0; p < planes.size(); ++p)
+            CHECK(planes.offset[p] == Approx(offsetNow[p]).margin(1e-15));
+        CHECK(planes.movers[0].shift == Vec3::Zero());
+    }
+    CHECK(shiftOf[0] > 100.0 * shiftOf[1]);
+}
+
 TEST_CASE("maxSpringStrain and meanSpringStrain of a uniform stretch", "[limiter]") {
     const auto topo = ClothTopology::build(irregularMesh(4, 3, 8));
     std::vector<Vec3> x;

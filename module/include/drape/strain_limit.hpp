@@ -51,7 +51,26 @@ struct ContactPlanes {
     /// replaced by set() keeps what its earlier normals pushed.
     std::vector<Vec3> push;
 
-    /// Forgets every plane; `of` gets one entry per particle.
+    /// A body that gives way in the walk (a free dynamic body: a projectile, a thrown rod): a
+    /// plane of it pushing particle i out by `below` moves i by w_i lambda and the body by
+    /// lambda against its inverse mass and inertia, lambda = below / (w_i + w_body(n, r))
+    /// (Gauss-Seidel with the body's mass, momentum conserved), so the body's planes recede
+    /// with it. A net catching a body stops it at the strain bound instead of fighting it.
+    struct Mover {
+        double invMass = 0.0;                                 ///< [1/kg]
+        Eigen::Matrix3d invInertia = Eigen::Matrix3d::Zero(); ///< world frame [1/(kg m^2)]
+        Vec3 shift = Vec3::Zero();                            ///< moved in the walk [m]
+        Vec3 turn = Vec3::Zero();                             ///< turned in the walk [rad]
+    };
+    std::vector<Mover> movers;
+    /// Per plane: the mover it belongs to, or -1 (a body that does not give way).
+    std::vector<std::int32_t> mover;
+    /// Per plane of a mover: its contact point from the mover's centre of mass [m], and the
+    /// mover's inverse mass along the normal there, 1/M + (r x n) . I^-1 (r x n) [1/kg].
+    std::vector<Vec3> lever;
+    std::vector<double> give;
+
+    /// Forgets every plane and mover; `of` gets one entry per particle.
     void reset(std::size_t particles) {
         if (of.size() != particles) of.assign(particles, -1);
         for (std::size_t k = 0; k < normal.size(); ++k)
@@ -59,7 +78,51 @@ struct ContactPlanes {
         normal.clear();
         offset.clear();
         push.clear();
+        mover.clear();
+        lever.clear();
+        give.clear();
+        movers.clear();
         particle_.clear();
+    }
+    /// Plane k belongs to mover m, touching it at r from its centre of mass.
+    void moveWith(std::size_t k, std::int32_t m, const Vec3& r) {
+        const Mover& b = movers[std::size_t(m)];
+        const Vec3 rxn = r.cross(normal[k]);
+        mover[k] = m;
+        lever[k] = r;
+        give[k] = b.invMass + rxn.dot(b.invInertia * rxn);
+    }
+    /// Plane k's offset now: a mover's plane has moved with it.
+    double offsetNow(std::size_t k) const {
+        const std::int32_t m = mover[k];
+        if (m < 0) return offset[k];
+        const Mover& b = movers[std::size_t(m)];
+        return offset[k] + normal[k].dot(b.shift + b.turn.cross(lever[k]));
+    }
+    /// Plane k of a mover pushes its particle (inverse mass w) out of `below` [m]: the body
+    /// takes its share; returns the particle's [m].
+    double giveWay(std::size_t k, double below, double w) {
+        Mover& b = movers[std::size_t(mover[k])];
+        const double lambda = below / (w + give[k]); // [kg m]
+        const Vec3& n = normal[k];
+        b.shift -= (b.invMass * lambda) * n;
+        b.turn -= b.invInertia * (lever[k].cross(n) * lambda);
+        return w * lambda;
+    }
+    /// After a walk: each mover's planes take the offsets they moved to (the caller has moved
+    /// the bodies by shift and turn), and the movers start again from rest.
+    void settleMovers() {
+        for (std::size_t k = 0; k < normal.size(); ++k) {
+            const std::int32_t m = mover[k];
+            if (m < 0) continue;
+            const Mover& b = movers[std::size_t(m)];
+            offset[k] = offsetNow(k);
+            lever[k] += b.shift + b.turn.cross(lever[k]);
+        }
+        for (Mover& b : movers) {
+            b.shift = Vec3::Zero();
+            b.turn = Vec3::Zero();
+        }
     }
     /// Gives particle i the plane n . x >= offset (replacing one it had); returns its index.
     std::int32_t set(Index i, const Vec3& n, double off) {
@@ -70,10 +133,14 @@ struct ContactPlanes {
             normal.push_back(n);
             offset.push_back(off);
             push.push_back(Vec3::Zero());
+            mover.push_back(-1);
+            lever.push_back(Vec3::Zero());
+            give.push_back(0.0);
             particle_.push_back(i);
         } else {
             normal[std::size_t(k)] = n;
             offset[std::size_t(k)] = off;
+            mover[std::size_t(k)] = -1;
         }
         return k;
     }
@@ -238,9 +305,11 @@ class StrainLimiter {
         return planes_ ? keepAbove(i, dx, x) : dx;
     }
     /// The walk keeps `planes` when there are any, one entry of `of` per particle (n).
-    void usePlanes(ContactPlanes* planes, std::size_t n) {
-        planes_ =
-            planes != nullptr && planes->size() > 0 && planes->of.size() == n ? planes : nullptr;
+    void usePlanes(ContactPlanes* planes, const std::vector<double>& invMass) {
+        planes_ = planes != nullptr && planes->size() > 0 && planes->of.size() == invMass.size()
+                      ? planes
+                      : nullptr;
+        planeInvMass_ = &invMass;
     }
     /// Applies the corrections of the sorted wave order_; returns how many particles it moved
     /// (listed in dirty_). kPlanes: contact planes are set (planes_); kRecordHeld: held ends
@@ -329,7 +398,8 @@ class StrainLimiter {
     /// The scan's segments of kScanSegment slots and the largest ratio of each.
     static constexpr std::size_t kScanSegment = 16384;
     std::vector<double> segmentWorst_;
-    ContactPlanes* planes_ = nullptr; ///< during a walk with planes only
+    ContactPlanes* planes_ = nullptr;                   ///< during a walk with planes only
+    const std::vector<double>* planeInvMass_ = nullptr; ///< the particles' (with planes_)
     std::vector<Index> anchorList_, anchorScratch_;
     bool anchorsValid_ = false;
     double anchorSlack_ = 0.0; ///< the slack anchors_.restDistance was made with
