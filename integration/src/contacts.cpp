@@ -38,7 +38,7 @@ void ContactSolver::detect(Cloth& c, double dt) {
         const BodySnapshot& b = bodies[bi];
         if (!b.dynamicBody || b.supported || !(b.invMass > 0.0)) continue;
         moverOf_[bi] = static_cast<std::int32_t>(records->planes.movers.size());
-        records->planes.movers.push_back(ContactPlanes::Mover{b.invMass, b.invInertia});
+        records->planes.movers.push_back(ContactPlanes::Mover{b.invMass, b.invInertia, b.com});
     }
     // The free mass decides which dynamic bodies get limiter planes: only needed near one.
     clothMass_ = 0.0;

@@ -119,7 +119,19 @@ bool ContactSolver::pathHit(const BodySnapshot& b, const Vec3& from, const Vec3&
     btCollisionWorld::ClosestRayResultCallback ray(t0.getOrigin(), t1.getOrigin());
     btCollisionWorld::rayTestSingle(t0, t1, const_cast<btCollisionObject*>(b.object),
                                     b.object->getCollisionShape(), toBtTransform(b.pose), ray);
-    if (!ray.hasHit()) return false;
+    // A path that passes a sphere or capsule within the cloth's thickness touched it, as a
+    // particle that ends there does (a thin rod between two rows of particles): where it meets
+    // the body head on (within 60 degrees of the normal; one that grazes the body's side
+    // passes it).
+    if (!ray.hasHit()) {
+        if (!inflatedPathHit(b.object->getCollisionShape(), b.pose, from, xi, contact_.thickness,
+                             hit))
+            return false;
+        const Vec3 back = from - xi;
+        if (hit.normal.dot(back) >= 0.5 * back.norm()) return true;
+        hit = SurfaceHit{};
+        return false;
+    }
     Vec3 nrm = toVec(ray.m_hitNormalWorld);
     const double len = nrm.norm();
     if (!(len > 0.0)) return false;

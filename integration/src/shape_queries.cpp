@@ -360,6 +360,76 @@ SurfaceHit boxSurface(const Vec3& half, const Vec3* faceNormal, const Pose& pose
     return boxQuery(half, pose.toLocal(p), pose, faceNormal);
 }
 
+namespace {
+/// Smallest t in [0, 1] with |o + t d - c|^2 = R^2 entering the sphere (o outside it), or -1.
+double enterSphere(const Vec3& o, const Vec3& d, const Vec3& c, double R) {
+    const Vec3 oc = o - c;
+    const double a = d.squaredNorm(), b = oc.dot(d), cc = oc.squaredNorm() - R * R;
+    if (!(a > 0.0) || cc <= 0.0 || b >= 0.0) return -1.0;
+    const double disc = b * b - a * cc;
+    if (disc < 0.0) return -1.0;
+    const double t = (-b - std::sqrt(disc)) / a;
+    return t >= 0.0 && t <= 1.0 ? t : -1.0;
+}
+} // namespace
+
+bool inflatedPathHit(const btCollisionShape* shape, const Pose& pose, const Vec3& from,
+                     const Vec3& to, double inflate, SurfaceHit& hit) {
+    const int type = shape->getShapeType();
+    if (type != SPHERE_SHAPE_PROXYTYPE && type != CAPSULE_SHAPE_PROXYTYPE) return false;
+    const Vec3 o = pose.toLocal(from), e = pose.toLocal(to), d = e - o;
+    double r = 0.0, hh = 0.0;
+    int axis = 1;
+    if (type == SPHERE_SHAPE_PROXYTYPE) {
+        r = double(static_cast<const btSphereShape*>(shape)->getRadius());
+    } else {
+        const auto* cap = static_cast<const btCapsuleShape*>(shape);
+        r = double(cap->getRadius());
+        hh = double(cap->getHalfHeight());
+        axis = cap->getUpAxis();
+    }
+    const double R = r + inflate;
+    // The core (a point, or the capsule's axis segment) within R of the path's start: not a
+    // path entering it.
+    Vec3 c0 = Vec3::Zero();
+    c0[axis] = std::clamp(o[axis], -hh, hh);
+    if ((o - c0).squaredNorm() <= R * R) return false;
+    double t = -1.0;
+    auto earliest = [&t](double s) {
+        if (s >= 0.0 && (t < 0.0 || s < t)) t = s;
+    };
+    Vec3 cap0 = Vec3::Zero(), cap1 = Vec3::Zero();
+    cap0[axis] = -hh;
+    cap1[axis] = hh;
+    earliest(enterSphere(o, d, cap0, R));
+    if (hh > 0.0) {
+        earliest(enterSphere(o, d, cap1, R));
+        // The cylinder between the caps: the path across the axis.
+        Vec3 op = o, dp = d;
+        op[axis] = 0.0;
+        dp[axis] = 0.0;
+        const double a = dp.squaredNorm(), b = op.dot(dp), cc = op.squaredNorm() - R * R;
+        if (a > 0.0 && cc > 0.0 && b < 0.0 && b * b - a * cc >= 0.0) {
+            const double s = (-b - std::sqrt(b * b - a * cc)) / a;
+            const double along = o[axis] + s * d[axis];
+            if (s >= 0.0 && s <= 1.0 && along >= -hh && along <= hh) earliest(s);
+        }
+    }
+    if (t < 0.0) return false;
+    const Vec3 p = o + t * d;
+    Vec3 c = Vec3::Zero();
+    c[axis] = std::clamp(p[axis], -hh, hh);
+    const Vec3 off = p - c;
+    const double len = off.norm();
+    if (!(len > 0.0)) return false;
+    const Vec3 n = off / len;
+    hit.valid = true;
+    hit.normal = (pose.R * n).normalized();
+    hit.point = pose.toWorld(c + r * n);
+    hit.distance = std::min((to - hit.point).dot(hit.normal), 0.0);
+    return true;
+}
+
 SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const Vec3& p,
                           const Vec3& prev, double reach, QueryCounters& counters) {
     const Vec3 local = pose.toLocal(p);

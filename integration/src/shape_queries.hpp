@@ -37,6 +37,14 @@ struct QueryCounters {
 SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const Vec3& p,
                           const Vec3& prev, double reach, QueryCounters& counters);
 
+/// Where the path from -> to first comes within `inflate` [m] of a sphere or capsule at
+/// `pose` (the shape grown by the cloth's thickness; exact, not through Bullet's ray cast):
+/// the hit is the shape's own surface point there and its outward normal, `distance` the
+/// path's end below the tangent plane there (<= 0). False for other shapes, for a path that
+/// starts within it, or that never comes that close.
+bool inflatedPathHit(const btCollisionShape* shape, const Pose& pose, const Vec3& from,
+                     const Vec3& to, double inflate, SurfaceHit& hit);
+
 /// Closest points of segments p0-p1 and q0-q1: s, t in [0, 1] (the usual clamped solution of
 /// the 2 x 2 system, degenerate segments included).
 void closestSegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1,

@@ -464,7 +464,7 @@ TEST_CASE("a body that gives way in the walk takes what its planes push, momentu
         // A box-like inertia for a body of that mass about 0.5 m across.
         const Eigen::Matrix3d invInertia =
             Eigen::Matrix3d::Identity() / (bodyMass * (0.25 + 0.25) / 12.0);
-        planes.movers.push_back(ContactPlanes::Mover{1.0 / bodyMass, invInertia});
+        planes.movers.push_back(ContactPlanes::Mover{1.0 / bodyMass, invInertia, centre});
         std::vector<Index> all;
         for (std::size_t i = 0; i < n; ++i) {
             all.push_back(static_cast<Index>(i));
@@ -498,13 +498,23 @@ TEST_CASE("a body that gives way in the walk takes what its planes push, momentu
         CHECK((dp + bodyMass * body.shift).norm() <= 1e-10 * (1.0 + dp.norm()));
         CHECK(body.shift.dot(normal) < 0.0); // pushed into its side, away from the cloth
         shiftOf[heavy] = body.shift.norm();
-        // settleMovers makes the receded planes the planes, and the body starts from rest.
-        std::vector<double> offsetNow;
-        for (std::size_t p = 0; p < planes.size(); ++p)
-            offsetNow.push_back(planes.offsetNow(p));
+        // settleMovers moves and turns each plane rigidly with the body: its contact point
+        // (centre + lever) stays at the same height over it, its normal at the same angle to
+        // the lever; and the body starts again from rest.
+        std::vector<double> height, angle;
+        for (std::size_t p = 0; p < planes.size(); ++p) {
+            height.push_back(planes.offset[p] - planes.normal[p].dot(centre + planes.lever[p]));
+            angle.push_back(planes.normal[p].dot(planes.lever[p]));
+        }
+        const Vec3 moved = centre + body.shift;
         planes.settleMovers();
-        for (std::size_t p = 0; p < planes.size(); ++p)
-            CHECK(planes.offset[p] == Approx(offsetNow[p]).margin(1e-15));
+        CHECK((planes.movers[0].centre - moved).norm() <= 1e-15);
+        for (std::size_t p = 0; p < planes.size(); ++p) {
+            CHECK(planes.normal[p].norm() == Approx(1.0).margin(1e-14));
+            CHECK(planes.normal[p].dot(planes.lever[p]) == Approx(angle[p]).margin(1e-14));
+            CHECK(planes.offset[p] - planes.normal[p].dot(moved + planes.lever[p]) ==
+                  Approx(height[p]).margin(1e-14));
+        }
         CHECK(planes.movers[0].shift == Vec3::Zero());
     }
     CHECK(shiftOf[0] > 100.0 * shiftOf[1]);

@@ -8,6 +8,8 @@
 
 #include "drape/topology.hpp"
 
+#include <Eigen/Geometry>
+
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -59,8 +61,9 @@ struct ContactPlanes {
     struct Mover {
         double invMass = 0.0;                                 ///< [1/kg]
         Eigen::Matrix3d invInertia = Eigen::Matrix3d::Zero(); ///< world frame [1/(kg m^2)]
-        Vec3 shift = Vec3::Zero();                            ///< moved in the walk [m]
-        Vec3 turn = Vec3::Zero();                             ///< turned in the walk [rad]
+        Vec3 centre = Vec3::Zero(); ///< centre of mass, before the walk [m]
+        Vec3 shift = Vec3::Zero();  ///< moved in the walk [m]
+        Vec3 turn = Vec3::Zero();   ///< turned in the walk [rad]
     };
     std::vector<Mover> movers;
     /// Per plane: the mover it belongs to, or -1 (a body that does not give way).
@@ -109,17 +112,29 @@ struct ContactPlanes {
         b.turn -= b.invInertia * (lever[k].cross(n) * lambda);
         return w * lambda;
     }
-    /// After a walk: each mover's planes take the offsets they moved to (the caller has moved
-    /// the bodies by shift and turn), and the movers start again from rest.
+    /// After a walk: each mover's planes move and turn with it, exactly (the caller moves the
+    /// bodies by shift and turn), and the movers start again from rest.
     void settleMovers() {
+        std::vector<Eigen::Matrix3d> rotation(movers.size());
+        for (std::size_t m = 0; m < movers.size(); ++m) {
+            const double angle = movers[m].turn.norm();
+            rotation[m] = angle > 0.0
+                              ? Eigen::AngleAxisd(angle, movers[m].turn / angle).toRotationMatrix()
+                              : Eigen::Matrix3d::Identity();
+        }
         for (std::size_t k = 0; k < normal.size(); ++k) {
             const std::int32_t m = mover[k];
             if (m < 0) continue;
             const Mover& b = movers[std::size_t(m)];
-            offset[k] = offsetNow(k);
-            lever[k] += b.shift + b.turn.cross(lever[k]);
+            const Eigen::Matrix3d& R = rotation[std::size_t(m)];
+            // offset = n . (centre + lever) + h, h the plane's distance from the surface.
+            const double h = offset[k] - normal[k].dot(b.centre + lever[k]);
+            normal[k] = R * normal[k];
+            lever[k] = R * lever[k];
+            offset[k] = normal[k].dot(b.centre + b.shift + lever[k]) + h;
         }
         for (Mover& b : movers) {
+            b.centre += b.shift;
             b.shift = Vec3::Zero();
             b.turn = Vec3::Zero();
         }
