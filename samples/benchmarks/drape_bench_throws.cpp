@@ -62,10 +62,18 @@ Result run(const Throw& t) {
     const auto r = btScalar(t.size);
     std::unique_ptr<btCollisionShape> shape;
     switch (t.shape) {
-    case 0: shape = std::make_unique<btCapsuleShapeX>(r, btScalar(0.3)); break;
-    case 1: shape = std::make_unique<btSphereShape>(btScalar(3.0 * t.size)); break;
-    case 2: shape = std::make_unique<btBoxShape>(btVector3(btScalar(0.15), r, r)); break;
-    default: shape = std::make_unique<btCylinderShapeX>(btVector3(btScalar(0.15), r, r)); break;
+    case 0:
+        shape = std::make_unique<btCapsuleShapeX>(r, btScalar(0.3));
+        break;
+    case 1:
+        shape = std::make_unique<btSphereShape>(btScalar(3.0 * t.size));
+        break;
+    case 2:
+        shape = std::make_unique<btBoxShape>(btVector3(btScalar(0.15), r, r));
+        break;
+    default:
+        shape = std::make_unique<btCylinderShapeX>(btVector3(btScalar(0.15), r, r));
+        break;
     }
     btRigidBody* body = s.world->addBody(std::move(shape), btScalar(mass),
                                          games::at(t.start.x(), t.start.y(), t.start.z()));
