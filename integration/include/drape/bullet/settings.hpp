@@ -131,6 +131,8 @@ struct ContactStats {
     /// faster than anything in the contact (the body's fastest point and the cloth's fastest
     /// particle before the sub-step, and 1 m/s), which no cloth can do; the body keeps Bullet's
     /// state, and the cloth keeps the momentum the body did not take (not in impulseOnBodies).
+    /// Also counted: a free body's share of one strain-limiter walk that would have turned it
+    /// by more than half a turn (or to a non-finite place), which is not applied to it.
     /// Seen with thin fast bodies wedged between particles (integration/README.md, "Fast
     /// bodies"); 0 in every shipped scene and game.
     std::size_t refusedBodyImpulses = 0;
