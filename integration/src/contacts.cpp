@@ -127,7 +127,7 @@ void ContactSolver::settleMovers(Cloth& c, double dt) {
     for (std::size_t k = 0; k < pl.size(); ++k) {
         if (pl.mover[k] < 0) continue;
         const ContactPlanes::Mover& mv = pl.movers[std::size_t(pl.mover[k])];
-        if (!(mv.shift.allFinite() && mv.turn.allFinite() && mv.turn.norm() <= kPi))
+        if (mv.broken || !(mv.shift.allFinite() && mv.turn.allFinite() && mv.turn.norm() <= kPi))
             pl.mover[k] = -1;
     }
     for (std::size_t k = 0; k < pl.size(); ++k)
@@ -135,7 +135,7 @@ void ContactSolver::settleMovers(Cloth& c, double dt) {
     for (std::size_t bi = 0; bi < bodies.size(); ++bi)
         if (const std::int32_t m = moverOf_[bi]; m >= 0) {
             const ContactPlanes::Mover& mv = pl.movers[std::size_t(m)];
-            if (mv.shift.allFinite() && mv.turn.allFinite() && mv.turn.norm() <= kPi)
+            if (!mv.broken && mv.shift.allFinite() && mv.turn.allFinite() && mv.turn.norm() <= kPi)
                 bodies[bi].displace(mv.shift, mv.turn);
             else
                 ++stats.refusedBodyImpulses;

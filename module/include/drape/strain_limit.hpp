@@ -64,6 +64,7 @@ struct ContactPlanes {
         Vec3 centre = Vec3::Zero(); ///< centre of mass, before the walk [m]
         Vec3 shift = Vec3::Zero();  ///< moved in the walk [m]
         Vec3 turn = Vec3::Zero();   ///< turned in the walk [rad]
+        bool broken = false;        ///< the walk turned it too far (giveWay): not applied
     };
     std::vector<Mover> movers;
     /// Per plane: the mover it belongs to, or -1 (a body that does not give way).
@@ -106,12 +107,23 @@ struct ContactPlanes {
     /// takes its share; returns the particle's [m].
     double giveWay(std::size_t k, double below, double w) {
         Mover& b = movers[std::size_t(mover[k])];
+        if (b.broken) return below;
         const double lambda = below / (w + give[k]); // [kg m]
         const Vec3& n = normal[k];
+        const Vec3 turn = b.turn - b.invInertia * (lever[k].cross(n) * lambda);
+        // Past half a turn in one walk the first-order planes describe nothing (a thin bar
+        // wedged between particles, light about its axis): the body is left out of the rest
+        // of the walk (its planes hold) and the caller does not apply what it took.
+        if (!(turn.squaredNorm() <= kBrokenTurn * kBrokenTurn) || !b.shift.allFinite()) {
+            b.broken = true;
+            return below;
+        }
+        b.turn = turn;
         b.shift -= (b.invMass * lambda) * n;
-        b.turn -= b.invInertia * (lever[k].cross(n) * lambda);
         return w * lambda;
     }
+    /// A walk that turns a mover further than this [rad] is not applied to it.
+    static constexpr double kBrokenTurn = 3.14159265358979323846;
     /// After a walk: each mover's planes move and turn with it, exactly (the caller moves the
     /// bodies by shift and turn), and the movers start again from rest.
     void settleMovers() {
@@ -137,6 +149,7 @@ struct ContactPlanes {
             b.centre += b.shift;
             b.shift = Vec3::Zero();
             b.turn = Vec3::Zero();
+            b.broken = false;
         }
     }
     /// Gives particle i the plane n . x >= offset (replacing one it had); returns its index.
