@@ -83,6 +83,7 @@ void accumulate(ContactStats& total, const ContactStats& s) {
     total.rayQueries += s.rayQueries;
     total.triangleQueries += s.triangleQueries;
     total.triangleContacts += s.triangleContacts;
+    total.sweptTriangles += s.sweptTriangles;
     total.edgeContacts += s.edgeContacts;
     total.contacts += s.contacts;
     total.projections += s.projections;

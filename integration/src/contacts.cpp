@@ -53,6 +53,7 @@ void ContactSolver::detect(Cloth& c, double dt) {
 
     QueryCounters counters;
     collideParticles(c, dt, counters);
+    if (contact_.continuous) sweepBodies(c, dt, counters);
     if (contact_.triangles) collideTriangles(c, dt, counters);
     if (contact_.boxEdges) collideEdges(c);
     for (unsigned char t : touching_)

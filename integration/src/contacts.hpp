@@ -70,6 +70,9 @@ namespace drape::bullet::detail {
 
 /// Follow-up walks and re-projections after the limiter's walk, at most.
 constexpr int kRelimitPasses = 8;
+/// A triangle contact whose point lies within this share of its fixed corners (barycentric
+/// weight of the free ones below it) moves nothing: the fixed corners hold it.
+constexpr double kFreeShare = 0.25;
 /// Extra sweeps over the triangles in contact after a triangle pass.
 constexpr int kTriangleSweeps = 4;
 
@@ -181,6 +184,17 @@ class ContactSolver {
     double collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t, double dt,
                            QueryCounters& counters);
 
+    /// Moves triangle `tri` out of body bi by `depth` [m] along n at its point of barycentric
+    /// weights `beta` (body's surface point `point`), stops its approach with Coulomb
+    /// friction, two-way, and gives its particles limiter planes (`swept`: after a body's
+    /// sweep, sweepBodies). False if its particles are all fixed there.
+    bool pushTriangle(Cloth& c, std::uint32_t bi, const Triangle& tri, const Vec3& n,
+                      const Vec3& point, const Vec3& beta, double depth, bool swept, double dt);
+    /// Bodies faster than the thickness per cloth step against the triangles in their way
+    /// (contact.continuous): a triangle the body's path reached (sweepToTriangle) is moved
+    /// ahead of it, so that no body passes between particles (a thin rod, a small ball).
+    void sweepBodies(Cloth& c, double dt, QueryCounters& counters);
+
     // --- springs against boxes (edge_contacts.cpp) -----------------------------------------
     /// Springs with an end touching a box, kept the thickness away from it along their length
     /// (contact.boxEdges).
@@ -234,6 +248,13 @@ class ContactSolver {
     std::vector<Vec3> edgeLocal_, edgeGradient_;
     std::vector<double> edgeDistance_;
     double maxRest_ = -1.0; ///< the longest spring's rest length (once) [m]
+    /// The cloth's longest spring rest length [m] (found once: the topology never changes).
+    double longestSpring(const Cloth& c) {
+        if (maxRest_ < 0.0)
+            for (const Spring& sp : c.topology().springs())
+                maxRest_ = std::max(maxRest_, sp.restLength);
+        return maxRest_;
+    }
 };
 
 // Defined here, inline: they run per contact in the stage's loops.

@@ -144,10 +144,7 @@ void ContactSolver::collideEdges(Cloth& c) {
     // And the free particles within a spring's length of a box that have no contact yet:
     // the box can cut a spring between two of them before either touches it (a ridge landing
     // between two columns).
-    if (maxRest_ < 0.0) // the topology never changes: once
-        for (const Spring& sp : springs)
-            maxRest_ = std::max(maxRest_, sp.restLength);
-    const double reach = 1.1 * maxRest_;
+    const double reach = 1.1 * longestSpring(c);
     for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
         const BodySnapshot& b = bodies[bi];
         if (!b.box) continue;

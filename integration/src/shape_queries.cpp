@@ -354,6 +354,33 @@ TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& 
     return h;
 }
 
+SweptTriangleHit sweepToTriangle(const btCollisionShape* shape, double radius, const Pose& from,
+                                 const Pose& to, const Vec3 (&start)[3], const Vec3 (&end)[3],
+                                 double gap, double tolerance, QueryCounters& counters) {
+    double corners = 0.0;
+    for (int k = 0; k < 3; ++k)
+        corners = std::max(corners, (end[k] - start[k]).norm());
+    const double rate = (to.t - from.t).norm() + turnAngle(from, to) * radius + corners;
+    if (!(rate > 0.0) || !std::isfinite(rate)) return {};
+    constexpr int kMaxAdvances = 32;
+    double s = 0.0;
+    for (int it = 0; it < kMaxAdvances; ++it) {
+        const Pose p = between(from, to, s);
+        Vec3 v[3];
+        for (int k = 0; k < 3; ++k)
+            v[k] = start[k] + s * (end[k] - start[k]);
+        // Nothing nearer than what the rest of the way can close: it never reaches the gap.
+        const TriangleHit near = closestToTriangle(shape, toBtTransform(p), v[0], v[1], v[2],
+                                                   gap + tolerance + rate * (1.0 - s), counters);
+        if (!near.valid) return {};
+        const double left = near.distance - gap;
+        if (left <= tolerance) return SweptTriangleHit{true, s, p, near};
+        s += left / rate;
+        if (s > 1.0) return {};
+    }
+    return {}; // (a graze that advances by less than the tolerance each time)
+}
+
 SurfaceHit boxSurface(const Vec3& half, const Vec3* faceNormal, const Pose& pose, const Vec3& p,
                       QueryCounters& counters) {
     ++counters.queries;

@@ -40,26 +40,38 @@ void ContactSolver::collideTriangles(Cloth& c, double dt, QueryCounters& counter
 
 double ContactSolver::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t, double dt,
                                       QueryCounters& counters) {
-    BodySnapshot& b = bodies[bi];
+    const BodySnapshot& b = bodies[bi];
     const Triangle& tri = c.topology().triangles()[t];
-    Vec3List& x = c.mutablePositions();
-    Vec3List& v = c.mutableVelocities();
-    const auto& w = c.inverseMasses();
+    const Vec3List& x = c.positions();
     const double h = contact_.thickness;
     const TriangleHit hit = closestToTriangle(b.object->getCollisionShape(), toBtTransform(b.pose),
                                               x[tri[0]], x[tri[1]], x[tri[2]], h, counters);
     if (!hit.valid || !(hit.distance < h)) return -1.0;
+    const double depth = h - hit.distance;
+    return pushTriangle(c, bi, tri, hit.normal, hit.bodyPoint, hit.barycentric, depth, false, dt)
+               ? depth
+               : -1.0;
+}
+
+bool ContactSolver::pushTriangle(Cloth& c, std::uint32_t bi, const Triangle& tri, const Vec3& n,
+                                 const Vec3& point, const Vec3& beta, double depth, bool swept,
+                                 double dt) {
+    BodySnapshot& b = bodies[bi];
+    Vec3List& x = c.mutablePositions();
+    Vec3List& v = c.mutableVelocities();
+    const auto& w = c.inverseMasses();
     // The triangle's nearest point moves out by the depth along n: particle k by
     // beta_k w_k / W of it, W = sum beta_k^2 w_k (the least-mass-weighted change that moves the
     // point by exactly that), and its approach stops with the impulse lambda shared the same
     // way: the point's inverse mass along n is W.
-    const Vec3& beta = hit.barycentric;
-    double weight = 0.0;
-    for (int k = 0; k < 3; ++k)
+    // A point at (or near) a fixed corner is held there: moving the free corners by
+    // beta_k w_k depth / W would take them far (by depth / beta_k) for nothing.
+    double weight = 0.0, free = 0.0;
+    for (int k = 0; k < 3; ++k) {
         weight += beta[k] * beta[k] * w[tri[k]];
-    if (!(weight > 0.0)) return -1.0;
-    const Vec3& n = hit.normal;
-    const double depth = h - hit.distance;
+        free += w[tri[k]] > 0.0 ? beta[k] : 0.0;
+    }
+    if (!(weight > 0.0) || free < kFreeShare) return false;
     stats.maxDepth = std::max(stats.maxDepth, depth);
     for (int k = 0; k < 3; ++k) {
         const Index i = tri[k];
@@ -68,30 +80,105 @@ double ContactSolver::collideTriangle(Cloth& c, std::uint32_t bi, std::size_t t,
         touching_[i] = 1;
         projected_.push_back(i);
         boxes_.update(i, x[i], stepStart()[i], false);
-        // Against a static or kinematic body the limiter's walk keeps the particle from going
-        // back along n (its own contact's plane, if it has one, comes first), so the strain
-        // bound and the triangle's contact hold together, as for particle contacts.
-        if (!b.dynamicBody && (records->planes.of[i] < 0 || trianglePlane_[i]))
-            keepPlane(c, bi, i, n, n.dot(x[i]), hit.bodyPoint, true, dt);
+        // The limiter's walk keeps the particle from going back along n, so the strain bound
+        // and the triangle's contact hold together, as for particle contacts: against a static
+        // or kinematic body (its own contact's plane, if it has one, comes first); after a
+        // sweep also against the dynamic bodies a particle contact keeps planes with (a plane
+        // of another body stays).
+        const std::int32_t was = records->planes.of[i];
+        const bool plane = swept ? (was < 0 || planeBody_[std::size_t(was)] == bi) &&
+                                       (!b.dynamicBody || !b.supported ||
+                                        b.inverseMassAlong(point, n) * clothMass_ <= 1.0)
+                                 : !b.dynamicBody && (was < 0 || trianglePlane_[i]);
+        if (plane) keepPlane(c, bi, i, n, n.dot(x[i]), point, !swept, dt);
     }
-    ++stats.triangleContacts;
-    const Vec3 rel = beta[0] * v[tri[0]] + beta[1] * v[tri[1]] + beta[2] * v[tri[2]] -
-                     b.velocityAt(hit.bodyPoint);
+    ++(swept ? stats.sweptTriangles : stats.triangleContacts);
+    const Vec3 rel =
+        beta[0] * v[tri[0]] + beta[1] * v[tri[1]] + beta[2] * v[tri[2]] - b.velocityAt(point);
     if (b.dynamicBody) b.contactSpeed = std::max(b.contactSpeed, rel.norm());
     const double vn = rel.dot(n);
-    if (vn >= 0.0) return depth;
+    if (vn >= 0.0) return true;
     auto share = [&](const Vec3& j) { // an impulse j at the point: the particles' shares, the
                                       // body's opposite
         for (int k = 0; k < 3; ++k)
             v[tri[k]] += (beta[k] * w[tri[k]]) * j;
-        exchange(b, j, hit.bodyPoint);
+        exchange(b, j, point);
     };
-    const double lambda = -vn / (weight + b.inverseMassAlong(hit.bodyPoint, n));
+    const double lambda = -vn / (weight + b.inverseMassAlong(point, n));
     share(lambda * n);
     // Its Coulomb friction, against the slip before the normal impulse.
     Vec3 j;
-    if (coulombImpulse(rel, n, weight, b, hit.bodyPoint, b.friction * lambda, j)) share(j);
-    return depth;
+    if (coulombImpulse(rel, n, weight, b, point, b.friction * lambda, j)) share(j);
+    return true;
+}
+
+void ContactSolver::sweepBodies(Cloth& c, double dt, QueryCounters& counters) {
+    const double h = contact_.thickness;
+    const auto& tris = c.topology().triangles();
+    const auto& w = c.inverseMasses();
+    const Vec3List& x = c.positions();
+    for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
+        const BodySnapshot& b = bodies[bi];
+        if (b.plane || !b.sweeps()) continue;
+        const btCollisionShape* shape = b.object->getCollisionShape();
+        if (!(shape->isConvex() || shape->getShapeType() == COMPOUND_SHAPE_PROXYTYPE)) continue;
+        btVector3 centre;
+        btScalar r;
+        shape->getBoundingSphere(centre, r);
+        const double radius = toVec(centre).norm() + double(r);
+        const Pose& from = b.previous;
+        const Pose& to = b.pose;
+        // A body that moved less than the thickness in the step and is thicker than the
+        // longest spring across its path: the particles' own queries (closest points, swept
+        // rays) meet it. (A thinner one, a rod or a small ball, thin in two directions, fits
+        // through the gaps between particles at any speed.)
+        btTransform identity;
+        identity.setIdentity();
+        btVector3 lmin, lmax;
+        shape->getAabb(identity, lmin, lmax);
+        Vec3 extent = 0.5 * toVec(lmax - lmin);
+        std::sort(extent.data(), extent.data() + 3);
+        const bool thin = extent[1] + h < longestSpring(c);
+        if (!thin && (to.t - from.t).norm() + turnAngle(from, to) * radius <= h) continue;
+        btVector3 mn0, mx0, mn1, mx1;
+        shape->getAabb(toBtTransform(from), mn0, mx0);
+        shape->getAabb(toBtTransform(to), mn1, mx1);
+        const Vec3 lo = toVec(mn0).cwiseMin(toVec(mn1)).array() - h;
+        const Vec3 hi = toVec(mx0).cwiseMax(toVec(mx1)).array() + h;
+        for (const Triangle& tri : tris) {
+            if (w[tri[0]] == 0.0 && w[tri[1]] == 0.0 && w[tri[2]] == 0.0) continue;
+            Vec3 start[3], end[3];
+            Vec3 tlo = Vec3::Constant(std::numeric_limits<double>::infinity()), thi = -tlo;
+            for (int k = 0; k < 3; ++k) {
+                start[k] = stepStart()[tri[k]];
+                end[k] = x[tri[k]];
+                tlo = tlo.cwiseMin(start[k]).cwiseMin(end[k]);
+                thi = thi.cwiseMax(start[k]).cwiseMax(end[k]);
+            }
+            if ((thi.array() < lo.array()).any() || (tlo.array() > hi.array()).any()) continue;
+            const SweptTriangleHit hit =
+                sweepToTriangle(shape, radius, from, to, start, end, h, 0.05 * h, counters);
+            if (!hit.valid) continue;
+            // The body's point that reached the triangle and its normal there, carried to where
+            // the body ends the step.
+            const Vec3 point = to.toWorld(hit.pose.toLocal(hit.near.bodyPoint));
+            const Vec3 n = (to.R * hit.pose.R.transpose() * hit.near.normal).normalized();
+            // Only a body that came on toward the triangle carries it (not one that leaves it
+            // or slides along it).
+            const Vec3& beta = hit.near.barycentric;
+            Vec3 triangleMove = Vec3::Zero();
+            for (int k = 0; k < 3; ++k)
+                triangleMove += beta[k] * (1.0 - hit.s) * (end[k] - start[k]);
+            if (!((point - hit.near.bodyPoint - triangleMove).dot(hit.near.normal) > 0.0)) continue;
+            // The triangle's point there ends ahead of the body's tangent plane, the thickness
+            // away, and stops coming toward it: the response of a triangle contact.
+            Vec3 at = Vec3::Zero();
+            for (int k = 0; k < 3; ++k)
+                at += beta[k] * x[tri[k]];
+            const double depth = n.dot(point) + h - n.dot(at);
+            if (depth > 0.0) pushTriangle(c, bi, tri, n, point, beta, depth, true, dt);
+        }
+    }
 }
 
 } // namespace drape::bullet::detail

@@ -102,7 +102,10 @@ struct ContactStats {
     std::size_t rayQueries = 0;         ///< continuous (swept) ray tests
     std::size_t triangleQueries = 0;    ///< triangle-body GJK queries (contact.triangles)
     std::size_t triangleContacts = 0;   ///< triangle-body contacts that moved a triangle
-    std::size_t edgeContacts = 0;       ///< springs moved out of a box they cut into (boxEdges)
+    /// Triangles a body faster than the thickness per cloth step reached on its way and moved
+    /// ahead of it (contact.continuous; their queries count in triangleQueries).
+    std::size_t sweptTriangles = 0;
+    std::size_t edgeContacts = 0; ///< springs moved out of a box they cut into (boxEdges)
     /// Particle-body contacts: particles touching a body (projected, or resting at the
     /// thickness) or, with eq. (7) on, inside its band; once per particle and body per cloth
     /// step, summed over the sub-steps.
