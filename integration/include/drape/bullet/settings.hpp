@@ -31,7 +31,10 @@ struct ContactSettings {
     /// Multiplies the body's btCollisionObject friction coefficient (Coulomb mu) [-].
     double frictionScale = 1.0;
     /// Ray-test the path of particles that moved more than `thickness` in a step, so that a
-    /// fast particle does not pass through a thin body between two steps.
+    /// fast particle does not pass through a thin body between two steps; and sweep every
+    /// moving convex body that moves more than `thickness` in a step, or is thinner across
+    /// than the cloth's longest spring, against the cloth's triangles on its way (a
+    /// projectile, a thin rod, a small ball: none passes between the particles).
     bool continuous = true;
     /// Also keep the cloth's triangles (their edges and interiors) `thickness` away from
     /// convex bodies and the convex children of compounds, so that a feature thinner than the
