@@ -12,10 +12,6 @@
 
 namespace drape::bullet::detail {
 
-namespace {
-constexpr double kPi = 3.14159265358979323846;
-} // namespace
-
 ContactSolver::ContactSolver(const BulletClothSettings& settings, double band)
     : records(std::make_shared<ContactSet>()), contact_(settings.contact), band_(band),
       boxes_(settings.contact.thickness, band, settings.contact.continuous) {
@@ -125,18 +121,14 @@ void ContactSolver::settleMovers(Cloth& c, double dt) {
     // what first-order planes describe (a thin bar wedged between particles, light about its
     // axis): the body stays, and its planes give what they held as a body's that does not
     // give way (flushPlane's inelastic bound).
-    for (std::size_t k = 0; k < pl.size(); ++k) {
-        if (pl.mover[k] < 0) continue;
-        const ContactPlanes::Mover& mv = pl.movers[std::size_t(pl.mover[k])];
-        if (mv.broken || !(mv.shift.allFinite() && mv.turn.allFinite() && mv.turn.norm() <= kPi))
-            pl.mover[k] = -1;
-    }
+    for (std::size_t k = 0; k < pl.size(); ++k)
+        if (pl.mover[k] >= 0 && !pl.movers[std::size_t(pl.mover[k])].applied()) pl.mover[k] = -1;
     for (std::size_t k = 0; k < pl.size(); ++k)
         if (pl.mover[k] >= 0) flushPlane(c, k, dt);
     for (std::size_t bi = 0; bi < bodies.size(); ++bi)
         if (const std::int32_t m = moverOf_[bi]; m >= 0) {
             const ContactPlanes::Mover& mv = pl.movers[std::size_t(m)];
-            if (!mv.broken && mv.shift.allFinite() && mv.turn.allFinite() && mv.turn.norm() <= kPi)
+            if (mv.applied())
                 bodies[bi].displace(mv.shift, mv.turn);
             else
                 ++stats.refusedBodyImpulses;

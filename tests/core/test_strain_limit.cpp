@@ -376,6 +376,26 @@ TEST_CASE("Limiters without pins keep the centre of mass (inverse-mass shares)",
     }
 }
 
+namespace {
+/// The irregular unpinned sheet of the contact-plane tests, its random masses (seed 3), and the
+/// mean x of its particles (the left half gets planes).
+struct PlaneSheet {
+    std::shared_ptr<const ClothTopology> topo;
+    std::vector<double> mass, invMass;
+    double xMid = 0.0;
+};
+PlaneSheet planeSheet() {
+    PlaneSheet sheet;
+    sheet.topo = ClothTopology::build(irregularMesh(8, 6, 5));
+    const std::size_t n = sheet.topo->particleCount();
+    Rng rng(3);
+    randomMasses(rng, n, sheet.mass, sheet.invMass);
+    for (const Vec3& p : sheet.topo->restPositions())
+        sheet.xMid += p.x() / double(n);
+    return sheet;
+}
+} // namespace
+
 TEST_CASE("relimit keeps particles above their contact planes and reaches the bound",
           "[limiter][contact]") {
     // An irregular unpinned sheet, unequal masses: the particles of its left half lie on a
@@ -383,17 +403,15 @@ TEST_CASE("relimit keeps particles above their contact planes and reaches the bo
     // (an overhang that fell for one step). relimit with the planes must end with every spring
     // within the bound, every planed particle on or above its plane, and the momentum the
     // planes added (m push, the only outside impulse) equal to the change of sum m x.
-    const auto topo = ClothTopology::build(irregularMesh(8, 6, 5));
+    const PlaneSheet sheet = planeSheet();
+    const auto& topo = sheet.topo;
     const std::size_t n = topo->particleCount();
-    std::vector<double> mass, invMass;
-    Rng rng(3);
-    randomMasses(rng, n, mass, invMass);
+    const std::vector<double>& mass = sheet.mass;
+    const std::vector<double>& invMass = sheet.invMass;
     const std::vector<double> k(topo->springCount(), 1.0);
     LimiterSettings s = limiterSettings();
     s.longRangeAttachments = false;
-    double xMid = 0.0;
-    for (const Vec3& p : topo->restPositions())
-        xMid += p.x() / double(n);
+    const double xMid = sheet.xMid;
     for (const Vec3& normal : {Vec3(0, 1, 0), Vec3(Vec3(0.3, 1, 0.2).normalized())}) {
         std::vector<Vec3> x = topo->restPositions();
         ContactPlanes planes;
@@ -439,20 +457,18 @@ TEST_CASE("a body that gives way in the walk takes what its planes push, momentu
     // every planed particle on or above its plane where the body moved it, and the body's
     // momentum change M shift must be the opposite of the cloth's, sum m dx (the planes are
     // the only outside push). A light body gives way more than a heavy one.
-    const auto topo = ClothTopology::build(irregularMesh(8, 6, 5));
+    const PlaneSheet sheet = planeSheet();
+    const auto& topo = sheet.topo;
     const std::size_t n = topo->particleCount();
-    std::vector<double> mass, invMass;
-    Rng rng(3);
-    randomMasses(rng, n, mass, invMass);
+    const std::vector<double>& mass = sheet.mass;
+    const std::vector<double>& invMass = sheet.invMass;
     double clothMass = 0.0;
     for (double m : mass)
         clothMass += m;
     const std::vector<double> k(topo->springCount(), 1.0);
     LimiterSettings s = limiterSettings();
     s.longRangeAttachments = false;
-    double xMid = 0.0;
-    for (const Vec3& p : topo->restPositions())
-        xMid += p.x() / double(n);
+    const double xMid = sheet.xMid;
     const Vec3 normal = Vec3(0.3, 1, 0.2).normalized();
     double shiftOf[2] = {0.0, 0.0};
     for (int heavy = 0; heavy < 2; ++heavy) {

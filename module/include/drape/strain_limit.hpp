@@ -65,6 +65,10 @@ struct ContactPlanes {
         Vec3 shift = Vec3::Zero();  ///< moved in the walk [m]
         Vec3 turn = Vec3::Zero();   ///< turned in the walk [rad]
         bool broken = false;        ///< the walk turned it too far (giveWay): not applied
+        /// What the walk did to it can be applied: not broken, finite, at most kBrokenTurn.
+        bool applied() const {
+            return !broken && shift.allFinite() && turn.allFinite() && turn.norm() <= kBrokenTurn;
+        }
     };
     std::vector<Mover> movers;
     /// Per plane: the mover it belongs to, or -1 (a body that does not give way).
