@@ -306,6 +306,15 @@ TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& 
         return capsuleTriangle(pose.toWorld(-axis), pose.toWorld(axis), double(cap->getRadius()), a,
                                b, c, reach);
     }
+    if (shape->getShapeType() == SPHERE_SHAPE_PROXYTYPE) {
+        // Balls: exact too, a capsule of no length (and a few times cheaper than GJK, which
+        // a small ball swept against the triangles at every cloth step would pay).
+        ++counters.triangleQueries;
+        const Vec3 centre = toVec(transform.getOrigin());
+        return capsuleTriangle(centre, centre,
+                               double(static_cast<const btSphereShape*>(shape)->getRadius()), a, b,
+                               c, reach);
+    }
     if (shape->getShapeType() == COMPOUND_SHAPE_PROXYTYPE) {
         const auto* compound = static_cast<const btCompoundShape*>(shape);
         const Vec3 lo = a.cwiseMin(b).cwiseMin(c).array() - reach;
