@@ -3,10 +3,13 @@
 
 #include "validate.hpp"
 
+#include <btBulletCollisionCommon.h>
+
 #include "drape/error.hpp"
 #include "drape/timers.hpp"
 
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 
@@ -50,6 +53,7 @@ void ContactSolver::detect(Cloth& c, double dt) {
     QueryCounters counters;
     collideParticles(c, dt, counters);
     if (contact_.continuous) sweepBodies(c, dt, counters);
+    if (!std::getenv("DRAPE_NOSTRADDLE")) straddledSprings(c, dt);
     if (contact_.triangles) collideTriangles(c, dt, counters);
     if (contact_.boxEdges) collideEdges(c);
     for (unsigned char t : touching_)
@@ -112,6 +116,66 @@ void ContactSolver::finish(Cloth& c, double dt) {
 
     stats.narrowphaseQueries += counters.queries;
     stats.triangleQueries += counters.triangleQueries;
+}
+
+void ContactSolver::straddledSprings(Cloth& c, double dt) {
+    ContactPlanes& pl = records->planes;
+    if (pl.size() == 0) return;
+    const double bound = 1.0 + c.settings().limiter.maxStrain;
+    const ClothTopology& topo = c.topology();
+    const auto& offsets = topo.adjacencyOffsets();
+    // The springs between two planed particles, each once (from its lower end); the planes
+    // set below are appended, and a particle's plane index does not change when replaced.
+    const std::size_t planes = pl.size();
+    // Only bodies thinner across than the longest spring (a rod, a small ball) fit between
+    // two particles.
+    std::vector<signed char> thin(bodies.size(), -1);
+    auto isThin = [&](std::uint32_t bi) {
+        if (thin[bi] < 0) {
+            btTransform identity;
+            identity.setIdentity();
+            btVector3 lo, hi;
+            bodies[bi].object->getCollisionShape()->getAabb(identity, lo, hi);
+            Vec3 half = 0.5 * toVec(hi - lo);
+            std::sort(half.data(), half.data() + 3);
+            thin[bi] = half[1] + contact_.thickness < longestSpring(c) ? 1 : 0;
+        }
+        return thin[bi] == 1;
+    };
+    for (std::size_t k = 0; k < planes; ++k) {
+        const Index a = pl.particle(k);
+        for (Index e = offsets[a]; e < offsets[a + 1]; ++e) {
+            const Index other = topo.adjacentParticles()[e];
+            if (other < a) continue;
+            const Spring& s = topo.springs()[topo.adjacentSprings()[e]];
+            const std::int32_t ka = pl.of[s.a], kb = pl.of[s.b];
+            if (ka < 0 || kb < 0) continue;
+            const std::uint32_t bi = planeBody_[std::size_t(ka)];
+            if (planeBody_[std::size_t(kb)] != bi) continue;
+            const Vec3 na = pl.normal[std::size_t(ka)], nb = pl.normal[std::size_t(kb)];
+            if (!(na.dot(nb) < -0.2) || !isThin(bi)) continue;
+            const BodySnapshot& b = bodies[bi];
+            // How far apart the two planes hold the ends, across the body: each plane's distance
+            // from the body's centre along its normal.
+            const double da = pl.offsetNow(std::size_t(ka)) - na.dot(b.com);
+            const double db = pl.offsetNow(std::size_t(kb)) - nb.dot(b.com);
+            if (s.restLength * bound >= 0.5 * (da + db) * (na - nb).norm()) continue;
+            // They cannot both hold within the bound: the spring passes the body on one side, the
+            // side both normals share.
+            Vec3 m = na + nb;
+            const double len = m.norm();
+            if (!(len > 1e-6)) continue;
+            m /= len;
+            const btCollisionShape* shape = b.object->getCollisionShape();
+            if (!shape->isConvex()) continue;
+            const Vec3 local = b.pose.R.transpose() * m;
+            const Vec3 support = b.pose.toWorld(toVec(
+                static_cast<const btConvexShape*>(shape)->localGetSupportingVertex(toBt(local))));
+            const double offset = m.dot(support) + contact_.thickness;
+            for (Index i : {s.a, s.b})
+                keepPlane(c, bi, i, m, offset, support, false, dt);
+        }
+    }
 }
 
 void ContactSolver::settleMovers(Cloth& c, double dt) {

@@ -165,6 +165,10 @@ class ContactSolver {
     /// by in the limiter's walk (m push / dt), with the Coulomb friction that normal impulse
     /// allows, and clears the push.
     void flushPlane(Cloth& c, std::size_t k, double dt);
+    /// Springs whose two ends have planes of one body on opposite sides that the bound cannot
+    /// both hold (a body thinner than the gap with the thickness around it): both ends get
+    /// the plane on the side the two normals share.
+    void straddledSprings(Cloth& c, double dt);
     /// After a limiter walk: the bodies that gave way in it (ContactPlanes::Mover) take the
     /// impulses of their planes and move where the walk pushed them.
     void settleMovers(Cloth& c, double dt);
