@@ -43,7 +43,9 @@
 // moved more than h in the step, or is thinner across than the longest spring, is also swept
 // against the triangles on its way (sweepBodies, shape_queries.hpp's sweepToTriangle): a
 // triangle it reached is moved ahead of it as a triangle contact (pushTriangle), so that it
-// does not pass between the particles.
+// does not pass between the particles. A spring whose ends have planes of one thin body on
+// opposite sides, which the strain bound cannot both hold (the body wedged between them),
+// passes the body on the side the normals share (straddledSprings).
 // A dynamic body takes a plane's push only up to what stops its approach (flushPlane).
 // Every particle within reach of a static or kinematic body keeps that contact's tangent plane
 // in the limiter's one walk of the step, which runs after detect (ContactSet::planes: the
