@@ -9,7 +9,6 @@
 #include "drape/timers.hpp"
 
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
 #include <string>
 
@@ -43,6 +42,19 @@ void ContactSolver::detect(Cloth& c, double dt) {
         moverOf_[bi] = static_cast<std::int32_t>(records->planes.movers.size());
         records->planes.movers.push_back(ContactPlanes::Mover{b.invMass, b.invInertia, b.com});
     }
+    // A body thinner across than the longest spring (its second-smallest half extent plus the
+    // thickness below that length: a rod, a small ball) fits between two particles.
+    thin_.assign(bodies.size(), 0);
+    for (std::size_t bi = 0; bi < bodies.size(); ++bi) {
+        if (bodies[bi].plane) continue;
+        btTransform identity;
+        identity.setIdentity();
+        btVector3 lo, hi;
+        bodies[bi].object->getCollisionShape()->getAabb(identity, lo, hi);
+        Vec3 half = 0.5 * toVec(hi - lo);
+        std::sort(half.data(), half.data() + 3);
+        thin_[bi] = half[1] + contact_.thickness < longestSpring(c);
+    }
     // The free mass decides which dynamic bodies get limiter planes: only needed near one.
     clothMass_ = 0.0;
     if (std::any_of(bodies.begin(), bodies.end(),
@@ -53,7 +65,7 @@ void ContactSolver::detect(Cloth& c, double dt) {
     QueryCounters counters;
     collideParticles(c, dt, counters);
     if (contact_.continuous) sweepBodies(c, dt, counters);
-    if (!std::getenv("DRAPE_NOSTRADDLE")) straddledSprings(c, dt);
+    straddledSprings(c, dt);
     if (contact_.triangles) collideTriangles(c, dt, counters);
     if (contact_.boxEdges) collideEdges(c);
     for (unsigned char t : touching_)
@@ -124,25 +136,9 @@ void ContactSolver::straddledSprings(Cloth& c, double dt) {
     const double bound = 1.0 + c.settings().limiter.maxStrain;
     const ClothTopology& topo = c.topology();
     const auto& offsets = topo.adjacencyOffsets();
-    // The springs between two planed particles, each once (from its lower end); the planes
-    // set below are appended, and a particle's plane index does not change when replaced.
-    const std::size_t planes = pl.size();
-    // Only bodies thinner across than the longest spring (a rod, a small ball) fit between
-    // two particles.
-    std::vector<signed char> thin(bodies.size(), -1);
-    auto isThin = [&](std::uint32_t bi) {
-        if (thin[bi] < 0) {
-            btTransform identity;
-            identity.setIdentity();
-            btVector3 lo, hi;
-            bodies[bi].object->getCollisionShape()->getAabb(identity, lo, hi);
-            Vec3 half = 0.5 * toVec(hi - lo);
-            std::sort(half.data(), half.data() + 3);
-            thin[bi] = half[1] + contact_.thickness < longestSpring(c) ? 1 : 0;
-        }
-        return thin[bi] == 1;
-    };
-    for (std::size_t k = 0; k < planes; ++k) {
+    // The springs between two planed particles, each once (from its lower end). Only a thin
+    // body (thin_) fits between two particles. (keepPlane below replaces a plane in place.)
+    for (std::size_t k = 0; k < pl.size(); ++k) {
         const Index a = pl.particle(k);
         for (Index e = offsets[a]; e < offsets[a + 1]; ++e) {
             const Index other = topo.adjacentParticles()[e];
@@ -153,7 +149,7 @@ void ContactSolver::straddledSprings(Cloth& c, double dt) {
             const std::uint32_t bi = planeBody_[std::size_t(ka)];
             if (planeBody_[std::size_t(kb)] != bi) continue;
             const Vec3 na = pl.normal[std::size_t(ka)], nb = pl.normal[std::size_t(kb)];
-            if (!(na.dot(nb) < -0.2) || !isThin(bi)) continue;
+            if (!(na.dot(nb) < -0.2) || !thin_[bi]) continue;
             const BodySnapshot& b = bodies[bi];
             // How far apart the two planes hold the ends, across the body: each plane's distance
             // from the body's centre along its normal.

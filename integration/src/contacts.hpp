@@ -233,6 +233,10 @@ class ContactSolver {
     std::vector<std::uint32_t> planeBody_;
     /// Per body: its ContactPlanes::Mover this step (a free dynamic body), or -1.
     std::vector<std::int32_t> moverOf_;
+    /// Per body: thinner across than the longest spring, so that it fits between two
+    /// particles (detect): swept against the triangles at any speed (sweepBodies), and the
+    /// springs across it pass it on one side (straddledSprings).
+    std::vector<unsigned char> thin_;
     std::vector<Vec3> planePoint_;
     /// Per particle: its contact plane this step comes from a triangle contact (a particle
     /// contact's plane replaces it; a later triangle contact may update it). Sized only when

@@ -40,21 +40,23 @@ inline Pose poseBefore(const Pose& end, const Vec3& v, const Vec3& w, double bac
     return p;
 }
 
-/// The pose a fraction s in [0, 1] of the way from `a` to `b`: the origin on the straight line,
-/// the rotation about the fixed axis of b.R a.R^T (the shorter way), s of its angle.
-inline Pose between(const Pose& a, const Pose& b, double s) {
-    Pose p;
-    p.t = a.t + s * (b.t - a.t);
-    const Eigen::AngleAxisd turn(Eigen::Matrix3d(b.R * a.R.transpose()));
-    p.R = turn.angle() > 0.0
-              ? Eigen::Matrix3d(Eigen::AngleAxisd(s * turn.angle(), turn.axis()) * a.R)
-              : a.R;
-    return p;
-}
-
-/// The angle b.R a.R^T turns by [rad], in [0, pi].
-inline double turnAngle(const Pose& a, const Pose& b) {
-    return Eigen::AngleAxisd(Eigen::Matrix3d(b.R * a.R.transpose())).angle();
-}
+/// A body's way from pose `from` to pose `to` within a step: the origin on the straight line,
+/// the rotation about the fixed axis of to.R from.R^T (the shorter way), both at constant rates.
+struct PosePath {
+    PosePath(const Pose& start, const Pose& end)
+        : from(start), shift(end.t - start.t), turn(Eigen::Matrix3d(end.R * start.R.transpose())) {}
+    Pose from;
+    Vec3 shift;             ///< to.t - from.t [m]
+    Eigen::AngleAxisd turn; ///< to.R from.R^T, angle in [0, pi]
+    /// The pose a fraction s in [0, 1] of the way.
+    Pose at(double s) const {
+        Pose p;
+        p.t = from.t + s * shift;
+        p.R = turn.angle() > 0.0
+                  ? Eigen::Matrix3d(Eigen::AngleAxisd(s * turn.angle(), turn.axis()) * from.R)
+                  : from.R;
+        return p;
+    }
+};
 
 } // namespace drape::bullet::detail

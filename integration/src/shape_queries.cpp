@@ -363,18 +363,18 @@ TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& 
     return h;
 }
 
-SweptTriangleHit sweepToTriangle(const btCollisionShape* shape, double radius, const Pose& from,
-                                 const Pose& to, const Vec3 (&start)[3], const Vec3 (&end)[3],
-                                 double gap, double tolerance, QueryCounters& counters) {
+SweptTriangleHit sweepToTriangle(const btCollisionShape* shape, double radius, const PosePath& path,
+                                 const Vec3 (&start)[3], const Vec3 (&end)[3], double gap,
+                                 double tolerance, QueryCounters& counters) {
     double corners = 0.0;
     for (int k = 0; k < 3; ++k)
         corners = std::max(corners, (end[k] - start[k]).norm());
-    const double rate = (to.t - from.t).norm() + turnAngle(from, to) * radius + corners;
+    const double rate = path.shift.norm() + path.turn.angle() * radius + corners;
     if (!(rate > 0.0) || !std::isfinite(rate)) return {};
     constexpr int kMaxAdvances = 32;
     double s = 0.0;
     for (int it = 0; it < kMaxAdvances; ++it) {
-        const Pose p = between(from, to, s);
+        const Pose p = path.at(s);
         Vec3 v[3];
         for (int k = 0; k < 3; ++k)
             v[k] = start[k] + s * (end[k] - start[k]);

@@ -74,9 +74,9 @@ TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& 
                               const Vec3& a, const Vec3& b, const Vec3& c, double reach,
                               QueryCounters& counters);
 
-/// Where a convex body (or a compound of convex children) moving from pose `from` to pose `to`
-/// first comes within `gap` [m] of a cloth triangle moving from `start` to `end` (its corners),
-/// both at constant rates in between (pose: between()). Conservative advancement: at each
+/// Where a convex body (or a compound of convex children) moving along `path` first comes
+/// within `gap` [m] of a cloth triangle moving from `start` to `end` (its corners), both at
+/// constant rates in between. Conservative advancement: at each
 /// fraction s the nearest points (closestToTriangle) are at least the gap apart, and nothing
 /// closes faster than `rate` per unit s (the body's shift, its turn times `radius`, the
 /// fastest corner's move), so the next s is s + (distance - gap) / rate.
@@ -89,8 +89,8 @@ struct SweptTriangleHit {
 /// `radius` [m]: the farthest point of the shape from its origin. Within `tolerance` [m] of
 /// the gap counts as reaching it. Invalid if it never comes that close, or a shape
 /// closestToTriangle does not answer for.
-SweptTriangleHit sweepToTriangle(const btCollisionShape* shape, double radius, const Pose& from,
-                                 const Pose& to, const Vec3 (&start)[3], const Vec3 (&end)[3],
-                                 double gap, double tolerance, QueryCounters& counters);
+SweptTriangleHit sweepToTriangle(const btCollisionShape* shape, double radius, const PosePath& path,
+                                 const Vec3 (&start)[3], const Vec3 (&end)[3], double gap,
+                                 double tolerance, QueryCounters& counters);
 
 } // namespace drape::bullet::detail

@@ -128,18 +128,10 @@ void ContactSolver::sweepBodies(Cloth& c, double dt, QueryCounters& counters) {
         const double radius = toVec(centre).norm() + double(r);
         const Pose& from = b.previous;
         const Pose& to = b.pose;
-        // A body that moved less than the thickness in the step and is thicker than the
-        // longest spring across its path: the particles' own queries (closest points, swept
-        // rays) meet it. (A thinner one, a rod or a small ball, thin in two directions, fits
-        // through the gaps between particles at any speed.)
-        btTransform identity;
-        identity.setIdentity();
-        btVector3 lmin, lmax;
-        shape->getAabb(identity, lmin, lmax);
-        Vec3 extent = 0.5 * toVec(lmax - lmin);
-        std::sort(extent.data(), extent.data() + 3);
-        const bool thin = extent[1] + h < longestSpring(c);
-        if (!thin && (to.t - from.t).norm() + turnAngle(from, to) * radius <= h) continue;
+        const PosePath path(from, to);
+        // A body that moved less than the thickness in the step and is not thin (thin_): the
+        // particles' own queries (closest points, swept rays) meet it.
+        if (!thin_[bi] && path.shift.norm() + path.turn.angle() * radius <= h) continue;
         btVector3 mn0, mx0, mn1, mx1;
         shape->getAabb(toBtTransform(from), mn0, mx0);
         shape->getAabb(toBtTransform(to), mn1, mx1);
@@ -157,7 +149,7 @@ void ContactSolver::sweepBodies(Cloth& c, double dt, QueryCounters& counters) {
             }
             if ((thi.array() < lo.array()).any() || (tlo.array() > hi.array()).any()) continue;
             const SweptTriangleHit hit =
-                sweepToTriangle(shape, radius, from, to, start, end, h, 0.05 * h, counters);
+                sweepToTriangle(shape, radius, path, start, end, h, 0.05 * h, counters);
             if (!hit.valid) continue;
             // The body's point that reached the triangle and its normal there, carried to where
             // the body ends the step.
