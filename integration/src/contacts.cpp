@@ -136,9 +136,11 @@ void ContactSolver::straddledSprings(Cloth& c, double dt) {
     const double bound = 1.0 + c.settings().limiter.maxStrain;
     const ClothTopology& topo = c.topology();
     const auto& offsets = topo.adjacencyOffsets();
-    // The springs between two planed particles, each once (from its lower end). Only a thin
-    // body (thin_) fits between two particles. (keepPlane below replaces a plane in place.)
+    // The springs between two planes of one body, each once (from its lower end). Only a thin
+    // body (thin_) fits between two particles. (keepPlane below replaces a plane of that body
+    // in place.)
     for (std::size_t k = 0; k < pl.size(); ++k) {
+        if (!thin_[planeBody_[k]]) continue;
         const Index a = pl.particle(k);
         for (Index e = offsets[a]; e < offsets[a + 1]; ++e) {
             const Index other = topo.adjacentParticles()[e];
@@ -149,7 +151,7 @@ void ContactSolver::straddledSprings(Cloth& c, double dt) {
             const std::uint32_t bi = planeBody_[std::size_t(ka)];
             if (planeBody_[std::size_t(kb)] != bi) continue;
             const Vec3 na = pl.normal[std::size_t(ka)], nb = pl.normal[std::size_t(kb)];
-            if (!(na.dot(nb) < -0.2) || !thin_[bi]) continue;
+            if (!(na.dot(nb) < -0.2)) continue;
             const BodySnapshot& b = bodies[bi];
             // How far apart the two planes hold the ends, across the body: each plane's distance
             // from the body's centre along its normal.
