@@ -27,6 +27,8 @@ void ContactSolver::detect(Cloth& c, double dt) {
     if (contact_.triangles) trianglePlane_.assign(n, 0);
     planeBody_.clear();
     planePoint_.clear();
+    triangleBody_.clear();
+    trianglePoint_.clear();
     anyTouching_ = false;
     if (!inStep) return; // the cloth was stepped outside the world: no bodies to collide with
     from_ = &c.stepStartPositions();
@@ -44,7 +46,10 @@ void ContactSolver::detect(Cloth& c, double dt) {
     }
     // A body thinner across than the longest spring (its second-smallest half extent plus the
     // thickness below that length: a rod, a small ball) fits between two particles.
+    // Small: its largest half extent too (a small ball, a short stub), so that it fits inside
+    // a triangle.
     thin_.assign(bodies.size(), 0);
+    small_.assign(bodies.size(), 0);
     for (std::size_t bi = 0; bi < bodies.size(); ++bi) {
         if (bodies[bi].plane) continue;
         btTransform identity;
@@ -54,6 +59,7 @@ void ContactSolver::detect(Cloth& c, double dt) {
         Vec3 half = 0.5 * toVec(hi - lo);
         std::sort(half.data(), half.data() + 3);
         thin_[bi] = half[1] + contact_.thickness < longestSpring(c);
+        small_[bi] = half[2] + contact_.thickness < longestSpring(c);
     }
     // The free mass decides which dynamic bodies get limiter planes: only needed near one.
     clothMass_ = 0.0;
@@ -113,6 +119,8 @@ void ContactSolver::finish(Cloth& c, double dt) {
     // velocity follows its position), the body gets the opposite.
     for (std::size_t k = 0; k < records->planes.size(); ++k)
         flushPlane(c, k, dt);
+    for (std::size_t t = 0; t < records->planes.triangles.size(); ++t)
+        flushTriangle(t, dt);
 
     // How fast the particles touching a dynamic body move against it, once the step's
     // constraints are met (BodySnapshot::contactSpeed: a sleeping body wakes at its threshold).
@@ -176,6 +184,13 @@ void ContactSolver::straddledSprings(Cloth& c, double dt) {
     }
 }
 
+void ContactSolver::flushTriangle(std::size_t t, double dt) {
+    ContactPlanes::Triangle& tri = records->planes.triangles[t];
+    if (tri.push == Vec3::Zero()) return;
+    exchange(bodies[triangleBody_[t]], tri.push / dt, trianglePoint_[t]);
+    tri.push = Vec3::Zero();
+}
+
 void ContactSolver::settleMovers(Cloth& c, double dt) {
     ContactPlanes& pl = records->planes;
     if (pl.movers.empty()) return;
@@ -185,8 +200,12 @@ void ContactSolver::settleMovers(Cloth& c, double dt) {
     // give way (flushPlane's inelastic bound).
     for (std::size_t k = 0; k < pl.size(); ++k)
         if (pl.mover[k] >= 0 && !pl.movers[std::size_t(pl.mover[k])].applied()) pl.mover[k] = -1;
+    for (ContactPlanes::Triangle& t : pl.triangles)
+        if (t.mover >= 0 && !pl.movers[std::size_t(t.mover)].applied()) t.mover = -1;
     for (std::size_t k = 0; k < pl.size(); ++k)
         if (pl.mover[k] >= 0) flushPlane(c, k, dt);
+    for (std::size_t t = 0; t < pl.triangles.size(); ++t)
+        if (pl.triangles[t].mover >= 0) flushTriangle(t, dt);
     for (std::size_t bi = 0; bi < bodies.size(); ++bi)
         if (const std::int32_t m = moverOf_[bi]; m >= 0) {
             const ContactPlanes::Mover& mv = pl.movers[std::size_t(m)];
@@ -198,6 +217,9 @@ void ContactSolver::settleMovers(Cloth& c, double dt) {
     pl.settleMovers();
     for (std::size_t k = 0; k < pl.size(); ++k)
         if (pl.mover[k] >= 0) planePoint_[k] = bodies[planeBody_[k]].com + pl.lever[k];
+    for (std::size_t t = 0; t < pl.triangles.size(); ++t)
+        if (pl.triangles[t].mover >= 0)
+            trianglePoint_[t] = bodies[triangleBody_[t]].com + pl.triangles[t].lever;
 }
 
 void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counters) {

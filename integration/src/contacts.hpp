@@ -237,7 +237,20 @@ class ContactSolver {
     /// particles (detect): swept against the triangles at any speed (sweepBodies), and the
     /// springs across it pass it on one side (straddledSprings).
     std::vector<unsigned char> thin_;
+    std::vector<unsigned char> small_;
     std::vector<Vec3> planePoint_;
+    /// Per triangle plane (ContactPlanes::triangles): its body and the body's point.
+    std::vector<std::uint32_t> triangleBody_;
+    std::vector<Vec3> trianglePoint_;
+    /// What triangle plane t pushed goes to its body (the triangle got push / dt).
+    void flushTriangle(std::size_t t, double dt);
+    /// Body bi's contacts with triangles are triangle planes in the walk (ContactPlanes::
+    /// Triangle): a small body (small_) that does not stay put (static, kinematic, or a mover).
+    bool keepsTrianglePlanes(std::uint32_t bi) const;
+    /// Gives the walk the plane of triangle `tri`'s point `beta` ahead of body bi's tangent
+    /// plane (normal n, through its surface point `point`) by the thickness.
+    void addTrianglePlane(std::uint32_t bi, const Triangle& tri, const Vec3& beta, const Vec3& n,
+                          const Vec3& point);
     /// Per particle: its contact plane this step comes from a triangle contact (a particle
     /// contact's plane replaces it; a later triangle contact may update it). Sized only when
     /// contact.triangles is on.

@@ -73,6 +73,11 @@ bool ContactSolver::pushTriangle(Cloth& c, std::uint32_t bi, const Triangle& tri
     }
     if (!(weight > 0.0) || free < kFreeShare) return false;
     stats.maxDepth = std::max(stats.maxDepth, depth);
+    // A body thinner than the triangle that swept into it (thin_: it fits between the
+    // corners, which its own tangent plane through each of them would let slide around it)
+    // gets the triangle's plane in the walk, if it does not move, or gives way in it.
+    const bool trianglePlane = swept && keepsTrianglePlanes(bi);
+    if (trianglePlane) addTrianglePlane(bi, tri, beta, n, point);
     for (int k = 0; k < 3; ++k) {
         const Index i = tri[k];
         if (w[i] == 0.0 || beta[k] == 0.0) continue;
@@ -80,6 +85,7 @@ bool ContactSolver::pushTriangle(Cloth& c, std::uint32_t bi, const Triangle& tri
         touching_[i] = 1;
         projected_.push_back(i);
         boxes_.update(i, x[i], stepStart()[i], false);
+        if (trianglePlane) continue;
         // The limiter's walk keeps the particle from going back along n, so the strain bound
         // and the triangle's contact hold together, as for particle contacts: against a static
         // or kinematic body (its own contact's plane, if it has one, comes first); after a
@@ -112,6 +118,22 @@ bool ContactSolver::pushTriangle(Cloth& c, std::uint32_t bi, const Triangle& tri
     return true;
 }
 
+bool ContactSolver::keepsTrianglePlanes(std::uint32_t bi) const {
+    const BodySnapshot& b = bodies[bi];
+    return small_[bi] && (!b.dynamicBody || moverOf_[bi] >= 0);
+}
+
+void ContactSolver::addTrianglePlane(std::uint32_t bi, const Triangle& tri, const Vec3& beta,
+                                     const Vec3& n, const Vec3& point) {
+    const Index corners[3] = {tri[0], tri[1], tri[2]};
+    const std::size_t t =
+        records->planes.addTriangle(corners, beta, n, n.dot(point) + contact_.thickness);
+    if (const std::int32_t m = moverOf_[bi]; m >= 0)
+        records->planes.triangleMoveWith(t, m, point - bodies[bi].com);
+    triangleBody_.push_back(bi);
+    trianglePoint_.push_back(point);
+}
+
 void ContactSolver::sweepBodies(Cloth& c, double dt, QueryCounters& counters) {
     const double h = contact_.thickness;
     const auto& tris = c.topology().triangles();
@@ -135,8 +157,14 @@ void ContactSolver::sweepBodies(Cloth& c, double dt, QueryCounters& counters) {
         btVector3 mn0, mx0, mn1, mx1;
         shape->getAabb(toBtTransform(from), mn0, mx0);
         shape->getAabb(toBtTransform(to), mn1, mx1);
-        const Vec3 lo = toVec(mn0).cwiseMin(toVec(mn1)).array() - h;
-        const Vec3 hi = toVec(mx0).cwiseMax(toVec(mx1)).array() + h;
+        // A small body (small_) that does not stay put keeps the planes of the triangles
+        // within a spring's length of where it ends (trianglePlanes), not only of those it
+        // reached: the walk after this stage can pull a triangle its springs hold back onto
+        // it from there.
+        const bool planes = keepsTrianglePlanes(bi);
+        const double reach = planes ? h + longestSpring(c) : h;
+        const Vec3 lo = toVec(mn0).cwiseMin(toVec(mn1)).array() - reach;
+        const Vec3 hi = toVec(mx0).cwiseMax(toVec(mx1)).array() + reach;
         for (const Triangle& tri : tris) {
             if (w[tri[0]] == 0.0 && w[tri[1]] == 0.0 && w[tri[2]] == 0.0) continue;
             Vec3 start[3], end[3];
@@ -150,7 +178,14 @@ void ContactSolver::sweepBodies(Cloth& c, double dt, QueryCounters& counters) {
             if ((thi.array() < lo.array()).any() || (tlo.array() > hi.array()).any()) continue;
             const SweptTriangleHit hit =
                 sweepToTriangle(shape, radius, path, start, end, h, 0.05 * h, counters);
-            if (!hit.valid) continue;
+            if (!hit.valid) {
+                if (!planes) continue;
+                const TriangleHit near = closestToTriangle(shape, toBtTransform(to), end[0], end[1],
+                                                           end[2], reach, counters);
+                if (near.valid && near.distance < reach)
+                    addTrianglePlane(bi, tri, near.barycentric, near.normal, near.bodyPoint);
+                continue;
+            }
             // The body's point that reached the triangle and its normal there, carried to where
             // the body ends the step.
             const Vec3 point = to.toWorld(hit.pose.toLocal(hit.near.bodyPoint));
@@ -161,14 +196,18 @@ void ContactSolver::sweepBodies(Cloth& c, double dt, QueryCounters& counters) {
             Vec3 triangleMove = Vec3::Zero();
             for (int k = 0; k < 3; ++k)
                 triangleMove += beta[k] * (1.0 - hit.s) * (end[k] - start[k]);
-            if (!((point - hit.near.bodyPoint - triangleMove).dot(hit.near.normal) > 0.0)) continue;
+            const bool coming =
+                (point - hit.near.bodyPoint - triangleMove).dot(hit.near.normal) > 0.0;
             // The triangle's point there ends ahead of the body's tangent plane, the thickness
             // away, and stops coming toward it: the response of a triangle contact.
             Vec3 at = Vec3::Zero();
             for (int k = 0; k < 3; ++k)
                 at += beta[k] * x[tri[k]];
             const double depth = n.dot(point) + h - n.dot(at);
-            if (depth > 0.0) pushTriangle(c, bi, tri, n, point, beta, depth, true, dt);
+            if (coming && depth > 0.0)
+                pushTriangle(c, bi, tri, n, point, beta, depth, true, dt);
+            else if (planes) // (moving with it, or away: the walk may pull it back)
+                addTrianglePlane(bi, tri, beta, n, point);
         }
     }
 }

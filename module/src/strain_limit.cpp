@@ -276,6 +276,7 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
     usePlanes(planes, invMass);
     const auto& springs = topology.springs();
     const std::size_t ns = springs.size();
+    auto moveTo = [this, &x](Index i, const Vec3& dx) { move(i, dx, x); };
     // 1. Long-range attachments.
     if (s.longRangeAttachments && !anchorList_.empty()) {
         // (Local pointers: move() appends to vectors, which would make the compiler reload
@@ -295,6 +296,7 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
             if (l2 > r * r) {
                 const Vec3 dx = (r / std::sqrt(l2) - 1.0) * d;
                 move(static_cast<Index>(i), abovePlanes(Index(i), dx, x), x);
+                if (planes_) holdTriangles(Index(i), x, moveTo);
                 if (record) pullHeld(a, -dx / w[i]);
             }
         }
@@ -352,11 +354,13 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
             const Spring& sp = spring[si];
             if (w[sp.a] > 0.0) {
                 move(sp.a, abovePlanes(sp.a, w[sp.a] * pull[k], x), x);
+                if (planes_) holdTriangles(sp.a, x, moveTo);
             } else if (record) {
                 pullHeld(sp.a, pull[k]);
             }
             if (w[sp.b] > 0.0) {
                 move(sp.b, abovePlanes(sp.b, -w[sp.b] * pull[k], x), x);
+                if (planes_) holdTriangles(sp.b, x, moveTo);
             } else if (record) {
                 pullHeld(sp.b, -pull[k]);
             }
@@ -617,6 +621,8 @@ std::size_t StrainLimiter::correctWave(const std::vector<Spring>& springs,
         if constexpr (kPlanes) {
             if (wa > 0.0) shift(a, keepAbove(a, wa * c, x));
             if (wb > 0.0) shift(b, keepAbove(b, -wb * c, x));
+            holdTriangles(a, x, shift);
+            holdTriangles(b, x, shift);
         } else {
             if (wa > 0.0) shift(a, wa * c);
             if (wb > 0.0) shift(b, -wb * c);

@@ -536,6 +536,146 @@ TEST_CASE("a body that gives way in the walk takes what its planes push, momentu
     CHECK(shiftOf[0] > 100.0 * shiftOf[1]);
 }
 
+namespace {
+/// A triangle plane's state in the tests below: the plane's triangle (the one around the
+/// sheet's middle), its point's weights, and the point where `x` has it.
+struct PlanedTriangle {
+    Index corner[3];
+    Vec3 beta;
+    Vec3 point(const std::vector<Vec3>& x) const {
+        return beta[0] * x[corner[0]] + beta[1] * x[corner[1]] + beta[2] * x[corner[2]];
+    }
+};
+/// The triangle of planeSheet() nearest its middle, the point at weights (0.5, 0.3, 0.2), its
+/// corners pushed `depth` along -z as a contact stage would (the least-mass-weighted move),
+/// and the plane z <= that point's z (normal -z) set in `planes`.
+PlanedTriangle pushTriangleDown(const PlaneSheet& sheet, double depth, std::vector<Vec3>& x,
+                                ContactPlanes& planes) {
+    const Vec3 middle(sheet.xMid, 3.0, 0.0);
+    PlanedTriangle t{};
+    double best = 1e9;
+    for (const Triangle& tri : sheet.topo->triangles()) {
+        const Vec3 c = (x[tri[0]] + x[tri[1]] + x[tri[2]]) / 3.0;
+        if ((c - middle).norm() < best) {
+            best = (c - middle).norm();
+            for (int k = 0; k < 3; ++k)
+                t.corner[k] = tri[k];
+        }
+    }
+    t.beta = Vec3(0.5, 0.3, 0.2);
+    double weight = 0.0;
+    for (int k = 0; k < 3; ++k)
+        weight += t.beta[k] * t.beta[k] * sheet.invMass[t.corner[k]];
+    for (int k = 0; k < 3; ++k)
+        x[t.corner[k]].z() -= t.beta[k] * sheet.invMass[t.corner[k]] * depth / weight;
+    const Vec3 n(0, 0, -1);
+    planes.addTriangle(t.corner, t.beta, n, n.dot(t.point(x)));
+    return t;
+}
+} // namespace
+
+TEST_CASE("a triangle plane keeps the triangle's point ahead of it in the walk, within the bound",
+          "[limiter][contact]") {
+    // The irregular sheet of the tests above, pinned on its border. A body smaller than a
+    // triangle pushed one triangle's point 1.5 down (ContactPlanes::Triangle: no corner
+    // touches it): the springs around it are stretched far beyond the bound. The walk must
+    // reach the bound with the point still where the body holds it (the sheet drawn down
+    // around it, a cone), the plane's push along its normal only.
+    const PlaneSheet sheet = planeSheet();
+    const auto& topo = sheet.topo;
+    const std::size_t n = topo->particleCount();
+    std::vector<double> invMass = sheet.invMass;
+    for (std::size_t i = 0; i < n; ++i) {
+        const Vec3& p = topo->restPositions()[i];
+        if (p.x() == 0.0 || p.y() == 0.0 || p.x() == 8.0 || p.y() == 6.0) invMass[i] = 0.0;
+    }
+    PlaneSheet pinned = sheet;
+    pinned.invMass = invMass;
+    const std::vector<double> k(topo->springCount(), 1.0);
+    LimiterSettings s = limiterSettings();
+    s.longRangeAttachments = false;
+    std::vector<Vec3> x = topo->restPositions();
+    ContactPlanes planes;
+    planes.reset(n);
+    const PlanedTriangle t = pushTriangleDown(pinned, 1.5, x, planes);
+    const double held = t.point(x).z();
+    const std::vector<Vec3> before = x;
+    std::vector<Index> all;
+    for (std::size_t i = 0; i < n; ++i)
+        all.push_back(static_cast<Index>(i));
+    StrainLimiter limiter;
+    limiter.clearMoved();
+    const auto st = limiter.relimit(*topo, invMass, k, s, all, x, &planes);
+    INFO("waves " << st.rounds << ", work " << st.work << ", point z " << t.point(x).z()
+                  << " held at " << held << ", push " << planes.triangles[0].push.transpose());
+    CHECK(maxSpringStrain(*topo, before) > 0.3);
+    CHECK_FALSE(st.capHit);
+    CHECK(maxSpringStrain(*topo, x) <= s.maxStrain + s.tolerance + 1e-12);
+    CHECK(t.point(x).z() <= held + 1e-12);
+    // The springs pulled the triangle back: the plane pushed, along -z only.
+    const Vec3 push = planes.triangles[0].push;
+    CHECK(push.z() < -1e-3);
+    CHECK(push.head<2>().norm() <= 1e-12);
+    // And the sheet around it came down (not the corners alone up to the bound's reach).
+    int drawn = 0;
+    for (std::size_t i = 0; i < n; ++i)
+        drawn += x[i].z() < -0.1;
+    CHECK(drawn > 6);
+}
+
+TEST_CASE("a small body that gives way takes what its triangle plane pushes, momentum conserved",
+          "[limiter][contact]") {
+    // The same triangle of the free sheet pushed down by a free body (a mover: a small ball)
+    // above it. The walk must end within the bound with the point ahead of the plane where the
+    // body went, and the body's momentum change M shift must be the opposite of the cloth's,
+    // sum m dx, which is what the plane pushed (its only outside impulse). A light body gives
+    // way more than a heavy one.
+    const PlaneSheet sheet = planeSheet();
+    const auto& topo = sheet.topo;
+    const std::size_t n = topo->particleCount();
+    double clothMass = 0.0;
+    for (double m : sheet.mass)
+        clothMass += m;
+    const std::vector<double> k(topo->springCount(), 1.0);
+    LimiterSettings s = limiterSettings();
+    s.longRangeAttachments = false;
+    double shiftOf[2] = {0.0, 0.0};
+    for (int heavy = 0; heavy < 2; ++heavy) {
+        const double bodyMass = heavy ? 100.0 * clothMass : 0.01 * clothMass;
+        std::vector<Vec3> x = topo->restPositions();
+        ContactPlanes planes;
+        planes.reset(n);
+        const PlanedTriangle t = pushTriangleDown(sheet, 1.5, x, planes);
+        const Vec3 centre = t.point(x) + Vec3(0, 0, 0.3);
+        planes.movers.push_back(ContactPlanes::Mover{
+            1.0 / bodyMass, Eigen::Matrix3d::Identity() / (0.4 * bodyMass * 0.09), centre});
+        planes.triangleMoveWith(0, 0, t.point(x) - centre);
+        const std::vector<Vec3> before = x;
+        std::vector<Index> all;
+        for (std::size_t i = 0; i < n; ++i)
+            all.push_back(static_cast<Index>(i));
+        StrainLimiter limiter;
+        limiter.clearMoved();
+        const auto st = limiter.relimit(*topo, sheet.invMass, k, s, all, x, &planes);
+        const ContactPlanes::Mover& body = planes.movers[0];
+        const ContactPlanes::Triangle& plane = planes.triangles[0];
+        INFO("body mass " << bodyMass << " kg, waves " << st.rounds << ", shift "
+                          << body.shift.transpose() << ", push " << plane.push.transpose());
+        CHECK_FALSE(st.capHit);
+        CHECK(maxSpringStrain(*topo, x) <= s.maxStrain + s.tolerance + 1e-12);
+        CHECK(plane.normal.dot(t.point(x)) >= planes.triangleOffsetNow(plane) - 1e-12);
+        Vec3 dp = Vec3::Zero();
+        for (std::size_t i = 0; i < n; ++i)
+            dp += sheet.mass[i] * (x[i] - before[i]);
+        CHECK(plane.push.norm() > 1e-3);
+        CHECK((dp - plane.push).norm() <= 1e-10);
+        CHECK((dp + bodyMass * body.shift).norm() <= 1e-10 * (1.0 + dp.norm()));
+        CHECK(body.shift.z() > 0.0); // pushed back up, away from the cloth
+        shiftOf[heavy] = body.shift.norm();
+    }
+    CHECK(shiftOf[0] > 100.0 * shiftOf[1]);
+}
+
 TEST_CASE("maxSpringStrain and meanSpringStrain of a uniform stretch", "[limiter]") {
     const auto topo = ClothTopology::build(irregularMesh(4, 3, 8));
     std::vector<Vec3> x;

@@ -69,6 +69,26 @@ struct ContactPlanes {
         bool applied() const {
             return !broken && shift.allFinite() && turn.allFinite() && turn.norm() <= kBrokenTurn;
         }
+        /// Takes -lambda n [kg m] at `lever` from its centre of mass: it shifts and turns.
+        /// Past half a turn in one walk the first-order planes describe nothing (a thin bar
+        /// wedged between particles, light about its axis): it is then left out of the rest of
+        /// the walk (broken: its planes hold, and the caller does not apply what it took), and
+        /// take returns false, as it does for a broken mover.
+        bool take(double lambda, const Vec3& n, const Vec3& lever) {
+            if (broken) return false;
+            const Vec3 t = turn - invInertia * (lever.cross(n) * lambda);
+            if (!(t.squaredNorm() <= kBrokenTurn * kBrokenTurn) || !shift.allFinite()) {
+                broken = true;
+                return false;
+            }
+            turn = t;
+            shift -= (invMass * lambda) * n;
+            return true;
+        }
+        /// How far a point at `lever` has moved along n in the walk (first order) [m].
+        double moved(const Vec3& n, const Vec3& lever) const {
+            return n.dot(shift + turn.cross(lever));
+        }
     };
     std::vector<Mover> movers;
     /// Per plane: the mover it belongs to, or -1 (a body that does not give way).
@@ -78,9 +98,69 @@ struct ContactPlanes {
     std::vector<Vec3> lever;
     std::vector<double> give;
 
+    /// A triangle's plane: the point sum_k beta_k x_k of the triangle (corners `corner`) stays
+    /// where n . x >= offset -- a body thinner than the triangle, which touches no corner,
+    /// keeps the triangle's point ahead of its tangent plane. The walk moves the point back
+    /// out with the least-mass-weighted change, corner k by beta_k w_k lambda n (a mover
+    /// takes its share of lambda, as for particle planes); `push` sums lambda n [kg m]: the
+    /// triangle got the impulse push / dt, the body the opposite.
+    struct Triangle {
+        Index corner[3] = {0, 0, 0};
+        Vec3 beta = Vec3::Zero();
+        Vec3 normal = Vec3::UnitY();
+        double offset = 0.0;
+        std::int32_t mover = -1;
+        Vec3 lever = Vec3::Zero(); ///< a mover's: the contact point from its centre of mass [m]
+        double give = 0.0;         ///< a mover's inverse mass along n at the point [1/kg]
+        Vec3 push = Vec3::Zero();
+    };
+    std::vector<Triangle> triangles;
+    /// Per particle: its first entry 3 t + k (corner k of triangle plane t), or -1; per entry:
+    /// the particle's next one. Empty while there are no triangle planes.
+    std::vector<std::int32_t> triangleHead, triangleNext;
+    /// Adds a triangle plane (no mover); returns its index.
+    std::size_t addTriangle(const Index corners[3], const Vec3& beta, const Vec3& n, double off) {
+        const std::size_t t = triangles.size();
+        Triangle tri;
+        for (int k = 0; k < 3; ++k)
+            tri.corner[k] = corners[k];
+        tri.beta = beta;
+        tri.normal = n;
+        tri.offset = off;
+        triangles.push_back(tri);
+        if (triangleHead.size() != of.size()) triangleHead.assign(of.size(), -1);
+        for (int k = 0; k < 3; ++k) {
+            triangleNext.push_back(triangleHead[corners[k]]);
+            triangleHead[corners[k]] = static_cast<std::int32_t>(3 * t) + k;
+        }
+        return t;
+    }
+    /// Triangle plane t belongs to mover m, touching it at r from its centre of mass.
+    void triangleMoveWith(std::size_t t, std::int32_t m, const Vec3& r) {
+        Triangle& tri = triangles[t];
+        const Mover& b = movers[std::size_t(m)];
+        const Vec3 rxn = r.cross(tri.normal);
+        tri.mover = m;
+        tri.lever = r;
+        tri.give = b.invMass + rxn.dot(b.invInertia * rxn);
+    }
+    /// Triangle plane t's offset now (a mover's has moved with it).
+    double triangleOffsetNow(const Triangle& t) const {
+        return t.mover < 0 ? t.offset
+                           : t.offset + movers[std::size_t(t.mover)].moved(t.normal, t.lever);
+    }
+    /// Whether there is any plane, of a particle or a triangle.
+    bool any() const { return !normal.empty() || !triangles.empty(); }
+
     /// Forgets every plane and mover; `of` gets one entry per particle.
     void reset(std::size_t particles) {
         if (of.size() != particles) of.assign(particles, -1);
+        for (const Triangle& t : triangles)
+            for (Index i : t.corner)
+                triangleHead[i] = -1;
+        triangles.clear();
+        triangleNext.clear();
+        if (!triangleHead.empty() && triangleHead.size() != particles) triangleHead.clear();
         for (std::size_t k = 0; k < normal.size(); ++k)
             of[particle_[k]] = -1;
         normal.clear();
@@ -105,25 +185,13 @@ struct ContactPlanes {
         const std::int32_t m = mover[k];
         if (m < 0) return offset[k];
         const Mover& b = movers[std::size_t(m)];
-        return offset[k] + normal[k].dot(b.shift + b.turn.cross(lever[k]));
+        return offset[k] + b.moved(normal[k], lever[k]);
     }
     /// Plane k of a mover pushes its particle (inverse mass w) out of `below` [m]: the body
     /// takes its share; returns the particle's [m].
     double giveWay(std::size_t k, double below, double w) {
-        Mover& b = movers[std::size_t(mover[k])];
-        if (b.broken) return below;
         const double lambda = below / (w + give[k]); // [kg m]
-        const Vec3& n = normal[k];
-        const Vec3 turn = b.turn - b.invInertia * (lever[k].cross(n) * lambda);
-        // Past half a turn in one walk the first-order planes describe nothing (a thin bar
-        // wedged between particles, light about its axis): the body is left out of the rest
-        // of the walk (its planes hold) and the caller does not apply what it took.
-        if (!(turn.squaredNorm() <= kBrokenTurn * kBrokenTurn) || !b.shift.allFinite()) {
-            b.broken = true;
-            return below;
-        }
-        b.turn = turn;
-        b.shift -= (b.invMass * lambda) * n;
+        if (!movers[std::size_t(mover[k])].take(lambda, normal[k], lever[k])) return below;
         return w * lambda;
     }
     /// A walk that turns a mover further than this [rad] is not applied to it.
@@ -148,6 +216,15 @@ struct ContactPlanes {
             normal[k] = R * normal[k];
             lever[k] = R * lever[k];
             offset[k] = normal[k].dot(b.centre + b.shift + lever[k]) + h;
+        }
+        for (Triangle& t : triangles) {
+            if (t.mover < 0) continue;
+            const Mover& b = movers[std::size_t(t.mover)];
+            const Eigen::Matrix3d& R = rotation[std::size_t(t.mover)];
+            const double h = t.offset - t.normal.dot(b.centre + t.lever);
+            t.normal = R * t.normal;
+            t.lever = R * t.lever;
+            t.offset = t.normal.dot(b.centre + b.shift + t.lever) + h;
         }
         for (Mover& b : movers) {
             b.centre += b.shift;
@@ -336,9 +413,63 @@ class StrainLimiter {
     Vec3 abovePlanes(Index i, const Vec3& dx, const std::vector<Vec3>& x) const {
         return planes_ ? keepAbove(i, dx, x) : dx;
     }
+    /// After particle i moved: the triangle planes it is a corner of move their points back
+    /// ahead of them (ContactPlanes::Triangle), each corner by moveBy(corner, dx).
+    template <class MoveBy>
+    void holdTriangles(Index i, const std::vector<Vec3>& x, MoveBy&& moveBy) {
+        if (planes_->triangleHead.empty()) return;
+        for (std::int32_t e = planes_->triangleHead[i]; e >= 0;
+             e = planes_->triangleNext[std::size_t(e)])
+            holdTriangle(planes_->triangles[std::size_t(e) / 3], x, moveBy);
+    }
+    template <class MoveBy>
+    void holdTriangle(ContactPlanes::Triangle& t, const std::vector<Vec3>& x, MoveBy&& moveBy) {
+        const std::vector<double>& w = *planeInvMass_;
+        Vec3 p = Vec3::Zero();
+        double weight = 0.0;
+        // A corner its long-range attachment holds at full length cannot go further along n
+        // from its anchor: it moves on the attachment's sphere only (n without its part along
+        // the attachment), and the point's weight along n counts that part.
+        Vec3 dir[3];
+        for (int k = 0; k < 3; ++k) {
+            const Index c = t.corner[k];
+            p += t.beta[k] * x[c];
+            dir[k] = t.normal;
+            double wk = w[c];
+            if (wk > 0.0 && !anchorList_.empty() && anchors_.anchor[c] != kNoParticle) {
+                const Vec3 d = x[c] - x[anchors_.anchor[c]];
+                const double r = limit_ * anchors_.restDistance[c], l2 = d.squaredNorm();
+                const double dn = d.dot(t.normal);
+                if (dn > 0.0 && l2 >= r * r * (1.0 - 1e-9) && l2 > 0.0) {
+                    const Vec3 u = d / std::sqrt(l2);
+                    const double un = u.dot(t.normal);
+                    dir[k] = t.normal - un * u;
+                    wk *= std::max(0.0, 1.0 - un * un);
+                }
+            }
+            weight += t.beta[k] * t.beta[k] * wk;
+        }
+        const double below = planes_->triangleOffsetNow(t) - t.normal.dot(p);
+        if (!(below > 0.0)) return;
+        double lambda = 0.0;
+        if (t.mover >= 0) {
+            lambda = below / (weight + t.give);
+            if (!planes_->movers[std::size_t(t.mover)].take(lambda, t.normal, t.lever))
+                lambda = 0.0;
+        }
+        if (lambda == 0.0) {
+            if (!(weight > 0.0)) return;
+            lambda = below / weight;
+        }
+        for (int k = 0; k < 3; ++k) {
+            const Index c = t.corner[k];
+            if (w[c] > 0.0 && t.beta[k] != 0.0) moveBy(c, (t.beta[k] * w[c] * lambda) * dir[k]);
+        }
+        t.push += lambda * t.normal;
+    }
     /// The walk keeps `planes` when there are any, one entry of `of` per particle (n).
     void usePlanes(ContactPlanes* planes, const std::vector<double>& invMass) {
-        planes_ = planes != nullptr && planes->size() > 0 && planes->of.size() == invMass.size()
+        planes_ = planes != nullptr && planes->any() && planes->of.size() == invMass.size()
                       ? planes
                       : nullptr;
         planeInvMass_ = &invMass;
