@@ -107,6 +107,20 @@ bool snapshotBody(const btCollisionObject* obj, double reach, double frictionSca
                         "and finite");
     }
     b.friction = mu * frictionScale;
+    const btTransform& tr = obj->getWorldTransform();
+    bool finite = toVec(tr.getOrigin()).allFinite() && toMat(tr.getBasis()).allFinite();
+    const btRigidBody* body = btRigidBody::upcast(obj);
+    if (body)
+        finite = finite && toVec(body->getLinearVelocity()).allFinite() &&
+                 toVec(body->getAngularVelocity()).allFinite();
+    if (!finite) { // (the message is built only then: every step)
+        throw Error(ErrorCode::NonFinite,
+                    std::string("a body the cloth may touch (") +
+                        obj->getCollisionShape()->getName() +
+                        (body ? ") has a position, orientation or velocity" : ") has a pose") +
+                        " that is not finite; fix or remove the body (the cloth keeps its state "
+                        "from before the step)");
+    }
     btVector3 mn, mx;
     obj->getCollisionShape()->getAabb(obj->getWorldTransform(), mn, mx);
     b.aabbMin = toVec(mn).array() - reach;

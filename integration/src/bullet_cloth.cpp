@@ -702,6 +702,14 @@ void BulletCloth::attach(Index particle, const btCollisionObject* body, const Ve
             ErrorCode::InvalidArgument,
             "attach: the body for particle " + std::to_string(particle) +
                 " is not in the cloth's world (add it to the world first)");
+    const int type = body->getInternalType();
+    require(type == btCollisionObject::CO_RIGID_BODY ||
+                type == btCollisionObject::CO_COLLISION_OBJECT,
+            ErrorCode::InvalidArgument,
+            "attach: the body for particle " + std::to_string(particle) +
+                " is not a rigid body or collision object (a ghost object such as a cloth's "
+                "proxy, a soft body or a multibody link): particles attach to rigid bodies and "
+                "collision objects only");
     m.attachments.attach(*m.cloth, Attachment{particle, body, localPoint});
 }
 

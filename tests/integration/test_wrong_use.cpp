@@ -8,6 +8,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <limits>
 #include <memory>
 
 using namespace drape;
@@ -79,6 +80,44 @@ TEST_CASE("attaching to a body that is not in the cloth's world is refused", "[w
     CHECK_THROWS_WITH(handle.attachHere(3, &loose), Catch::Contains("not in the cloth's world"));
     CHECK(handle.attachments().empty());
     CHECK_FALSE(cloth->isPinned(3));
+}
+
+TEST_CASE("attaching to a cloth's proxy (a ghost object) is refused", "[world][wrong_use]") {
+    TestWorld w;
+    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), softCloth());
+    auto& handle = w.add(cloth);
+    auto other = makeCloth(horizontalSheet(5, 5, 0.1, 2.0), softCloth());
+    auto& otherHandle = w.add(other);
+    w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    CHECK_THROWS_WITH(handle.attachHere(3, handle.proxyObject()),
+                      Catch::Contains("not a rigid body or collision object"));
+    CHECK_THROWS_WITH(handle.attach(3, otherHandle.proxyObject(), Vec3::Zero()),
+                      Catch::Contains("not a rigid body or collision object"));
+    CHECK(handle.attachments().empty());
+    CHECK_FALSE(cloth->isPinned(3));
+}
+
+TEST_CASE("a body with a non-finite position or velocity near the cloth is named, and the cloth "
+          "keeps its state",
+          "[world][wrong_use]") {
+    for (int which = 0; which < 2; ++which) {
+        TestWorld w;
+        auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), softCloth());
+        w.add(cloth);
+        btRigidBody* ball = w.body(w.shape<btSphereShape>(btScalar(0.1)), 1.0, Vec3(0.2, 1.1, 0.2));
+        w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+        const Vec3List before = cloth->positions();
+        const btScalar nan = std::numeric_limits<btScalar>::quiet_NaN();
+        if (which == 0)
+            ball->setLinearVelocity(btVector3(0, nan, 0));
+        else
+            ball->getWorldTransform().setOrigin(btVector3(0.2f, nan, 0.2f));
+        INFO((which == 0 ? "velocity" : "position") << " NaN");
+        CHECK_THROWS_WITH(w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0)),
+                          Catch::Contains("SPHERE") && Catch::Contains("not finite"));
+        for (std::size_t i = 0; i < before.size(); ++i)
+            CHECK(cloth->positions()[i] == before[i]);
+    }
 }
 
 TEST_CASE("a body removed and deleted while particles hang from it: the next step detaches them "

@@ -74,7 +74,9 @@ class BulletCloth {
     // --- attachments ------------------------------------------------------------------------
     /// Fixes particle i to `body` at `localPoint` (body frame) [m]. The particle follows the
     /// body; for a dynamic body the cloth's force on the particle is applied to the body.
-    /// Throws drape::Error on an index out of range, a null body or a non-finite point.
+    /// Throws drape::Error on an index out of range, a null body, a non-finite point, a body not
+    /// in the cloth's world, or an object that is not a rigid body or collision object (a
+    /// ghost object such as a cloth's proxyObject(), a soft body).
     void attach(Index particle, const btCollisionObject* body, const Vec3& localPoint);
     /// Fixes particle i to `body` where both are now.
     void attachHere(Index particle, const btCollisionObject* body);
