@@ -185,7 +185,7 @@ void ContactSolver::straddledSprings(Cloth& c, double dt) {
 }
 
 void ContactSolver::flushTriangle(std::size_t t, double dt) {
-    ContactPlanes::Triangle& tri = records->planes.triangles[t];
+    ContactPlanes::TrianglePlane& tri = records->planes.triangles[t];
     if (tri.push == Vec3::Zero()) return;
     exchange(bodies[triangleBody_[t]], tri.push / dt, trianglePoint_[t]);
     tri.push = Vec3::Zero();
@@ -200,7 +200,7 @@ void ContactSolver::settleMovers(Cloth& c, double dt) {
     // give way (flushPlane's inelastic bound).
     for (std::size_t k = 0; k < pl.size(); ++k)
         if (pl.mover[k] >= 0 && !pl.movers[std::size_t(pl.mover[k])].applied()) pl.mover[k] = -1;
-    for (ContactPlanes::Triangle& t : pl.triangles)
+    for (ContactPlanes::TrianglePlane& t : pl.triangles)
         if (t.mover >= 0 && !pl.movers[std::size_t(t.mover)].applied()) t.mover = -1;
     for (std::size_t k = 0; k < pl.size(); ++k)
         if (pl.mover[k] >= 0) flushPlane(c, k, dt);

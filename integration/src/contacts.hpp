@@ -244,8 +244,9 @@ class ContactSolver {
     std::vector<Vec3> trianglePoint_;
     /// What triangle plane t pushed goes to its body (the triangle got push / dt).
     void flushTriangle(std::size_t t, double dt);
-    /// Body bi's contacts with triangles are triangle planes in the walk (ContactPlanes::
-    /// Triangle): a small body (small_) that does not stay put (static, kinematic, or a mover).
+    /// Body bi's contacts with triangles are triangle planes in the walk
+    /// (ContactPlanes::TrianglePlane): a small body (small_) that does not stay put (static,
+    /// kinematic, or a mover).
     bool keepsTrianglePlanes(std::uint32_t bi) const;
     /// Gives the walk the plane of triangle `tri`'s point `beta` ahead of body bi's tangent
     /// plane (normal n, through its surface point `point`) by the thickness.

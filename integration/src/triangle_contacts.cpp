@@ -73,9 +73,9 @@ bool ContactSolver::pushTriangle(Cloth& c, std::uint32_t bi, const Triangle& tri
     }
     if (!(weight > 0.0) || free < kFreeShare) return false;
     stats.maxDepth = std::max(stats.maxDepth, depth);
-    // A body thinner than the triangle that swept into it (thin_: it fits between the
+    // A body smaller than the triangle that swept into it (small_: it fits between the
     // corners, which its own tangent plane through each of them would let slide around it)
-    // gets the triangle's plane in the walk, if it does not move, or gives way in it.
+    // gets the triangle's plane in the walk instead (keepsTrianglePlanes).
     const bool trianglePlane = swept && keepsTrianglePlanes(bi);
     if (trianglePlane) addTrianglePlane(bi, tri, beta, n, point);
     for (int k = 0; k < 3; ++k) {
@@ -125,9 +125,8 @@ bool ContactSolver::keepsTrianglePlanes(std::uint32_t bi) const {
 
 void ContactSolver::addTrianglePlane(std::uint32_t bi, const Triangle& tri, const Vec3& beta,
                                      const Vec3& n, const Vec3& point) {
-    const Index corners[3] = {tri[0], tri[1], tri[2]};
     const std::size_t t =
-        records->planes.addTriangle(corners, beta, n, n.dot(point) + contact_.thickness);
+        records->planes.addTriangle(tri, beta, n, n.dot(point) + contact_.thickness);
     if (const std::int32_t m = moverOf_[bi]; m >= 0)
         records->planes.triangleMoveWith(t, m, point - bodies[bi].com);
     triangleBody_.push_back(bi);
@@ -158,7 +157,7 @@ void ContactSolver::sweepBodies(Cloth& c, double dt, QueryCounters& counters) {
         shape->getAabb(toBtTransform(from), mn0, mx0);
         shape->getAabb(toBtTransform(to), mn1, mx1);
         // A small body (small_) that does not stay put keeps the planes of the triangles
-        // within a spring's length of where it ends (trianglePlanes), not only of those it
+        // within a spring's length of where it ends (addTrianglePlane), not only of those it
         // reached: the walk after this stage can pull a triangle its springs hold back onto
         // it from there.
         const bool planes = keepsTrianglePlanes(bi);

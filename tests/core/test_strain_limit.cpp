@@ -394,6 +394,18 @@ PlaneSheet planeSheet() {
         sheet.xMid += p.x() / double(n);
     return sheet;
 }
+/// A fresh limiter's relimit of x with every particle touched and the walk keeping `planes`.
+StrainLimitStats relimitEverything(const ClothTopology& topo, const std::vector<double>& invMass,
+                                   const LimiterSettings& s, std::vector<Vec3>& x,
+                                   ContactPlanes& planes) {
+    std::vector<Index> all(topo.particleCount());
+    for (std::size_t i = 0; i < all.size(); ++i)
+        all[i] = static_cast<Index>(i);
+    const std::vector<double> k(topo.springCount(), 1.0);
+    StrainLimiter limiter;
+    limiter.clearMoved();
+    return limiter.relimit(topo, invMass, k, s, all, x, &planes);
+}
 } // namespace
 
 TEST_CASE("relimit keeps particles above their contact planes and reaches the bound",
@@ -408,7 +420,6 @@ TEST_CASE("relimit keeps particles above their contact planes and reaches the bo
     const std::size_t n = topo->particleCount();
     const std::vector<double>& mass = sheet.mass;
     const std::vector<double>& invMass = sheet.invMass;
-    const std::vector<double> k(topo->springCount(), 1.0);
     LimiterSettings s = limiterSettings();
     s.longRangeAttachments = false;
     const double xMid = sheet.xMid;
@@ -416,9 +427,7 @@ TEST_CASE("relimit keeps particles above their contact planes and reaches the bo
         std::vector<Vec3> x = topo->restPositions();
         ContactPlanes planes;
         planes.reset(n);
-        std::vector<Index> all;
         for (std::size_t i = 0; i < n; ++i) {
-            all.push_back(static_cast<Index>(i));
             if (x[i].x() < xMid) {
                 x[i] -= normal.dot(x[i]) * normal; // on the plane through the origin
                 planes.set(static_cast<Index>(i), normal, 0.0);
@@ -427,9 +436,7 @@ TEST_CASE("relimit keeps particles above their contact planes and reaches the bo
             }
         }
         const std::vector<Vec3> before = x;
-        StrainLimiter limiter;
-        limiter.clearMoved();
-        const auto st = limiter.relimit(*topo, invMass, k, s, all, x, &planes);
+        const auto st = relimitEverything(*topo, invMass, s, x, planes);
         INFO("normal " << normal.transpose() << ", waves " << st.rounds << ", work " << st.work);
         CHECK(maxSpringStrain(*topo, before) > 0.5);
         CHECK_FALSE(st.capHit);
@@ -465,7 +472,6 @@ TEST_CASE("a body that gives way in the walk takes what its planes push, momentu
     double clothMass = 0.0;
     for (double m : mass)
         clothMass += m;
-    const std::vector<double> k(topo->springCount(), 1.0);
     LimiterSettings s = limiterSettings();
     s.longRangeAttachments = false;
     const double xMid = sheet.xMid;
@@ -481,9 +487,7 @@ TEST_CASE("a body that gives way in the walk takes what its planes push, momentu
         const Eigen::Matrix3d invInertia =
             Eigen::Matrix3d::Identity() / (bodyMass * (0.25 + 0.25) / 12.0);
         planes.movers.push_back(ContactPlanes::Mover{1.0 / bodyMass, invInertia, centre});
-        std::vector<Index> all;
         for (std::size_t i = 0; i < n; ++i) {
-            all.push_back(static_cast<Index>(i));
             if (x[i].x() < xMid) {
                 x[i] -= normal.dot(x[i]) * normal; // on the plane through the origin
                 const auto plane = std::size_t(planes.set(static_cast<Index>(i), normal, 0.0));
@@ -493,9 +497,7 @@ TEST_CASE("a body that gives way in the walk takes what its planes push, momentu
             }
         }
         const std::vector<Vec3> before = x;
-        StrainLimiter limiter;
-        limiter.clearMoved();
-        const auto st = limiter.relimit(*topo, invMass, k, s, all, x, &planes);
+        const auto st = relimitEverything(*topo, invMass, s, x, planes);
         const ContactPlanes::Mover& body = planes.movers[0];
         INFO("body mass " << bodyMass << " kg, waves " << st.rounds << ", shift "
                           << body.shift.transpose() << ", turn " << body.turn.transpose());
@@ -540,7 +542,7 @@ namespace {
 /// A triangle plane's state in the tests below: the plane's triangle (the one around the
 /// sheet's middle), its point's weights, and the point where `x` has it.
 struct PlanedTriangle {
-    Index corner[3];
+    Triangle corner;
     Vec3 beta;
     Vec3 point(const std::vector<Vec3>& x) const {
         return beta[0] * x[corner[0]] + beta[1] * x[corner[1]] + beta[2] * x[corner[2]];
@@ -558,8 +560,7 @@ PlanedTriangle pushTriangleDown(const PlaneSheet& sheet, double depth, std::vect
         const Vec3 c = (x[tri[0]] + x[tri[1]] + x[tri[2]]) / 3.0;
         if ((c - middle).norm() < best) {
             best = (c - middle).norm();
-            for (int k = 0; k < 3; ++k)
-                t.corner[k] = tri[k];
+            t.corner = tri;
         }
     }
     t.beta = Vec3(0.5, 0.3, 0.2);
@@ -577,7 +578,7 @@ PlanedTriangle pushTriangleDown(const PlaneSheet& sheet, double depth, std::vect
 TEST_CASE("a triangle plane keeps the triangle's point ahead of it in the walk, within the bound",
           "[limiter][contact]") {
     // The irregular sheet of the tests above, pinned on its border. A body smaller than a
-    // triangle pushed one triangle's point 1.5 down (ContactPlanes::Triangle: no corner
+    // triangle pushed one triangle's point 1.5 down (ContactPlanes::TrianglePlane: no corner
     // touches it): the springs around it are stretched far beyond the bound. The walk must
     // reach the bound with the point still where the body holds it (the sheet drawn down
     // around it, a cone), the plane's push along its normal only.
@@ -591,7 +592,6 @@ TEST_CASE("a triangle plane keeps the triangle's point ahead of it in the walk, 
     }
     PlaneSheet pinned = sheet;
     pinned.invMass = invMass;
-    const std::vector<double> k(topo->springCount(), 1.0);
     LimiterSettings s = limiterSettings();
     s.longRangeAttachments = false;
     std::vector<Vec3> x = topo->restPositions();
@@ -600,12 +600,7 @@ TEST_CASE("a triangle plane keeps the triangle's point ahead of it in the walk, 
     const PlanedTriangle t = pushTriangleDown(pinned, 1.5, x, planes);
     const double held = t.point(x).z();
     const std::vector<Vec3> before = x;
-    std::vector<Index> all;
-    for (std::size_t i = 0; i < n; ++i)
-        all.push_back(static_cast<Index>(i));
-    StrainLimiter limiter;
-    limiter.clearMoved();
-    const auto st = limiter.relimit(*topo, invMass, k, s, all, x, &planes);
+    const auto st = relimitEverything(*topo, invMass, s, x, planes);
     INFO("waves " << st.rounds << ", work " << st.work << ", point z " << t.point(x).z()
                   << " held at " << held << ", push " << planes.triangles[0].push.transpose());
     CHECK(maxSpringStrain(*topo, before) > 0.3);
@@ -636,7 +631,6 @@ TEST_CASE("a small body that gives way takes what its triangle plane pushes, mom
     double clothMass = 0.0;
     for (double m : sheet.mass)
         clothMass += m;
-    const std::vector<double> k(topo->springCount(), 1.0);
     LimiterSettings s = limiterSettings();
     s.longRangeAttachments = false;
     double shiftOf[2] = {0.0, 0.0};
@@ -651,14 +645,9 @@ TEST_CASE("a small body that gives way takes what its triangle plane pushes, mom
             1.0 / bodyMass, Eigen::Matrix3d::Identity() / (0.4 * bodyMass * 0.09), centre});
         planes.triangleMoveWith(0, 0, t.point(x) - centre);
         const std::vector<Vec3> before = x;
-        std::vector<Index> all;
-        for (std::size_t i = 0; i < n; ++i)
-            all.push_back(static_cast<Index>(i));
-        StrainLimiter limiter;
-        limiter.clearMoved();
-        const auto st = limiter.relimit(*topo, sheet.invMass, k, s, all, x, &planes);
+        const auto st = relimitEverything(*topo, sheet.invMass, s, x, planes);
         const ContactPlanes::Mover& body = planes.movers[0];
-        const ContactPlanes::Triangle& plane = planes.triangles[0];
+        const ContactPlanes::TrianglePlane& plane = planes.triangles[0];
         INFO("body mass " << bodyMass << " kg, waves " << st.rounds << ", shift "
                           << body.shift.transpose() << ", push " << plane.push.transpose());
         CHECK_FALSE(st.capHit);

@@ -86,7 +86,7 @@ TEST_CASE("a ball at up to 50 m/s and a 60 Hz world step does not pass a pinned 
             CHECK(t.contacts > 0);
             // Caught: a 1 m net at 10 % strain sags at most 0.23 m. (The 5 mm ball at 50 m/s
             // passed, slowed to 8 m/s, before small bodies kept the planes of the triangles
-            // near them in the walk: ContactPlanes::Triangle.)
+            // near them in the walk: ContactPlanes::TrianglePlane.)
             CHECK(t.minBallY > -0.25 - radius);
             CHECK_FALSE(t.passed);
             // No energy from the net: it gives back less speed than it took.

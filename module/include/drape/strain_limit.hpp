@@ -85,6 +85,11 @@ struct ContactPlanes {
             shift -= (invMass * lambda) * n;
             return true;
         }
+        /// Its inverse mass along n at `lever` from its centre of mass [1/kg].
+        double giveAlong(const Vec3& n, const Vec3& lever) const {
+            const Vec3 rxn = lever.cross(n);
+            return invMass + rxn.dot(invInertia * rxn);
+        }
         /// How far a point at `lever` has moved along n in the walk (first order) [m].
         double moved(const Vec3& n, const Vec3& lever) const {
             return n.dot(shift + turn.cross(lever));
@@ -104,8 +109,8 @@ struct ContactPlanes {
     /// out with the least-mass-weighted change, corner k by beta_k w_k lambda n (a mover
     /// takes its share of lambda, as for particle planes); `push` sums lambda n [kg m]: the
     /// triangle got the impulse push / dt, the body the opposite.
-    struct Triangle {
-        Index corner[3] = {0, 0, 0};
+    struct TrianglePlane {
+        Triangle corner = {0, 0, 0};
         Vec3 beta = Vec3::Zero();
         Vec3 normal = Vec3::UnitY();
         double offset = 0.0;
@@ -114,16 +119,15 @@ struct ContactPlanes {
         double give = 0.0;         ///< a mover's inverse mass along n at the point [1/kg]
         Vec3 push = Vec3::Zero();
     };
-    std::vector<Triangle> triangles;
+    std::vector<TrianglePlane> triangles;
     /// Per particle: its first entry 3 t + k (corner k of triangle plane t), or -1; per entry:
     /// the particle's next one. Empty while there are no triangle planes.
     std::vector<std::int32_t> triangleHead, triangleNext;
     /// Adds a triangle plane (no mover); returns its index.
-    std::size_t addTriangle(const Index corners[3], const Vec3& beta, const Vec3& n, double off) {
+    std::size_t addTriangle(const Triangle& corners, const Vec3& beta, const Vec3& n, double off) {
         const std::size_t t = triangles.size();
-        Triangle tri;
-        for (int k = 0; k < 3; ++k)
-            tri.corner[k] = corners[k];
+        TrianglePlane tri;
+        tri.corner = corners;
         tri.beta = beta;
         tri.normal = n;
         tri.offset = off;
@@ -137,15 +141,13 @@ struct ContactPlanes {
     }
     /// Triangle plane t belongs to mover m, touching it at r from its centre of mass.
     void triangleMoveWith(std::size_t t, std::int32_t m, const Vec3& r) {
-        Triangle& tri = triangles[t];
-        const Mover& b = movers[std::size_t(m)];
-        const Vec3 rxn = r.cross(tri.normal);
+        TrianglePlane& tri = triangles[t];
         tri.mover = m;
         tri.lever = r;
-        tri.give = b.invMass + rxn.dot(b.invInertia * rxn);
+        tri.give = movers[std::size_t(m)].giveAlong(tri.normal, r);
     }
     /// Triangle plane t's offset now (a mover's has moved with it).
-    double triangleOffsetNow(const Triangle& t) const {
+    double triangleOffsetNow(const TrianglePlane& t) const {
         return t.mover < 0 ? t.offset
                            : t.offset + movers[std::size_t(t.mover)].moved(t.normal, t.lever);
     }
@@ -155,7 +157,7 @@ struct ContactPlanes {
     /// Forgets every plane and mover; `of` gets one entry per particle.
     void reset(std::size_t particles) {
         if (of.size() != particles) of.assign(particles, -1);
-        for (const Triangle& t : triangles)
+        for (const TrianglePlane& t : triangles)
             for (Index i : t.corner)
                 triangleHead[i] = -1;
         triangles.clear();
@@ -174,11 +176,9 @@ struct ContactPlanes {
     }
     /// Plane k belongs to mover m, touching it at r from its centre of mass.
     void moveWith(std::size_t k, std::int32_t m, const Vec3& r) {
-        const Mover& b = movers[std::size_t(m)];
-        const Vec3 rxn = r.cross(normal[k]);
         mover[k] = m;
         lever[k] = r;
-        give[k] = b.invMass + rxn.dot(b.invInertia * rxn);
+        give[k] = movers[std::size_t(m)].giveAlong(normal[k], r);
     }
     /// Plane k's offset now: a mover's plane has moved with it.
     double offsetNow(std::size_t k) const {
@@ -206,26 +206,20 @@ struct ContactPlanes {
                               ? Eigen::AngleAxisd(angle, movers[m].turn / angle).toRotationMatrix()
                               : Eigen::Matrix3d::Identity();
         }
-        for (std::size_t k = 0; k < normal.size(); ++k) {
-            const std::int32_t m = mover[k];
-            if (m < 0) continue;
+        // offset = n . (centre + lever) + h, h the plane's distance from the surface.
+        auto carry = [&](std::int32_t m, Vec3& n, Vec3& r, double& off) {
+            if (m < 0) return;
             const Mover& b = movers[std::size_t(m)];
             const Eigen::Matrix3d& R = rotation[std::size_t(m)];
-            // offset = n . (centre + lever) + h, h the plane's distance from the surface.
-            const double h = offset[k] - normal[k].dot(b.centre + lever[k]);
-            normal[k] = R * normal[k];
-            lever[k] = R * lever[k];
-            offset[k] = normal[k].dot(b.centre + b.shift + lever[k]) + h;
-        }
-        for (Triangle& t : triangles) {
-            if (t.mover < 0) continue;
-            const Mover& b = movers[std::size_t(t.mover)];
-            const Eigen::Matrix3d& R = rotation[std::size_t(t.mover)];
-            const double h = t.offset - t.normal.dot(b.centre + t.lever);
-            t.normal = R * t.normal;
-            t.lever = R * t.lever;
-            t.offset = t.normal.dot(b.centre + b.shift + t.lever) + h;
-        }
+            const double h = off - n.dot(b.centre + r);
+            n = R * n;
+            r = R * r;
+            off = n.dot(b.centre + b.shift + r) + h;
+        };
+        for (std::size_t k = 0; k < normal.size(); ++k)
+            carry(mover[k], normal[k], lever[k], offset[k]);
+        for (TrianglePlane& t : triangles)
+            carry(t.mover, t.normal, t.lever, t.offset);
         for (Mover& b : movers) {
             b.centre += b.shift;
             b.shift = Vec3::Zero();
@@ -414,7 +408,7 @@ class StrainLimiter {
         return planes_ ? keepAbove(i, dx, x) : dx;
     }
     /// After particle i moved: the triangle planes it is a corner of move their points back
-    /// ahead of them (ContactPlanes::Triangle), each corner by moveBy(corner, dx).
+    /// ahead of them (ContactPlanes::TrianglePlane), each corner by moveBy(corner, dx).
     template <class MoveBy>
     void holdTriangles(Index i, const std::vector<Vec3>& x, MoveBy&& moveBy) {
         if (planes_->triangleHead.empty()) return;
@@ -423,7 +417,8 @@ class StrainLimiter {
             holdTriangle(planes_->triangles[std::size_t(e) / 3], x, moveBy);
     }
     template <class MoveBy>
-    void holdTriangle(ContactPlanes::Triangle& t, const std::vector<Vec3>& x, MoveBy&& moveBy) {
+    void holdTriangle(ContactPlanes::TrianglePlane& t, const std::vector<Vec3>& x,
+                      MoveBy&& moveBy) {
         const std::vector<double>& w = *planeInvMass_;
         Vec3 p = Vec3::Zero();
         double weight = 0.0;
