@@ -52,6 +52,10 @@ struct BodySnapshot {
     /// push it back out with energy). A free one (a projectile, a thrown ball) ends the Bullet
     /// sub-step where its sweep through the cloth's steps took it.
     bool supported = false;
+    /// Particles of the cloth are attached to it: it moves them as kinematic targets set
+    /// before the cloth's steps, so it does not give way in the limiter's walk (a mover whose
+    /// attached particles stay put while its planes recede fights them without end).
+    bool attached = false;
     /// The pose at the end of the Bullet sub-step (Bullet's answer, at the velocities it had).
     Pose end;
     /// Where the body was at the start of the current cloth step (pose: at its end).

@@ -94,6 +94,7 @@ void accumulate(ContactStats& total, const ContactStats& s) {
     total.impulseOnBodies += s.impulseOnBodies;
     total.impulseOnCloth += s.impulseOnCloth;
     total.refusedBodyImpulses += s.refusedBodyImpulses;
+    total.planesLetGo += s.planesLetGo;
     total.steps += s.steps;
     total.proxyRefreshes += s.proxyRefreshes;
 }
@@ -473,6 +474,9 @@ void BulletCloth::Impl::gatherBodies(double dt) {
             bodies.push_back(b);
     }
     detail::markSupported(*world->getDispatcher(), bodies);
+    for (const auto& a : attachments.list())
+        for (auto& b : bodies)
+            if (b.object == a.body) b.attached = true;
     last.candidateBodies = bodies.size();
 }
 

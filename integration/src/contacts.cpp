@@ -36,11 +36,12 @@ void ContactSolver::detect(Cloth& c, double dt) {
     records->dt = dt;
     if (bodies.empty()) return; // no rigid collider near the cloth: no work at all
     // A free dynamic body (in no Bullet contact: a projectile, a thrown rod) gives way in the
-    // walk with its mass; a supported one is held by Bullet's contacts, and Bullet moves it.
+    // walk with its mass; a supported one is held by Bullet's contacts, and Bullet moves it;
+    // one the cloth is attached to moves the attached particles before the walk.
     moverOf_.assign(bodies.size(), -1);
     for (std::size_t bi = 0; bi < bodies.size(); ++bi) {
         const BodySnapshot& b = bodies[bi];
-        if (!b.dynamicBody || b.supported || !(b.invMass > 0.0)) continue;
+        if (!b.dynamicBody || b.supported || b.attached || !(b.invMass > 0.0)) continue;
         moverOf_[bi] = static_cast<std::int32_t>(records->planes.movers.size());
         records->planes.movers.push_back(ContactPlanes::Mover{b.invMass, b.invInertia, b.com});
     }
@@ -68,6 +69,7 @@ void ContactSolver::detect(Cloth& c, double dt) {
         for (std::size_t i = 0; i < n; ++i)
             if (c.inverseMasses()[i] != 0.0) clothMass_ += c.masses()[i];
 
+    records->planes.maxPush = longestSpring(c);
     QueryCounters counters;
     collideParticles(c, dt, counters);
     if (contact_.continuous) sweepBodies(c, dt, counters);
@@ -115,6 +117,7 @@ void ContactSolver::finish(Cloth& c, double dt) {
         }
     }
 
+    stats.planesLetGo += records->planes.letGo;
     // What the contact planes held in the limiter's walk: the particle got m push / dt (its
     // velocity follows its position), the body gets the opposite.
     for (std::size_t k = 0; k < records->planes.size(); ++k)

@@ -307,8 +307,13 @@ inline void ContactSolver::keepPlane(Cloth& c, std::uint32_t bi, std::size_t i, 
 }
 
 inline void ContactSolver::flushPlane(Cloth& c, std::size_t k, double dt) {
-    const Vec3 push = records->planes.push[k];
+    Vec3 push = records->planes.push[k];
     if (push == Vec3::Zero()) return;
+    // A plane the walk let go of (ContactPlanes::maxPush) pushed one move past that length:
+    // what it exchanges is cut to the length (a body that gave way took its share).
+    if (const double most = records->planes.maxPush;
+        records->planes.mover[k] < 0 && push.squaredNorm() > most * most)
+        push *= most / push.norm();
     const std::size_t i = records->planes.particle(k);
     const Vec3 j = (c.masses()[i] / dt) * push;
     BodySnapshot& b = bodies[planeBody_[k]];

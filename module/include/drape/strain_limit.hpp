@@ -12,6 +12,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace drape {
@@ -52,6 +53,16 @@ struct ContactPlanes {
     /// m push / dt on the particle, and its opposite on the body). A vector, so that a plane
     /// replaced by set() keeps what its earlier normals pushed.
     std::vector<Vec3> push;
+    /// A plane whose push in one step grows past this [m] is let go for the rest of the step
+    /// (its offset becomes -infinity; push keeps what it held): the walk was fighting it
+    /// against springs it cannot satisfy together with it (a neighbour pinned across the
+    /// plane, a second body pressing the particle the other way), wave after wave, at the
+    /// cost of the whole budget and with a push that is no contact's. The strain those springs
+    /// are left with is measured, as every strain. Infinite: never (the glue sets the
+    /// cloth's longest spring).
+    double maxPush = std::numeric_limits<double>::infinity();
+    /// Planes let go by maxPush since the last reset.
+    std::size_t letGo = 0;
 
     /// A body that gives way in the walk (a free dynamic body: a projectile, a thrown rod): a
     /// plane of it pushing particle i out by `below` moves i by w_i lambda and the body by
@@ -168,6 +179,7 @@ struct ContactPlanes {
         normal.clear();
         offset.clear();
         push.clear();
+        letGo = 0;
         mover.clear();
         lever.clear();
         give.clear();
