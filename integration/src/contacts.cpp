@@ -69,7 +69,6 @@ void ContactSolver::detect(Cloth& c, double dt) {
         for (std::size_t i = 0; i < n; ++i)
             if (c.inverseMasses()[i] != 0.0) clothMass_ += c.masses()[i];
 
-    records->planes.maxPush = longestSpring(c);
     QueryCounters counters;
     collideParticles(c, dt, counters);
     if (contact_.continuous) sweepBodies(c, dt, counters);

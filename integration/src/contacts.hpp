@@ -294,6 +294,9 @@ inline void ContactSolver::keepPlane(Cloth& c, std::uint32_t bi, std::size_t i, 
         was >= 0 && planeBody_[std::size_t(was)] != bi)
         flushPlane(c, std::size_t(was), dt);
     const auto plane = std::size_t(records->planes.set(static_cast<Index>(i), n, offset));
+    // A body that does not give way and is not free lets the plane go in a fight.
+    if (const BodySnapshot& b = bodies[bi]; !b.dynamicBody || b.attached)
+        records->planes.pushLimit[plane] = longestSpring(c);
     if (const std::int32_t m = moverOf_[bi]; m >= 0)
         records->planes.moveWith(plane, m, point - bodies[bi].com);
     if (!trianglePlane_.empty()) trianglePlane_[i] = fromTriangle ? 1 : 0;
@@ -309,10 +312,9 @@ inline void ContactSolver::keepPlane(Cloth& c, std::uint32_t bi, std::size_t i, 
 inline void ContactSolver::flushPlane(Cloth& c, std::size_t k, double dt) {
     Vec3 push = records->planes.push[k];
     if (push == Vec3::Zero()) return;
-    // A plane the walk let go of (ContactPlanes::maxPush) pushed one move past that length:
-    // what it exchanges is cut to the length (a body that gave way took its share).
-    if (const double most = records->planes.maxPush;
-        records->planes.mover[k] < 0 && push.squaredNorm() > most * most)
+    // A plane the walk let go of (ContactPlanes::pushLimit) pushed one move past the limit:
+    // what it exchanges is cut to it.
+    if (const double most = records->planes.pushLimit[k]; push.squaredNorm() > most * most)
         push *= most / push.norm();
     const std::size_t i = records->planes.particle(k);
     const Vec3 j = (c.masses()[i] / dt) * push;

@@ -209,14 +209,11 @@ Vec3 StrainLimiter::keepAbove(Index i, const Vec3& dx, const std::vector<Vec3>& 
     const Vec3& n = planes_->normal[kk];
     double below = planes_->offsetNow(kk) - n.dot(x[i] + dx);
     if (!(below > 0.0)) return dx;
-    const std::int32_t m = planes_->mover[kk];
-    if (m >= 0) below = planes_->giveWay(kk, below, (*planeInvMass_)[i]);
+    if (planes_->mover[kk] >= 0) below = planes_->giveWay(kk, below, (*planeInvMass_)[i]);
     Vec3& push = planes_->push[kk];
     push += below * n;
-    // (A body that gives way recedes from what it pushes: a caught ball's planes push as far
-    // as it came, and they are no fight.)
-    if (m < 0 && push.squaredNorm() > planes_->maxPush * planes_->maxPush) {
-        planes_->offset[kk] = -std::numeric_limits<double>::infinity(); // let go (maxPush)
+    if (const double most = planes_->pushLimit[kk]; push.squaredNorm() > most * most) {
+        planes_->offset[kk] = -std::numeric_limits<double>::infinity(); // let go (pushLimit)
         ++planes_->letGo;
     }
     return dx + below * n;
@@ -607,14 +604,22 @@ std::size_t StrainLimiter::correctWave(const std::vector<Spring>& springs,
             const double eps = 1e-6 * spring[si].restLength;
             const double sgn = excess > 0.0 ? 1.0 : -1.0;
             wsum = slidingWeight(a, wa, sgn * u, x, eps) + slidingWeight(b, wb, -sgn * u, x, eps);
-            // Both ends held by their planes: a slide along a plane shortens a spring that
-            // meets it at an angle theta from the normal only by a slide of about
-            // excess / sin(theta) (weight w sin^2 theta). Near the normal that is a jump, not
-            // a correction, and the plane pushes back what the jump put into it, again in every
-            // wave (a spring from a particle pinned across the plane, which no slide
-            // shortens): the spring is left as it is, the planes win (counted by the strain
-            // the step ends with).
-            if (!(wsum > (wa + wb) * std::min(1.0, std::abs(excess) / l))) continue;
+            if (!(wsum > 0.0)) continue; // both ends held by their planes
+            // One end pinned, the other on a still body's plane: a slide along the plane shortens a
+            // spring that meets it at an angle theta from the normal only by a slide of about
+            // excess / sin(theta) (weight w sin^2 theta). Near the normal that is a jump, not a
+            // correction, and the plane pushes back what the jump put into it, again in every
+            // wave (a neighbour attached across the plane, which no slide brings within the
+            // bound): the spring is left as it is, the plane wins (the strain the step ends
+            // with counts it).
+            // (A body that gives way takes its share instead.)
+            const auto still = [this](Index i) {
+                const std::int32_t k = planes_->of[i];
+                return k >= 0 && planes_->mover[std::size_t(k)] < 0;
+            };
+            if (((wa == 0.0 && still(b)) || (wb == 0.0 && still(a))) &&
+                !(wsum > (wa + wb) * std::min(1.0, std::abs(excess) / l)))
+                continue;
         }
         // Provot's rule: to exactly the limit, by inverse-mass shares. A pull adds to the
         // spring's lambda; a spring the warm start pulled in too far is let out to the limit,

@@ -53,15 +53,16 @@ struct ContactPlanes {
     /// m push / dt on the particle, and its opposite on the body). A vector, so that a plane
     /// replaced by set() keeps what its earlier normals pushed.
     std::vector<Vec3> push;
-    /// A plane whose push in one step grows past this [m] is let go for the rest of the step
-    /// (its offset becomes -infinity; push keeps what it held): the walk was fighting it
+    /// Per plane: a push in one step past this [m] lets the plane go for the rest of the
+    /// step (its offset becomes -infinity; push keeps what it held): the walk was fighting it
     /// against springs it cannot satisfy together with it (a neighbour pinned across the
     /// plane, a second body pressing the particle the other way), wave after wave, at the
     /// cost of the whole budget and with a push that is no contact's. The strain those springs
-    /// are left with is measured, as every strain. Infinite: never (the glue sets the
-    /// cloth's longest spring).
-    double maxPush = std::numeric_limits<double>::infinity();
-    /// Planes let go by maxPush since the last reset.
+    /// are left with is measured, as every strain. Infinite (set's default): never; the glue
+    /// sets the cloth's longest spring for bodies that do not move in the walk and are not
+    /// free (static, kinematic, attached to the cloth).
+    std::vector<double> pushLimit;
+    /// Planes let go by pushLimit since the last reset.
     std::size_t letGo = 0;
 
     /// A body that gives way in the walk (a free dynamic body: a projectile, a thrown rod): a
@@ -179,6 +180,7 @@ struct ContactPlanes {
         normal.clear();
         offset.clear();
         push.clear();
+        pushLimit.clear();
         letGo = 0;
         mover.clear();
         lever.clear();
@@ -248,6 +250,7 @@ struct ContactPlanes {
             normal.push_back(n);
             offset.push_back(off);
             push.push_back(Vec3::Zero());
+            pushLimit.push_back(std::numeric_limits<double>::infinity());
             mover.push_back(-1);
             lever.push_back(Vec3::Zero());
             give.push_back(0.0);
@@ -255,6 +258,7 @@ struct ContactPlanes {
         } else {
             normal[std::size_t(k)] = n;
             offset[std::size_t(k)] = off;
+            pushLimit[std::size_t(k)] = std::numeric_limits<double>::infinity();
             mover[std::size_t(k)] = -1;
         }
         return k;
