@@ -142,13 +142,14 @@ struct ContactStats {
     /// Seen with thin fast bodies wedged between particles (integration/README.md, "Fast
     /// bodies"); 0 in every shipped scene and game.
     std::size_t refusedBodyImpulses = 0;
-    /// Contact planes the strain limiter's walk let go of in a cloth step because they had
-    /// pushed their particle out by more than the cloth's longest spring
-    /// (ContactPlanes::maxPush): the walk was fighting the plane against springs it cannot
-    /// satisfy together with it (a neighbour attached across the plane, two bodies pressing
-    /// one particle from both sides), which is no contact. The particle is projected out of
-    /// the body after the walk, and the springs stay as long as they are (maxStrain says by
-    /// how much); what the plane pushed is exchanged with the body up to that length.
+    /// Contact planes of static, kinematic and attached bodies that the strain limiter's walk
+    /// let go of in a cloth step because they had pushed their particle out by more than the
+    /// cloth's longest spring (ContactPlanes::pushLimit): the walk was fighting the plane
+    /// against springs it cannot satisfy together with it (a neighbour attached across the
+    /// plane, two bodies pressing one particle from both sides), which is no contact. The particle
+    /// is projected out of the body after the walk, and the springs stay as long as they are
+    /// (maxStrain says by how much); what the plane pushed is exchanged with the body up to that
+    /// length.
     std::size_t planesLetGo = 0;
     std::uint64_t steps = 0; ///< cloth steps taken by this handle since it was added
     int substeps = 0;        ///< cloth steps per Bullet sub-step in the last sub-step
