@@ -474,9 +474,10 @@ void BulletCloth::Impl::gatherBodies(double dt) {
             bodies.push_back(b);
     }
     detail::markSupported(*world->getDispatcher(), bodies);
-    for (const auto& a : attachments.list())
+    // (attachedBodies: the attachment bodies, sorted, from checkAttachmentBodies this sub-step.)
+    if (!attachments.list().empty())
         for (auto& b : bodies)
-            if (b.object == a.body) b.attached = true;
+            b.attached = std::binary_search(attachedBodies.begin(), attachedBodies.end(), b.object);
     last.candidateBodies = bodies.size();
 }
 

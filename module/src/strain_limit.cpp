@@ -605,19 +605,14 @@ std::size_t StrainLimiter::correctWave(const std::vector<Spring>& springs,
             const double sgn = excess > 0.0 ? 1.0 : -1.0;
             wsum = slidingWeight(a, wa, sgn * u, x, eps) + slidingWeight(b, wb, -sgn * u, x, eps);
             if (!(wsum > 0.0)) continue; // both ends held by their planes
-            // One end pinned, the other on a still body's plane: a slide along the plane shortens a
-            // spring that meets it at an angle theta from the normal only by a slide of about
-            // excess / sin(theta) (weight w sin^2 theta). Near the normal that is a jump, not a
-            // correction, and the plane pushes back what the jump put into it, again in every
-            // wave (a neighbour attached across the plane, which no slide brings within the
-            // bound): the spring is left as it is, the plane wins (the strain the step ends
-            // with counts it).
-            // (A body that gives way takes its share instead.)
-            const auto still = [this](Index i) {
-                const std::int32_t k = planes_->of[i];
-                return k >= 0 && planes_->mover[std::size_t(k)] < 0;
-            };
-            if (((wa == 0.0 && still(b)) || (wb == 0.0 && still(a))) &&
+            // One end pinned, the other on the plane of a body that does not give way (one
+            // that does takes its share): a slide along the plane shortens a spring that meets
+            // it at an angle theta from the normal only by a slide of about excess / sin(theta)
+            // (weight w sin^2 theta). Near the normal that is a jump, not a correction, and the
+            // plane pushes back what the jump put into it, again in every wave (a neighbour
+            // attached across the plane, which no slide brings within the bound): the spring is
+            // left as it is, the plane wins (the strain the step ends with counts it).
+            if (((wa == 0.0 && onStillPlane(b)) || (wb == 0.0 && onStillPlane(a))) &&
                 !(wsum > (wa + wb) * std::min(1.0, std::abs(excess) / l)))
                 continue;
         }

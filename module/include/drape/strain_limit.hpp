@@ -413,6 +413,11 @@ class StrainLimiter {
     double scanFamilies(const ClothTopology& topology, const std::vector<double>& invMass,
                         const std::vector<double>& stiffness, const std::vector<Vec3>& x,
                         StrainLimitStats& st);
+    /// Whether particle i has a contact plane of a body that does not give way in the walk.
+    bool onStillPlane(Index i) const {
+        const std::int32_t k = planes_->of[i];
+        return k >= 0 && planes_->mover[std::size_t(k)] < 0;
+    }
     /// Inverse mass of particle i for a move along unit dir: w, or w (1 - (dir . n)^2) when it
     /// lies on its contact plane (within eps) and dir goes into it.
     double slidingWeight(Index i, double w, const Vec3& dir, const std::vector<Vec3>& x,
