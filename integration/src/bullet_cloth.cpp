@@ -87,6 +87,7 @@ void accumulate(ContactStats& total, const ContactStats& s) {
     total.edgeContacts += s.edgeContacts;
     total.contacts += s.contacts;
     total.projections += s.projections;
+    total.heldBetween += s.heldBetween;
     total.maxDepth = std::max(total.maxDepth, s.maxDepth);
     total.maxStrain = std::max(total.maxStrain, s.maxStrain);
     total.selfContacts += s.selfContacts;

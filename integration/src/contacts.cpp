@@ -71,6 +71,7 @@ void ContactSolver::detect(Cloth& c, double dt) {
 
     QueryCounters counters;
     collideParticles(c, dt, counters);
+    solveHeld(c);
     if (contact_.continuous) sweepBodies(c, dt, counters);
     straddledSprings(c, dt);
     if (contact_.triangles) collideTriangles(c, dt, counters);
@@ -327,6 +328,7 @@ void ContactSolver::collideMoved(Cloth& c, double dt, const std::vector<Index>& 
             }
         }
     }
+    solveHeld(c);
 }
 
 void ContactSolver::applyContactForces(const Cloth& c, double h) {

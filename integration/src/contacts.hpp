@@ -46,6 +46,11 @@
 // does not pass between the particles. A spring whose ends have planes of one thin body on
 // opposite sides, which the strain bound cannot both hold (the body wedged between them),
 // passes the body on the side the normals share (straddledSprings).
+// A particle lying on the limiter plane of a static or kinematic body (a rug on the floor)
+// that a dynamic body presses into it (a crate landing on the rug) is held: it is not moved
+// out of the dynamic body (that would move it into the other one), the dynamic body's
+// approach is stopped there as on the body behind (all such contacts of a pass together,
+// solveHeld), and the body is moved back out to the thickness.
 // A dynamic body takes a plane's push only up to what stops its approach (flushPlane).
 // Every particle within reach of a static or kinematic body keeps that contact's tangent plane
 // in the limiter's one walk of the step, which runs after detect (ContactSet::planes: the
@@ -81,6 +86,11 @@ constexpr int kRelimitPasses = 8;
 constexpr double kFreeShare = 0.25;
 /// Extra sweeps over the triangles in contact after a triangle pass.
 constexpr int kTriangleSweeps = 4;
+/// Sequential-impulse iterations over the held contacts of a pass (solveHeld).
+constexpr int kHeldIterations = 8;
+/// A particle this share of the thickness or less above the limiter plane of a static or
+/// kinematic body lies on it, held (heldBehind); one higher, in eq. (7)'s band, can still give.
+constexpr double kHeldGap = 0.01;
 
 /// Coulomb friction of a normal impulse against body b at p (drape::coulombImpulse), particle
 /// and triangle contacts alike.
@@ -152,6 +162,27 @@ class ContactSolver {
     /// contact record). Returns whether it is within the contact reach.
     bool collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, double dt,
                          QueryCounters& counters);
+    /// The limiter plane of a static or kinematic body that particle i lies on (at most
+    /// kHeldGap thicknesses above it), or -1.
+    std::int64_t heldBehind(const Vec3List& x, std::size_t i) const;
+    /// A dynamic body pressing a particle into a static or kinematic body that holds it
+    /// (heldBehind): the body's approach to the one behind, at the contact, is stopped as if
+    /// it touched it; the particle is not moved (moved out of the body it would be moved into
+    /// the one behind, and the projection back would launch it).
+    struct HeldContact {
+        std::uint32_t body = 0;
+        std::size_t particle = 0;
+        Vec3 point = Vec3::Zero();          ///< on the dynamic body's surface [m]
+        Vec3 normal = Vec3::UnitY();        ///< the dynamic body's outward normal there
+        Vec3 behindVelocity = Vec3::Zero(); ///< of the body behind, at the particle [m/s]
+        double give = 0.0;                  ///< the body's inverse mass along normal [1/kg]
+        double depth = 0.0;  ///< how far inside the thickness the body came, at most h [m]
+        double lambda = 0.0; ///< accumulated normal impulse [N s]
+    };
+    std::vector<HeldContact> held_;
+    std::vector<const HeldContact*> deepestHeld_; ///< per body, in solveHeld
+    /// The held contacts of the last pass over particles, solved together (solveHeld).
+    void solveHeld(Cloth& c);
     /// Where the particle's path since the last step entered body b (a ray test, for fast
     /// particles): false if it did not.
     bool pathHit(const BodySnapshot& b, const Vec3& from, const Vec3& xi, SurfaceHit& hit);

@@ -218,6 +218,13 @@ void ContactSolver::collideSpringWithBox(Cloth& c, const Spring& s, std::uint32_
     const double weight = beta[0] * beta[0] * w[s.a] + beta[1] * beta[1] * w[s.b];
     if (!(weight > 0.0)) return;
     const Vec3 n = b.pose.R * g;
+    // A dynamic box pressing the spring into a static or kinematic body that holds an end
+    // (a crate on a rug on the floor) moves nothing: see collideParticle.
+    if (b.dynamicBody)
+        for (const Index e : {s.a, s.b})
+            if (const std::int64_t k = heldBehind(x, e);
+                k >= 0 && records->planes.normal[std::size_t(k)].dot(n) < 0.0)
+                return;
     const double depth = h - d;
     const Vec3 point = b.pose.toWorld(local - d * g); // on the surface
     stats.maxDepth = std::max(stats.maxDepth, depth);

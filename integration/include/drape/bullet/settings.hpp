@@ -114,6 +114,10 @@ struct ContactStats {
     /// step, summed over the sub-steps.
     std::size_t contacts = 0;
     std::size_t projections = 0; ///< contacts that moved a particle out of a body
+    /// Contacts of a dynamic body with a particle that a static or kinematic body holds from
+    /// behind (a crate landing on, or resting on, a rug on the floor): the body's approach is
+    /// stopped there as against the body behind, and the particle is not moved into it.
+    std::size_t heldBetween = 0;
     /// Deepest a particle (or a triangle, with contact.triangles) was found inside a body's
     /// contact thickness before it was moved out: thickness - distance, 0 without
     /// projections; in totalStats() the largest of any sub-step [m].
