@@ -717,10 +717,21 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
     const std::size_t cap =
         static_cast<std::size_t>(s.maxRounds) * std::max<std::size_t>(springs.size(), 1);
     dirty_.resize(x.size() + 1); // every particle at most once per wave (+1: the last write)
+    const std::size_t apartCheck =
+        static_cast<std::size_t>(kApartCheck) * std::max<std::size_t>(springs.size(), 1);
+    bool apartChecked = false;
     while (!next_.empty()) {
         if (st.work > cap) {
             st.capHit = true;
             break;
+        }
+        if (!apartChecked && st.work > apartCheck && cap > apartCheck) {
+            apartChecked = true;
+            if (pinsApart(topology, invMass, x)) {
+                st.capHit = true;
+                st.pinsApart = true;
+                break;
+            }
         }
         wave_.swap(next_);
         next_.clear();
@@ -752,6 +763,60 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
     for (std::uint32_t si : next_)
         queued_[si] = 0;
     next_.clear();
+}
+
+bool StrainLimiter::pinsApart(const ClothTopology& topology, const std::vector<double>& invMass,
+                              const std::vector<Vec3>& x) {
+    auto& list = pinScratch_;
+    list.clear();
+    for (std::size_t i = 0; i < invMass.size(); ++i)
+        if (invMass[i] == 0.0) list.push_back(static_cast<Index>(i));
+    if (list.size() < 2 || list.size() > kMaxApartPins) return false;
+    const std::size_t p = list.size();
+    if (list != pinList_ || pinPath_.size() != p * p) {
+        // Dijkstra through the springs' rest lengths from each held particle, until every
+        // other held particle is settled.
+        pinList_ = list;
+        pinPath_.assign(p * p, std::numeric_limits<double>::infinity());
+        const std::size_t n = topology.particleCount();
+        const auto& off = topology.adjacencyOffsets();
+        const auto& nbr = topology.adjacentParticles();
+        const auto& rest = topology.adjacentRestLengths();
+        std::vector<std::int32_t> slot(n, -1);
+        for (std::size_t k = 0; k < p; ++k)
+            slot[pinList_[k]] = static_cast<std::int32_t>(k);
+        std::vector<double> dist(n);
+        using Item = std::pair<double, Index>;
+        std::priority_queue<Item, std::vector<Item>, std::greater<Item>> front;
+        for (std::size_t k = 0; k < p; ++k) {
+            std::fill(dist.begin(), dist.end(), std::numeric_limits<double>::infinity());
+            dist[pinList_[k]] = 0.0;
+            front.push({0.0, pinList_[k]});
+            std::size_t settled = 0;
+            while (!front.empty() && settled < p) {
+                const auto [d, a] = front.top();
+                front.pop();
+                if (d > dist[a]) continue;
+                if (slot[a] >= 0) {
+                    pinPath_[k * p + std::size_t(slot[a])] = d;
+                    ++settled;
+                }
+                for (Index e = off[a]; e < off[a + 1]; ++e)
+                    if (d + rest[e] < dist[nbr[e]]) {
+                        dist[nbr[e]] = d + rest[e];
+                        front.push({dist[nbr[e]], nbr[e]});
+                    }
+            }
+            front = decltype(front)();
+        }
+    }
+    const double upper = std::sqrt(upper2_);
+    for (std::size_t a = 0; a < p; ++a)
+        for (std::size_t b = a + 1; b < p; ++b) {
+            const double reach = upper * pinPath_[a * p + b];
+            if ((x[pinList_[b]] - x[pinList_[a]]).squaredNorm() > reach * reach) return true;
+        }
+    return false;
 }
 
 // --- comparison limiters ----------------------------------------------------------------------

@@ -63,6 +63,15 @@ LimiterSettings limiterSettings(double maxStrain = 0.1) {
     return s;
 }
 
+/// The topology of a rows x cols sheet of the given spacing (makeSheet's defaults otherwise).
+std::shared_ptr<const ClothTopology> sheetTopology(Index rows, Index cols, double spacing) {
+    SheetSpec spec;
+    spec.rows = rows;
+    spec.cols = cols;
+    spec.spacing = spacing;
+    return ClothTopology::build(makeSheet(spec));
+}
+
 } // namespace
 
 TEST_CASE("Experiment I without a limiter overstretches far beyond 10 %",
@@ -465,11 +474,7 @@ TEST_CASE("a spring pinned across a contact plane is left long, not shortened by
     // (0.1 m apart across the plane against 0.055 allowed): the first-order slide that a
     // correction asks for is excess / sin(theta), 9 m here. The walk must leave those springs
     // long (the plane wins) and move nothing farther than a spring is long.
-    SheetSpec spec;
-    spec.rows = 2;
-    spec.cols = 2;
-    spec.spacing = 0.05;
-    const auto topo = ClothTopology::build(makeSheet(spec));
+    const auto topo = sheetTopology(2, 2, 0.05);
     std::vector<double> invMass(4, 1000.0);
     invMass[0] = invMass[1] = 0.0; // the pinned top row
     std::vector<Vec3> x = topo->restPositions();
@@ -491,6 +496,45 @@ TEST_CASE("a spring pinned across a contact plane is left long, not shortened by
     CHECK(moved <= 0.05 * std::sqrt(2.0));
     CHECK(x[2].y() <= -0.1 + 1e-12);
     CHECK(x[3].y() <= -0.1 + 1e-12);
+}
+
+TEST_CASE("a walk whose held particles are farther apart than its springs reach stops early",
+          "[limiter][bound]") {
+    // A 10 x 10 sheet (spacing 0.1 m) with the two ends of its top row held; the row between
+    // them is 9 springs, 0.9 m at rest, so within the bound they reach at most
+    // 0.9 (1 + 0.1 + 0.001) = 0.991 m apart. Moved 1.05 x 0.9 = 0.945 m apart the walk can and
+    // must finish within the bound; moved 1.2 x 0.9 = 1.08 m apart no walk can: it used to run
+    // to its cap (1000 sweeps, 1.1 s a frame in a game whose pins were teleported), and now
+    // stops after StrainLimiter::kApartCheck sweeps and says why.
+    const auto topo = sheetTopology(10, 10, 0.1);
+    std::vector<double> invMass(topo->particleCount(), 1.0);
+    invMass[0] = invMass[9] = 0.0;
+    const std::vector<double> k(topo->springCount(), 1.0);
+    LimiterSettings s = limiterSettings();
+    const double ns = static_cast<double>(topo->springCount());
+    for (const double apart : {1.05, 1.2}) {
+        StrainLimiter limiter;
+        std::vector<Vec3> x = topo->restPositions();
+        const Vec3 along = (x[9] - x[0]).normalized();
+        x[9] = x[0] + apart * 0.9 * along;
+        // The free particles of the top row spread evenly between the two (a start within
+        // reach of both ends for the feasible case).
+        for (Index c = 1; c < 9; ++c)
+            x[c] = x[0] + (apart * 0.1 * c) * along;
+        const StrainLimitStats st = limiter.limit(*topo, invMass, k, s, x);
+        INFO(measured("held %.3f m apart: %.1f sweeps, cap %d, pins apart %d, strain after %.4f",
+                      apart * 0.9, double(st.work) / ns, int(st.capHit), int(st.pinsApart),
+                      maxSpringStrain(*topo, x)));
+        if (apart < 1.1) {
+            CHECK_FALSE(st.pinsApart);
+            CHECK_FALSE(st.capHit);
+            CHECK(maxSpringStrain(*topo, x) <= s.maxStrain + s.tolerance + 1e-12);
+        } else {
+            CHECK(st.pinsApart);
+            CHECK(st.capHit);
+            CHECK(double(st.work) <= 2.0 * StrainLimiter::kApartCheck * ns);
+        }
+    }
 }
 
 TEST_CASE("a body that gives way in the walk takes what its planes push, momentum conserved",

@@ -28,6 +28,12 @@ struct StrainLimitStats {
     std::size_t corrections = 0; ///< spring corrections applied
     std::size_t work = 0;        ///< spring (and attachment) length evaluations
     bool capHit = false;         ///< stopped by LimiterSettings::maxRounds: bound not promised
+    /// Stopped early (capHit is set too): two particles that never move in the limiter (pinned,
+    /// kinematic, attached) are farther apart than (1 + maxStrain + tolerance) times the
+    /// shortest chain of springs between them at rest, so no walk can bring every spring
+    /// within the bound (a pin or a body moved away from the rest: a teleport, a post pulled
+    /// off). Looked for only in a walk that has run StrainLimiter::kApartCheck sweeps.
+    bool pinsApart = false;
     /// Largest (l - L0) / L0 the first scan saw (stress-ordered: after the attachments and
     /// the warm start) [-].
     double maxStrainBefore = 0.0;
@@ -340,6 +346,13 @@ void setSlack(AnchorField& field, double slack);
 /// point of both when there is one.
 class StrainLimiter {
   public:
+    /// A walk that has run this many sweep-equivalents checks whether its held particles are
+    /// too far apart for the bound (StrainLimitStats::pinsApart) and stops if they are: it
+    /// would only spend the rest of its budget (maxRounds) on a bound that cannot hold.
+    static constexpr int kApartCheck = 8;
+    /// More held particles than this are not checked (their pairwise paths would cost more
+    /// than they save).
+    static constexpr std::size_t kMaxApartPins = 512;
     /// Threads for the scan of every spring (the walk itself is sequential); null: this thread.
     void setPool(detail::ThreadPool* pool) { pool_ = pool; }
     /// Runs one step's limiter on x. The long-range attachments are recomputed whenever the
@@ -581,6 +594,16 @@ class StrainLimiter {
     const std::vector<double>* planeInvMass_ = nullptr; ///< the particles' (with planes_)
     std::vector<Index> anchorList_, anchorScratch_;
     bool anchorsValid_ = false;
+    /// The particles with zero inverse mass of the last pinsApart check, and the shortest
+    /// rest-length path through the springs between every two of them (row-major; infinity
+    /// where none), rebuilt when that set changes.
+    std::vector<Index> pinList_, pinScratch_;
+    std::vector<double> pinPath_;
+    /// Whether two of the particles that never move are farther apart than the bound lets
+    /// the springs between them reach (StrainLimitStats::pinsApart). Skipped (false) for more
+    /// than kMaxApartPins such particles.
+    bool pinsApart(const ClothTopology& topology, const std::vector<double>& invMass,
+                   const std::vector<Vec3>& x);
     double anchorSlack_ = 0.0; ///< the slack anchors_.restDistance was made with
     double upper2_ = 0.0, lower2_ = 0.0, limit_ = 0.0; ///< band edges (squared) and the limit
 };
