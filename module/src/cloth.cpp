@@ -579,6 +579,7 @@ void Cloth::addLimiterStats(const StrainLimitStats& st) {
     sum.corrections += st.corrections;
     sum.work += st.work;
     sum.capHit = sum.capHit || st.capHit;
+    sum.pinsApart = sum.pinsApart || st.pinsApart;
     sum.maxStrainBefore = std::max(sum.maxStrainBefore, st.maxStrainBefore);
     if (st.corrections || st.capHit)
         sum.maxStrainAfter = std::max(sum.maxStrainAfter, st.maxStrainAfter);

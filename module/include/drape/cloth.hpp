@@ -207,7 +207,8 @@ class Cloth {
     /// What the limiter did in the last step (its sub-steps and relimit() calls summed; the
     /// strains are the largest of them).
     const StrainLimitStats& lastLimiterStats() const { return limiterStats_; }
-    /// Steps whose limiter stopped at its safety cap (LimiterSettings::maxRounds): steps in
+    /// Steps whose limiter stopped at its safety cap (LimiterSettings::maxRounds), or early
+    /// because its held particles were too far apart (StrainLimitStats::pinsApart): steps in
     /// which the strain bound was not promised.
     std::uint64_t limiterCapHits() const { return limiterCapHits_; }
     /// The stress-ordered limiter (its warm start and long-range attachments).

@@ -360,7 +360,9 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
         << (cloth.limiterCapHits() == 0 ? std::string(" (the limiter finished every step)")
                                         : " steps stopped at the safety cap (limiter.maxRounds = " +
                                               std::to_string(cloth.settings().limiter.maxRounds) +
-                                              "): the strain bound was not promised in them")
+                                              ") or early because held particles were farther "
+                                              "apart than the springs between them reach: the "
+                                              "strain bound was not promised in them")
         << "\n"
         << "kinetic energy      " << finalEnergy << " J (final)\n"
         << "state hash          " <<
