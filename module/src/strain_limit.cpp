@@ -219,6 +219,16 @@ Vec3 StrainLimiter::keepAbove(Index i, const Vec3& dx, const std::vector<Vec3>& 
     return dx + below * n;
 }
 
+namespace {
+/// The particles that never move in the limiter (zero inverse mass: pinned, kinematic,
+/// attached), in index order, into `out`.
+void heldParticles(const std::vector<double>& invMass, std::vector<Index>& out) {
+    out.clear();
+    for (std::size_t i = 0; i < invMass.size(); ++i)
+        if (invMass[i] == 0.0) out.push_back(static_cast<Index>(i));
+}
+} // namespace
+
 void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<double>& invMass,
                             const LimiterSettings& s) {
     const std::size_t n = topology.particleCount(), ns = topology.springCount();
@@ -244,9 +254,7 @@ void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<dou
     if (!s.longRangeAttachments) return;
     // The anchors are the particles that never move in the limiter.
     auto& list = anchorScratch_;
-    list.clear();
-    for (std::size_t i = 0; i < n; ++i)
-        if (invMass[i] == 0.0) list.push_back(static_cast<Index>(i));
+    heldParticles(invMass, list);
     if (!anchorsValid_ || list != anchorList_) {
         anchorList_ = list;
         anchors_ = geodesicAnchors(topology, anchorList_, s.longRangeSlack);
@@ -768,12 +776,10 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
 bool StrainLimiter::pinsApart(const ClothTopology& topology, const std::vector<double>& invMass,
                               const std::vector<Vec3>& x) {
     auto& list = pinScratch_;
-    list.clear();
-    for (std::size_t i = 0; i < invMass.size(); ++i)
-        if (invMass[i] == 0.0) list.push_back(static_cast<Index>(i));
+    heldParticles(invMass, list);
     if (list.size() < 2 || list.size() > kMaxApartPins) return false;
     const std::size_t p = list.size();
-    if (list != pinList_ || pinPath_.size() != p * p) {
+    if (list != pinList_) {
         // Dijkstra through the springs' rest lengths from each held particle, until every
         // other held particle is settled.
         pinList_ = list;
