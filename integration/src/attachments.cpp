@@ -4,6 +4,7 @@
 #include <btBulletDynamicsCommon.h>
 
 #include <algorithm>
+#include <cstdint>
 
 namespace drape::bullet::detail {
 
@@ -14,6 +15,7 @@ Vec3 attachmentPoint(const Attachment& a) {
 void Attachments::attach(Cloth& c, const Attachment& a) {
     detach(c, a.particle);
     list_.push_back(a);
+    tethersValid_ = false;
     c.setKinematicTarget(a.particle, attachmentPoint(a), c.time()); // there now
 }
 
@@ -22,6 +24,7 @@ void Attachments::detach(Cloth& c, Index particle) {
         if (list_[k].particle != particle) continue;
         c.unpin(particle);
         list_.erase(list_.begin() + static_cast<std::ptrdiff_t>(k));
+        tethersValid_ = false;
         return;
     }
 }
@@ -30,6 +33,7 @@ void Attachments::clear(Cloth& c) {
     for (const auto& a : list_)
         c.unpin(a.particle);
     list_.clear();
+    tethersValid_ = false;
 }
 
 void Attachments::advance(Cloth& c, double dt) const {
@@ -58,6 +62,59 @@ void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>
             // The body is outside the proxy (possible with a long attachment).
             outside.push_back(OutsideImpulse{const_cast<btRigidBody*>(rb), j, at});
         }
+    }
+}
+
+void Attachments::holdTethers(const Cloth& c, double dt, std::vector<BodySnapshot>& bodies) const {
+    if (list_.size() < 2 || !(dt > 0.0)) return;
+    if (!tethersValid_) {
+        tethers_.clear();
+        std::vector<std::int64_t> of(c.particleCount(), -1);
+        for (std::size_t k = 0; k < list_.size(); ++k)
+            if (list_[k].particle < of.size()) of[list_[k].particle] = std::int64_t(k);
+        const auto dynamic = [](const btCollisionObject* o) {
+            const btRigidBody* rb = btRigidBody::upcast(o);
+            return rb && !rb->isStaticOrKinematicObject();
+        };
+        const auto& springs = c.topology().springs();
+        for (std::size_t s = 0; s < springs.size(); ++s) {
+            const std::int64_t ka = of[springs[s].a], kb = of[springs[s].b];
+            if (ka < 0 || kb < 0) continue;
+            const Attachment &A = list_[std::size_t(ka)], &B = list_[std::size_t(kb)];
+            if (A.body == B.body || !(dynamic(A.body) || dynamic(B.body))) continue;
+            tethers_.push_back(Tether{Index(s), std::size_t(ka), std::size_t(kb)});
+        }
+        tethersValid_ = true;
+    }
+    if (tethers_.empty()) return;
+    const auto snapshotOf = [&](const btCollisionObject* o) -> BodySnapshot* {
+        auto it = std::find_if(bodies.begin(), bodies.end(),
+                               [&](const BodySnapshot& b) { return b.object == o; });
+        return it == bodies.end() ? nullptr : &*it;
+    };
+    const auto& springs = c.topology().springs();
+    const Vec3List& x = c.positions();
+    const double limit = 1.0 + c.settings().limiter.maxStrain;
+    for (const Tether& t : tethers_) {
+        BodySnapshot* A = snapshotOf(list_[t.a].body);
+        BodySnapshot* B = snapshotOf(list_[t.b].body);
+        if (!A || !B) continue; // a body outside the proxy: left to the free particles' pulls
+        const Spring& sp = springs[t.spring];
+        const Vec3 pa = x[list_[t.a].particle], pb = x[list_[t.b].particle];
+        const Vec3 d = pb - pa;
+        const double l = d.norm(), beyond = l - limit * sp.restLength;
+        if (!(beyond > 0.0)) continue;
+        const Vec3 u = d / l;
+        // Its ends' separation speed, plus the stretch beyond the limit taken back in one step
+        // (at most kTetherCatchUp of the rest length per step: a post teleported away is
+        // pulled back over many steps, not thrown).
+        const double catchUp = std::min(beyond, kTetherCatchUp * sp.restLength) / dt;
+        const double apart = (B->velocityAt(pb) - A->velocityAt(pa)).dot(u) + catchUp;
+        const double k = A->inverseMassAlong(pa, u) + B->inverseMassAlong(pb, u);
+        if (!(apart > 0.0) || !(k > 0.0)) continue;
+        const Vec3 j = (apart / k) * u;
+        A->applyImpulse(j, pa);
+        B->applyImpulse(-j, pb);
     }
 }
 

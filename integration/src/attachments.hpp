@@ -39,9 +39,29 @@ class Attachments {
     /// stats.impulseOnBodies.
     void pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>& bodies,
                     ContactStats& stats, std::vector<OutsideImpulse>& outside) const;
+    /// After the cloth's steps of a Bullet sub-step of dt [s]: a spring whose two ends are
+    /// attached to two different bodies, one of them dynamic, has no free end, so no
+    /// strain-limiter walk can hold it; it holds the bodies instead, as a rope: beyond
+    /// (1 + maxStrain) L0, the two bodies (their snapshots) get equal and opposite impulses
+    /// along it that stop their ends' separation and take the stretch beyond the limit back
+    /// in the next step (at most kTetherCatchUp L0 per step). Without it two light bodies
+    /// holding one cloth (a banner between two hanging posts) swing apart under the cloth's
+    /// weight and that spring passes the bound at rest (strain 0.56). The impulses act one
+    /// Bullet step late, after Bullet's solver (as every impulse of the cloth): a steady
+    /// pull apart leaves the spring the drift of one step beyond the limit (0.11).
+    void holdTethers(const Cloth& c, double dt, std::vector<BodySnapshot>& bodies) const;
+    static constexpr double kTetherCatchUp = 0.1;
 
   private:
     std::vector<Attachment> list_;
+    /// The springs between particles attached to two different bodies (one of them dynamic)
+    /// and their two attachments' indices in list_, rebuilt after list_ changes.
+    struct Tether {
+        Index spring;
+        std::size_t a, b;
+    };
+    mutable std::vector<Tether> tethers_;
+    mutable bool tethersValid_ = false;
 };
 
 /// Where attachment a's point on its body is now [m].

@@ -34,7 +34,9 @@
 //               the strain limiter (contacts found, their planes given to the limiter's
 //               walk) and after it (what the walk moved projected again, the planes' pushes
 //               to the bodies), and the eq. (7) penalty is one of the cloth's force terms;
-//   4. impulses: the impulses accumulated on dynamic bodies are applied;
+//   4. impulses: a spring between two bodies' attachments holds them as a rope
+//               (Attachments::holdTethers); the impulses accumulated on dynamic bodies
+//               are applied;
 //   5. proxy:   the ghost's AABB becomes the cloth's bounding box plus margin.
 // A sleeping cloth (Cloth::isAsleep) is first woken if a candidate body is new, gone or
 // moving (wakeForBodies); if it stays asleep, step 3 only advances its clock and steps 4 and
@@ -446,6 +448,7 @@ void BulletCloth::Impl::finish() {
     const auto afterSteps = Clock::now();
     last.maxStrain = lastStrain;
     // 4. impulses
+    if (!slept) attachments.holdTethers(c, stepDt, contacts.bodies);
     applyImpulses();
     // 5. proxy
     if (!slept) proxy.setBounds(nextLo, nextHi);
