@@ -72,16 +72,12 @@ void Attachments::holdTethers(const Cloth& c, double dt, std::vector<BodySnapsho
         std::vector<std::int64_t> of(c.particleCount(), -1);
         for (std::size_t k = 0; k < list_.size(); ++k)
             if (list_[k].particle < of.size()) of[list_[k].particle] = std::int64_t(k);
-        const auto dynamic = [](const btCollisionObject* o) {
-            const btRigidBody* rb = btRigidBody::upcast(o);
-            return rb && !rb->isStaticOrKinematicObject();
-        };
         const auto& springs = c.topology().springs();
         for (std::size_t s = 0; s < springs.size(); ++s) {
             const std::int64_t ka = of[springs[s].a], kb = of[springs[s].b];
             if (ka < 0 || kb < 0) continue;
             const Attachment &A = list_[std::size_t(ka)], &B = list_[std::size_t(kb)];
-            if (A.body == B.body || !(dynamic(A.body) || dynamic(B.body))) continue;
+            if (A.body == B.body) continue; // (whether either is dynamic is asked each step)
             tethers_.push_back(Tether{Index(s), std::size_t(ka), std::size_t(kb)});
         }
         tethersValid_ = true;

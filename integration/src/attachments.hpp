@@ -54,8 +54,8 @@ class Attachments {
 
   private:
     std::vector<Attachment> list_;
-    /// The springs between particles attached to two different bodies (one of them dynamic)
-    /// and their two attachments' indices in list_, rebuilt after list_ changes.
+    /// The springs between particles attached to two different bodies and their two
+    /// attachments' indices in list_, rebuilt after list_ changes.
     struct Tether {
         Index spring;
         std::size_t a, b;
