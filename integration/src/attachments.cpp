@@ -8,6 +8,15 @@
 
 namespace drape::bullet::detail {
 
+namespace {
+/// The snapshot of body `o` among `bodies`, or null (a body outside the proxy).
+BodySnapshot* snapshotOf(std::vector<BodySnapshot>& bodies, const btCollisionObject* o) {
+    const auto it = std::find_if(bodies.begin(), bodies.end(),
+                                 [&](const BodySnapshot& b) { return b.object == o; });
+    return it == bodies.end() ? nullptr : &*it;
+}
+} // namespace
+
 Vec3 attachmentPoint(const Attachment& a) {
     return toPose(a.body->getWorldTransform()).toWorld(a.localPoint);
 }
@@ -54,9 +63,7 @@ void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>
                        (a.particle < held.size() ? held[a.particle] : Vec3::Zero());
         const Vec3 at = c.positions()[a.particle];
         stats.impulseOnBodies += j;
-        auto snap = std::find_if(bodies.begin(), bodies.end(),
-                                 [&](const BodySnapshot& b) { return b.object == a.body; });
-        if (snap != bodies.end()) {
+        if (BodySnapshot* snap = snapshotOf(bodies, a.body)) {
             snap->applyImpulse(j, at);
         } else {
             // The body is outside the proxy (possible with a long attachment).
@@ -65,7 +72,7 @@ void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>
     }
 }
 
-void Attachments::holdTethers(const Cloth& c, double dt, std::vector<BodySnapshot>& bodies) const {
+void Attachments::holdTethers(const Cloth& c, double dt, std::vector<BodySnapshot>& bodies) {
     if (list_.size() < 2 || !(dt > 0.0)) return;
     if (!tethersValid_) {
         tethers_.clear();
@@ -83,17 +90,12 @@ void Attachments::holdTethers(const Cloth& c, double dt, std::vector<BodySnapsho
         tethersValid_ = true;
     }
     if (tethers_.empty()) return;
-    const auto snapshotOf = [&](const btCollisionObject* o) -> BodySnapshot* {
-        auto it = std::find_if(bodies.begin(), bodies.end(),
-                               [&](const BodySnapshot& b) { return b.object == o; });
-        return it == bodies.end() ? nullptr : &*it;
-    };
     const auto& springs = c.topology().springs();
     const Vec3List& x = c.positions();
     const double limit = 1.0 + c.settings().limiter.maxStrain;
     for (const Tether& t : tethers_) {
-        BodySnapshot* A = snapshotOf(list_[t.a].body);
-        BodySnapshot* B = snapshotOf(list_[t.b].body);
+        BodySnapshot* A = snapshotOf(bodies, list_[t.a].body);
+        BodySnapshot* B = snapshotOf(bodies, list_[t.b].body);
         if (!A || !B) continue; // a body outside the proxy: left to the free particles' pulls
         const Spring& sp = springs[t.spring];
         const Vec3 pa = x[list_[t.a].particle], pb = x[list_[t.b].particle];

@@ -49,7 +49,7 @@ class Attachments {
     /// weight and that spring passes the bound at rest (strain 0.56). The impulses act one
     /// Bullet step late, after Bullet's solver (as every impulse of the cloth): a steady
     /// pull apart leaves the spring the drift of one step beyond the limit (0.11).
-    void holdTethers(const Cloth& c, double dt, std::vector<BodySnapshot>& bodies) const;
+    void holdTethers(const Cloth& c, double dt, std::vector<BodySnapshot>& bodies);
     static constexpr double kTetherCatchUp = 0.1;
 
   private:
@@ -60,8 +60,8 @@ class Attachments {
         Index spring;
         std::size_t a, b;
     };
-    mutable std::vector<Tether> tethers_;
-    mutable bool tethersValid_ = false;
+    std::vector<Tether> tethers_;
+    bool tethersValid_ = false;
 };
 
 /// Where attachment a's point on its body is now [m].

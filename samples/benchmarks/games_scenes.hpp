@@ -10,6 +10,7 @@
 #pragma once
 
 #include <drape/bullet/bullet_cloth.hpp>
+#include <drape/bullet/convert.hpp>
 #include <drape/cloth.hpp>
 #include <drape/mesh.hpp>
 #include <drape/topology.hpp>
@@ -548,10 +549,8 @@ inline GameScene makeBanner() {
     const double rest = sheet.spacing;
     s.afterFrame = [st, cloth, left, right, rest](double) {
         for (int p = 0; p < 2; ++p) {
-            const btVector3 c = st->posts[p]->getCenterOfMassPosition();
-            st->postMoved =
-                std::max(st->postMoved,
-                         (Vec3(double(c.x()), double(c.y()), double(c.z())) - st->home[p]).norm());
+            const Vec3 c = bullet::toVec(st->posts[p]->getCenterOfMassPosition());
+            st->postMoved = std::max(st->postMoved, (c - st->home[p]).norm());
         }
         st->between =
             std::max(st->between,
