@@ -116,23 +116,26 @@ void addLinearDamping(double cd, const Vec3List& v, Vec3List& f) {
 
 void addAeroForces(const std::vector<Triangle>& triangles, const AeroSettings& aero,
                    const Vec3List& x, const Vec3List& v, Vec3List& f) {
-    const double half = 0.5 * aero.airDensity;
+    // With c = (x1 - x0) x (x2 - x0) (A = |c| / 2, n = c / |c|) and (c x u) x u =
+    // (u . c) u - |u|^2 c, a corner's third of drag plus lift is a c + b u with
+    //   a = |u|^2 (kl |u . c| - kd (u . c)) / (|c| |u|),   b = -kl |u . c| (u . c) / (|c| |u|),
+    // kd = rho C_d / 12, kl = rho C_l / 12: one square root and one division a triangle.
+    const double kd = aero.airDensity * aero.dragCoefficient / 12.0;
+    const double kl = aero.airDensity * aero.liftCoefficient / 12.0;
+    const double third = 1.0 / 3.0;
+    const Vec3 wind = aero.wind;
     for (const Triangle& t : triangles) {
-        const Vec3 cross = (x[t[1]] - x[t[0]]).cross(x[t[2]] - x[t[0]]);
-        const double twiceArea = cross.norm();
-        if (twiceArea == 0.0) continue;
-        const Vec3 n = cross / twiceArea;
-        const double area = 0.5 * twiceArea;
-        const Vec3 u = (v[t[0]] + v[t[1]] + v[t[2]]) / 3.0 - aero.wind;
-        const double speed = u.norm();
-        if (speed == 0.0) continue;
-        const double un = u.dot(n);
-        Vec3 force = (-half * aero.dragCoefficient * area * speed * un) * n;
-        if (aero.liftCoefficient != 0.0) {
-            force +=
-                (-half * aero.liftCoefficient * area * std::abs(un) / speed) * n.cross(u).cross(u);
-        }
-        force /= 3.0;
+        const Vec3 x0 = x[t[0]];
+        const Vec3 c = (x[t[1]] - x0).cross(x[t[2]] - x0);
+        const double c2 = c.squaredNorm();
+        const Vec3 u = third * (v[t[0]] + v[t[1]] + v[t[2]]) - wind;
+        const double u2 = u.squaredNorm();
+        if (c2 == 0.0 || u2 == 0.0) continue;
+        const double uc = u.dot(c);
+        const double per = 1.0 / std::sqrt(c2 * u2); // 1 / (|c| |u|)
+        const double lift = kl * std::abs(uc);
+        Vec3 force = (per * u2 * (lift - kd * uc)) * c;
+        if (kl != 0.0) force -= (per * lift * uc) * u;
         f[t[0]] += force;
         f[t[1]] += force;
         f[t[2]] += force;
