@@ -251,17 +251,16 @@ class VelocityVerlet final : public Integrator {
                     c.v[i] *= dampedBy(t.cdh, c.invMass[i]);
                 }
             });
-        } else if (t.linear) {
+        } else {
             // The closing kick and L(dt/2) in one flat pass, with the finiteness check
-            // (closingKick).
+            // (closingKick; without linear damping C_d = 0: a decay of exactly 1).
+            const double cd = t.linear ? t.cd : 0.0, cdh = t.linear ? t.cdh : 0.0;
             auto range = [&](std::size_t b, std::size_t e) {
                 if (!closingKick(b, e, c.invMass.data(), c.x[0].data(), c.v[0].data(),
-                                 c.f[0].data(), t.cd, t.cdh, h))
+                                 c.f[0].data(), cd, cdh, h))
                     bad.store(true, std::memory_order_relaxed);
             };
             forRanges(c, range);
-        } else {
-            passes([&](std::size_t i) { c.v[i] += (h * c.invMass[i]) * c.f[i]; });
         }
         c.nonFiniteSeen = bad.load();
     }
