@@ -560,12 +560,18 @@ void Cloth::stageKinematic(StepContext& ctx) {
     }
 }
 
-void Cloth::applyLimiterMoves(double dt) {
+void Cloth::applyLimiterMoves(double dt, const StrainLimitStats& walk) {
     const double invDt = 1.0 / dt;
     const auto& moved = limiter_.movedIndex();
     const auto& from = limiter_.movedFrom();
     for (std::size_t j = 0; j < moved.size(); ++j)
         v_[moved[j]] += (x_[moved[j]] - from[j]) * invDt;
+    // A walk that stopped at its cap (maxRounds, or held particles too far apart) was
+    // fighting constraints it cannot meet together: each round trip of its corrections pulled
+    // the held ends again, and what they summed is what the fight pumped, not a load the cloth
+    // carries (a banner pressed between a heavy box and two light posts passed the posts
+    // hundreds of N s and threw them kilometres). Its held particles take no pull.
+    if (walk.capHit) return;
     const auto& pull = limiter_.heldPull();
     for (Index i : limiter_.heldIndex()) {
         if (heldImpulse_[i] == Vec3::Zero()) heldImpulsed_.push_back(i);
@@ -602,9 +608,11 @@ void Cloth::stageLimit(StepContext& ctx) {
         limiter_.clearMoved();
         // The walk keeps the planes of the ContactSet (setContacts) a stage filled before it.
         ContactSet* contacts = forceModel_->contacts();
-        addLimiterStats(limiter_.limit(*topology_, invMass_, forceModel_->stiffness(), lim, x_,
-                                       contacts ? &contacts->planes : nullptr));
-        applyLimiterMoves(ctx.dt);
+        const StrainLimitStats walk =
+            limiter_.limit(*topology_, invMass_, forceModel_->stiffness(), lim, x_,
+                           contacts ? &contacts->planes : nullptr);
+        addLimiterStats(walk);
+        applyLimiterMoves(ctx.dt, walk);
         return;
     }
     // The comparison limiters: displacements from a copy.
@@ -726,7 +734,7 @@ StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt,
     if (lim.kind == LimiterKind::StressOrdered) {
         st = limiter_.relimit(*topology_, invMass_, forceModel_->stiffness(), lim, touched, x_,
                               planes);
-        applyLimiterMoves(dt);
+        applyLimiterMoves(dt, st);
     } else {
         // The comparison limiters have no worklist: they run whole, and report what moved.
         step_.beforeLimit = x_;

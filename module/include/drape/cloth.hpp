@@ -219,7 +219,9 @@ class Cloth {
     /// particles next to it. Zero for free and pinned particles (nothing takes a pin's
     /// reaction, so it is not recorded; empty before the first step). A body holding the particle
     /// must take it (drape::bullet does for attachments), or the limiter's share of the load never
-    /// reaches the body. Forces on held particles (forces()) are the springs' share.
+    /// reaches the body. Forces on held particles (forces()) are the springs' share. A walk that
+    /// stopped at its cap (StrainLimitStats::capHit, counted in limiterCapHits()) adds nothing:
+    /// its pulls are what a fight between constraints it cannot meet pumped, not a load.
     const Vec3List& constraintImpulses() const { return heldImpulse_; }
 
     // --- for stages ------------------------------------------------------------------------
@@ -289,7 +291,7 @@ class Cloth {
     void stageRelativeDamping(StepContext& ctx);
     void stageSelfCollision(StepContext& ctx);
     void stageVerify(StepContext& ctx);
-    void applyLimiterMoves(double dt);
+    void applyLimiterMoves(double dt, const StrainLimitStats& walk);
     /// The limiter's settings for a step of dt, its band narrowed by bandAt.
     LimiterSettings limiterAt(double dt) const;
     double energyScale() const;
