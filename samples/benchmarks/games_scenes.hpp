@@ -575,8 +575,8 @@ inline GameScene makeBannerHitAt(double speed) {
 inline GameScene makeBanner() {
     return makeBannerHitAt(8.0);
 }
-/// 10. banner_fast: the banner with the box at 12 m/s (integration/README.md: from about 10 m/s
-/// the posts are thrown away; the row shows it).
+/// 10. banner_fast: the banner with the box at 12 m/s (integration/README.md, "A banner hit
+/// hard": from about 10 m/s the posts were thrown away until capped walks passed no pull).
 inline GameScene makeBannerFast() {
     return makeBannerHitAt(12.0);
 }
