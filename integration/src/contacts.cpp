@@ -69,6 +69,8 @@ void ContactSolver::detect(Cloth& c, double dt) {
         for (std::size_t i = 0; i < n; ++i)
             if (c.inverseMasses()[i] != 0.0) clothMass_ += c.masses()[i];
 
+    weightPush_ = totalMass(c) * c.settings().gravity.norm() * dt * dt;
+
     QueryCounters counters;
     collideParticles(c, dt, counters);
     solveHeld(c);

@@ -249,6 +249,10 @@ class ContactSolver {
     /// The cloth's free mass this step [kg]: a dynamic body gets limiter planes when it is at
     /// least this heavy along the contact normal.
     double clothMass_ = 0.0;
+    /// The cloth's weight over a step, as a move of unit mass: |g| M dt^2 [kg m]. A plane
+    /// that carries all of it pushes its particle (mass m) by weightPush_ / m in a walk; a
+    /// push beyond that and beyond the longest spring is a fight (pushLimit).
+    double weightPush_ = 0.0;
 
     /// State carried to the next step (in the cloth's snapshots: saveState): per particle, the
     /// friction its contact forces with dynamic bodies had left in the last step, mu N - |T|
@@ -306,13 +310,18 @@ class ContactSolver {
     std::vector<unsigned char> edgeCached_;
     std::vector<Vec3> edgeLocal_, edgeGradient_;
     std::vector<double> edgeDistance_;
-    double maxRest_ = -1.0; ///< the longest spring's rest length (once) [m]
+    double maxRest_ = -1.0;   ///< the longest spring's rest length (once) [m]
+    double totalMass_ = -1.0; ///< the cloth's mass (once: masses never change) [kg]
     /// The cloth's longest spring rest length [m] (found once: the topology never changes).
     double longestSpring(const Cloth& c) {
         if (maxRest_ < 0.0)
             for (const Spring& sp : c.topology().springs())
                 maxRest_ = std::max(maxRest_, sp.restLength);
         return maxRest_;
+    }
+    double totalMass(const Cloth& c) {
+        if (totalMass_ < 0.0) totalMass_ = c.totalMass();
+        return totalMass_;
     }
 };
 
@@ -327,7 +336,7 @@ inline void ContactSolver::keepPlane(Cloth& c, std::uint32_t bi, std::size_t i, 
     const auto plane = std::size_t(records->planes.set(static_cast<Index>(i), n, offset));
     // A body that does not give way and is not free lets the plane go in a fight.
     if (const BodySnapshot& b = bodies[bi]; !b.dynamicBody || b.attached)
-        records->planes.pushLimit[plane] = longestSpring(c);
+        records->planes.pushLimit[plane] = std::max(longestSpring(c), weightPush_ / c.masses()[i]);
     if (const std::int32_t m = moverOf_[bi]; m >= 0)
         records->planes.moveWith(plane, m, point - bodies[bi].com);
     if (!trianglePlane_.empty()) trianglePlane_[i] = fromTriangle ? 1 : 0;

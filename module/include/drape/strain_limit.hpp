@@ -65,8 +65,10 @@ struct ContactPlanes {
     /// plane, a second body pressing the particle the other way), wave after wave, at the
     /// cost of the whole budget and with a push that is no contact's. The strain those springs
     /// are left with is measured, as every strain. Infinite (set's default): never; the glue
-    /// sets the cloth's longest spring for bodies that do not move in the walk and are not
-    /// free (static, kinematic, attached to the cloth).
+    /// sets, for bodies that do not move in the walk and are not free (static, kinematic,
+    /// attached to the cloth), the larger of the cloth's longest spring and the push that
+    /// carries the whole cloth's weight over the step, |g| M dt^2 / m_i (a plane holding up
+    /// the cloth hanging below it pushes up to that in a walk: no fight).
     std::vector<double> pushLimit;
     /// Planes let go by pushLimit since the last reset.
     std::size_t letGo = 0;

@@ -148,7 +148,8 @@ struct ContactStats {
     std::size_t refusedBodyImpulses = 0;
     /// Contact planes of static, kinematic and attached bodies that the strain limiter's walk
     /// let go of in a cloth step because they had pushed their particle out by more than the
-    /// cloth's longest spring (ContactPlanes::pushLimit): the walk was fighting the plane
+    /// cloth's longest spring and more than carrying the whole cloth's weight over the step
+    /// would push it, |g| M dt^2 / m (ContactPlanes::pushLimit): the walk was fighting the plane
     /// against springs it cannot satisfy together with it (a neighbour attached across the
     /// plane, two bodies pressing one particle from both sides), which is no contact. The particle
     /// is projected out of the body after the walk, and the springs stay as long as they are
