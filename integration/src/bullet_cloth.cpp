@@ -778,6 +778,17 @@ void BulletCloth::stepInWorld(double dt) {
     impl_->step(dt);
 }
 
+BulletClothSettings BulletClothSettings::inUnits(double unitsPerMetre) {
+    require(std::isfinite(unitsPerMetre) && unitsPerMetre > 0.0, ErrorCode::InvalidArgument,
+            "BulletClothSettings::inUnits: unitsPerMetre must be positive and finite (100 for "
+            "centimetres), got " +
+                num(unitsPerMetre));
+    BulletClothSettings s;
+    s.contact.thickness *= unitsPerMetre;
+    s.selfCollision.thickness *= unitsPerMetre;
+    return s;
+}
+
 std::unique_ptr<BulletCloth> addCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
                                       const BulletClothSettings& settings) {
     return std::make_unique<BulletCloth>(world, std::move(cloth), settings);

@@ -95,7 +95,8 @@ std::vector<double> buildStiffness(const ClothTopology& topo, const ClothSetting
         mass += m;
     const double area = topo.totalRestArea();
     if (!(area > 0.0) || !(mass > 0.0)) return std::vector<double>(topo.springCount(), 1.0);
-    const double c = kAutomaticStretchWaveSpeed;
+    requirePositive(s.stretchWaveSpeed, "stretchWaveSpeed");
+    const double c = s.stretchWaveSpeed;
     const double eh = mass / area * c * c;
     return springStiffnessFromMaterial(topo, eh, 1.0);
 }
@@ -167,6 +168,23 @@ void validateSettings(const ClothSettings& s) {
 }
 
 } // namespace
+
+ClothSettings ClothSettings::inUnits(double unitsPerMetre) {
+    if (!std::isfinite(unitsPerMetre) || !(unitsPerMetre > 0.0))
+        throw Error(ErrorCode::InvalidArgument,
+                    "ClothSettings::inUnits: unitsPerMetre must be positive and finite (100 "
+                    "for centimetres), got " +
+                        num(unitsPerMetre));
+    const double u = unitsPerMetre;
+    ClothSettings s;
+    s.gravity *= u;
+    s.material.thickness *= u;
+    s.material.density /= u * u * u;
+    s.stretchWaveSpeed *= u;
+    s.sleep.distance *= u;
+    s.selfCollision.thickness *= u;
+    return s;
+}
 
 Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     : topology_(std::move(topology)), settings_(settings) {

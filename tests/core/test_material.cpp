@@ -6,6 +6,11 @@
 #include "drape/cloth.hpp"
 #include "drape/forces.hpp"
 #include "drape/material.hpp"
+#include "measured.hpp"
+
+#include <limits>
+#include <memory>
+#include <string>
 
 using namespace drape;
 using namespace drape_test;
@@ -279,4 +284,73 @@ TEST_CASE("A default ClothSettings simulates: 200 g/m^2 cotton, mesh-free stiffn
     // farther than its diagonal stretched by the 10 % bound.
     CHECK(lowest < -1.0);
     CHECK(lowest > -std::sqrt(2.0) * 1.1);
+}
+
+// A cloth in centimetres (ClothSettings::inUnits(100)) is the same cloth as in metres: the
+// same masses in kilograms, the same springs in N/m (kg/s^2 has no length in it), the same
+// stability limit and sub-steps, and every position 100 times the metre cloth's. Left in SI,
+// the centimetre cloth weighs 10,000 times as much (density per cubic metre over square
+// centimetres) and its springs, set by stretch waves of 20 cm/s, hold none of its weight.
+TEST_CASE("ClothSettings::inUnits: a cloth in centimetres moves as the same cloth in metres",
+          "[material][settings][units]") {
+    auto build = [](double unit) {
+        SheetSpec spec;
+        spec.rows = spec.cols = 21;
+        spec.spacing = 0.05 * unit;
+        spec.origin = Vec3(-0.5, 1.0, 0.0) * unit;
+        spec.uAxis = Vec3::UnitX();
+        spec.vAxis = -Vec3::UnitY(); // hanging: it stretches under its weight and settles
+        ClothSettings s = unit == 1.0 ? ClothSettings{} : ClothSettings::inUnits(unit);
+        s.sleep.enabled = true;
+        auto cloth = std::make_unique<Cloth>(ClothTopology::build(makeSheet(spec)), s);
+        for (Index i = 0; i < 21; ++i)
+            cloth->pin(i); // the top row
+        return cloth;
+    };
+    const auto metres = build(1.0);
+    const auto centimetres = build(100.0);
+    REQUIRE(metres->masses().size() == centimetres->masses().size());
+    for (std::size_t i = 0; i < metres->masses().size(); ++i)
+        CHECK(centimetres->masses()[i] == Approx(metres->masses()[i]).epsilon(1e-12));
+    for (std::size_t s = 0; s < metres->stiffness().size(); ++s)
+        CHECK(centimetres->stiffness()[s] == Approx(metres->stiffness()[s]).epsilon(1e-12));
+    CHECK(centimetres->stableTimeStep() == Approx(metres->stableTimeStep()).epsilon(1e-12));
+    const double frame = 1.0 / 60.0;
+    CHECK(centimetres->substepsFor(frame) == metres->substepsFor(frame));
+    CHECK(centimetres->settings().gravity.y() == Approx(-981.0).epsilon(1e-15));
+
+    // Five seconds at 60 Hz: stretch waves run down it, the relative damping stops them, the
+    // limiter holds its weight, it sleeps.
+    double worst = 0.0;
+    int asleepM = -1, asleepC = -1;
+    for (int f = 0; f < 300; ++f) {
+        metres->step(frame);
+        centimetres->step(frame);
+        for (std::size_t i = 0; i < metres->positions().size(); ++i)
+            worst = std::max(worst,
+                             (centimetres->positions()[i] / 100.0 - metres->positions()[i]).norm());
+        if (asleepM < 0 && metres->isAsleep()) asleepM = f;
+        if (asleepC < 0 && centimetres->isAsleep()) asleepC = f;
+    }
+    UNSCOPED_INFO(measured("centimetres against metres: largest difference %.3g m, asleep at "
+                           "frames %d and %d, max strain %.6f and %.6f",
+                           worst, asleepM, asleepC, metres->maxStrain(), centimetres->maxStrain()));
+    CHECK(worst < 1e-9); // rounding: the two are the same computation scaled by 100
+    CHECK(asleepM > 0);
+    CHECK(asleepC == asleepM);
+    CHECK(centimetres->maxStrain() == Approx(metres->maxStrain()).margin(1e-9));
+}
+
+TEST_CASE("ClothSettings::inUnits refuses a unit that is not a positive number",
+          "[material][settings][units][errors]") {
+    for (double bad : {0.0, -100.0, std::numeric_limits<double>::quiet_NaN(),
+                       std::numeric_limits<double>::infinity()}) {
+        try {
+            (void)ClothSettings::inUnits(bad);
+            FAIL("accepted unitsPerMetre " << bad);
+        } catch (const Error& e) {
+            CHECK(std::string(toString(e.code())) == toString(ErrorCode::InvalidArgument));
+            CHECK(std::string(e.what()).find("unitsPerMetre") != std::string::npos);
+        }
+    }
 }

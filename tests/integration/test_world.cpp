@@ -1,5 +1,6 @@
 // The cloth in a Bullet world: one call in, one call out, stepped inside stepSimulation in
 // every internal sub-step, bad input rejected with drape::Error, and the broadphase used.
+#include "measured.hpp"
 #include "world_fixture.hpp"
 
 #include "drape/error.hpp"
@@ -337,4 +338,59 @@ TEST_CASE("timeStep: stepSimulation's btScalar sub-step becomes the cloth's exac
     CHECK(run(true, true) == alone);
     CHECK(run(true, true, true) == alone); // set on the handle after it joined the world
     CHECK(run(true, false) != alone);
+}
+
+// A world in centimetres (every size times 100) with ClothSettings::inUnits(100) and
+// BulletClothSettings::inUnits(100) is the same scene as in metres: a 1 m cloth of 25 x 25
+// with default settings falls 0.5 m flat onto the floor (Bullet's default gravity, -10 and
+// -1000: exact in float), lands, rests at the contact thickness (1 cm) and falls asleep, on the
+// same frame and 100 times as far from everything. Left in SI units the centimetre cloth
+// weighs 2,000 kg, keeps 0.1 mm from the floor and never sleeps. (Draped over a box the two
+// part after the landing: folds amplify the float rounding of the box's size, 1e-8 m at first
+// contact, centimetres a second later, as any two slightly different drops do.)
+TEST_CASE("a cloth in a centimetre world with inUnits(100) lands as the same cloth in metres",
+          "[world][units]") {
+    struct Run {
+        std::vector<Vec3> x; // positions every 10 frames, in metres
+        int substeps = 0, asleepAt = -1;
+        std::size_t contacts = 0;
+    };
+    auto run = [](double unit) {
+        TestWorld w(Vec3(0.0, -10.0 * unit, 0.0));
+        w.body(w.shape<btStaticPlaneShape>(btVector3(0, 1, 0), btScalar(0)), 0.0, Vec3::Zero());
+        ClothSettings cs = unit == 1.0 ? ClothSettings{} : ClothSettings::inUnits(unit);
+        bullet::BulletClothSettings bs = unit == 1.0 ? bullet::BulletClothSettings{}
+                                                     : bullet::BulletClothSettings::inUnits(unit);
+        auto cloth = makeCloth(horizontalSheet(25, 25, (1.0 / 24.0) * unit, 0.5 * unit), cs);
+        auto& handle = w.add(cloth, bs);
+        Run r;
+        for (int f = 0; f < 240; ++f) {
+            w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+            r.substeps = std::max(r.substeps, handle.lastStats().substeps);
+            r.contacts += handle.lastStats().contacts;
+            if (r.asleepAt < 0 && cloth->isAsleep()) r.asleepAt = f;
+            if (f % 10 == 9)
+                for (const Vec3& x : cloth->positions())
+                    r.x.push_back(x / unit);
+        }
+        return r;
+    };
+    const Run m = run(1.0), cm = run(100.0);
+    double worst = 0.0, lowest = 1.0;
+    for (std::size_t i = 0; i < m.x.size(); ++i) {
+        worst = std::max(worst, (cm.x[i] - m.x[i]).norm());
+        lowest = std::min(lowest, cm.x[i].y());
+    }
+    UNSCOPED_INFO(measured("centimetres against metres: sub-steps %d and %d, contacts %zu and "
+                           "%zu, asleep at frames %d and %d, largest difference %.3g m, lowest "
+                           "particle %.6f m",
+                           cm.substeps, m.substeps, cm.contacts, m.contacts, cm.asleepAt,
+                           m.asleepAt, worst, lowest));
+    CHECK(cm.substeps == m.substeps);
+    CHECK(m.contacts > 0);
+    CHECK(cm.contacts == m.contacts);
+    CHECK(m.asleepAt > 0);
+    CHECK(cm.asleepAt == m.asleepAt);
+    CHECK(lowest == Approx(0.01).margin(1e-6)); // resting at the thickness: 1 cm, not 0.1 mm
+    CHECK(worst < 1e-9);
 }

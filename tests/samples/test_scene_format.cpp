@@ -8,7 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
-
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -441,4 +441,53 @@ TEST_CASE("the JSON examples in SCENES.md parse", "[scene][docs]") {
         pos = end + 3;
     }
     CHECK(blocks >= 2);
+}
+
+// units_per_metre: the file's defaults are ClothSettings::inUnits' and
+// BulletClothSettings::inUnits' for its unit, so the same scene written in centimetres runs
+// as in metres: a 0.9 m cloth of the default cotton (no mass, no stiffness given) falls flat
+// onto the floor, lands at the 1 cm contact thickness and rests.
+TEST_CASE("units_per_metre: a scene in centimetres runs as the same scene in metres",
+          "[scene][units]") {
+    auto scene = [](double u) {
+        char text[1024];
+        std::snprintf(text, sizeof text, R"({
+            "units_per_metre": %g,
+            "cloth": {"sheet": {"rows": 10, "cols": 10, "spacing": %g, "origin": [%g, %g, %g],
+                                "u_axis": [1, 0, 0], "v_axis": [0, 0, 1]}},
+            "simulation": {"time_step": 0.016666666666666666, "duration": 1.5,
+                           "gravity": [0, %g, 0]},
+            "rigid_bodies": [{"name": "floor",
+                              "shape": {"type": "plane", "normal": [0, 1, 0], "offset": 0}}]})",
+                      u, 0.1 * u, -0.45 * u, 0.3 * u, -0.45 * u, -10.0 * u);
+        return parse(text);
+    };
+    const SceneDesc m = scene(1.0), cm = scene(100.0);
+    CHECK(cm.unitsPerMetre == 100.0);
+    CHECK(cm.cloth.sleep.distance == Approx(100.0 * m.cloth.sleep.distance));
+    CHECK(cm.cloth.stretchWaveSpeed == Approx(100.0 * m.cloth.stretchWaveSpeed));
+    Simulation a(m), b(cm);
+    CHECK(b.substeps() == a.substeps());
+    double worst = 0.0, lowest = 1.0;
+    while (a.steps() < m.stepCount()) {
+        a.step();
+        b.step();
+        for (std::size_t i = 0; i < a.cloth().particleCount(); ++i) {
+            worst = std::max(worst,
+                             (b.cloth().positions()[i] / 100.0 - a.cloth().positions()[i]).norm());
+            lowest = std::min(lowest, b.cloth().positions()[i].y() / 100.0);
+        }
+    }
+    UNSCOPED_INFO("largest difference " << worst << " m, lowest particle " << lowest << " m");
+    CHECK(a.cloth().totalMass() == Approx(0.2 * 0.81).epsilon(1e-12)); // 200 g/m^2 cotton
+    CHECK(b.cloth().totalMass() == Approx(a.cloth().totalMass()).epsilon(1e-12));
+    CHECK(lowest == Approx(0.01).margin(1e-6)); // the contact thickness, in metres
+    CHECK(worst < 1e-9);
+}
+
+TEST_CASE("units_per_metre must be a positive number in range", "[scene][units][errors]") {
+    CHECK_THAT(errorOf(withCloth(R"("units_per_metre": 0)")),
+               Catch::Matchers::Contains("units_per_metre"));
+    CHECK_THAT(errorOf(withCloth(R"("units_per_metre": "cm")")),
+               Catch::Matchers::Contains("units_per_metre"));
 }

@@ -212,8 +212,21 @@ inline constexpr double kRelativeDampingInterval = 1.0 / 60.0;
 /// Everything a Cloth needs besides its topology. A default-constructed ClothSettings is
 /// valid: a 200 g/m^2 cotton, the automatic stiffness (kAutomaticStretchWaveSpeed) with
 /// automatic sub-steps, Velocity-Verlet, the paper's stress-ordered limiting at 10 %,
-/// gravity -9.81 m/s^2 along y.
+/// gravity -9.81 m/s^2 along y. Its defaults are in SI units (metres, kilograms, seconds);
+/// a scene in another length unit starts from inUnits().
 struct ClothSettings {
+    /// The defaults for a scene whose lengths are in units of 1 / unitsPerMetre metres (100:
+    /// centimetres, as in Unreal; 1: metres, the default-constructed settings), kilograms and
+    /// seconds: every default with a length in it converted (gravity -9.81 unitsPerMetre, the
+    /// material's thickness times and its density divided by unitsPerMetre^3, the automatic
+    /// stiffness's wave speed, the sleep distance and the self-collision thickness times
+    /// unitsPerMetre), so that a cloth in centimetres gets the same springs, sub-steps,
+    /// strain, sleep and cost as the same cloth in metres. Values set afterwards are in the
+    /// scene's units. Throws drape::Error (InvalidArgument) unless unitsPerMetre is positive
+    /// and finite. (Left in SI, a 1 m cloth in centimetres weighs 2,000 kg, its springs hold
+    /// none of its weight, it never sleeps and costs about 8 times as much.)
+    static ClothSettings inUnits(double unitsPerMetre);
+
     IntegratorKind integrator = IntegratorKind::VelocityVerlet;
 
     // Mass: particleMass if given, else totalMass if given, else the material's density
@@ -223,11 +236,15 @@ struct ClothSettings {
     MassLumping lumping = MassLumping::Uniform; ///< how totalMass or material mass is spread
     /// k of every spring [N/m] (the paper's C_e); must be positive. Not given: (M1) from
     /// material.youngsModulus if that is given; otherwise automatic: (M1) with
-    /// E h = rho_A c^2, c = kAutomaticStretchWaveSpeed and rho_A the cloth's mass per rest
-    /// area, the same for any mesh of the cloth. With a 60 Hz step that needs a few sub-steps,
-    /// which Cloth::step (substeps) and drape::bullet take automatically.
+    /// E h = rho_A c^2, c = stretchWaveSpeed (kAutomaticStretchWaveSpeed) and rho_A the cloth's
+    /// mass per rest area, the same for any mesh of the cloth. With a 60 Hz step that needs a few
+    /// sub-steps, which Cloth::step (substeps) and drape::bullet take automatically.
     std::optional<double> springStiffness;
     FabricMaterial material; ///< used for whatever is not given directly
+    /// Speed of the stretch waves of the automatic stiffness [m/s] (> 0; used when neither
+    /// springStiffness nor material.youngsModulus is given): kAutomaticStretchWaveSpeed, or
+    /// that many scene units per second after inUnits().
+    double stretchWaveSpeed = kAutomaticStretchWaveSpeed;
 
     Vec3 gravity = Vec3(0.0, -9.81, 0.0); ///< g [m/s^2]; eq. (6)
     double damping = 0.0; ///< C_d of eq. (8): force -C_d v on every particle [N s/m]

@@ -70,8 +70,9 @@ class BulletWorld final : public Simulation::RigidWorld {
           world_(&dispatcher_, &broadphase_, &solver_, &config_) {
         world_.setGravity(toBt(scene.cloth.gravity));
         const CollisionDesc c = scene.collision.value_or(CollisionDesc{});
-        // Not given: BulletClothSettings' defaults (one set of defaults, samples/SCENES.md).
-        bullet::BulletClothSettings s;
+        // Not given: BulletClothSettings' defaults (one set of defaults, samples/SCENES.md), in
+        // the scene's length unit.
+        bullet::BulletClothSettings s = bullet::BulletClothSettings::inUnits(scene.unitsPerMetre);
         const double thickness = c.thickness.value_or(s.contact.thickness);
         checkPrecision(scene, cloth, thickness);
         checkOverlaps(scene);

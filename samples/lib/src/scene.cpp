@@ -37,7 +37,7 @@ constexpr Limits kTotalMass{1e-9, 1e9, "kg"};
 constexpr Limits kStiffness{1e-9, 1e12, "N/m"};
 constexpr Limits kYoungsModulus{1e-3, 1e13, "Pa"};
 constexpr Limits kMaterialThickness{1e-7, 1.0, "m"};
-constexpr Limits kDensity{1e-3, 1e5, "kg/m^3"};
+constexpr Limits kDensity{1e-12, 1e5, "kg/m^3"}; // per cubic unit: 4e-4 kg/cm^3 for cotton
 constexpr Limits kDamping{0.0, 1e9, "N s/m"};
 constexpr Limits kRate{0.0, 1e6, "1/s"};
 constexpr Limits kAirDensity{0.0, 1e4, "kg/m^3"};
@@ -61,6 +61,7 @@ constexpr Limits kLongRangeSlack{1.0, 100.0, ""};
 constexpr Limits kFov{0.0, 179.0, "degrees", true, true};
 constexpr Limits kFps{kMinFps, kMaxFps, "1/s"};
 constexpr Limits kWeldTolerance{0.0, 1e5, "m"};
+constexpr Limits kUnitsPerMetre{1e-3, 1e3, ""};
 
 MeshDesc parseMeshDesc(JsonObject o, const std::filesystem::path& baseDir) {
     o.keys(
@@ -226,7 +227,7 @@ void parseSimulation(JsonObject o, SceneDesc& sc) {
             sc.autoSubsteps = false;
         }
     }
-    sc.cloth.gravity = o.vec3("gravity", Vec3(0.0, -9.81, 0.0), kGravity);
+    sc.cloth.gravity = o.vec3("gravity", sc.cloth.gravity, kGravity); // -9.81 m/s^2, in units
     sc.cloth.rejectUnstableTimeStep = o.boolean("reject_unstable_time_step", true);
     if (auto imp = o.optObject("implicit")) {
         imp->keys({"solver", "cg_tolerance", "cg_max_iterations"});
@@ -425,11 +426,15 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
         throw SceneError(origin + ": not usable JSON: " + e.what());
     }
     JsonObject top(root, "", origin);
-    top.keys({"name", "description", "cloth", "simulation", "strain_limit", "pins", "attachments",
-              "wind", "rigid_bodies", "collision", "camera", "output"});
+    top.keys({"name", "description", "units_per_metre", "cloth", "simulation", "strain_limit",
+              "pins", "attachments", "wind", "rigid_bodies", "collision", "camera", "output"});
     SceneDesc sc;
     sc.name = top.string("name", "");
     sc.description = top.string("description", "");
+    // The defaults in the scene's length unit (ClothSettings::inUnits); every value the file
+    // gives is in that unit.
+    sc.unitsPerMetre = top.number("units_per_metre", 1.0, kUnitsPerMetre);
+    sc.cloth = ClothSettings::inUnits(sc.unitsPerMetre);
     // The defaults are ClothSettings' (stress-ordered limiting at 10 %, ...); the Simulation
     // sub-steps itself (simulation.substeps: "auto", the default, or a count), so the cloth's
     // own automatic sub-steps stay off.

@@ -60,8 +60,16 @@ struct ContactSettings {
 /// written against drape::bullet.
 using SelfCollisionSettings = drape::SelfCollisionSettings;
 
-/// How a cloth joins a world.
+/// How a cloth joins a world. The defaults are in SI units (metres); a world in another
+/// length unit starts from inUnits().
 struct BulletClothSettings {
+    /// The defaults for a world whose lengths are in units of 1 / unitsPerMetre metres (100:
+    /// centimetres): the contact thickness and the self-collision thickness (1 cm) times
+    /// unitsPerMetre; with ClothSettings::inUnits for the cloth, a cloth in a centimetre world
+    /// behaves as the same cloth in metres. Values set afterwards are in the world's units.
+    /// Throws drape::Error (InvalidArgument) unless unitsPerMetre is positive and finite.
+    static BulletClothSettings inUnits(double unitsPerMetre);
+
     ContactSettings contact; ///< particle-body contacts
     /// Particle-triangle self-collision: when enabled, addCloth sets it as the cloth's own
     /// ClothSettings::selfCollision (Cloth::setSelfCollision), which the cloth's step runs.

@@ -175,6 +175,9 @@ struct SceneDesc {
 
     std::optional<SheetDesc> sheet;
     std::optional<MeshDesc> mesh;
+    /// The scene's lengths per metre (units_per_metre; 100: centimetres): its defaults are
+    /// ClothSettings::inUnits' and BulletClothSettings::inUnits' for it.
+    double unitsPerMetre = 1.0;
     ClothSettings cloth; ///< everything the core needs, ClothSettings' defaults unless given
     Color frontColor = {0.80f, 0.18f, 0.16f};
     Color backColor = {0.95f, 0.75f, 0.30f};
