@@ -305,6 +305,7 @@ class ContactSolver {
     std::vector<MovedGroup> movedGroups_;
     std::vector<std::int32_t> edgeBody_; ///< per particle: the box of its contact, or -1
     std::vector<int> edgeRegion_;        ///< per particle: its region around that box
+    std::vector<Block> edgeBlocks_;      ///< per block of particles: their positions' box
     /// Per particle near a box: its place in the box's frame, signed distance and gradient,
     /// valid while edgeCached_ is set (collideSpringWithBox; cleared when a spring moves it).
     std::vector<unsigned char> edgeCached_;

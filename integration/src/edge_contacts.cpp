@@ -52,13 +52,20 @@ bool isFaceRegion(int code) {
     return beyond == 1;
 }
 
+/// The deepest point of a segment: its parameter t, and the signed distance d and gradient g
+/// there (boxSignedDistance of pa + t (pb - pa)).
+struct Deepest {
+    double t = 0.0, d = 0.0;
+    Vec3 g = Vec3::Zero();
+};
+
 /// Where along the segment pa pb (box frame, ends' outward gradients ga and gb from
 /// boxSignedDistance) the box's signed distance is least: the point nearest to an edge shared
 /// by the faces the two ends see (one or a few edges, each a segment-segment closest point);
 /// for ends seeing opposite faces, or no common edge, a golden-section search of the
 /// (convex) signed distance.
-double deepestAlong(const Vec3& half, const Vec3& pa, const Vec3& pb, const Vec3& ga,
-                    const Vec3& gb) {
+Deepest deepestAlong(const Vec3& half, const Vec3& pa, const Vec3& pb, const Vec3& ga,
+                     const Vec3& gb) {
     // The faces either end sees: sign per axis (0: none; both signs: a spring through the box).
     int sign[3] = {0, 0, 0};
     bool opposite = false;
@@ -69,13 +76,15 @@ double deepestAlong(const Vec3& half, const Vec3& pa, const Vec3& pb, const Vec3
             opposite = opposite || (sign[k] != 0 && sign[k] != sk);
             sign[k] = sk;
         }
-    double best = 0.0, bestD = std::numeric_limits<double>::infinity();
+    Deepest best;
+    best.d = std::numeric_limits<double>::infinity();
     Vec3 g;
     auto consider = [&](double t) {
         const double d = boxSignedDistance(half, pa + t * (pb - pa), g);
-        if (d < bestD) {
-            bestD = d;
-            best = t;
+        if (d < best.d) {
+            best.d = d;
+            best.t = t;
+            best.g = g;
         }
     };
     bool edges = false;
@@ -114,7 +123,9 @@ double deepestAlong(const Vec3& half, const Vec3& pa, const Vec3& pb, const Vec3
             f2 = boxSignedDistance(half, pa + t2 * (pb - pa), g);
         }
     }
-    return 0.5 * (lo + hi);
+    best.t = 0.5 * (lo + hi);
+    best.d = boxSignedDistance(half, pa + best.t * (pb - pa), best.g);
+    return best;
 }
 
 } // namespace
@@ -144,17 +155,33 @@ void ContactSolver::collideEdges(Cloth& c) {
     // And the free particles within a spring's length of a box that have no contact yet:
     // the box can cut a spring between two of them before either touches it (a ridge landing
     // between two columns).
+    // (Blocks of kBlock consecutive particles, each with the box of their positions: a box body
+    // whose reach misses a block's box has none of its particles.)
     const double reach = 1.1 * longestSpring(c);
+    const std::size_t n = x.size(), nBlocks = (n + kBlock - 1) / kBlock;
+    edgeBlocks_.assign(nBlocks, Block{});
+    for (std::size_t i = 0; i < n; ++i) {
+        Block& bl = edgeBlocks_[i / kBlock];
+        for (int k = 0; k < 3; ++k) {
+            bl.lo[k] = std::min(bl.lo[k], x[i][k]);
+            bl.hi[k] = std::max(bl.hi[k], x[i][k]);
+        }
+    }
     for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
         const BodySnapshot& b = bodies[bi];
         if (!b.box) continue;
         const Vec3 lo = b.aabbMin.array() - reach, hi = b.aabbMax.array() + reach;
-        for (std::size_t i = 0; i < x.size(); ++i) {
-            if (edgeBody_[i] >= 0 || w[i] == 0.0) continue;
-            if ((x[i].array() < lo.array()).any() || (x[i].array() > hi.array()).any()) continue;
-            edgeBody_[i] = std::int32_t(bi);
-            edgeRegion_[i] = regionCode(b.boxHalf, b.pose.toLocal(x[i]));
-            onBox = true;
+        for (std::size_t k = 0; k < nBlocks; ++k) {
+            const Block& bl = edgeBlocks_[k];
+            if ((bl.hi.array() < lo.array()).any() || (bl.lo.array() > hi.array()).any()) continue;
+            for (std::size_t i = k * kBlock, end = std::min(n, i + kBlock); i < end; ++i) {
+                if (edgeBody_[i] >= 0 || w[i] == 0.0) continue;
+                if ((x[i].array() < lo.array()).any() || (x[i].array() > hi.array()).any())
+                    continue;
+                edgeBody_[i] = std::int32_t(bi);
+                edgeRegion_[i] = regionCode(b.boxHalf, b.pose.toLocal(x[i]));
+                onBox = true;
+            }
         }
     }
     if (!onBox) return; // no particle near a box
@@ -206,12 +233,12 @@ void ContactSolver::collideSpringWithBox(Cloth& c, const Spring& s, std::uint32_
     // An end inside the box is its particle contact's to resolve (a deep impact), not a spring
     // cutting a corner.
     if (ga == gb || da < 0.0 || db < 0.0 || 0.5 * (da + db - (pb - pa).norm()) >= h) return;
-    const double t = deepestAlong(b.boxHalf, pa, pb, ga, gb);
+    const Deepest deepest = deepestAlong(b.boxHalf, pa, pb, ga, gb);
+    const double t = deepest.t, d = deepest.d;
+    const Vec3& g = deepest.g;
     // Near an end the particle's own contact holds it; only the middle of the spring.
     if (t < 0.05 || t > 0.95) return;
     const Vec3 local = pa + t * (pb - pa);
-    Vec3 g;
-    const double d = boxSignedDistance(b.boxHalf, local, g);
     if (!(d < h) || d < -h) return; // (deeper: a particle contact's, after an impact)
     const double beta[2] = {1.0 - t, t};
     const Index ends[2] = {s.a, s.b};
