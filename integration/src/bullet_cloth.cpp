@@ -779,9 +779,9 @@ void BulletCloth::stepInWorld(double dt) {
 }
 
 BulletClothSettings BulletClothSettings::inUnits(double unitsPerMetre) {
-    require(std::isfinite(unitsPerMetre) && unitsPerMetre > 0.0, ErrorCode::InvalidArgument,
-            "BulletClothSettings::inUnits: unitsPerMetre must be positive and finite (100 for "
-            "centimetres), got " +
+    require(unitsPerMetre >= 1e-6 && unitsPerMetre <= 1e6, ErrorCode::InvalidArgument,
+            "BulletClothSettings::inUnits: unitsPerMetre must be in [1e-6, 1e6] (100 for "
+            "centimetres, 1 for metres), got " +
                 num(unitsPerMetre));
     BulletClothSettings s;
     s.contact.thickness *= unitsPerMetre;

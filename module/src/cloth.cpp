@@ -170,10 +170,11 @@ void validateSettings(const ClothSettings& s) {
 } // namespace
 
 ClothSettings ClothSettings::inUnits(double unitsPerMetre) {
-    if (!std::isfinite(unitsPerMetre) || !(unitsPerMetre > 0.0))
+    // (Beyond 1e-6 .. 1e6 the converted defaults leave the range a double holds them in.)
+    if (!(unitsPerMetre >= 1e-6 && unitsPerMetre <= 1e6))
         throw Error(ErrorCode::InvalidArgument,
-                    "ClothSettings::inUnits: unitsPerMetre must be positive and finite (100 "
-                    "for centimetres), got " +
+                    "ClothSettings::inUnits: unitsPerMetre must be in [1e-6, 1e6] (100 for "
+                    "centimetres, 1 for metres), got " +
                         num(unitsPerMetre));
     const double u = unitsPerMetre;
     ClothSettings s;

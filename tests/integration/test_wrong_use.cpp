@@ -150,3 +150,11 @@ TEST_CASE("a body removed and deleted while particles hang from it: the next ste
         w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
     CHECK(cloth->positions()[0].y() < y0);
 }
+
+TEST_CASE("BulletClothSettings::inUnits refuses a unit outside [1e-6, 1e6]",
+          "[world][wrong_use][units]") {
+    for (double bad : {0.0, -100.0, 1e7, std::numeric_limits<double>::quiet_NaN()})
+        CHECK_THROWS_WITH(bullet::BulletClothSettings::inUnits(bad),
+                          Catch::Contains("unitsPerMetre must be in [1e-6, 1e6]"));
+    CHECK(bullet::BulletClothSettings::inUnits(100.0).contact.thickness == Approx(1.0));
+}

@@ -222,8 +222,8 @@ struct ClothSettings {
     /// stiffness's wave speed, the sleep distance and the self-collision thickness times
     /// unitsPerMetre), so that a cloth in centimetres gets the same springs, sub-steps,
     /// strain, sleep and cost as the same cloth in metres. Values set afterwards are in the
-    /// scene's units. Throws drape::Error (InvalidArgument) unless unitsPerMetre is positive
-    /// and finite. (Left in SI, a 1 m cloth in centimetres weighs 2,000 kg, its springs hold
+    /// scene's units. Throws drape::Error (InvalidArgument) unless unitsPerMetre is in
+    /// [1e-6, 1e6]. (Left in SI, a 1 m cloth in centimetres weighs 2,000 kg, its springs hold
     /// none of its weight, it never sleeps and costs about 8 times as much.)
     static ClothSettings inUnits(double unitsPerMetre);
 

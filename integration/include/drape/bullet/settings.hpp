@@ -67,7 +67,7 @@ struct BulletClothSettings {
     /// centimetres): the contact thickness and the self-collision thickness (1 cm) times
     /// unitsPerMetre; with ClothSettings::inUnits for the cloth, a cloth in a centimetre world
     /// behaves as the same cloth in metres. Values set afterwards are in the world's units.
-    /// Throws drape::Error (InvalidArgument) unless unitsPerMetre is positive and finite.
+    /// Throws drape::Error (InvalidArgument) unless unitsPerMetre is in [1e-6, 1e6].
     static BulletClothSettings inUnits(double unitsPerMetre);
 
     ContactSettings contact; ///< particle-body contacts
