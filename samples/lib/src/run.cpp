@@ -210,9 +210,11 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
             const double ms =
                 stepsSinceFrame ? 1000.0 * stepWallSinceFrame / static_cast<double>(stepsSinceFrame)
                                 : 0.0;
+            // In SI whatever the scene's length unit (units_per_metre u: energies over u^2).
+            const double u = scene.unitsPerMetre;
             csv << r.frames << ',' << s.time << ',' << s.steps << ',' << s.maxStrain << ','
-                << s.meanStrain << ',' << s.kineticEnergy << ',' << s.lowestPoint << ','
-                << s.contacts << ',' << ms << '\n';
+                << s.meanStrain << ',' << s.kineticEnergy / (u * u) << ',' << s.lowestPoint / u
+                << ',' << s.contacts << ',' << ms << '\n';
         }
         if (renderer) {
             const auto t0 = Clock::now();
@@ -300,7 +302,8 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
     // again here so that no inf or nan reaches summary.txt whatever their source.
     const double meanStepMs = 1000.0 * r.stepWallSeconds / static_cast<double>(r.steps);
     const double realTimeFactor = r.simulatedSeconds / std::max(r.stepWallSeconds, 1e-12);
-    const double finalEnergy = cloth.kineticEnergy();
+    const double finalEnergy = // [J], whatever the scene's length unit
+        cloth.kineticEnergy() / (scene.unitsPerMetre * scene.unitsPerMetre);
     const std::pair<const char*, double> summaryValues[] = {
         {"the simulated time", r.simulatedSeconds},
         {"the largest strain (final)", r.finalMaxStrain},
