@@ -155,7 +155,7 @@ bool snapshotBody(const btCollisionObject* obj, double reach, double frictionSca
     return true;
 }
 
-bool BodySnapshot::applyAccumulatedImpulses(double clothSpeed) {
+bool BodySnapshot::applyAccumulatedImpulses(double clothSpeed, double floorSpeed) {
     refused = false;
     if (!dynamicBody) return false;
     if (linearImpulse.squaredNorm() == 0.0 && angularImpulse.squaredNorm() == 0.0) return false;
@@ -181,7 +181,7 @@ bool BodySnapshot::applyAccumulatedImpulses(double clothSpeed) {
     btScalar radius = 0;
     rb->getCollisionShape()->getBoundingSphere(centre, radius);
     const double r = double(radius) + double(centre.length());
-    const double before = std::max({v0.norm() + w0.norm() * r, clothSpeed, 1.0});
+    const double before = std::max({v0.norm() + w0.norm() * r, clothSpeed, floorSpeed});
     if (newV.norm() + newW.norm() * r > kRefusedSpeedFactor * before) {
         refused = true;
         return false;

@@ -99,11 +99,12 @@ struct BodySnapshot {
     /// would lose its support). Refuses them (sets `refused`, gives nothing) when they would
     /// leave a point of the body moving more than kRefusedSpeedFactor times faster than
     /// anything in the contact: the body's fastest point before, `clothSpeed` (the cloth's
-    /// fastest particle before the sub-step [m/s]) and 1 m/s. A cloth pushes a body at most
+    /// fastest particle before the sub-step [m/s]) and `floorSpeed` (1 m/s, in the world's
+    /// length unit: BulletClothSettings::unitsPerMetre). A cloth pushes a body at most
     /// as fast as it moves itself, or, caught and thrown back by the strain limiter, as fast
     /// as the body came; what goes far beyond is the limiter's walk fighting a body wedged
     /// between particles (ContactStats::refusedBodyImpulses).
-    bool applyAccumulatedImpulses(double clothSpeed);
+    bool applyAccumulatedImpulses(double clothSpeed, double floorSpeed);
     bool refused = false;
 
   private:

@@ -573,7 +573,7 @@ void BulletCloth::Impl::applyImpulses() {
     for (auto& b : contacts.bodies) {
         if (b.dynamicBody == nullptr) continue;
         // It carries or pushes an active body: no sleep (see the header).
-        if (b.applyAccumulatedImpulses(clothSpeed)) cloth->wake();
+        if (b.applyAccumulatedImpulses(clothSpeed, settings.unitsPerMetre)) cloth->wake();
         if (b.refused) {
             ++last.refusedBodyImpulses;
             last.impulseOnBodies -= b.linearImpulse;
@@ -784,6 +784,7 @@ BulletClothSettings BulletClothSettings::inUnits(double unitsPerMetre) {
             "centimetres, 1 for metres), got " +
                 num(unitsPerMetre));
     BulletClothSettings s;
+    s.unitsPerMetre = unitsPerMetre;
     s.contact.thickness *= unitsPerMetre;
     s.selfCollision.thickness *= unitsPerMetre;
     return s;

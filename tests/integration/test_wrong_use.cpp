@@ -156,5 +156,14 @@ TEST_CASE("BulletClothSettings::inUnits refuses a unit outside [1e-6, 1e6]",
     for (double bad : {0.0, -100.0, 1e7, std::numeric_limits<double>::quiet_NaN()})
         CHECK_THROWS_WITH(bullet::BulletClothSettings::inUnits(bad),
                           Catch::Contains("unitsPerMetre must be in [1e-6, 1e6]"));
-    CHECK(bullet::BulletClothSettings::inUnits(100.0).contact.thickness == Approx(1.0));
+    const auto cm = bullet::BulletClothSettings::inUnits(100.0);
+    CHECK(cm.contact.thickness == Approx(1.0));
+    CHECK(cm.selfCollision.thickness == Approx(1.0));
+    CHECK(cm.unitsPerMetre == 100.0);
+    // Set by hand out of range: addCloth refuses it by name.
+    TestWorld w;
+    bullet::BulletClothSettings bad;
+    bad.unitsPerMetre = 0.0;
+    CHECK_THROWS_WITH(w.add(makeCloth(horizontalSheet(3, 3, 0.1, 1.0), softCloth()), bad),
+                      Catch::Contains("unitsPerMetre must be in [1e-6, 1e6]"));
 }

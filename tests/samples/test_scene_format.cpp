@@ -485,8 +485,22 @@ TEST_CASE("units_per_metre: a scene in centimetres runs as the same scene in met
     CHECK(worst < 1e-9);
 }
 
+TEST_CASE("units_per_metre converts the defaults a file leaves out", "[scene][units]") {
+    const SceneDesc cm = parse(R"({"units_per_metre": 100,
+                                   "cloth": {"sheet": {"rows": 4, "cols": 5, "spacing": 10},
+                                             "air": {}}})");
+    CHECK(cm.cloth.gravity.isApprox(Vec3(0.0, -981.0, 0.0)));
+    CHECK(cm.cloth.aero.airDensity == Approx(1.2e-6).epsilon(1e-12));
+    CHECK(cm.camera.position.isApprox(Vec3(0.0, 0.0, 1000.0)));
+    CHECK(cm.cloth.material.thickness == Approx(0.05).epsilon(1e-12));
+    CHECK(cm.cloth.material.density == Approx(4e-4).epsilon(1e-12));
+    CHECK(cm.cloth.selfCollision.thickness == Approx(1.0).epsilon(1e-12));
+}
+
 TEST_CASE("units_per_metre must be a positive number in range", "[scene][units][errors]") {
     CHECK_THAT(errorOf(withCloth(R"("units_per_metre": 0)")),
+               Catch::Matchers::Contains("units_per_metre"));
+    CHECK_THAT(errorOf(withCloth(R"("units_per_metre": 1e4)")),
                Catch::Matchers::Contains("units_per_metre"));
     CHECK_THAT(errorOf(withCloth(R"("units_per_metre": "cm")")),
                Catch::Matchers::Contains("units_per_metre"));

@@ -197,7 +197,9 @@ void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDi
     c.springDamping = o.number("spring_damping", 0.0, kDamping);
     if (auto a = o.optObject("air")) {
         a->keys({"density", "drag_coefficient", "lift_coefficient"});
-        c.aero.airDensity = a->number("density", 1.2, kAirDensity);
+        // 1.2 kg/m^3, per cubic unit of the scene's length.
+        const double u = sc.unitsPerMetre;
+        c.aero.airDensity = a->number("density", 1.2 / (u * u * u), kAirDensity);
         c.aero.dragCoefficient = a->number("drag_coefficient", 1.0, kCoefficient);
         c.aero.liftCoefficient = a->number("lift_coefficient", 0.0, kCoefficient);
         a->finish();
@@ -435,6 +437,7 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
     // gives is in that unit.
     sc.unitsPerMetre = top.number("units_per_metre", 1.0, kUnitsPerMetre);
     sc.cloth = ClothSettings::inUnits(sc.unitsPerMetre);
+    sc.camera.position *= sc.unitsPerMetre; // 10 m away, in the scene's unit
     // The defaults are ClothSettings' (stress-ordered limiting at 10 %, ...); the Simulation
     // sub-steps itself (simulation.substeps: "auto", the default, or a count), so the cloth's
     // own automatic sub-steps stay off.
@@ -461,7 +464,8 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
         wd.gustFrequency = w->number("gust_frequency", 0.0, kFrequency);
         w->finish();
         if (!(sc.cloth.aero.airDensity > 0.0))
-            top.fail("wind", "wind acts through the air: set cloth.air.density > 0 (1.2 for air)");
+            top.fail("wind", "wind acts through the air: set cloth.air.density > 0 (an \"air\" "
+                             "object alone gives air's 1.2 kg/m^3)");
         sc.wind = wd;
     }
     if (auto c = top.optObject("collision")) {

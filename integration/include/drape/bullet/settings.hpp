@@ -69,6 +69,10 @@ struct BulletClothSettings {
     /// behaves as the same cloth in metres. Values set afterwards are in the world's units.
     /// Throws drape::Error (InvalidArgument) unless unitsPerMetre is in [1e-6, 1e6].
     static BulletClothSettings inUnits(double unitsPerMetre);
+    /// The world's lengths per metre (inUnits sets it; 1: metres): the unit of the speeds
+    /// drape::bullet compares with on its own (the 1 m/s floor of ContactStats::
+    /// refusedBodyImpulses). Must be in [1e-6, 1e6].
+    double unitsPerMetre = 1.0;
 
     ContactSettings contact; ///< particle-body contacts
     /// Particle-triangle self-collision: when enabled, addCloth sets it as the cloth's own
@@ -147,11 +151,11 @@ struct ContactStats {
     /// Dynamic bodies whose impulses from the cloth in a Bullet sub-step were refused: they
     /// would have left a point of the body moving more than kRefusedSpeedFactor (10) times
     /// faster than anything in the contact (the body's fastest point and the cloth's fastest
-    /// particle before the sub-step, and 1 m/s), which no cloth can do; the body keeps Bullet's
-    /// state, and the cloth keeps the momentum the body did not take (not in impulseOnBodies).
-    /// Also counted: a free body's share of one strain-limiter walk that would have turned it
-    /// by more than half a turn (or to a non-finite place), which is not applied to it.
-    /// Seen with thin fast bodies wedged between particles (integration/README.md, "Fast
+    /// particle before the sub-step, and 1 m/s: unitsPerMetre), which no cloth can do; the body
+    /// keeps Bullet's state, and the cloth keeps the momentum the body did not take (not in
+    /// impulseOnBodies). Also counted: a free body's share of one strain-limiter walk that would
+    /// have turned it by more than half a turn (or to a non-finite place), which is not applied to
+    /// it. Seen with thin fast bodies wedged between particles (integration/README.md, "Fast
     /// bodies"); 0 in every shipped scene and game.
     std::size_t refusedBodyImpulses = 0;
     /// Contact planes of static, kinematic and attached bodies that the strain limiter's walk

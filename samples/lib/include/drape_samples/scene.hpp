@@ -132,15 +132,16 @@ struct RigidBodyDesc {
 
 /// Cloth-versus-rigid contact parameters (see drape::bullet::ContactSettings).
 struct CollisionDesc {
-    std::optional<double> thickness; ///< contact distance [m]; not given: a tenth of the mean edge
-    double frictionScale = 1.0;      ///< multiplies each body's friction [-]
+    std::optional<double>
+        thickness;              ///< contact distance [m]; not given: BulletClothSettings' (1 cm)
+    double frictionScale = 1.0; ///< multiplies each body's friction [-]
     std::optional<double> penaltyForce; ///< eq. (7)'s C_p [N]; not given: automatic; 0 = off
     bool continuous = true;             ///< swept tests for fast particles
     bool triangleContacts = false;      ///< triangle-body contacts too (ContactSettings::triangles)
     bool boxEdges = true;               ///< springs against boxes (ContactSettings::boxEdges)
     int substeps = 1;           ///< cloth steps per world step (older name of SceneDesc::substeps)
     bool selfCollision = false; ///< particle-triangle self-collision
-    std::optional<double> selfThickness; ///< [m]; not given: `thickness`
+    std::optional<double> selfThickness; ///< [m]; not given: SelfCollisionSettings' (1 cm)
 };
 
 struct WindDesc {
