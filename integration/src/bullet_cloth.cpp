@@ -779,12 +779,9 @@ void BulletCloth::stepInWorld(double dt) {
 }
 
 BulletClothSettings BulletClothSettings::inUnits(double unitsPerMetre) {
-    require(unitsPerMetre >= 1e-6 && unitsPerMetre <= 1e6, ErrorCode::InvalidArgument,
-            "BulletClothSettings::inUnits: unitsPerMetre must be in [1e-6, 1e6] (100 for "
-            "centimetres, 1 for metres), got " +
-                num(unitsPerMetre));
     BulletClothSettings s;
     s.unitsPerMetre = unitsPerMetre;
+    detail::validate(s); // the range of unitsPerMetre, named
     s.contact.thickness *= unitsPerMetre;
     s.selfCollision.thickness *= unitsPerMetre;
     return s;

@@ -160,13 +160,8 @@ void ContactSolver::collideEdges(Cloth& c) {
     const double reach = 1.1 * longestSpring(c);
     const std::size_t n = x.size(), nBlocks = (n + kBlock - 1) / kBlock;
     edgeBlocks_.assign(nBlocks, Block{});
-    for (std::size_t i = 0; i < n; ++i) {
-        Block& bl = edgeBlocks_[i / kBlock];
-        for (int k = 0; k < 3; ++k) {
-            bl.lo[k] = std::min(bl.lo[k], x[i][k]);
-            bl.hi[k] = std::max(bl.hi[k], x[i][k]);
-        }
-    }
+    for (std::size_t i = 0; i < n; ++i)
+        edgeBlocks_[i / kBlock].grow(x[i]);
     for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
         const BodySnapshot& b = bodies[bi];
         if (!b.box) continue;

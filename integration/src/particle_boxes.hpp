@@ -37,6 +37,13 @@ class ParticleBoxes {
                 hi[k] = std::max(hi[k], b.hi[k]);
             }
         }
+        /// Grows to hold point p.
+        void grow(const Vec3& p) {
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = std::min(lo[k], p[k]);
+                hi[k] = std::max(hi[k], p[k]);
+            }
+        }
     };
     static constexpr std::size_t kBlock = 16;
 

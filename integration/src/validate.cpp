@@ -37,7 +37,8 @@ void validate(const BulletClothSettings& s) {
     if (s.timeStep)
         require(std::isfinite(*s.timeStep) && *s.timeStep > 0.0, ErrorCode::InvalidArgument,
                 "timeStep must be positive and finite, got " + num(*s.timeStep));
-    require(s.unitsPerMetre >= 1e-6 && s.unitsPerMetre <= 1e6, ErrorCode::InvalidArgument,
+    require(s.unitsPerMetre >= kMinUnitsPerMetre && s.unitsPerMetre <= kMaxUnitsPerMetre,
+            ErrorCode::InvalidArgument,
             "unitsPerMetre must be in [1e-6, 1e6] (100 for centimetres), got " +
                 num(s.unitsPerMetre));
     require(s.threads >= 1 && s.threads <= 1024, ErrorCode::InvalidArgument,

@@ -170,8 +170,7 @@ void validateSettings(const ClothSettings& s) {
 } // namespace
 
 ClothSettings ClothSettings::inUnits(double unitsPerMetre) {
-    // (Beyond 1e-6 .. 1e6 the converted defaults leave the range a double holds them in.)
-    if (!(unitsPerMetre >= 1e-6 && unitsPerMetre <= 1e6))
+    if (!(unitsPerMetre >= kMinUnitsPerMetre && unitsPerMetre <= kMaxUnitsPerMetre))
         throw Error(ErrorCode::InvalidArgument,
                     "ClothSettings::inUnits: unitsPerMetre must be in [1e-6, 1e6] (100 for "
                     "centimetres, 1 for metres), got " +

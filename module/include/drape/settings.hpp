@@ -209,6 +209,11 @@ inline constexpr double kDefaultRelativeDamping = 2.0;
 /// of that time (a step of 1/60 s and its sub-steps share one pass over the particles).
 inline constexpr double kRelativeDampingInterval = 1.0 / 60.0;
 
+/// The range of a scene's lengths per metre (ClothSettings::inUnits, BulletClothSettings::
+/// unitsPerMetre): beyond it the converted defaults leave the range a double holds them in.
+inline constexpr double kMinUnitsPerMetre = 1e-6;
+inline constexpr double kMaxUnitsPerMetre = 1e6;
+
 /// Everything a Cloth needs besides its topology. A default-constructed ClothSettings is
 /// valid: a 200 g/m^2 cotton, the automatic stiffness (kAutomaticStretchWaveSpeed) with
 /// automatic sub-steps, Velocity-Verlet, the paper's stress-ordered limiting at 10 %,
