@@ -8,6 +8,7 @@
 #include "parallel.hpp"
 #include "restrict.hpp"
 #include "spring.hpp"
+#include "spring_layout.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -176,10 +177,10 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
     // The force pass: family springs by slot, the loose ones by the topology's packed blocks
     // (per-cloth only the stiffness, when it varies).
     if (uniformStiffness_ == 0.0)
-        for (Index s : topology_->packedLooseSprings().index)
+        for (Index s : topology_->springLayout().packedLoose.index)
             looseStiffness_.push_back(stiffness_[s]);
     {
-        const auto& slotSpring = topology_->familySlotSprings();
+        const auto& slotSpring = topology_->springLayout().slotSpring;
         slotStiffness_.resize(slotSpring.size());
         for (std::size_t j = 0; j < slotSpring.size(); ++j)
             slotStiffness_[j] = slotSpring[j] == kNoParticle ? 0.0 : stiffness_[slotSpring[j]];
@@ -188,14 +189,18 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
     // family: right for a sheet (four families, offsets about a row), wasteful for a mesh with
     // many families or offsets near the particle count, which take the whole-cloth pass. Both
     // form the same sums in the same order.
-    const auto& families = topology_->springFamilies();
-    for (const SpringFamily& fam : families)
+    const auto& families = topology_->springLayout().families;
+    for (const detail::SpringFamily& fam : families)
         maxFamilyOffset_ = std::max<std::size_t>(maxFamilyOffset_, fam.offset);
     blockedFamilies_ = !families.empty() && families.size() <= kMaxBlockedFamilies &&
                        maxFamilyOffset_ <= kMaxBlockedOffset;
-    if (settings_.springDamping > 0.0) dampingOrder_ = dampingSweepOrder(*topology_);
+    if (settings_.springDamping > 0.0)
+        dampingOrder_ =
+            std::make_unique<const detail::PackedSprings>(detail::dampingSweepOrder(*topology_));
     rebuildPipeline();
 }
+
+ForceModel::~ForceModel() = default;
 
 void ForceModel::rebuildPipeline() {
     pipeline_.clear();
@@ -297,10 +302,10 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
         case Term::Springs: {
             if (blockedFamilies_) {
                 addFamilySpringForces(x, start, f);
-            } else if (!topology_->springFamilies().empty()) {
+            } else if (!topology_->springLayout().families.empty()) {
                 addFamilySpringForcesWhole(x, f);
             }
-            const PackedSprings& loose = topology_->packedLooseSprings();
+            const detail::PackedSprings& loose = topology_->springLayout().packedLoose;
             const std::size_t nb = loose.starts.size() - 2; // inner blocks; the last range crosses
             if (loose.springs.empty()) break;
             // Blocks in parallel (each writes only its own particles), then the crossing
@@ -379,7 +384,7 @@ void subtractRun(std::size_t m, const double* DRAPE_RESTRICT in, double* DRAPE_R
 
 /// The slot forces of one family on particles [b, e) (one coordinate): + for the particles
 /// that start a slot, - for those that end one.
-void addFamilyTerms(const SpringFamily& fam, const double* in, double* out, std::size_t b,
+void addFamilyTerms(const detail::SpringFamily& fam, const double* in, double* out, std::size_t b,
                     std::size_t e) {
     std::size_t lo = std::max<std::size_t>(b, fam.first);
     std::size_t hi = std::min<std::size_t>(e, std::size_t(fam.first) + fam.count);
@@ -433,7 +438,7 @@ namespace {
 /// Writes the slot forces of family `fam` for the starts a in [aLo, aHi) to (ox, oy, oz)[0 ..
 /// aHi - aLo): 0 where a is not a start of the family (before its first slot, after its last),
 /// so that the sums may add them without checking. (px, py, pz)[i - origin] is particle i.
-void familyRange(const SpringFamily& fam, std::ptrdiff_t aLo, std::ptrdiff_t aHi,
+void familyRange(const detail::SpringFamily& fam, std::ptrdiff_t aLo, std::ptrdiff_t aHi,
                  std::size_t origin, const double* px, const double* py, const double* pz,
                  const double* kSlot, const double* rest, double* ox, double* oy, double* oz) {
     const std::ptrdiff_t first = fam.first, last = first + std::ptrdiff_t(fam.count);
@@ -455,7 +460,7 @@ void familyRange(const SpringFamily& fam, std::ptrdiff_t aLo, std::ptrdiff_t aHi
 }
 } // namespace
 
-// The family springs (ClothTopology::springFamilies) as loops over plain arrays that the
+// The family springs (SpringLayout::families) as loops over plain arrays that the
 // compiler vectorises, in blocks that stay in cache. Each thread walks its particles in blocks
 // of B. For a block [p, q) it copies the positions the block's slots read (up to the widest
 // offset on either side) into coordinate arrays (x of every particle, then y, then z); computes,
@@ -472,14 +477,14 @@ void familyRange(const SpringFamily& fam, std::ptrdiff_t aLo, std::ptrdiff_t aHi
 // among threads or blocks (a slot's force is the same function of the same positions wherever
 // it is computed), so results do not depend on the thread count.
 void ForceModel::addFamilySpringForces(const Vec3List& x, const ForceStart& start, Vec3List& f) {
-    const auto& families = topology_->springFamilies();
+    const auto& families = topology_->springLayout().families;
     const std::size_t n = x.size();
     const std::size_t maxOffset = maxFamilyOffset_;
     // The block: at least twice the widest offset, so that carrying the offset's slots over
     // costs at most half a block's copies.
     const std::size_t block = std::max<std::size_t>(2048, 2 * maxOffset);
     const std::size_t span = block + 2 * maxOffset; // positions a block reads
-    const double* rest = topology_->familySlotRestLengths().data();
+    const double* rest = topology_->springLayout().slotRest.data();
     const double* kSlot = slotStiffness_.data();
     detail::forChunks(pool_, n, [&](std::size_t b, std::size_t e) {
         if (b >= e) return;
@@ -488,7 +493,7 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, const ForceStart& star
         // p - offset + k).
         thread_local std::vector<double> scratch;
         std::size_t need = 3 * block + 3 * span;
-        for (const SpringFamily& fam : families)
+        for (const detail::SpringFamily& fam : families)
             need += 3 * (block + fam.offset);
         if (scratch.size() < need) scratch.resize(need);
         double* sums = scratch.data();
@@ -509,7 +514,7 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, const ForceStart& star
                 cz[i - lo] = x[i][2];
             }
             double* buf = slotBuf;
-            for (const SpringFamily& fam : families) {
+            for (const detail::SpringFamily& fam : families) {
                 const std::size_t len = block + fam.offset;
                 double* bx = buf;
                 double* by = bx + len;
@@ -538,7 +543,7 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, const ForceStart& star
                     const std::size_t gEnd = std::min(families.size(), g + 4);
                     std::size_t in0 = p, in1 = q; // the group's interior in this block
                     for (std::size_t r = g; r < gEnd; ++r) {
-                        const SpringFamily& fam = families[r];
+                        const detail::SpringFamily& fam = families[r];
                         in0 = std::max<std::size_t>(in0, std::size_t(fam.first) + fam.offset);
                         in1 = std::min<std::size_t>(in1, std::size_t(fam.first) + fam.count);
                     }
@@ -577,13 +582,13 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, const ForceStart& star
 // terms in the same order for any split of the particles among threads, so results do not depend on
 // the thread count.
 void ForceModel::addFamilySpringForcesWhole(const Vec3List& x, Vec3List& f) {
-    const auto& families = topology_->springFamilies();
+    const auto& families = topology_->springLayout().families;
     const std::size_t n = x.size();
-    const std::size_t slots = topology_->familySlotSprings().size();
+    const std::size_t slots = topology_->springLayout().slotSpring.size();
     soaF_.resize(3 * n);
     slotF_.resize(3 * slots);
     detail::toCoordinateArrays(pool_, x, soaX_);
-    const double* rest = topology_->familySlotRestLengths().data();
+    const double* rest = topology_->springLayout().slotRest.data();
     const double* kSlot = slotStiffness_.data();
     detail::forChunks(pool_, slots, [&](std::size_t b, std::size_t e) {
         const double* px = soaX_.data();
@@ -592,7 +597,7 @@ void ForceModel::addFamilySpringForcesWhole(const Vec3List& x, Vec3List& f) {
         double* fx = slotF_.data();
         double* fy = fx + slots;
         double* fz = fy + slots;
-        for (const SpringFamily& fam : families) {
+        for (const detail::SpringFamily& fam : families) {
             const std::size_t lo = std::max(b, fam.slot), hi = std::min(e, fam.slot + fam.count);
             if (lo >= hi) continue;
             // Slot j joins particle a = first + (j - slot) to a + offset.
@@ -624,7 +629,7 @@ void ForceModel::addFamilySpringForcesWhole(const Vec3List& x, Vec3List& f) {
                 const std::size_t gEnd = std::min(families.size(), g + 4);
                 std::size_t lo = b, hi = e;
                 for (std::size_t q = g; q < gEnd; ++q) {
-                    const SpringFamily& fam = families[q];
+                    const detail::SpringFamily& fam = families[q];
                     lo = std::max<std::size_t>(lo, std::size_t(fam.first) + fam.offset);
                     hi = std::min<std::size_t>(hi, std::size_t(fam.first) + fam.count);
                 }
@@ -636,7 +641,7 @@ void ForceModel::addFamilySpringForcesWhole(const Vec3List& x, Vec3List& f) {
                 if (lo < hi) {
                     const double* run[8];
                     for (std::size_t q = g; q < gEnd; ++q) {
-                        const SpringFamily& fam = families[q];
+                        const detail::SpringFamily& fam = families[q];
                         run[2 * (q - g)] = in + fam.slot + (lo - fam.first); // starts
                         run[2 * (q - g) + 1] =
                             in + fam.slot + (lo - fam.first - fam.offset); // ends
@@ -705,7 +710,7 @@ void ForceModel::applySpringDampingFlow(const Vec3List& x, Vec3List& v,
         if (e.term == Term::SpringDamping) slot = e.timerSlot;
     }
     ScopedPhase timer(timers_, slot);
-    const PackedSprings& order = dampingOrder_;
+    const detail::PackedSprings& order = *dampingOrder_;
     const std::size_t nb = order.starts.size() - 2; // inner blocks; the last range crosses
     auto range = [&](std::size_t k) {
         const std::size_t b = order.starts[k], e = order.starts[k + 1];

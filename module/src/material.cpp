@@ -2,6 +2,7 @@
 #include "drape/material.hpp"
 
 #include "drape/error.hpp"
+#include "drape/topology.hpp"
 
 #include <cmath>
 #include <string>

@@ -8,6 +8,7 @@
 #include "restrict.hpp"
 #include "simd.hpp"
 #include "spring.hpp"
+#include "spring_layout.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -23,7 +24,7 @@ namespace drape {
 double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x) {
     if (topology.springCount() == 0) return -std::numeric_limits<double>::infinity();
     const auto& springs = topology.springs();
-    const auto& inv2 = topology.inverseSquaredRestLengths();
+    const auto& inv2 = topology.springLayout().inverseSquaredRest;
     double worst2 = 0.0; // the largest squared length ratio, one square root at the end
     for (std::size_t s = 0; s < springs.size(); ++s) {
         worst2 = std::max(worst2,
@@ -56,7 +57,9 @@ AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Ind
     const auto& X = topology.restPositions();
     const auto& off = topology.adjacencyOffsets();
     const auto& nbr = topology.adjacentParticles();
-    const auto& rest = topology.adjacentRestLengths();
+    const auto& adjSpring = topology.adjacentSprings();
+    const auto& springs = topology.springs();
+    auto rest = [&](std::size_t k) { return springs[adjSpring[k]].restLength; };
     constexpr double inf = std::numeric_limits<double>::infinity();
     std::vector<double> geo(n, inf), path(n, inf);
     std::vector<Index> src(n, kNoParticle);
@@ -101,7 +104,7 @@ AnchorField geodesicAnchors(const ClothTopology& topology, const std::vector<Ind
         done[a] = 1;
         for (Index k = off[a]; k < off[a + 1]; ++k) {
             const Index c = nbr[k];
-            if (!done[c]) offer(c, geo[a] + rest[k], path[a] + rest[k], src[a]);
+            if (!done[c]) offer(c, geo[a] + rest(k), path[a] + rest(k), src[a]);
         }
         // Across each triangle (a, b, c) with b already final and from the same anchor:
         // unfold a, b, c into the triangle's plane, a = (0, 0), b = (e, 0), c above the edge;
@@ -273,7 +276,7 @@ double StrainLimiter::check(std::size_t si, const ClothTopology& topology,
     const Spring& sp = topology.springs()[si];
     ++st.work;
     const double ratio2 =
-        (x[sp.b] - x[sp.a]).squaredNorm() * topology.inverseSquaredRestLengths()[si];
+        (x[sp.b] - x[sp.a]).squaredNorm() * topology.springLayout().inverseSquaredRest[si];
     if (needs(si, ratio2) && invMass[sp.a] + invMass[sp.b] != 0.0)
         queue(si, ratio2, sp.restLength, stiffness);
     return ratio2;
@@ -386,15 +389,15 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
     // band), then the warm-started family springs below it, then the loose springs one by one.
     next_.clear();
     double worst2 = scanFamilies(topology, invMass, stiffness, x, st);
-    const auto& slotOf = topology.springSlots();
+    const auto& slotOf = topology.springLayout().springSlot;
     for (std::uint32_t si : warmList_) {
         const std::size_t slot = slotOf[si];
-        if (slot == kNoSlot || queued_[si] || !(ratio2_[slot] < lower2_)) continue;
+        if (slot == detail::kNoSlot || queued_[si] || !(ratio2_[slot] < lower2_)) continue;
         const Spring& sp = springs[si];
         if (invMass[sp.a] + invMass[sp.b] != 0.0)
             queue(si, ratio2_[slot], sp.restLength, stiffness);
     }
-    for (Index si : topology.looseSprings()) {
+    for (Index si : topology.springLayout().looseSprings) {
         worst2 = std::max(worst2, check(si, topology, invMass, stiffness, x, st));
     }
     st.maxStrainBefore = ns ? std::sqrt(worst2) - 1.0 : 0.0;
@@ -457,11 +460,12 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology,
                                    const std::vector<double>& invMass,
                                    const std::vector<double>& stiffness, const std::vector<Vec3>& x,
                                    StrainLimitStats& st) {
-    const auto& families = topology.springFamilies();
+    const detail::SpringLayout& layout = topology.springLayout();
+    const auto& families = layout.families;
     if (families.empty()) return 0.0;
     const std::size_t n = x.size();
-    const auto& slotSpring = topology.familySlotSprings();
-    const auto& inv2 = topology.familySlotInverseSquaredRestLengths();
+    const auto& slotSpring = layout.slotSpring;
+    const auto& inv2 = layout.slotInverseSquaredRest;
     ratio2_.resize(slotSpring.size());
     // Both passes split over threads by particle and by slot (each value written by one piece):
     // the same ratios for any thread count.
@@ -481,7 +485,7 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology,
         double* r2 = ratio2_.data();
         for (std::size_t sg = s0; sg < s1; ++sg) {
             const std::size_t b = sg * kScanSegment, e = std::min(m, b + kScanSegment);
-            for (const SpringFamily& fam : families) {
+            for (const detail::SpringFamily& fam : families) {
                 const std::size_t lo = std::max(b, fam.slot);
                 const std::size_t hi = std::min(e, fam.slot + fam.count);
                 if (lo >= hi) continue;
@@ -497,7 +501,7 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology,
     } else {
         measure(0, segments);
     }
-    st.work += topology.springCount() - topology.looseSprings().size();
+    st.work += topology.springCount() - layout.looseSprings.size();
     // Springs beyond the band. A hole has ratio 0. The warm-started springs below the band are
     // found by limit() from its list.
     const auto& springs = topology.springs();
@@ -674,7 +678,7 @@ void StrainLimiter::checkMoved(const ClothTopology& topology, const std::vector<
     const Index* offp = topology.adjacencyOffsets().data();
     const Index* sprp = topology.adjacentSprings().data();
     const Index* nbrp = topology.adjacentParticles().data();
-    const double* inv2p = topology.adjacentInverseSquaredRestLengths().data();
+    const double* inv2p = topology.springLayout().adjacentInverseSquaredRest.data();
     const double* xp = x[0].data();
     const Index* dirty = dirty_.data();
     std::uint32_t* seen = checkedAt_.data();
@@ -706,7 +710,6 @@ void StrainLimiter::checkMoved(const ClothTopology& topology, const std::vector<
     // (l / L0)^2 (the squares do not see the direction).
     const Spring* spring = topology.springs().data();
     const double* w = invMass.data();
-    const double* rest = topology.adjacentRestLengths().data();
     for (std::size_t c = 0; c < found; ++c) {
         const Index k = cand[c];
         const Spring& sp = spring[sprp[k]];
@@ -714,7 +717,7 @@ void StrainLimiter::checkMoved(const ClothTopology& topology, const std::vector<
         const double* xa = xp + 3 * std::size_t(sp.a);
         const double* xb = xp + 3 * std::size_t(sp.b);
         const double dx = xa[0] - xb[0], dy = xa[1] - xb[1], dz = xa[2] - xb[2];
-        queue(sprp[k], detail::squaredLengthRatio(dx, dy, dz, inv2p[k]), rest[k], stiffness);
+        queue(sprp[k], detail::squaredLengthRatio(dx, dy, dz, inv2p[k]), sp.restLength, stiffness);
     }
 }
 
@@ -787,7 +790,8 @@ bool StrainLimiter::pinsApart(const ClothTopology& topology, const std::vector<d
         const std::size_t n = topology.particleCount();
         const auto& off = topology.adjacencyOffsets();
         const auto& nbr = topology.adjacentParticles();
-        const auto& rest = topology.adjacentRestLengths();
+        const auto& adjSpring = topology.adjacentSprings();
+        const auto& springs = topology.springs();
         std::vector<std::int32_t> slot(n, -1);
         for (std::size_t k = 0; k < p; ++k)
             slot[pinList_[k]] = static_cast<std::int32_t>(k);
@@ -808,8 +812,8 @@ bool StrainLimiter::pinsApart(const ClothTopology& topology, const std::vector<d
                     ++settled;
                 }
                 for (Index e = off[a]; e < off[a + 1]; ++e)
-                    if (d + rest[e] < dist[nbr[e]]) {
-                        dist[nbr[e]] = d + rest[e];
+                    if (const double de = d + springs[adjSpring[e]].restLength; de < dist[nbr[e]]) {
+                        dist[nbr[e]] = de;
                         front.push({dist[nbr[e]], nbr[e]});
                     }
             }
@@ -868,7 +872,7 @@ StrainLimitStats limitStrainOneSided(const ClothTopology& topology,
     const auto& springs = topology.springs();
     const auto& off = topology.adjacencyOffsets();
     const auto& nbr = topology.adjacentParticles();
-    const auto& rest = topology.adjacentRestLengths();
+    const auto& adjSpring = topology.adjacentSprings();
     const std::size_t n = x.size();
     stats.maxStrainBefore = maxSpringStrain(topology, x);
     stats.maxStrainAfter = stats.maxStrainBefore;
@@ -898,7 +902,7 @@ StrainLimitStats limitStrainOneSided(const ClothTopology& topology,
                 if (fixed[q]) continue;
                 ++stats.work;
                 const Vec3 d = x[q] - x[p];
-                const double l = d.norm(), lmax = stretchLimit * rest[k];
+                const double l = d.norm(), lmax = stretchLimit * springs[adjSpring[k]].restLength;
                 if (l <= lmax) continue;
                 x[q] = x[p] + (lmax / l) * d; // pull q the whole way toward p
                 fixed[q] = 1;

@@ -6,6 +6,8 @@
 
 #include "drape/forces.hpp"
 
+#include "spring_layout.hpp" // the private layout the family kernels read
+
 #include <Eigen/Dense>
 
 using namespace drape;
@@ -286,24 +288,26 @@ TEST_CASE("Spring families: every spring in one slot or loose, and the family ke
         const TopologyPtr topo = ClothTopology::build(mesh);
         // Coverage: each spring exactly once, in a family slot (matching its ends) or loose.
         std::vector<int> seen(topo->springCount(), 0);
-        const auto& slotSpring = topo->familySlotSprings();
-        for (const SpringFamily& fam : topo->springFamilies()) {
+        const detail::SpringLayout& layout = topo->springLayout();
+        const auto& slotSpring = layout.slotSpring;
+        for (const detail::SpringFamily& fam : layout.families) {
             for (Index j = 0; j < fam.count; ++j) {
                 const Index s = slotSpring[fam.slot + j];
                 if (s == kNoParticle) continue;
                 ++seen[s];
                 CHECK(topo->springs()[s].a == fam.first + j);
                 CHECK(topo->springs()[s].b == fam.first + j + fam.offset);
-                CHECK(topo->springSlots()[s] == fam.slot + j);
-                CHECK(topo->familySlotRestLengths()[fam.slot + j] == topo->springs()[s].restLength);
+                CHECK(layout.springSlot[s] == fam.slot + j);
+                CHECK(layout.slotRest[fam.slot + j] == topo->springs()[s].restLength);
+                CHECK(layout.slotInverseSquaredRest[fam.slot + j] == layout.inverseSquaredRest[s]);
             }
         }
-        for (Index s : topo->looseSprings()) {
+        for (Index s : layout.looseSprings) {
             ++seen[s];
-            CHECK(topo->springSlots()[s] == kNoSlot);
+            CHECK(layout.springSlot[s] == detail::kNoSlot);
         }
         CHECK(std::all_of(seen.begin(), seen.end(), [](int c) { return c == 1; }));
-        CHECK(topo->looseSprings().empty() == allInFamilies);
+        CHECK(layout.looseSprings.empty() == allInFamilies);
 
         // Forces: springs stretched and compressed, one spring's ends made to coincide.
         Rng rng(seed);

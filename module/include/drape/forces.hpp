@@ -20,7 +20,8 @@ struct ContactSet; // drape/contacts.hpp
 
 namespace detail {
 class ThreadPool;
-}
+struct PackedSprings; // spring_layout.hpp
+} // namespace detail
 
 using Vec3List = std::vector<Vec3>;
 
@@ -70,6 +71,7 @@ class ForceModel {
     ForceModel(TopologyPtr topology, std::vector<double> stiffness, std::vector<double> mass,
                const ClothSettings& settings, PhaseTimers& timers,
                detail::ThreadPool* pool = nullptr);
+    ~ForceModel();
 
     /// f = sum of all active terms at state (x, v).
     void evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f);
@@ -149,11 +151,12 @@ class ForceModel {
     std::shared_ptr<ContactSet> contacts_;
     std::vector<Entry> pipeline_;
     detail::ThreadPool* pool_ = nullptr;
-    /// The stiffness of each spring of ClothTopology::packedLooseSprings(), in its order (empty
-    /// when every spring has the same); the layout itself is the topology's, baked once.
+    /// The stiffness of each spring of the layout's packedLoose, in its order (empty when every
+    /// spring has the same); the layout itself is the topology's, built once.
     std::vector<double> looseStiffness_;
-    /// The springs in the damping sweep's order (dampingSweepOrder), when springDamping > 0.
-    PackedSprings dampingOrder_;
+    /// The springs in the damping sweep's order (detail::dampingSweepOrder), when
+    /// springDamping > 0.
+    std::unique_ptr<const detail::PackedSprings> dampingOrder_;
     /// Per family slot: the spring's stiffness (0 for a hole, whose force is then 0).
     std::vector<double> slotStiffness_;
     /// The start of the force sum: gravity, and particle damping at velocities v (0 when the

@@ -22,12 +22,12 @@
 // uniform M / n of its eq. (6).
 #pragma once
 
-#include "drape/topology.hpp"
-
 #include <optional>
 #include <vector>
 
 namespace drape {
+
+class ClothTopology; // drape/topology.hpp
 
 /// Physical fabric properties. The defaults are a medium woven cotton of 200 g/m^2.
 struct FabricMaterial {
