@@ -240,8 +240,8 @@ class ContactSolver {
     /// Springs with an end touching a box, kept the thickness away from it along their length
     /// (contact.boxEdges).
     void collideEdges(Cloth& c);
-    /// Spring s against box bi: moved out at its deepest point if nearer than the thickness.
-    void collideSpringWithBox(Cloth& c, const Spring& s, std::uint32_t bi);
+    /// Spring si against box bi: moved out at its deepest point if nearer than the thickness.
+    void collideSpringWithBox(Cloth& c, std::size_t si, std::uint32_t bi);
 
     // Copies of the handle's settings (they never change), read in the per-particle loops.
     const ContactSettings contact_;
@@ -311,6 +311,29 @@ class ContactSolver {
     std::vector<unsigned char> edgeCached_;
     std::vector<Vec3> edgeLocal_, edgeGradient_;
     std::vector<double> edgeDistance_;
+    /// Per spring: a box that does not move it was last found clear of, by `room` beyond the
+    /// thickness, its ends at a and b then. The box's signed distance is 1-Lipschitz, so while
+    /// the box keeps its pose and neither end has moved `room` since, no point of the spring
+    /// can have come within the thickness: the spring is not tested against it again (a cloth
+    /// lying on a desk tests only the springs that move).
+    struct EdgeClearance {
+        const btCollisionObject* body = nullptr;
+        std::uint64_t version = 0; ///< the box's pose version (boxVersion_)
+        Vec3 a = Vec3::Zero(), b = Vec3::Zero();
+        double room = 0.0;
+    };
+    std::vector<EdgeClearance> edgeClear_;
+    /// The boxes that do not move (static, or kinematic at rest), as collideEdges last saw
+    /// them; a box's version changes whenever its pose or size does.
+    struct StillBox {
+        const btCollisionObject* body = nullptr;
+        Pose pose;
+        Vec3 half = Vec3::Zero();
+        std::uint64_t version = 0;
+    };
+    std::vector<StillBox> stillBoxes_, stillBoxesNext_;
+    std::vector<std::uint64_t> boxVersion_; ///< per body this pass: its version, 0 if it moves
+    std::uint64_t lastBoxVersion_ = 0;
     double maxRest_ = -1.0;   ///< the longest spring's rest length (once) [m]
     double totalMass_ = -1.0; ///< the cloth's mass (once: masses never change) [kg]
     /// The cloth's longest spring rest length [m] (found once: the topology never changes).

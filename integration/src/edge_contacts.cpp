@@ -180,23 +180,58 @@ void ContactSolver::collideEdges(Cloth& c) {
         }
     }
     if (!onBox) return; // no particle near a box
-    for (const Spring& s : springs) {
+    // The boxes that do not move, and whether each kept its pose and size since the last pass
+    // (then the springs found clear of it before may skip the test, edgeClear_).
+    boxVersion_.assign(bodies.size(), 0);
+    stillBoxesNext_.clear();
+    for (std::uint32_t bi = 0; bi < bodies.size(); ++bi) {
+        const BodySnapshot& b = bodies[bi];
+        if (!b.box || b.dynamicBody || !b.still) continue;
+        const auto seen = std::find_if(stillBoxes_.begin(), stillBoxes_.end(),
+                                       [&](const StillBox& k) { return k.body == b.object; });
+        const bool same = seen != stillBoxes_.end() && seen->pose.t == b.pose.t &&
+                          seen->pose.R == b.pose.R && seen->half == b.boxHalf;
+        boxVersion_[bi] = same ? seen->version : ++lastBoxVersion_;
+        stillBoxesNext_.push_back({b.object, b.pose, b.boxHalf, boxVersion_[bi]});
+    }
+    stillBoxes_.swap(stillBoxesNext_);
+    edgeClear_.resize(springs.size());
+    for (std::size_t si = 0; si < springs.size(); ++si) {
+        const Spring& s = springs[si];
         const std::int32_t ba = edgeBody_[s.a], bb = edgeBody_[s.b];
         if (w[s.a] == 0.0 && w[s.b] == 0.0) continue;
-        if (ba >= 0) collideSpringWithBox(c, s, std::uint32_t(ba));
-        if (bb >= 0 && bb != ba) collideSpringWithBox(c, s, std::uint32_t(bb));
+        // Both ends in one face's prism of the same box: nothing to test (as in
+        // collideSpringWithBox), decided here for the many springs lying on a face.
+        if (ba >= 0 &&
+            !(bb == ba && edgeRegion_[s.a] == edgeRegion_[s.b] && isFaceRegion(edgeRegion_[s.a])))
+            collideSpringWithBox(c, si, std::uint32_t(ba));
+        if (bb >= 0 && bb != ba) collideSpringWithBox(c, si, std::uint32_t(bb));
     }
 }
 
-void ContactSolver::collideSpringWithBox(Cloth& c, const Spring& s, std::uint32_t bi) {
+void ContactSolver::collideSpringWithBox(Cloth& c, std::size_t si, std::uint32_t bi) {
     BodySnapshot& b = bodies[bi];
     // A dynamic box lighter than the cloth is left to the particle contacts: the corner
     // pushes of a whole draped cloth would tip it.
     if (b.dynamicBody && b.invMass * clothMass_ > 1.0) return;
+    const Spring& s = c.topology().springs()[si];
     Vec3List& x = c.mutablePositions();
+    // Found clear of this box before, and neither end has moved that far since.
+    const std::uint64_t version = boxVersion_[bi];
+    EdgeClearance& clear = edgeClear_[si];
+    if (version != 0 && clear.version == version && clear.body == b.object &&
+        (x[s.a] - clear.a).squaredNorm() < clear.room * clear.room &&
+        (x[s.b] - clear.b).squaredNorm() < clear.room * clear.room)
+        return;
     Vec3List& v = c.mutableVelocities();
     const auto& w = c.inverseMasses();
     const double h = contact_.thickness;
+    // A lower bound on the spring's distance from the box beyond the thickness: kept for the
+    // next passes (with a margin far above the rounding of the bound).
+    auto keepClear = [&](double lowerBound) {
+        const double room = lowerBound - h - 1e-6 * h;
+        if (version != 0 && room > 0.0) clear = {b.object, version, x[s.a], x[s.b], room};
+    };
     // Both ends in one face's prism (convex): the distance is linear along the spring and its
     // ends, which their own contacts hold, are the nearest points.
     auto region = [&](Index i) {
@@ -227,10 +262,18 @@ void ContactSolver::collideSpringWithBox(Cloth& c, const Spring& s, std::uint32_
     // The distance is 1-Lipschitz: no point of the spring is nearer than (da + db - length) / 2.
     // An end inside the box is its particle contact's to resolve (a deep impact), not a spring
     // cutting a corner.
-    if (ga == gb || da < 0.0 || db < 0.0 || 0.5 * (da + db - (pb - pa).norm()) >= h) return;
+    if (ga == gb || da < 0.0 || db < 0.0) return;
+    if (const double apart = 0.5 * (da + db - (pb - pa).norm()); apart >= h) {
+        keepClear(apart);
+        return;
+    }
     const Deepest deepest = deepestAlong(b.boxHalf, pa, pb, ga, gb);
     const double t = deepest.t, d = deepest.d;
     const Vec3& g = deepest.g;
+    // The signed distance is convex: it lies above its tangent at the deepest point found,
+    // d + (g . (pb - pa)) (t' - t) along the spring, whose least value is at an end.
+    const double slope = g.dot(pb - pa);
+    keepClear(d + std::min(-slope * t, slope * (1.0 - t)));
     // Near an end the particle's own contact holds it; only the middle of the spring.
     if (t < 0.05 || t > 0.95) return;
     const Vec3 local = pa + t * (pb - pa);
