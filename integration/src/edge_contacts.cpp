@@ -196,16 +196,27 @@ void ContactSolver::collideEdges(Cloth& c) {
     }
     stillBoxes_.swap(stillBoxesNext_);
     edgeClear_.resize(springs.size());
+    // Found clear of box bi before, and neither end has moved that far since.
+    auto stillClear = [&](std::size_t si, const Spring& s, std::int32_t bi) {
+        const std::uint64_t version = boxVersion_[std::size_t(bi)];
+        const EdgeClearance& clear = edgeClear_[si];
+        const double room2 = clear.room * clear.room;
+        return version != 0 && clear.version == version &&
+               clear.body == bodies[std::size_t(bi)].object &&
+               (x[s.a] - clear.a).squaredNorm() < room2 && (x[s.b] - clear.b).squaredNorm() < room2;
+    };
     for (std::size_t si = 0; si < springs.size(); ++si) {
         const Spring& s = springs[si];
         const std::int32_t ba = edgeBody_[s.a], bb = edgeBody_[s.b];
         if (w[s.a] == 0.0 && w[s.b] == 0.0) continue;
-        // Both ends in one face's prism of the same box: nothing to test (as in
-        // collideSpringWithBox), decided here for the many springs lying on a face.
+        // Both ends in one face's prism of the same box: nothing to test (collideSpringWithBox
+        // says why), decided here for the many springs lying on a face.
         if (ba >= 0 &&
-            !(bb == ba && edgeRegion_[s.a] == edgeRegion_[s.b] && isFaceRegion(edgeRegion_[s.a])))
+            !(bb == ba && edgeRegion_[s.a] == edgeRegion_[s.b] && isFaceRegion(edgeRegion_[s.a])) &&
+            !stillClear(si, s, ba))
             collideSpringWithBox(c, si, std::uint32_t(ba));
-        if (bb >= 0 && bb != ba) collideSpringWithBox(c, si, std::uint32_t(bb));
+        if (bb >= 0 && bb != ba && !stillClear(si, s, bb))
+            collideSpringWithBox(c, si, std::uint32_t(bb));
     }
 }
 
@@ -216,13 +227,8 @@ void ContactSolver::collideSpringWithBox(Cloth& c, std::size_t si, std::uint32_t
     if (b.dynamicBody && b.invMass * clothMass_ > 1.0) return;
     const Spring& s = c.topology().springs()[si];
     Vec3List& x = c.mutablePositions();
-    // Found clear of this box before, and neither end has moved that far since.
     const std::uint64_t version = boxVersion_[bi];
     EdgeClearance& clear = edgeClear_[si];
-    if (version != 0 && clear.version == version && clear.body == b.object &&
-        (x[s.a] - clear.a).squaredNorm() < clear.room * clear.room &&
-        (x[s.b] - clear.b).squaredNorm() < clear.room * clear.room)
-        return;
     Vec3List& v = c.mutableVelocities();
     const auto& w = c.inverseMasses();
     const double h = contact_.thickness;

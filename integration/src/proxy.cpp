@@ -118,7 +118,8 @@ bool ClothProxy::candidates(const Vec3& lo, const Vec3& hi,
 void sweptBounds(const Cloth& c, double dt, double grow, Vec3& lo, Vec3& hi) {
     // x and y as one two-lane Eigen array (one SSE2 register), z on its own: the same values
     // as Vec3 arithmetic (min and max are exact, x + dt v is computed the same way per lane)
-    // at half the instructions.
+    // at half the instructions. Each particle's own least and greatest come first, so that
+    // the running bounds wait for one min and one max a particle, not two.
     using Pair = Eigen::Array2d;
     const double inf = std::numeric_limits<double>::infinity();
     Pair lo01 = Pair::Constant(inf), hi01 = Pair::Constant(-inf);
@@ -128,8 +129,8 @@ void sweptBounds(const Cloth& c, double dt, double grow, Vec3& lo, Vec3& hi) {
     for (std::size_t i = 0, n = c.particleCount(); i < n; ++i) {
         const Pair x01 = Eigen::Map<const Pair>(xs[i].data());
         const Pair a01 = x01 + dt * Eigen::Map<const Pair>(vs[i].data());
-        lo01 = lo01.min(x01).min(a01);
-        hi01 = hi01.max(x01).max(a01);
+        lo01 = lo01.min(x01.min(a01));
+        hi01 = hi01.max(x01.max(a01));
         const double x2 = xs[i][2], a2 = x2 + dt * vs[i][2];
         lo2 = std::min(lo2, std::min(x2, a2));
         hi2 = std::max(hi2, std::max(x2, a2));
