@@ -194,10 +194,10 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     invMass_.resize(mass.size());
     for (std::size_t i = 0; i < mass.size(); ++i)
         invMass_[i] = 1.0 / mass[i];
-    x_ = topology_->restPositions();
-    v_.assign(x_.size(), Vec3::Zero());
-    f_.assign(x_.size(), Vec3::Zero());
-    pinned_.assign(x_.size(), 0);
+    state_.x = topology_->restPositions();
+    state_.v.assign(state_.x.size(), Vec3::Zero());
+    state_.f.assign(state_.x.size(), Vec3::Zero());
+    state_.pinned.assign(state_.x.size(), 0);
     if (settings_.threads > 1)
         poolStorage_ = std::make_unique<detail::ThreadPool>(settings_.threads);
     std::vector<double> stiffness = buildStiffness(*topology_, settings_, mass);
@@ -214,22 +214,22 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
 Cloth::~Cloth() = default;
 
 void Cloth::evaluateForces() {
-    forceModel_->evaluate(x_, v_, f_);
-    forcesValid_ = true;
+    forceModel_->evaluate(state_.x, state_.v, state_.f);
+    state_.forcesValid = true;
 }
 
 void Cloth::checkFinite(const char* where) {
     // A NaN or infinity anywhere makes the sum non-finite; only then look for the particle.
     double sum = 0.0;
-    for (std::size_t i = 0; i < x_.size(); ++i)
-        sum += x_[i].sum() + v_[i].sum() + f_[i].sum();
+    for (std::size_t i = 0; i < state_.x.size(); ++i)
+        sum += state_.x[i].sum() + state_.v[i].sum() + state_.f[i].sum();
     if (std::isfinite(sum)) return;
-    for (std::size_t i = 0; i < x_.size(); ++i) {
-        if (!x_[i].allFinite() || !v_[i].allFinite() || !f_[i].allFinite()) {
+    for (std::size_t i = 0; i < state_.x.size(); ++i) {
+        if (!state_.x[i].allFinite() || !state_.v[i].allFinite() || !state_.f[i].allFinite()) {
             throw Error(ErrorCode::SimulationFailure,
                         std::string("state became non-finite at particle ") + std::to_string(i) +
-                            " after " + where + " in step " + std::to_string(steps_ + 1) +
-                            " (t = " + num(time_) +
+                            " after " + where + " in step " + std::to_string(state_.steps + 1) +
+                            " (t = " + num(state_.time) +
                             " s); the cloth keeps its state from before "
                             "the step. Reduce the time step or the stiffness.");
         }
@@ -237,7 +237,7 @@ void Cloth::checkFinite(const char* where) {
     // Finite values whose sum overflows: the state is out of any sensible range.
     throw Error(ErrorCode::SimulationFailure,
                 std::string("state magnitude overflowed after ") + where + " in step " +
-                    std::to_string(steps_ + 1) +
+                    std::to_string(state_.steps + 1) +
                     "; the cloth keeps its state from before the step");
 }
 
@@ -284,15 +284,15 @@ void Cloth::stepPart(double dt, int parts) {
     // step taken asleep reports nothing.
     limiterStats_ = StrainLimitStats{};
     selfStats_ = SelfCollisionStats{};
-    heldImpulse_.resize(x_.size(), Vec3::Zero());
+    heldImpulse_.resize(state_.x.size(), Vec3::Zero());
     for (Index i : heldImpulsed_)
         heldImpulse_[i].setZero();
     heldImpulsed_.clear();
-    if (asleep_) {
+    if (state_.asleep) {
         checkTimeStep(h);
         if (!kinematicTargetsMove(dt)) { // frozen: only the clock runs
-            time_ += dt;
-            ++steps_;
+            state_.time += dt;
+            ++state_.steps;
             ++sleptSteps_;
             return;
         }
@@ -305,8 +305,8 @@ void Cloth::stepPart(double dt, int parts) {
         save(wholeStepStart_);
         try {
             for (int k = 0; k < n; ++k) {
-                if (asleep_) { // fell asleep in an earlier sub-step: frozen from here
-                    time_ += h;
+                if (state_.asleep) { // fell asleep in an earlier sub-step: frozen from here
+                    state_.time += h;
                     continue;
                 }
                 stepWithRetry(h);
@@ -315,7 +315,7 @@ void Cloth::stepPart(double dt, int parts) {
             restore(wholeStepStart_);
             throw;
         }
-        steps_ = wholeStepStart_.steps + 1; // the sub-steps count as the caller's one step
+        state_.steps = wholeStepStart_.steps + 1; // the sub-steps count as the caller's one step
     }
     if (limiterStats_.capHit) ++limiterCapHits_;
 }
@@ -342,26 +342,26 @@ void Cloth::stepWithRetry(double dt) {
                                           " sub-steps failed too: " + again.what());
         }
         ++retries_;
-        steps_ = before.steps + 1; // the sub-steps count as the one step the caller asked for
+        state_.steps = before.steps + 1; // the sub-steps count as the one step the caller asked for
     }
 }
 
 void Cloth::save(Saved& s) const {
-    s.x.assign(x_.begin(), x_.end());
-    s.v.assign(v_.begin(), v_.end());
+    s.x.assign(state_.x.begin(), state_.x.end());
+    s.v.assign(state_.v.begin(), state_.v.end());
     const auto& lambda = limiter_.warmStartState();
     s.lambda.assign(lambda.begin(), lambda.end());
-    s.time = time_;
-    s.steps = steps_;
+    s.time = state_.time;
+    s.steps = state_.steps;
 }
 
 void Cloth::restore(const Saved& s) {
-    x_ = s.x;
-    v_ = s.v;
+    state_.x = s.x;
+    state_.v = s.v;
     if (settings_.limiter.kind == LimiterKind::StressOrdered) limiter_.setWarmStartState(s.lambda);
-    time_ = s.time;
-    steps_ = s.steps;
-    forcesValid_ = false;
+    state_.time = s.time;
+    state_.steps = s.steps;
+    state_.forcesValid = false;
 }
 
 double Cloth::energyScale() const {
@@ -402,7 +402,7 @@ struct Cloth::StepContext {
 };
 
 const Cloth::Stage Cloth::kStages[] = {
-    {"forces_refresh", true, [](const Cloth& c) { return !c.forcesValid_; },
+    {"forces_refresh", true, [](const Cloth& c) { return !c.state_.forcesValid; },
      &Cloth::stageForcesRefresh},
     {"integrate", true, [](const Cloth&) { return true; }, &Cloth::stageIntegrate},
     {"kinematic", true, [](const Cloth& c) { return !c.kinematic_.empty(); },
@@ -447,7 +447,8 @@ void Cloth::stepOnce(double dt) {
     // kinematic (attached) ones (see constraintImpulses()).
     limiter_.setRecordHeld(!kinematic_.empty());
     StepContext ctx{dt, false, 0.0, 0.0,
-                    IntegratorContext{x_, v_, f_, invMass_, dt, *forceModel_, poolStorage_.get()}};
+                    IntegratorContext{state_.x, state_.v, state_.f, invMass_, dt, *forceModel_,
+                                      poolStorage_.get()}};
     // Energy can only grow through wind, user forces, kinematic particles and stages
     // (contacts with moving bodies): check it only without those sources.
     ctx.checkEnergy = settings_.failure.maxEnergyGrowth.has_value() && kinematic_.empty() &&
@@ -457,8 +458,8 @@ void Cloth::stepOnce(double dt) {
         ctx.energyBefore = kineticEnergy() + springEnergy() + gravityEnergy();
         ctx.scaleBefore = energyScale();
     }
-    // The state from before the step is kept (x_, v_ swapped into the scratch buffers by
-    // stageIntegrate) so that a failure leaves the cloth as it was.
+    // The state from before the step is kept (state_.x, state_.v swapped into the scratch buffers
+    // by stageIntegrate) so that a failure leaves the cloth as it was.
     const bool keepWarmStart = settings_.limiter.kind == LimiterKind::StressOrdered;
     if (keepWarmStart) {
         const auto& lambda = limiter_.warmStartState();
@@ -481,27 +482,50 @@ void Cloth::stepOnce(double dt) {
         }
     } catch (...) {
         inStep_ = false;
-        quietTime_ = 0.0;
+        state_.quietTime = 0.0;
         if (swapped) {
-            x_.swap(step_.x0);
-            v_.swap(step_.v0);
+            state_.x.swap(step_.x0);
+            state_.v.swap(step_.v0);
         }
         if (keepWarmStart) limiter_.setWarmStartState(step_.lambdaBefore);
-        forcesValid_ = false;
+        state_.forcesValid = false;
         throw;
     }
     inStep_ = false;
     updateSleep(dt);
-    time_ += dt;
-    ++steps_;
+    state_.time += dt;
+    ++state_.steps;
 }
 
 // --- sleeping ---------------------------------------------------------------------------------
 
+void Cloth::restoreState(ClothState state, std::vector<double> warmStart) {
+    const std::size_t n = particleCount();
+    auto requireSize = [](std::size_t got, std::size_t want, const char* what) {
+        if (got != want)
+            throw Error(ErrorCode::InvalidArgument,
+                        std::string("restoreState: ") + what + " has " + std::to_string(got) +
+                            " entries, the cloth " + std::to_string(want));
+    };
+    requireSize(state.x.size(), n, "x");
+    requireSize(state.v.size(), n, "v");
+    requireSize(state.f.size(), n, "f");
+    requireSize(state.pinned.size(), n, "pinned");
+    if (!state.anchor.empty()) requireSize(state.anchor.size(), n, "anchor");
+    if (!warmStart.empty()) requireSize(warmStart.size(), topology_->springCount(), "warmStart");
+    const bool asleep = state.asleep && settings_.sleep.enabled;
+    state_ = std::move(state);
+    state_.asleep = asleep;
+    limiter_.setWarmStartState(std::move(warmStart));
+    for (std::size_t i = 0; i < n; ++i)
+        invMass_[i] = state_.pinned[i] ? 0.0 : 1.0 / masses()[i];
+    invalidateOmega();
+}
+
 void Cloth::wake() {
-    asleep_ = false;
-    quietTime_ = 0.0;
-    anchor_.clear();
+    state_.asleep = false;
+    state_.quietTime = 0.0;
+    state_.anchor.clear();
 }
 
 void Cloth::setSleep(const SleepSettings& sleep) {
@@ -513,54 +537,55 @@ void Cloth::setSleep(const SleepSettings& sleep) {
 
 bool Cloth::kinematicTargetsMove(double dt) const {
     for (const auto& k : kinematic_) {
-        if (k.at(time_ + dt) != x_[k.particle]) return true; // NaN too: the real step reports it
+        if (k.at(state_.time + dt) != state_.x[k.particle])
+            return true; // NaN too: the real step reports it
     }
     return false;
 }
 
 // After a successful step. The quiet time starts with the positions of its first step
-// (anchor_); a particle farther than sleep.distance from its anchor restarts it from here.
+// (state_.anchor); a particle farther than sleep.distance from its anchor restarts it from here.
 void Cloth::updateSleep(double dt) {
     const auto& sl = settings_.sleep;
     if (!sl.enabled) return;
     const double d2 = sl.distance * sl.distance;
-    bool quiet = !limiterStats_.capHit && anchor_.size() == x_.size();
-    for (std::size_t i = 0; quiet && i < x_.size(); ++i)
-        quiet = (x_[i] - anchor_[i]).squaredNorm() <= d2;
+    bool quiet = !limiterStats_.capHit && state_.anchor.size() == state_.x.size();
+    for (std::size_t i = 0; quiet && i < state_.x.size(); ++i)
+        quiet = (state_.x[i] - state_.anchor[i]).squaredNorm() <= d2;
     if (!quiet) {
-        anchor_ = x_;
-        quietTime_ = 0.0;
+        state_.anchor = state_.x;
+        state_.quietTime = 0.0;
         return;
     }
-    quietTime_ += dt;
-    if (quietTime_ >= sl.time) asleep_ = true;
+    state_.quietTime += dt;
+    if (state_.quietTime >= sl.time) state_.asleep = true;
 }
 
 void Cloth::stageForcesRefresh(StepContext&) {
     try {
         evaluateForces();
     } catch (...) {
-        forcesValid_ = false;
+        state_.forcesValid = false;
         throw;
     }
 }
 
 void Cloth::stageIntegrate(StepContext& ctx) {
-    const std::size_t n = x_.size();
+    const std::size_t n = state_.x.size();
     step_.x0.resize(n);
     step_.v0.resize(n);
     if (!kinematic_.empty()) {
         step_.kinematicStart.clear();
         for (const auto& k : kinematic_)
-            step_.kinematicStart.push_back(x_[k.particle]);
+            step_.kinematicStart.push_back(state_.x[k.particle]);
     }
     // Integrators that can write the new state to other buffers get the old one swapped out
-    // of x_, v_ (no copy); the others work in place on a copy.
-    x_.swap(step_.x0);
-    v_.swap(step_.v0);
+    // of state_.x, state_.v (no copy); the others work in place on a copy.
+    state_.x.swap(step_.x0);
+    state_.v.swap(step_.v0);
     if (!integrator_->advanceFrom(ctx.integrator, step_.x0, step_.v0)) {
-        std::copy(step_.x0.begin(), step_.x0.end(), x_.begin());
-        std::copy(step_.v0.begin(), step_.v0.end(), v_.begin());
+        std::copy(step_.x0.begin(), step_.x0.end(), state_.x.begin());
+        std::copy(step_.v0.begin(), step_.v0.end(), state_.v.begin());
         integrator_->advance(ctx.integrator);
     }
 }
@@ -568,13 +593,13 @@ void Cloth::stageIntegrate(StepContext& ctx) {
 void Cloth::stageKinematic(StepContext& ctx) {
     for (std::size_t k = 0; k < kinematic_.size(); ++k) {
         const Index i = kinematic_[k].particle;
-        const Vec3 target = kinematic_[k].at(time_ + ctx.dt);
+        const Vec3 target = kinematic_[k].at(state_.time + ctx.dt);
         if (!target.allFinite()) {
             throw Error(ErrorCode::NonFinite, "kinematic path of particle " + std::to_string(i) +
                                                   " returned a non-finite position");
         }
-        x_[i] = target;
-        v_[i] = (target - step_.kinematicStart[k]) / ctx.dt;
+        state_.x[i] = target;
+        state_.v[i] = (target - step_.kinematicStart[k]) / ctx.dt;
     }
 }
 
@@ -583,7 +608,7 @@ void Cloth::applyLimiterMoves(double dt, const StrainLimitStats& walk) {
     const auto& moved = limiter_.movedIndex();
     const auto& from = limiter_.movedFrom();
     for (std::size_t j = 0; j < moved.size(); ++j)
-        v_[moved[j]] += (x_[moved[j]] - from[j]) * invDt;
+        state_.v[moved[j]] += (state_.x[moved[j]] - from[j]) * invDt;
     // A walk that stopped at its cap (maxRounds, or held particles too far apart) was
     // fighting constraints it cannot meet together: each round trip of its corrections pulled
     // the held ends again, and what they summed is what the fight pumped, not a load the cloth
@@ -627,23 +652,23 @@ void Cloth::stageLimit(StepContext& ctx) {
         // The walk keeps the planes of the ContactSet (setContacts) a stage filled before it.
         ContactSet* contacts = forceModel_->contacts();
         const StrainLimitStats walk =
-            limiter_.limit(*topology_, invMass_, forceModel_->stiffness(), lim, x_,
+            limiter_.limit(*topology_, invMass_, forceModel_->stiffness(), lim, state_.x,
                            contacts ? &contacts->planes : nullptr);
         addLimiterStats(walk);
         applyLimiterMoves(ctx.dt, walk);
         return;
     }
     // The comparison limiters: displacements from a copy.
-    step_.beforeLimit = x_;
+    step_.beforeLimit = state_.x;
     const StrainLimitStats st =
         lim.kind == LimiterKind::Provot
-            ? limitStrainProvot(*topology_, invMass_, lim, x_)
-            : limitStrainOneSided(*topology_, invMass_, forceModel_->stiffness(), lim, x_);
+            ? limitStrainProvot(*topology_, invMass_, lim, state_.x)
+            : limitStrainOneSided(*topology_, invMass_, forceModel_->stiffness(), lim, state_.x);
     addLimiterStats(st);
     if (st.corrections == 0) return;
     const double invDt = 1.0 / ctx.dt;
-    for (std::size_t i = 0; i < x_.size(); ++i)
-        v_[i] += (x_[i] - step_.beforeLimit[i]) * invDt;
+    for (std::size_t i = 0; i < state_.x.size(); ++i)
+        state_.v[i] += (state_.x[i] - step_.beforeLimit[i]) * invDt;
 }
 
 void Cloth::stageCallerStagesBefore(StepContext& ctx) {
@@ -679,31 +704,31 @@ void Cloth::stageFinish(StepContext& ctx) {
 // of simulated time that the step completes (counted from time 0, so a restored snapshot
 // damps where the original did): sub-steps of a 60 Hz frame share one pass.
 void Cloth::stageRelativeDamping(StepContext& ctx) {
-    const double k0 = std::floor(time_ / kRelativeDampingInterval);
-    const double k1 = std::floor((time_ + ctx.dt) / kRelativeDampingInterval);
+    const double k0 = std::floor(state_.time / kRelativeDampingInterval);
+    const double k1 = std::floor((state_.time + ctx.dt) / kRelativeDampingInterval);
     if (!(k1 > k0)) return;
     const double decay =
         std::exp(-settings_.relativeDamping * (k1 - k0) * kRelativeDampingInterval);
     const auto& m = masses();
     Vec3 p = Vec3::Zero();
     double mass = 0.0;
-    for (std::size_t i = 0; i < v_.size(); ++i) {
+    for (std::size_t i = 0; i < state_.v.size(); ++i) {
         if (invMass_[i] == 0.0) continue;
-        p += m[i] * v_[i];
+        p += m[i] * state_.v[i];
         mass += m[i];
     }
     if (!(mass > 0.0)) return;
     const Vec3 vbar = p / mass;
-    for (std::size_t i = 0; i < v_.size(); ++i) {
-        if (invMass_[i] != 0.0) v_[i] = vbar + decay * (v_[i] - vbar);
+    for (std::size_t i = 0; i < state_.v.size(); ++i) {
+        if (invMass_[i] != 0.0) state_.v[i] = vbar + decay * (state_.v[i] - vbar);
     }
 }
 
 void Cloth::stageSelfCollision(StepContext&) {
     if (!selfCollider_) selfCollider_ = std::make_unique<detail::SelfCollider>();
     const auto& sc = settings_.selfCollision;
-    const auto counts = selfCollider_->run(*topology_, invMass_, step_.x0, x_, v_, sc.thickness,
-                                           sc.friction, sc.iterations);
+    const auto counts = selfCollider_->run(*topology_, invMass_, step_.x0, state_.x, state_.v,
+                                           sc.thickness, sc.friction, sc.iterations);
     selfStats_.pairTests += counts.pairTests;
     selfStats_.contacts += counts.contacts;
 }
@@ -724,7 +749,7 @@ void Cloth::stageVerify(StepContext& ctx) {
             throw Error(ErrorCode::SimulationFailure,
                         "strain " + num(strain) + " exceeds the hard cap failure.maxStrain = " +
                             num(*settings_.failure.maxStrain) + " in step " +
-                            std::to_string(steps_ + 1) + " (t = " + num(time_) +
+                            std::to_string(state_.steps + 1) + " (t = " + num(state_.time) +
                             " s); the cloth keeps its state from before the step");
         }
     }
@@ -733,8 +758,8 @@ void Cloth::stageVerify(StepContext& ctx) {
         if (after - ctx.energyBefore > *settings_.failure.maxEnergyGrowth * ctx.scaleBefore) {
             throw Error(ErrorCode::SimulationFailure,
                         "mechanical energy grew by " + num(after - ctx.energyBefore) +
-                            " J in step " + std::to_string(steps_ + 1) + " (t = " + num(time_) +
-                            " s), more than failure.maxEnergyGrowth = " +
+                            " J in step " + std::to_string(state_.steps + 1) + " (t = " +
+                            num(state_.time) + " s), more than failure.maxEnergyGrowth = " +
                             num(*settings_.failure.maxEnergyGrowth) + " times the energy scale " +
                             num(ctx.scaleBefore) +
                             " J, with no energy source; the cloth keeps "
@@ -750,25 +775,26 @@ StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt,
     if (settings_.limiter.kind == LimiterKind::None || touched.empty()) return st;
     const LimiterSettings lim = limiterAt(dt);
     if (lim.kind == LimiterKind::StressOrdered) {
-        st = limiter_.relimit(*topology_, invMass_, forceModel_->stiffness(), lim, touched, x_,
-                              planes);
+        st = limiter_.relimit(*topology_, invMass_, forceModel_->stiffness(), lim, touched,
+                              state_.x, planes);
         applyLimiterMoves(dt, st);
     } else {
         // The comparison limiters have no worklist: they run whole, and report what moved.
-        step_.beforeLimit = x_;
+        step_.beforeLimit = state_.x;
         st = lim.kind == LimiterKind::Provot
-                 ? limitStrainProvot(*topology_, invMass_, lim, x_)
-                 : limitStrainOneSided(*topology_, invMass_, forceModel_->stiffness(), lim, x_);
+                 ? limitStrainProvot(*topology_, invMass_, lim, state_.x)
+                 : limitStrainOneSided(*topology_, invMass_, forceModel_->stiffness(), lim,
+                                       state_.x);
         step_.relimitMoved.clear();
         const double invDt = 1.0 / dt;
-        for (std::size_t i = 0; i < x_.size(); ++i) {
-            if (x_[i] == step_.beforeLimit[i]) continue;
-            v_[i] += (x_[i] - step_.beforeLimit[i]) * invDt;
+        for (std::size_t i = 0; i < state_.x.size(); ++i) {
+            if (state_.x[i] == step_.beforeLimit[i]) continue;
+            state_.v[i] += (state_.x[i] - step_.beforeLimit[i]) * invDt;
             step_.relimitMoved.push_back(static_cast<Index>(i));
         }
     }
     addLimiterStats(st);
-    forcesValid_ = false;
+    state_.forcesValid = false;
     edited();
     return st;
 }
@@ -810,39 +836,39 @@ void checkIndex(Index i, std::size_t n, const char* what) {
 } // namespace
 
 void Cloth::setHeld(Index i, bool held) {
-    pinned_[i] = held ? 1 : 0;
+    state_.pinned[i] = held ? 1 : 0;
     invMass_[i] = held ? 0.0 : 1.0 / masses()[i];
     kinematic_.erase(std::remove_if(kinematic_.begin(), kinematic_.end(),
                                     [&](const Kinematic& k) { return k.particle == i; }),
                      kinematic_.end());
-    forcesValid_ = false;
+    state_.forcesValid = false;
     invalidateOmega();
     edited();
 }
 
 void Cloth::pin(Index i) {
-    checkIndex(i, x_.size(), "pin");
-    v_[i] = Vec3::Zero();
+    checkIndex(i, state_.x.size(), "pin");
+    state_.v[i] = Vec3::Zero();
     setHeld(i, true);
 }
 
 void Cloth::pin(Index i, const Vec3& position) {
-    checkIndex(i, x_.size(), "pin");
+    checkIndex(i, state_.x.size(), "pin");
     requireFinite(position, "pin position of particle " + std::to_string(i));
     pin(i);
-    x_[i] = position;
+    state_.x[i] = position;
     edited();
 }
 
 void Cloth::setKinematic(Index i, KinematicPath path) {
-    checkIndex(i, x_.size(), "setKinematic");
+    checkIndex(i, state_.x.size(), "setKinematic");
     if (!path)
         throw Error(ErrorCode::InvalidArgument,
                     "kinematic path of particle " + std::to_string(i) + " is empty");
-    const Vec3 start = path(time_);
+    const Vec3 start = path(state_.time);
     requireFinite(start, "kinematic path of particle " + std::to_string(i));
     pin(i);
-    x_[i] = start;
+    state_.x[i] = start;
     Kinematic k;
     k.particle = i;
     k.path = std::move(path);
@@ -858,7 +884,7 @@ Vec3 Cloth::Kinematic::at(double t) const {
 }
 
 void Cloth::setKinematicTarget(Index i, const Vec3& target, double arrival) {
-    checkIndex(i, x_.size(), "setKinematicTarget");
+    checkIndex(i, state_.x.size(), "setKinematicTarget");
     // Called for every attachment in every Bullet sub-step: the message is built on failure only.
     if (!target.allFinite())
         requireFinite(target, "kinematic target of particle " + std::to_string(i));
@@ -877,47 +903,47 @@ void Cloth::setKinematicTarget(Index i, const Vec3& target, double arrival) {
     }
     it->path = nullptr;
     it->to = target;
-    if (arrival <= time_) { // there now
+    if (arrival <= state_.time) { // there now
         it->from = target;
-        it->t0 = it->t1 = time_;
-        if (x_[i] != target) {
-            x_[i] = target;
-            forcesValid_ = false;
+        it->t0 = it->t1 = state_.time;
+        if (state_.x[i] != target) {
+            state_.x[i] = target;
+            state_.forcesValid = false;
             edited();
         }
         return;
     }
-    it->from = x_[i];
-    it->t0 = time_;
+    it->from = state_.x[i];
+    it->t0 = state_.time;
     it->t1 = arrival;
 }
 
 void Cloth::unpin(Index i) {
-    checkIndex(i, x_.size(), "unpin");
+    checkIndex(i, state_.x.size(), "unpin");
     setHeld(i, false);
 }
 
 bool Cloth::isPinned(Index i) const {
-    checkIndex(i, x_.size(), "isPinned");
-    return pinned_[i] != 0;
+    checkIndex(i, state_.x.size(), "isPinned");
+    return state_.pinned[i] != 0;
 }
 
 // --- forces and stages ----------------------------------------------------------------------
 
 void Cloth::setUserForce(Index i, const Vec3& force) {
     forceModel_->setUserForce(i, force);
-    forcesValid_ = false;
+    state_.forcesValid = false;
     edited();
 }
 void Cloth::clearUserForces() {
     forceModel_->clearUserForces();
-    forcesValid_ = false;
+    state_.forcesValid = false;
     edited();
 }
 void Cloth::setWind(const Vec3& wind) {
     forceModel_->setWind(wind);
     settings_.aero.wind = wind;
-    forcesValid_ = false;
+    state_.forcesValid = false;
     edited();
 }
 void Cloth::setRelativeDamping(double rate) {
@@ -929,17 +955,17 @@ void Cloth::setRelativeDamping(double rate) {
 void Cloth::setGravity(const Vec3& g) {
     forceModel_->setGravity(g);
     settings_.gravity = g;
-    forcesValid_ = false;
+    state_.forcesValid = false;
     edited();
 }
 void Cloth::addExternalForce(std::string name, ForceModel::ExternalForce force) {
     forceModel_->addExternalForce(std::move(name), std::move(force));
-    forcesValid_ = false;
+    state_.forcesValid = false;
     edited();
 }
 void Cloth::setContacts(std::shared_ptr<ContactSet> contacts) {
     forceModel_->setContacts(std::move(contacts));
-    forcesValid_ = false;
+    state_.forcesValid = false;
     edited();
 }
 
@@ -967,45 +993,45 @@ void Cloth::removeStage(const ClothStage* stage) {
 // --- state ------------------------------------------------------------------------------------
 
 Vec3List& Cloth::mutablePositions() {
-    forcesValid_ = false;
+    state_.forcesValid = false;
     edited();
-    return x_;
+    return state_.x;
 }
 Vec3List& Cloth::mutableVelocities() {
-    forcesValid_ = false;
+    state_.forcesValid = false;
     edited();
-    return v_;
+    return state_.v;
 }
 void Cloth::setPosition(Index i, const Vec3& x) {
-    checkIndex(i, x_.size(), "setPosition");
+    checkIndex(i, state_.x.size(), "setPosition");
     requireFinite(x, "position of particle " + std::to_string(i));
-    x_[i] = x;
-    forcesValid_ = false;
+    state_.x[i] = x;
+    state_.forcesValid = false;
     edited();
 }
 void Cloth::setVelocity(Index i, const Vec3& v) {
-    checkIndex(i, x_.size(), "setVelocity");
+    checkIndex(i, state_.x.size(), "setVelocity");
     requireFinite(v, "velocity of particle " + std::to_string(i));
-    if (pinned_[i]) return; // pinned and kinematic particles keep their prescribed motion
-    v_[i] = v;
-    forcesValid_ = false;
+    if (state_.pinned[i]) return; // pinned and kinematic particles keep their prescribed motion
+    state_.v[i] = v;
+    state_.forcesValid = false;
     edited();
 }
 
 // --- diagnostics ----------------------------------------------------------------------------
 
 double Cloth::maxStrain() const {
-    return maxSpringStrain(*topology_, x_);
+    return maxSpringStrain(*topology_, state_.x);
 }
 double Cloth::meanStrain() const {
-    return meanSpringStrain(*topology_, x_);
+    return meanSpringStrain(*topology_, state_.x);
 }
 double Cloth::kineticEnergy() const {
-    if (asleep_) return 0.0; // at rest; v_ keeps the frozen state to resume from
+    if (state_.asleep) return 0.0; // at rest; state_.v keeps the frozen state to resume from
     const std::vector<double>& m = masses();
     double e = 0.0;
-    for (std::size_t i = 0; i < v_.size(); ++i)
-        e += 0.5 * m[i] * v_[i].squaredNorm();
+    for (std::size_t i = 0; i < state_.v.size(); ++i)
+        e += 0.5 * m[i] * state_.v[i].squaredNorm();
     return e;
 }
 double Cloth::totalMass() const {
@@ -1016,20 +1042,20 @@ double Cloth::totalMass() const {
 }
 Vec3 Cloth::momentum() const {
     Vec3 p = Vec3::Zero();
-    if (asleep_) return p;
+    if (state_.asleep) return p;
     const std::vector<double>& m = masses();
-    for (std::size_t i = 0; i < v_.size(); ++i)
-        p += m[i] * v_[i];
+    for (std::size_t i = 0; i < state_.v.size(); ++i)
+        p += m[i] * state_.v[i];
     return p;
 }
 double Cloth::springEnergy() const {
-    return drape::springEnergy(topology_->springs(), forceModel_->stiffness(), x_);
+    return drape::springEnergy(topology_->springs(), forceModel_->stiffness(), state_.x);
 }
 double Cloth::gravityEnergy() const {
     const std::vector<double>& m = masses();
     double e = 0.0;
-    for (std::size_t i = 0; i < x_.size(); ++i)
-        e -= m[i] * settings_.gravity.dot(x_[i]);
+    for (std::size_t i = 0; i < state_.x.size(); ++i)
+        e -= m[i] * settings_.gravity.dot(state_.x[i]);
     return e;
 }
 double Cloth::maxAngularFrequency() const {

@@ -103,30 +103,31 @@ std::vector<unsigned char> saveSnapshot(const Cloth& cloth) {
     w.pod(kVersion);
     w.pod(topologyFingerprint(cloth.topology()));
     w.pod(static_cast<std::uint64_t>(cloth.particleCount()));
-    w.pod(cloth.time_);
-    w.pod(static_cast<std::uint64_t>(cloth.steps_));
-    w.pod(static_cast<std::uint8_t>(cloth.forcesValid_ ? 1 : 0));
+    const ClothState& st = cloth.state();
+    w.pod(st.time);
+    w.pod(static_cast<std::uint64_t>(st.steps));
+    w.pod(static_cast<std::uint8_t>(st.forcesValid ? 1 : 0));
     for (std::size_t i = 0; i < cloth.particleCount(); ++i) {
-        for (const Vec3* v : {&cloth.x_[i], &cloth.v_[i], &cloth.f_[i]})
+        for (const Vec3* v : {&st.x[i], &st.v[i], &st.f[i]})
             for (int c = 0; c < 3; ++c)
                 w.pod((*v)[c]);
-        w.pod(static_cast<std::uint8_t>(cloth.pinned_[i]));
+        w.pod(static_cast<std::uint8_t>(st.pinned[i]));
     }
     // The limiter's warm start: one value per spring (0 where it has none yet).
-    const auto& lambda = cloth.limiter_.warmStartState();
+    const auto& lambda = cloth.limiter().warmStartState();
     for (std::size_t s = 0; s < cloth.topology().springCount(); ++s)
         w.pod(s < lambda.size() ? lambda[s] : 0.0);
     // Sleep: asleep, the quiet time, and the positions the quiet time is measured from.
-    w.pod(static_cast<std::uint8_t>(cloth.asleep_ ? 1 : 0));
-    w.pod(cloth.quietTime_);
-    const bool anchored = cloth.anchor_.size() == cloth.particleCount();
+    w.pod(static_cast<std::uint8_t>(st.asleep ? 1 : 0));
+    w.pod(st.quietTime);
+    const bool anchored = st.anchor.size() == cloth.particleCount();
     w.pod(static_cast<std::uint8_t>(anchored ? 1 : 0));
     if (anchored)
-        for (const Vec3& a : cloth.anchor_)
+        for (const Vec3& a : st.anchor)
             w.bytes(a.data(), 3 * sizeof(double));
     // The caller stages' states, by name (ClothStage::saveState).
-    w.pod(static_cast<std::uint32_t>(cloth.stages_.size()));
-    for (const auto& stage : cloth.stages_) {
+    w.pod(static_cast<std::uint32_t>(cloth.stages().size()));
+    for (const auto& stage : cloth.stages()) {
         const std::string name = stage->name();
         const std::vector<unsigned char> state = stage->saveState();
         w.pod(static_cast<std::uint32_t>(name.size()));
@@ -250,7 +251,7 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
     // state); a state whose stage this cloth lacks is ignored (a snapshot taken in a world
     // loads into a bare cloth). Stages of one name are matched in order.
     std::vector<bool> used(stageStates.size(), false);
-    for (const auto& stage : cloth.stages_) {
+    for (const auto& stage : cloth.stages()) {
         const std::string name = stage->name();
         std::vector<unsigned char> state;
         for (std::size_t k = 0; k < stageStates.size(); ++k) {
@@ -265,25 +266,22 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
             throw Error(e.code(), "snapshot state of stage '" + name + "': " + e.what());
         }
     }
-    // Commit: nothing above modified the cloth's own state.
-    cloth.x_ = std::move(x);
-    cloth.v_ = std::move(v);
-    cloth.f_ = std::move(f);
-    cloth.time_ = time;
-    cloth.steps_ = steps;
-    cloth.forcesValid_ = valid != 0;
-    cloth.limiter_.setWarmStartState(std::move(lambda));
-    for (std::size_t i = 0; i < n; ++i) {
-        cloth.pinned_[i] = pinned[i];
-        cloth.invMass_[i] = pinned[i] ? 0.0 : 1.0 / cloth.masses()[i];
-    }
-    cloth.invalidateOmega();
-    cloth.wake(); // restarts the quiet count; a version 3 snapshot then restores it
+    // Commit: nothing above modified the cloth's own state. (An older snapshot holds no sleep:
+    // the cloth is awake and its quiet count restarts.)
+    ClothState st;
+    st.x = std::move(x);
+    st.v = std::move(v);
+    st.f = std::move(f);
+    st.forcesValid = valid != 0;
+    st.pinned = std::move(pinned);
+    st.time = time;
+    st.steps = steps;
     if (version >= 3) {
-        cloth.quietTime_ = quietTime;
-        cloth.anchor_ = std::move(anchor);
-        cloth.asleep_ = asleep && cloth.settings_.sleep.enabled;
+        st.asleep = asleep;
+        st.quietTime = quietTime;
+        st.anchor = std::move(anchor);
     }
+    cloth.restoreState(std::move(st), std::move(lambda));
 }
 
 void saveSnapshotFile(const Cloth& cloth, const std::string& path) {

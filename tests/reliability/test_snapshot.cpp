@@ -77,6 +77,41 @@ TEST_CASE("a run restored from a snapshot at step k continues bit-identically", 
     }
 }
 
+TEST_CASE("a state read with Cloth::state() and put back with restoreState continues "
+          "bit-identically, and a state of the wrong size is refused",
+          "[snapshot]") {
+    auto full = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+    auto resumed = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+    ClothState kept;
+    std::vector<double> warm;
+    for (int i = 0; i < 150; ++i) {
+        full->step(0.002);
+        if (i == 59) {
+            kept = full->state();
+            warm = full->limiter().warmStartState();
+        }
+    }
+    // Wrong sizes: named, and the cloth is left as it was.
+    const auto before = stateHash(*resumed);
+    ClothState shorter = kept;
+    shorter.v.pop_back();
+    CHECK_THROWS_WITH(resumed->restoreState(shorter, warm), Catch::Contains("v has"));
+    CHECK_THROWS_WITH(resumed->restoreState(kept, std::vector<double>(3, 0.0)),
+                      Catch::Contains("warmStart"));
+    CHECK(stateHash(*resumed) == before);
+    resumed->restoreState(kept, warm);
+    CHECK(resumed->stepCount() == 60);
+    for (int i = 60; i < 150; ++i)
+        resumed->step(0.002);
+    CHECK(stateHash(*resumed) == stateHash(*full));
+    // Without the warm start the limiter starts afresh: the run is a different one.
+    auto cold = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+    cold->restoreState(kept, {});
+    for (int i = 60; i < 150; ++i)
+        cold->step(0.002);
+    CHECK(stateHash(*cold) != stateHash(*full));
+}
+
 TEST_CASE("snapshot files round-trip and corrupt or truncated ones are refused", "[snapshot]") {
     auto cloth = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
     for (int i = 0; i < 20; ++i)

@@ -72,6 +72,26 @@ class ClothStage {
     virtual void loadState(const std::vector<unsigned char>& bytes) { (void)bytes; }
 };
 
+/// What a cloth carries from one step to the next besides its limiter's warm start
+/// (StrainLimiter::warmStartState) and its stages' own states: what a snapshot saves
+/// (drape/snapshot.hpp). Cloth::state() reads it and Cloth::restoreState puts it back;
+/// everything else a cloth holds is built from its topology and settings, or is one step's
+/// scratch.
+struct ClothState {
+    Vec3List x; ///< positions [m]
+    Vec3List v; ///< velocities [m/s]
+    Vec3List f; ///< last evaluated forces [N] (Cloth::forces())
+    /// f is the force of (x, v) under the cloth's force terms (else the next step evaluates it).
+    bool forcesValid = false;
+    /// Per particle: held (pinned or kinematic: zero inverse mass) or free.
+    std::vector<unsigned char> pinned;
+    double time = 0.0;       ///< simulated time [s]
+    std::uint64_t steps = 0; ///< steps taken
+    bool asleep = false;     ///< Cloth::isAsleep()
+    double quietTime = 0.0;  ///< consecutive quiet simulated time while awake [s]
+    Vec3List anchor;         ///< positions at the start of the quiet time (empty: none yet)
+};
+
 /// A prescribed path for a kinematic particle: position [m] at simulated time t [s].
 using KinematicPath = std::function<Vec3(double t)>;
 
@@ -107,7 +127,7 @@ class Cloth {
     std::uint64_t retriedSteps() const { return retries_; }
 
     // --- sleeping (see the top of this file and SleepSettings) -----------------------------
-    bool isAsleep() const { return asleep_; }
+    bool isAsleep() const { return state_.asleep; }
     /// Wakes the cloth (if asleep) and restarts its quiet time.
     void wake();
     /// Changes the sleep settings (validated; throws drape::Error) and wakes the cloth.
@@ -126,7 +146,7 @@ class Cloth {
     /// Steps taken asleep (each cost O(number of kinematic particles)).
     std::uint64_t sleptSteps() const { return sleptSteps_; }
     /// Consecutive quiet simulated time so far while awake [s].
-    double quietTime() const { return quietTime_; }
+    double quietTime() const { return state_.quietTime; }
 
     // --- pins -----------------------------------------------------------------------------
     /// Fixes particle i where it is now (or at `position`); it never moves until unpinned.
@@ -168,13 +188,13 @@ class Cloth {
     const ClothTopology& topology() const { return *topology_; }
     const TopologyPtr& topologyPtr() const { return topology_; }
     const ClothSettings& settings() const { return settings_; }
-    std::size_t particleCount() const { return x_.size(); }
-    const Vec3List& positions() const { return x_; }  ///< [m]
-    const Vec3List& velocities() const { return v_; } ///< [m/s]
+    std::size_t particleCount() const { return state_.x.size(); }
+    const Vec3List& positions() const { return state_.x; }  ///< [m]
+    const Vec3List& velocities() const { return state_.v; } ///< [m/s]
     /// Last evaluated forces [N]. With Velocity-Verlet the velocity-dependent terms (linear and
     /// spring damping, aerodynamics) of free particles are not in it (the integrator applies
     /// them itself, see integrators.hpp); held particles' entries include them.
-    const Vec3List& forces() const { return f_; }
+    const Vec3List& forces() const { return state_.f; }
     /// Mutable access for stages and users; marks the cached forces stale. Moving a pinned
     /// particle re-pins it where it is put.
     Vec3List& mutablePositions();
@@ -184,8 +204,19 @@ class Cloth {
     const std::vector<double>& masses() const { return forceModel_->mass(); } ///< [kg]
     const std::vector<double>& inverseMasses() const { return invMass_; }     ///< 0 if pinned
     const std::vector<double>& stiffness() const { return forceModel_->stiffness(); } ///< [N/m]
-    double time() const { return time_; } ///< simulated time [s]
-    std::uint64_t stepCount() const { return steps_; }
+    double time() const { return state_.time; } ///< simulated time [s]
+    std::uint64_t stepCount() const { return state_.steps; }
+
+    /// The state a step carries to the next (ClothState).
+    const ClothState& state() const { return state_; }
+    /// Puts back a state read from this cloth or one with the same topology, and the limiter's
+    /// warm start (one value per spring, or empty for none): every size is checked first
+    /// (drape::Error InvalidArgument naming the mismatch, the cloth unchanged). The inverse
+    /// masses follow `pinned` (kinematic paths and targets are not part of the state); a cloth
+    /// whose sleep is off stays awake.
+    void restoreState(ClothState state, std::vector<double> warmStart);
+    /// The caller's stages, in the order they run (addStage).
+    const std::vector<std::shared_ptr<ClothStage>>& stages() const { return stages_; }
 
     // --- diagnostics ----------------------------------------------------------------------
     double maxStrain() const;  ///< largest (l - L0) / L0 [-]
@@ -244,8 +275,6 @@ class Cloth {
     const Integrator& integrator() const { return *integrator_; }
 
   private:
-    friend std::vector<unsigned char> saveSnapshot(const Cloth&);
-    friend void loadSnapshot(Cloth&, const std::vector<unsigned char>&);
     struct StepContext;
     /// Per-step scratch, as Jolt keeps its update context apart from the body's state: what a
     /// step fills and reads, kept between steps only so that no step allocates. None of it is
@@ -311,9 +340,8 @@ class Cloth {
     TopologyPtr topology_;
     ClothSettings settings_;
     std::vector<double> invMass_;
-    Vec3List x_, v_, f_;
+    ClothState state_; ///< what a step carries to the next (see ClothState)
     StepBuffers step_; ///< per-step scratch (see StepBuffers)
-    std::vector<unsigned char> pinned_;
     /// A kinematic particle: a caller's path, or (path empty) a straight move from `from` at
     /// t0 to `to` at t1 (setKinematicTarget).
     struct Kinematic {
@@ -338,16 +366,10 @@ class Cloth {
     SelfCollisionStats selfStats_;
     std::uint64_t limiterCapHits_ = 0;
     PhaseTimers timers_;
-    bool forcesValid_ = false;
     mutable double omegaMax_ = -1.0;
-    double time_ = 0.0;
-    std::uint64_t steps_ = 0;
     std::uint64_t retries_ = 0;
     bool inStep_ = false;
-    bool asleep_ = false;
-    double quietTime_ = 0.0;
-    Vec3List anchor_;      ///< positions at the start of the quiet time (empty: none yet)
-    Vec3List heldImpulse_; ///< see constraintImpulses()
+    Vec3List heldImpulse_;            ///< see constraintImpulses()
     std::vector<Index> heldImpulsed_; ///< the particles whose heldImpulse_ is nonzero
     double wholeStep_ = 0.0; ///< inside a step: the caller's whole step (limiterAt); else 0
     std::uint64_t sleptSteps_ = 0;
