@@ -233,9 +233,11 @@ void ContactSolver::collideSpringWithBox(Cloth& c, std::size_t si, std::uint32_t
     const auto& w = c.inverseMasses();
     const double h = contact_.thickness;
     // A lower bound on the spring's distance from the box beyond the thickness: kept for the
-    // next passes (with a margin far above the rounding of the bound).
+    // next passes. The bound is measured in the box's frame, whose rotation comes from Bullet's
+    // single precision (it stretches lengths by up to about 4e-7), and the ends' moves in the
+    // world: the room keeps a relative margin far above both, and one above the rounding.
     auto keepClear = [&](double lowerBound) {
-        const double room = lowerBound - h - 1e-6 * h;
+        const double room = (lowerBound - h) * (1.0 - 1e-5) - 1e-6 * h;
         if (version != 0 && room > 0.0) clear = {b.object, version, x[s.a], x[s.b], room};
     };
     // Both ends in one face's prism (convex): the distance is linear along the spring and its

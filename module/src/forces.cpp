@@ -196,11 +196,9 @@ ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
                        maxFamilyOffset_ <= kMaxBlockedOffset;
     if (settings_.springDamping > 0.0)
         dampingOrder_ =
-            std::make_unique<const detail::PackedSprings>(detail::dampingSweepOrder(*topology_));
+            std::make_shared<const detail::PackedSprings>(detail::dampingSweepOrder(*topology_));
     rebuildPipeline();
 }
-
-ForceModel::~ForceModel() = default;
 
 void ForceModel::rebuildPipeline() {
     pipeline_.clear();

@@ -71,7 +71,6 @@ class ForceModel {
     ForceModel(TopologyPtr topology, std::vector<double> stiffness, std::vector<double> mass,
                const ClothSettings& settings, PhaseTimers& timers,
                detail::ThreadPool* pool = nullptr);
-    ~ForceModel();
 
     /// f = sum of all active terms at state (x, v).
     void evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f);
@@ -156,7 +155,7 @@ class ForceModel {
     std::vector<double> looseStiffness_;
     /// The springs in the damping sweep's order (detail::dampingSweepOrder), when
     /// springDamping > 0.
-    std::unique_ptr<const detail::PackedSprings> dampingOrder_;
+    std::shared_ptr<const detail::PackedSprings> dampingOrder_;
     /// Per family slot: the spring's stiffness (0 for a hole, whose force is then 0).
     std::vector<double> slotStiffness_;
     /// The start of the force sum: gravity, and particle damping at velocities v (0 when the
