@@ -513,6 +513,27 @@ void Cloth::restoreState(ClothState state, std::vector<double> warmStart) {
     requireSize(state.pinned.size(), n, "pinned");
     if (!state.anchor.empty()) requireSize(state.anchor.size(), n, "anchor");
     if (!warmStart.empty()) requireSize(warmStart.size(), topology_->springCount(), "warmStart");
+    auto requireFinite = [](const Vec3List& list, const char* what) {
+        for (std::size_t i = 0; i < list.size(); ++i)
+            if (!list[i].allFinite())
+                throw Error(ErrorCode::NonFinite, std::string("restoreState: ") + what +
+                                                      " of particle " + std::to_string(i) +
+                                                      " is not finite");
+    };
+    requireFinite(state.x, "x");
+    requireFinite(state.v, "v");
+    requireFinite(state.f, "f");
+    requireFinite(state.anchor, "anchor");
+    if (!std::isfinite(state.time))
+        throw Error(ErrorCode::NonFinite, "restoreState: time is not finite");
+    if (!(state.quietTime >= 0.0 && std::isfinite(state.quietTime)))
+        throw Error(ErrorCode::InvalidArgument, "restoreState: quietTime must be >= 0 and finite");
+    if (state.asleep && state.anchor.empty())
+        throw Error(ErrorCode::InvalidArgument, "restoreState: asleep without sleep anchors");
+    for (const double l : warmStart)
+        if (!(l >= 0.0 && std::isfinite(l)))
+            throw Error(ErrorCode::InvalidArgument,
+                        "restoreState: a warm start value is negative or not finite");
     const bool asleep = state.asleep && settings_.sleep.enabled;
     state_ = std::move(state);
     state_.asleep = asleep;

@@ -5,6 +5,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <memory>
@@ -98,6 +99,9 @@ TEST_CASE("a state read with Cloth::state() and put back with restoreState conti
     CHECK_THROWS_WITH(resumed->restoreState(shorter, warm), Catch::Contains("v has"));
     CHECK_THROWS_WITH(resumed->restoreState(kept, std::vector<double>(3, 0.0)),
                       Catch::Contains("warmStart"));
+    ClothState broken = kept;
+    broken.x[5].y() = std::nan("");
+    CHECK_THROWS_WITH(resumed->restoreState(broken, warm), Catch::Contains("x of particle 5"));
     CHECK(stateHash(*resumed) == before);
     resumed->restoreState(kept, warm);
     CHECK(resumed->stepCount() == 60);

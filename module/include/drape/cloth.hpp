@@ -210,8 +210,9 @@ class Cloth {
     /// The state a step carries to the next (ClothState).
     const ClothState& state() const { return state_; }
     /// Puts back a state read from this cloth or one with the same topology, and the limiter's
-    /// warm start (one value per spring, or empty for none): every size is checked first
-    /// (drape::Error InvalidArgument naming the mismatch, the cloth unchanged). The inverse
+    /// warm start (one value per spring, >= 0, or empty for none): every size and value is
+    /// checked first (drape::Error InvalidArgument or NonFinite naming the bad one, the cloth
+    /// unchanged). The inverse
     /// masses follow `pinned` (kinematic paths and targets are not part of the state); a cloth
     /// whose sleep is off stays awake.
     void restoreState(ClothState state, std::vector<double> warmStart);
