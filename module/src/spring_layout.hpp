@@ -4,10 +4,10 @@
 // springs as the mesh gives them (Spring: a, b, rest length) and the adjacency; everything
 // here is a layout of those for one pass, and each array says which pass reads it.
 //
-// The rest length is stored once per layout, in the form its kernel reads: the spring list's
-// L0 (the public topology), 1 / L0^2 next to it and next to the adjacency (the strain checks
-// on squared lengths), and per family slot L0 (the force pass) and 1 / L0^2 (the limiter's
-// scan), each a copy made here from the list's L0.
+// The rest length is the spring list's L0 (the public topology); each kernel reads a copy made
+// here in its own form and order: 1 / L0^2 per spring and per adjacency entry (the strain
+// checks on squared lengths, no division), and per family slot L0 (the force pass) and
+// 1 / L0^2 (the limiter's scan: the two kernels that read the slots).
 #pragma once
 
 #include "drape/topology.hpp"
