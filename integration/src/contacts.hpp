@@ -317,8 +317,8 @@ class ContactSolver {
     /// can have come within the thickness: the spring is not tested against it again (a cloth
     /// lying on a desk tests only the springs that move).
     struct EdgeClearance {
-        const btCollisionObject* body = nullptr;
-        std::uint64_t version = 0; ///< the box's pose version (boxVersion_)
+        /// The box and its pose: versions are never reused (boxVersion_), 0 for none.
+        std::uint64_t version = 0;
         Vec3 a = Vec3::Zero(), b = Vec3::Zero();
         double room = 0.0;
     };

@@ -202,7 +202,6 @@ void ContactSolver::collideEdges(Cloth& c) {
         const EdgeClearance& clear = edgeClear_[si];
         const double room2 = clear.room * clear.room;
         return version != 0 && clear.version == version &&
-               clear.body == bodies[std::size_t(bi)].object &&
                (x[s.a] - clear.a).squaredNorm() < room2 && (x[s.b] - clear.b).squaredNorm() < room2;
     };
     for (std::size_t si = 0; si < springs.size(); ++si) {
@@ -238,7 +237,7 @@ void ContactSolver::collideSpringWithBox(Cloth& c, std::size_t si, std::uint32_t
     // world: the room keeps a relative margin far above both, and one above the rounding.
     auto keepClear = [&](double lowerBound) {
         const double room = (lowerBound - h) * (1.0 - 1e-5) - 1e-6 * h;
-        if (version != 0 && room > 0.0) clear = {b.object, version, x[s.a], x[s.b], room};
+        if (version != 0 && room > 0.0) clear = {version, x[s.a], x[s.b], room};
     };
     // Both ends in one face's prism (convex): the distance is linear along the spring and its
     // ends, which their own contacts hold, are the nearest points.

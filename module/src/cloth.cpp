@@ -499,12 +499,12 @@ void Cloth::stepOnce(double dt) {
 
 // --- sleeping ---------------------------------------------------------------------------------
 
-void Cloth::restoreState(ClothState state, std::vector<double> warmStart) {
+void Cloth::checkState(const ClothState& state, const std::vector<double>& warmStart) const {
     const std::size_t n = particleCount();
     auto requireSize = [](std::size_t got, std::size_t want, const char* what) {
         if (got != want)
             throw Error(ErrorCode::InvalidArgument,
-                        std::string("restoreState: ") + what + " has " + std::to_string(got) +
+                        std::string("cloth state: ") + what + " has " + std::to_string(got) +
                             " entries, the cloth " + std::to_string(want));
     };
     requireSize(state.x.size(), n, "x");
@@ -516,29 +516,33 @@ void Cloth::restoreState(ClothState state, std::vector<double> warmStart) {
     auto requireFinite = [](const Vec3List& list, const char* what) {
         for (std::size_t i = 0; i < list.size(); ++i)
             if (!list[i].allFinite())
-                throw Error(ErrorCode::NonFinite, std::string("restoreState: ") + what +
+                throw Error(ErrorCode::NonFinite, std::string("cloth state: ") + what +
                                                       " of particle " + std::to_string(i) +
                                                       " is not finite");
     };
     requireFinite(state.x, "x");
     requireFinite(state.v, "v");
     requireFinite(state.f, "f");
-    requireFinite(state.anchor, "anchor");
+    requireFinite(state.anchor, "sleep anchor");
     if (!std::isfinite(state.time))
-        throw Error(ErrorCode::NonFinite, "restoreState: time is not finite");
+        throw Error(ErrorCode::NonFinite, "cloth state: time is not finite");
     if (!(state.quietTime >= 0.0 && std::isfinite(state.quietTime)))
-        throw Error(ErrorCode::InvalidArgument, "restoreState: quietTime must be >= 0 and finite");
+        throw Error(ErrorCode::NonFinite, "cloth state: quietTime must be >= 0 and finite");
     if (state.asleep && state.anchor.empty())
-        throw Error(ErrorCode::InvalidArgument, "restoreState: asleep without sleep anchors");
-    for (const double l : warmStart)
-        if (!(l >= 0.0 && std::isfinite(l)))
-            throw Error(ErrorCode::InvalidArgument,
-                        "restoreState: a warm start value is negative or not finite");
+        throw Error(ErrorCode::InvalidArgument, "cloth state: asleep without sleep anchors");
+    for (std::size_t s = 0; s < warmStart.size(); ++s)
+        if (!(warmStart[s] >= 0.0 && std::isfinite(warmStart[s])))
+            throw Error(ErrorCode::NonFinite, "cloth state: the limiter's warm start at spring " +
+                                                  std::to_string(s) + " is negative or not finite");
+}
+
+void Cloth::restoreState(ClothState state, std::vector<double> warmStart) {
+    checkState(state, warmStart);
     const bool asleep = state.asleep && settings_.sleep.enabled;
     state_ = std::move(state);
     state_.asleep = asleep;
     limiter_.setWarmStartState(std::move(warmStart));
-    for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t i = 0; i < particleCount(); ++i)
         invMass_[i] = state_.pinned[i] ? 0.0 : 1.0 / masses()[i];
     invalidateOmega();
 }

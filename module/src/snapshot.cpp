@@ -194,21 +194,10 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
             for (int c = 0; c < 3; ++c)
                 (*dst)[c] = r.pod<double>("the particle data");
         pinned[i] = r.pod<std::uint8_t>("the pin flags");
-        if (!x[i].allFinite() || !v[i].allFinite() || !f[i].allFinite()) {
-            throw Error(ErrorCode::NonFinite,
-                        "snapshot holds a non-finite state at particle " + std::to_string(i));
-        }
     }
     std::vector<double> lambda(ns);
-    for (std::size_t s = 0; s < ns; ++s) {
+    for (std::size_t s = 0; s < ns; ++s)
         lambda[s] = r.pod<double>("the limiter's warm start");
-        if (!std::isfinite(lambda[s]) || lambda[s] < 0.0) {
-            throw Error(ErrorCode::NonFinite,
-                        "snapshot holds an invalid limiter warm start at spring " +
-                            std::to_string(s));
-        }
-    }
-    if (!std::isfinite(time)) throw Error(ErrorCode::NonFinite, "snapshot time is not finite");
     bool asleep = false;
     double quietTime = 0.0;
     Vec3List anchor;
@@ -216,18 +205,11 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
     if (version >= 3) {
         asleep = r.pod<std::uint8_t>("the sleep flag") != 0;
         quietTime = r.pod<double>("the quiet time");
-        if (!std::isfinite(quietTime) || quietTime < 0.0)
-            throw Error(ErrorCode::NonFinite, "snapshot holds an invalid quiet time");
         if (r.pod<std::uint8_t>("the anchor flag") != 0) {
             const auto raw = r.take(std::uint64_t(n) * 3 * sizeof(double), "the sleep anchors");
             anchor.resize(n);
             std::memcpy(static_cast<void*>(anchor.data()), raw.data(), raw.size());
-            for (const Vec3& a : anchor)
-                if (!a.allFinite())
-                    throw Error(ErrorCode::NonFinite, "snapshot holds a non-finite sleep anchor");
         }
-        if (asleep && anchor.empty())
-            throw Error(ErrorCode::InvalidArgument, "snapshot is asleep without sleep anchors");
         const auto count = r.pod<std::uint32_t>("the stage count");
         if (count > kMaxStages)
             throw Error(ErrorCode::InvalidArgument,
@@ -246,6 +228,22 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
             throw Error(ErrorCode::InvalidArgument,
                         "snapshot has " + std::to_string(r.end - r.pos) + " bytes after its end");
     }
+    // The cloth's state, checked before anything changes (Cloth::checkState). An older
+    // snapshot holds no sleep: the cloth is awake and its quiet count restarts.
+    ClothState st;
+    st.x = std::move(x);
+    st.v = std::move(v);
+    st.f = std::move(f);
+    st.forcesValid = valid != 0;
+    st.pinned = std::move(pinned);
+    st.time = time;
+    st.steps = steps;
+    if (version >= 3) {
+        st.asleep = asleep;
+        st.quietTime = quietTime;
+        st.anchor = std::move(anchor);
+    }
+    cloth.checkState(st, lambda);
     // The stages take their states first: a stage that refuses its bytes throws before the
     // cloth changes. A stage of this cloth the snapshot does not name starts afresh (empty
     // state); a state whose stage this cloth lacks is ignored (a snapshot taken in a world
@@ -266,21 +264,7 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
             throw Error(e.code(), "snapshot state of stage '" + name + "': " + e.what());
         }
     }
-    // Commit: nothing above modified the cloth's own state. (An older snapshot holds no sleep:
-    // the cloth is awake and its quiet count restarts.)
-    ClothState st;
-    st.x = std::move(x);
-    st.v = std::move(v);
-    st.f = std::move(f);
-    st.forcesValid = valid != 0;
-    st.pinned = std::move(pinned);
-    st.time = time;
-    st.steps = steps;
-    if (version >= 3) {
-        st.asleep = asleep;
-        st.quietTime = quietTime;
-        st.anchor = std::move(anchor);
-    }
+    // Commit: nothing above modified the cloth's own state.
     cloth.restoreState(std::move(st), std::move(lambda));
 }
 

@@ -5,6 +5,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -307,6 +308,21 @@ TEST_CASE("a crafted snapshot with a valid checksum but impossible lengths is re
     const std::uint32_t count = 0x80000000u;
     std::memcpy(many.data() + stageCount, &count, 4);
     CHECK_THROWS_WITH(loadSnapshot(*fresh, reseal(many)), Catch::Contains("stages"));
+    // A NaN position with a valid checksum: refused by name before the stages take their
+    // states (Cloth::checkState), so the stage keeps its count.
+    auto nan = good;
+    const double x0 = cloth->positions()[0].x();
+    const auto at = std::search(nan.begin(), nan.end(), reinterpret_cast<const unsigned char*>(&x0),
+                                reinterpret_cast<const unsigned char*>(&x0) + 8);
+    REQUIRE(at != nan.end());
+    const double bad = std::nan("");
+    std::memcpy(&*at, &bad, 8);
+    auto stage = std::make_shared<CountingStage>();
+    stage->runs = 7;
+    auto target = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+    target->addStage(stage);
+    CHECK_THROWS_WITH(loadSnapshot(*target, reseal(nan)), Catch::Contains("x of particle 0"));
+    CHECK(stage->runs == 7);
     // The untouched file still loads (the offsets above are the real ones).
     CHECK_NOTHROW(loadSnapshot(*fresh, reseal(good)));
 }

@@ -210,12 +210,15 @@ class Cloth {
     /// The state a step carries to the next (ClothState).
     const ClothState& state() const { return state_; }
     /// Puts back a state read from this cloth or one with the same topology, and the limiter's
-    /// warm start (one value per spring, >= 0, or empty for none): every size and value is
-    /// checked first (drape::Error InvalidArgument or NonFinite naming the bad one, the cloth
-    /// unchanged). The inverse
-    /// masses follow `pinned` (kinematic paths and targets are not part of the state); a cloth
-    /// whose sleep is off stays awake.
+    /// warm start (one value per spring, >= 0, or empty for none), after checkState (the cloth
+    /// unchanged when it throws). The inverse masses follow `pinned` (kinematic paths and
+    /// targets are not part of the state); a cloth whose sleep is off stays awake.
     void restoreState(ClothState state, std::vector<double> warmStart);
+    /// Throws drape::Error (InvalidArgument or NonFinite, naming it) unless `state` and
+    /// `warmStart` fit this cloth: every size, finite values, a quiet time >= 0, sleep anchors
+    /// when asleep, a warm start >= 0. What restoreState checks, for a caller that must know
+    /// before it changes anything else (loadSnapshot, before its stages take their states).
+    void checkState(const ClothState& state, const std::vector<double>& warmStart) const;
     /// The caller's stages, in the order they run (addStage).
     const std::vector<std::shared_ptr<ClothStage>>& stages() const { return stages_; }
 
