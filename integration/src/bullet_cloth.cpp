@@ -125,6 +125,35 @@ Registry& registry() {
 }
 } // namespace
 
+namespace {
+/// The world's threads as a cloth's Executor: a oneTBB arena of `threads` (the calling thread
+/// included) in which the world's cloths take their steps, one task each, and the loops of a
+/// cloth that asks for threads run as nested parallel_for (work stealing shares the arena's
+/// threads between both levels). A loop of fewer than two grains runs on the calling thread.
+class ArenaExecutor final : public Executor {
+  public:
+    explicit ArenaExecutor(int threads) : arena_(threads), threads_(threads) {}
+    int concurrency() const override { return threads_; }
+    void parallelFor(std::size_t n, std::size_t grain, const Body& body) override {
+        grain = std::max<std::size_t>(grain, 1);
+        if (n < 2 * grain) {
+            if (n > 0) body(0, n);
+            return;
+        }
+        arena_.execute([&] {
+            tbb::parallel_for(
+                tbb::blocked_range<std::size_t>(0, n, grain),
+                [&](const tbb::blocked_range<std::size_t>& r) { body(r.begin(), r.end()); });
+        });
+    }
+    tbb::task_arena& arena() { return arena_; }
+
+  private:
+    tbb::task_arena arena_;
+    int threads_;
+};
+} // namespace
+
 struct BulletCloth::Impl {
     class Stepper;
     class Stage;
@@ -156,6 +185,8 @@ struct BulletCloth::Impl {
     std::vector<unsigned char> bodyFound;
     /// The action that steps the world's cloths (shared by every cloth of the world).
     std::shared_ptr<Stepper> stepper;
+    /// The world's executor this handle gave the cloth (Stepper::lendExecutor), null if none.
+    std::shared_ptr<Executor> lent;
     std::shared_ptr<Stage> stage;
     /// Timer slot in the cloth's PhaseTimers of the handle's work around the cloth's steps
     /// (body snapshot, proxy, impulses on bodies).
@@ -243,15 +274,15 @@ class BulletCloth::Impl::Stepper final : public btActionInterface {
         };
         int threads = 1;
         for (const Impl* c : cloths)
-            threads = std::max(threads, c->settings.threads);
+            threads = std::max({threads, c->settings.threads, c->cloth->settings().threads});
         // No more than the machine has (oneTBB would refuse the extra workers, with a warning).
         threads = std::min(threads, tbb::info::default_concurrency());
+        if (threads > 1 && (!executor_ || executor_->concurrency() != threads))
+            executor_ = std::make_shared<ArenaExecutor>(threads);
+        for (Impl* c : cloths)
+            lendExecutor(*c);
         if (threads > 1 && n > 1) {
-            if (!arena_ || arenaThreads_ != threads) {
-                arena_ = std::make_unique<tbb::task_arena>(threads);
-                arenaThreads_ = threads;
-            }
-            arena_->execute([&] {
+            executor_->arena().execute([&] {
                 tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1),
                                   [&](const tbb::blocked_range<std::size_t>& r) {
                                       for (std::size_t k = r.begin(); k != r.end(); ++k)
@@ -279,10 +310,26 @@ class BulletCloth::Impl::Stepper final : public btActionInterface {
             c->draw(drawer);
     }
 
+    /// Gives a cloth that asks for threads of its own (ClothSettings::threads > 1) and has no
+    /// executor of its caller the world's, so that its loops and the world's cloths share one
+    /// set of threads; takes it back when the world has none (any more).
+    void lendExecutor(Impl& c) const {
+        Cloth& cloth = *c.cloth;
+        const bool ours = c.lent && cloth.executor() == c.lent.get();
+        if (!ours && cloth.hasCallerExecutor()) return; // the caller's own choice
+        const std::shared_ptr<Executor> want =
+            cloth.settings().threads > 1 && executor_ && executor_->concurrency() > 1
+                ? std::shared_ptr<Executor>(executor_)
+                : nullptr;
+        if (ours && want == c.lent) return;
+        if (!ours && !want) return;
+        cloth.setExecutor(want);
+        c.lent = want;
+    }
+
   private:
     std::vector<std::exception_ptr> errors_;
-    std::unique_ptr<tbb::task_arena> arena_;
-    int arenaThreads_ = 0;
+    std::shared_ptr<ArenaExecutor> executor_; ///< the world's threads (more than one)
 };
 
 namespace {
@@ -341,6 +388,8 @@ void BulletCloth::Impl::leaveStepper(bool worldAlive) {
             stepper->inWorld = false;
         }
     }
+    if (lent && cloth->executor() == lent.get()) cloth->setExecutor(nullptr);
+    lent.reset();
     stepper.reset();
 }
 

@@ -200,11 +200,12 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     state_.pinned.assign(state_.x.size(), 0);
     if (settings_.threads > 1)
         poolStorage_ = std::make_unique<detail::ThreadPool>(settings_.threads);
+    loops_ = poolStorage_.get();
     std::vector<double> stiffness = buildStiffness(*topology_, settings_, mass);
     // The masses live in the force model (gravity reads them); masses() returns its copy.
     forceModel_ = std::make_unique<ForceModel>(topology_, std::move(stiffness), std::move(mass),
-                                               settings_, timers_, poolStorage_.get());
-    limiter_.setPool(poolStorage_.get());
+                                               settings_, timers_, loops_);
+    limiter_.setExecutor(loops_);
     integrator_ = makeIntegrator(settings_.integrator, settings_.implicit);
     integrator_->bind(*forceModel_);
     for (const Stage& st : kStages)
@@ -446,9 +447,9 @@ void Cloth::stepOnce(double dt) {
     // Reactions on held particles are worth recording only where a body may take them: the
     // kinematic (attached) ones (see constraintImpulses()).
     limiter_.setRecordHeld(!kinematic_.empty());
-    StepContext ctx{dt, false, 0.0, 0.0,
-                    IntegratorContext{state_.x, state_.v, state_.f, invMass_, dt, *forceModel_,
-                                      poolStorage_.get()}};
+    StepContext ctx{
+        dt, false, 0.0, 0.0,
+        IntegratorContext{state_.x, state_.v, state_.f, invMass_, dt, *forceModel_, loops_}};
     // Energy can only grow through wind, user forces, kinematic particles and stages
     // (contacts with moving bodies): check it only without those sources.
     ctx.checkEnergy = settings_.failure.maxEnergyGrowth.has_value() && kinematic_.empty() &&
@@ -992,6 +993,15 @@ void Cloth::setContacts(std::shared_ptr<ContactSet> contacts) {
     forceModel_->setContacts(std::move(contacts));
     state_.forcesValid = false;
     edited();
+}
+
+void Cloth::setExecutor(std::shared_ptr<Executor> executor) {
+    if (inStep_)
+        throw Error(ErrorCode::InvalidArgument, "Cloth::setExecutor: not allowed during a step");
+    executor_ = std::move(executor);
+    loops_ = executor_ ? executor_.get() : poolStorage_.get();
+    forceModel_->setExecutor(loops_);
+    limiter_.setExecutor(loops_);
 }
 
 void Cloth::addStage(std::shared_ptr<ClothStage> stage) {

@@ -167,9 +167,9 @@ double springEnergy(const std::vector<Spring>& springs, const std::vector<double
 
 ForceModel::ForceModel(TopologyPtr topology, std::vector<double> stiffness,
                        std::vector<double> mass, const ClothSettings& settings, PhaseTimers& timers,
-                       detail::ThreadPool* pool)
+                       Executor* executor)
     : topology_(std::move(topology)), stiffness_(std::move(stiffness)), mass_(std::move(mass)),
-      settings_(settings), timers_(timers), pool_(pool) {
+      settings_(settings), timers_(timers), executor_(executor) {
     if (!stiffness_.empty() && std::all_of(stiffness_.begin(), stiffness_.end(),
                                            [&](double k) { return k == stiffness_[0]; })) {
         uniformStiffness_ = stiffness_[0];
@@ -286,7 +286,7 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
     // (eq. (8)), or zero, are set here: one pass over the particles instead of three. (The sum
     // is then formed in another order than term by term: results agree to rounding.)
     if (!blockedFamilies_) {
-        detail::forChunks(pool_, n,
+        detail::forChunks(executor_, n,
                           [&](std::size_t b, std::size_t e) { startForces(start, b, e, f); });
     }
     for (const Entry& e : pipeline_) {
@@ -316,8 +316,8 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
                 for (std::size_t k = b; k < end; ++k)
                     range(k);
             };
-            if (pool_) {
-                pool_->parallelFor(nb, blockRange, 1);
+            if (executor_) {
+                executor_->parallelFor(nb, 1, blockRange);
             } else {
                 blockRange(0, nb);
             }
@@ -484,7 +484,7 @@ void ForceModel::addFamilySpringForces(const Vec3List& x, const ForceStart& star
     const std::size_t span = block + 2 * maxOffset; // positions a block reads
     const double* rest = topology_->springLayout().slotRest.data();
     const double* kSlot = slotStiffness_.data();
-    detail::forChunks(pool_, n, [&](std::size_t b, std::size_t e) {
+    detail::forChunks(executor_, n, [&](std::size_t b, std::size_t e) {
         if (b >= e) return;
         // Per thread: the block's sums, its positions, then for each family three coordinate
         // runs of block + offset slot forces (index k holds the slot starting at particle
@@ -585,10 +585,10 @@ void ForceModel::addFamilySpringForcesWhole(const Vec3List& x, Vec3List& f) {
     const std::size_t slots = topology_->springLayout().slotSpring.size();
     soaF_.resize(3 * n);
     slotF_.resize(3 * slots);
-    detail::toCoordinateArrays(pool_, x, soaX_);
+    detail::toCoordinateArrays(executor_, x, soaX_);
     const double* rest = topology_->springLayout().slotRest.data();
     const double* kSlot = slotStiffness_.data();
-    detail::forChunks(pool_, slots, [&](std::size_t b, std::size_t e) {
+    detail::forChunks(executor_, slots, [&](std::size_t b, std::size_t e) {
         const double* px = soaX_.data();
         const double* py = px + n;
         const double* pz = py + n;
@@ -614,7 +614,7 @@ void ForceModel::addFamilySpringForcesWhole(const Vec3List& x, Vec3List& f) {
             familySlotForces(m, ax, ay, az, bx, by, bz, k, l0, ox, oy, oz);
         }
     });
-    detail::forChunks(pool_, n, [&](std::size_t b, std::size_t e) {
+    detail::forChunks(executor_, n, [&](std::size_t b, std::size_t e) {
         for (std::size_t c = 0; c < 3; ++c) {
             double* out = soaF_.data() + c * n;
             const double* in = slotF_.data() + c * slots;
@@ -723,8 +723,8 @@ void ForceModel::applySpringDampingFlow(const Vec3List& x, Vec3List& v,
             for (std::size_t k = b; k < end; ++k)
                 range(k);
         };
-        if (pool_) {
-            pool_->parallelFor(nb, body, 1);
+        if (executor_) {
+            executor_->parallelFor(nb, 1, body);
         } else {
             body(0, nb);
         }

@@ -16,17 +16,17 @@
 namespace drape {
 namespace {
 
-/// Runs body(i) for every particle, on the context's pool when it has one.
+/// Runs body(i) for every particle, on the context's executor when it has one.
 template <class Body> void forParticles(IntegratorContext& c, Body body) {
-    detail::forChunks(c.pool, c.x.size(), [&](std::size_t b, std::size_t e) {
+    detail::forChunks(c.executor, c.x.size(), [&](std::size_t b, std::size_t e) {
         for (std::size_t i = b; i < e; ++i)
             body(i);
     });
 }
 
-/// Runs body(begin, end) over chunks of the particles, on the context's pool when it has one.
+/// Runs body(begin, end) over chunks of the particles, on the context's executor when it has one.
 template <class Body> void forRanges(IntegratorContext& c, Body body) {
-    detail::forChunks(c.pool, c.x.size(), body);
+    detail::forChunks(c.executor, c.x.size(), body);
 }
 
 /// exp(-C_d dt / (2 m)) of an inverse mass w (cdh = C_d dt / 2), computed again only when w

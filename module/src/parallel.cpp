@@ -22,9 +22,7 @@ ThreadPool::~ThreadPool() {
         w.join();
 }
 
-void ThreadPool::parallelFor(std::size_t n,
-                             const std::function<void(std::size_t, std::size_t)>& body,
-                             std::size_t grain) {
+void ThreadPool::parallelFor(std::size_t n, std::size_t grain, const Body& body) {
     const std::size_t maxChunks = std::min<std::size_t>(
         threads(), std::max<std::size_t>(1, n / std::max<std::size_t>(grain, 1)));
     if (maxChunks <= 1) {

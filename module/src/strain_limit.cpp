@@ -469,7 +469,7 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology,
     ratio2_.resize(slotSpring.size());
     // Both passes split over threads by particle and by slot (each value written by one piece):
     // the same ratios for any thread count.
-    detail::toCoordinateArrays(pool_, x, soa_);
+    detail::toCoordinateArrays(executor_, x, soa_);
     // The slots in segments: each measures its slots, their largest ratio and whether any is
     // beyond the band (four running maxima: one chain of maxima would make every slot wait for
     // the one before it). Segments run on any thread; the largest ratio is exact whatever the
@@ -496,8 +496,8 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology,
             segmentWorst_[sg] = largestRatio(r2 + b, e - b);
         }
     };
-    if (pool_) {
-        pool_->parallelFor(segments, measure, 2);
+    if (executor_) {
+        executor_->parallelFor(segments, 2, measure);
     } else {
         measure(0, segments);
     }

@@ -68,16 +68,19 @@ template <class Call> double timePerCall(Call&& call) {
 
 int main(int argc, char** argv) {
     int threads = 2, repetitions = 11;
+    std::size_t grain = 32768; // the pool's default (parallel.hpp)
     CLI::App app{"drape-bench-pool: the core's thread pool against oneTBB on the same loops"};
     app.add_option("--threads", threads, "threads (the caller's included)")
         ->check(CLI::Range(2, 64));
     app.add_option("--repetitions", repetitions, "alternating repetitions (median)")
         ->check(CLI::Range(1, 99));
+    app.add_option("--grain", grain,
+                   "the pool's grain: fewest particles a thread (32768: its default)")
+        ->check(CLI::Range(16, 1 << 24));
     CLI11_PARSE(app, argc, argv);
 
     drape::detail::ThreadPool pool(threads);
     tbb::task_arena arena(threads);
-    const std::size_t grain = 32768; // the pool's default (parallel.hpp)
     std::printf("threads %d, grain %zu, %d repetitions (median), us per call\n\n", threads, grain,
                 repetitions);
     std::printf(
@@ -101,7 +104,7 @@ int main(int argc, char** argv) {
                                       });
                 });
             }));
-            p.push_back(timePerCall([&] { pool.parallelFor(n, body, grain); }));
+            p.push_back(timePerCall([&] { pool.parallelFor(n, grain, body); }));
             t.push_back(timePerCall([&] {
                 arena.execute([&] {
                     if (usedThreads == 1) {

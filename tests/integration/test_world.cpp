@@ -8,6 +8,8 @@
 
 #include <catch2/catch.hpp>
 
+#include <thread>
+
 using namespace drape;
 using namespace drape::testing;
 
@@ -279,6 +281,47 @@ TEST_CASE("the cloths of a world stepped on several threads end bit-identical to
         INFO(threads << " threads: " << differ << " of " << one.size() << " vectors differ");
         CHECK(differ == 0);
     }
+}
+
+TEST_CASE("a cloth that asks for threads runs its loops on the world's threads, same bits",
+          "[world][determinism][threads]") {
+    // 260 x 260 particles: every loop long enough to be split (drape/executor.hpp's grain).
+    auto run = [](int threads) {
+        TestWorld w;
+        w.body(w.shape<btSphereShape>(btScalar(0.5)), 0.0, Vec3(0, 0, 0));
+        ClothSettings cs = softCloth();
+        cs.particleMass = 1e-3;
+        cs.threads = threads;
+        auto cloth = makeCloth(horizontalSheet(260, 260, 0.01, 0.52), cs);
+        Executor* own = cloth->executor();
+        CHECK((own != nullptr) == (threads > 1)); // its own pool
+        bullet::BulletClothSettings bs;
+        bs.threads = threads;
+        bullet::BulletCloth& handle = w.add(cloth, bs);
+        for (int k = 0; k < 3; ++k)
+            w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+        if (threads > 1 && std::thread::hardware_concurrency() > 1) {
+            // The world's arena, not the cloth's pool: one set of threads for both levels.
+            CHECK(cloth->hasCallerExecutor());
+            CHECK(cloth->executor() != own);
+            CHECK(cloth->executor()->concurrency() == threads);
+        }
+        CHECK(handle.lastStats().candidateBodies > 0); // it met the sphere
+        std::vector<Vec3> state(cloth->positions());
+        state.insert(state.end(), cloth->velocities().begin(), cloth->velocities().end());
+        // Taken out of the world, the cloth has its own pool again.
+        w.cloths.clear();
+        CHECK(cloth->executor() == own);
+        CHECK_FALSE(cloth->hasCallerExecutor());
+        return state;
+    };
+    const auto one = run(1);
+    const auto two = run(2);
+    REQUIRE(one.size() == two.size());
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < one.size(); ++i)
+        differ += one[i] != two[i]; // exact equality
+    CHECK(differ == 0);
 }
 
 TEST_CASE("a cloth that fails in a parallel world step: the others step, its error is thrown",

@@ -10,6 +10,8 @@
 #include <cstdio>
 #include <cstring>
 #include <memory>
+#include <thread>
+#include <vector>
 
 using namespace drape;
 
@@ -192,16 +194,26 @@ TEST_CASE("a step that blows up throws and leaves the last good state", "[blowup
         CHECK(x.allFinite());
 }
 
+namespace {
+/// A square sheet of n x n particles.
+SheetSpec squareSheet(Index n, double spacing) {
+    SheetSpec spec;
+    spec.rows = n;
+    spec.cols = n;
+    spec.spacing = spacing;
+    return spec;
+}
+/// The integrators whose particle loops are split over threads.
+constexpr IntegratorKind kSplitIntegrators[] = {
+    IntegratorKind::VelocityVerlet, IntegratorKind::SymplecticEuler, IntegratorKind::RungeKutta4};
+} // namespace
+
 TEST_CASE("one and two threads give bit-identical states", "[determinism][threads]") {
     // 300 x 300 particles: above the size where the pool splits loops (32768 per thread), so
     // the second thread's range starts inside the sheet.
-    SheetSpec spec;
-    spec.rows = 300;
-    spec.cols = 300;
-    spec.spacing = 0.01;
+    const SheetSpec spec = squareSheet(300, 0.01);
     const TopologyPtr topo = ClothTopology::build(makeSheet(spec));
-    for (auto integrator : {IntegratorKind::VelocityVerlet, IntegratorKind::SymplecticEuler,
-                            IntegratorKind::RungeKutta4}) {
+    for (auto integrator : kSplitIntegrators) {
         std::uint64_t hashes[2] = {0, 0};
         for (int threads = 1; threads <= 2; ++threads) {
             ClothSettings s;
@@ -220,6 +232,70 @@ TEST_CASE("one and two threads give bit-identical states", "[determinism][thread
         INFO(toString(integrator));
         CHECK(hashes[0] == hashes[1]);
     }
+}
+
+namespace {
+/// An executor that splits every loop into pieces of 97 elements whatever its grain, runs them
+/// last piece first, and the odd ones on a second thread: any split and order must give the
+/// same bits (drape/executor.hpp).
+class ScatteringExecutor final : public Executor {
+  public:
+    int concurrency() const override { return 2; }
+    void parallelFor(std::size_t n, std::size_t, const Body& body) override {
+        ++loops;
+        const std::size_t pieces = (n + 96) / 97;
+        std::vector<std::size_t> odd;
+        for (std::size_t k = pieces; k-- > 0;)
+            if (k % 2 == 1) odd.push_back(k);
+        std::thread other([&] {
+            for (std::size_t k : odd)
+                body(97 * k, std::min(n, 97 * (k + 1)));
+        });
+        for (std::size_t k = pieces; k-- > 0;)
+            if (k % 2 == 0) body(97 * k, std::min(n, 97 * (k + 1)));
+        other.join();
+    }
+    std::size_t loops = 0;
+};
+} // namespace
+
+TEST_CASE("a caller's executor runs the step's loops with the same bits as one thread",
+          "[determinism][threads]") {
+    const SheetSpec spec = squareSheet(40, 0.02);
+    const TopologyPtr topo = ClothTopology::build(makeSheet(spec));
+    for (auto integrator : kSplitIntegrators) {
+        INFO(toString(integrator));
+        ClothSettings s;
+        s.integrator = integrator;
+        s.springDamping = 0.01; // the damping sweep's blocks go through the executor too
+        auto run = [&](const std::shared_ptr<ScatteringExecutor>& executor) {
+            Cloth cloth(topo, s);
+            cloth.pin(sheetIndex(spec, 0, 0));
+            cloth.pin(sheetIndex(spec, 0, spec.cols - 1));
+            cloth.setExecutor(executor);
+            CHECK(cloth.hasCallerExecutor() == (executor != nullptr));
+            CHECK(cloth.executor() == executor.get());
+            for (int i = 0; i < 60; ++i)
+                cloth.step(1.0 / 60.0);
+            return stateHash(cloth);
+        };
+        const std::uint64_t alone = run(nullptr);
+        auto executor = std::make_shared<ScatteringExecutor>();
+        const std::uint64_t scattered = run(executor);
+        CHECK(executor->loops > 60); // it ran the loops (several a step)
+        CHECK(scattered == alone);
+    }
+    // Null gives the loops back to the cloth's own pool (threads > 1) or to this thread.
+    ClothSettings two;
+    two.threads = 2;
+    Cloth cloth(topo, two);
+    Executor* own = cloth.executor();
+    REQUIRE(own != nullptr);
+    cloth.setExecutor(std::make_shared<ScatteringExecutor>());
+    CHECK(cloth.executor() != own);
+    cloth.setExecutor(nullptr);
+    CHECK(cloth.executor() == own);
+    CHECK_FALSE(cloth.hasCallerExecutor());
 }
 
 namespace {

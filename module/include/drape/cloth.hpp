@@ -25,6 +25,7 @@
 #pragma once
 
 #include "drape/contacts.hpp"
+#include "drape/executor.hpp"
 #include "drape/forces.hpp"
 #include "drape/integrators.hpp"
 #include "drape/settings.hpp"
@@ -179,6 +180,18 @@ class Cloth {
     /// force each record got, which the caller passes on to its bodies after the step. Null
     /// removes the term.
     void setContacts(std::shared_ptr<ContactSet> contacts);
+
+    // --- threads --------------------------------------------------------------------------
+    /// Runs the step's data-parallel loops (springs, gravity, damping, integration, the
+    /// limiter's scan) on `executor` (drape/executor.hpp) from the next step on, instead of the
+    /// cloth's own pool (ClothSettings::threads); null goes back to that pool (or to the
+    /// calling thread when threads is 1). The cloth shares ownership. Results are bit-identical
+    /// for any executor and thread count. Not during a step (drape::Error InvalidArgument).
+    void setExecutor(std::shared_ptr<Executor> executor);
+    /// The executor the loops run on: the caller's, the cloth's own pool, or null (this thread).
+    Executor* executor() const { return loops_; }
+    /// Whether the loops run on an executor given with setExecutor.
+    bool hasCallerExecutor() const { return executor_ != nullptr; }
 
     // --- stages ---------------------------------------------------------------------------
     void addStage(std::shared_ptr<ClothStage> stage);
@@ -356,7 +369,9 @@ class Cloth {
         Vec3 at(double t) const;
     };
     std::vector<Kinematic> kinematic_;
-    std::unique_ptr<detail::ThreadPool> poolStorage_;
+    std::unique_ptr<detail::ThreadPool> poolStorage_; ///< ClothSettings::threads > 1
+    std::shared_ptr<Executor> executor_;              ///< the caller's (setExecutor)
+    Executor* loops_ = nullptr; ///< executor_, else poolStorage_, else null (this thread)
     std::unique_ptr<ForceModel> forceModel_;
     std::unique_ptr<Integrator> integrator_;
     std::vector<std::shared_ptr<ClothStage>> stages_;

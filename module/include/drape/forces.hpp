@@ -17,9 +17,9 @@
 namespace drape {
 
 struct ContactSet; // drape/contacts.hpp
+class Executor;    // drape/executor.hpp
 
 namespace detail {
-class ThreadPool;
 struct PackedSprings; // spring_layout.hpp
 } // namespace detail
 
@@ -66,11 +66,13 @@ class ForceModel {
     /// stage, for example): called with (x, v, f) and adds to f.
     using ExternalForce = std::function<void(const Vec3List& x, const Vec3List& v, Vec3List& f)>;
 
-    /// `pool` (may be null) runs the spring, gravity and damping terms on several threads;
-    /// the result is bit-identical for any number of threads.
+    /// `executor` (may be null: this thread) runs the spring, gravity and damping terms on
+    /// several threads; the result is bit-identical for any executor (drape/executor.hpp).
     ForceModel(TopologyPtr topology, std::vector<double> stiffness, std::vector<double> mass,
-               const ClothSettings& settings, PhaseTimers& timers,
-               detail::ThreadPool* pool = nullptr);
+               const ClothSettings& settings, PhaseTimers& timers, Executor* executor = nullptr);
+
+    /// The executor later evaluations split their loops on (null: this thread).
+    void setExecutor(Executor* executor) { executor_ = executor; }
 
     /// f = sum of all active terms at state (x, v).
     void evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f);
@@ -149,7 +151,7 @@ class ForceModel {
     std::vector<std::pair<std::string, ExternalForce>> externals_;
     std::shared_ptr<ContactSet> contacts_;
     std::vector<Entry> pipeline_;
-    detail::ThreadPool* pool_ = nullptr;
+    Executor* executor_ = nullptr;
     /// The stiffness of each spring of the layout's packedLoose, in its order (empty when every
     /// spring has the same); the layout itself is the topology's, built once.
     std::vector<double> looseStiffness_;

@@ -33,7 +33,7 @@ struct IntegratorContext {
     const std::vector<double>& invMass; ///< 1/m, 0 for pinned and kinematic particles [1/kg]
     double dt;                          ///< time step [s]
     ForceModel& forces;                 ///< for integrators that evaluate forces more than once
-    detail::ThreadPool* pool = nullptr; ///< splits particle loops over threads when set
+    Executor* executor = nullptr; ///< splits particle loops over threads when set (executor.hpp)
     /// Set by finish() when it found a non-finite value in x, v or f while it passed over them
     /// (integrators whose finish() does not look leave it false: the caller checks).
     bool nonFiniteSeen = false;

@@ -272,10 +272,13 @@ struct ClothSettings {
     SubstepSettings substeps;            ///< automatic sub-steps of Cloth::step; on by default
     SelfCollisionSettings selfCollision; ///< the cloth against itself; off by default
 
-    /// Threads a step may use (>= 1, the caller's included). Springs, gravity, damping and
-    /// the explicit integrators' particle loops are split over them; results are
-    /// bit-identical for any thread count. Worth it from about 1e4 particles; smaller loops
-    /// run on the calling thread only. The limiters and aerodynamics run on one thread.
+    /// Threads a step may use (>= 1, the caller's included). Springs, gravity, damping, the
+    /// explicit integrators' particle loops and the limiter's scan are split over them; results
+    /// are bit-identical for any thread count. Worth it from about 1e4 particles; smaller
+    /// loops run on the calling thread only. The limiter's walk and aerodynamics run on one
+    /// thread. With more than 1 the cloth starts a small pool of its own; a program that owns
+    /// threads gives the cloth an Executor over them instead (Cloth::setExecutor), and a
+    /// drape::bullet world gives it the world's (BulletClothSettings::threads).
     int threads = 1;
 
     /// Refuse (drape::Error UnstableTimeStep) a step whose dt exceeds the explicit

@@ -16,9 +16,7 @@
 #include <vector>
 
 namespace drape {
-namespace detail {
-class ThreadPool;
-}
+class Executor; // drape/executor.hpp
 
 struct LimiterSettings;
 
@@ -356,7 +354,7 @@ class StrainLimiter {
     /// than they save).
     static constexpr std::size_t kMaxApartPins = 512;
     /// Threads for the scan of every spring (the walk itself is sequential); null: this thread.
-    void setPool(detail::ThreadPool* pool) { pool_ = pool; }
+    void setExecutor(Executor* executor) { executor_ = executor; }
     /// Runs one step's limiter on x. The long-range attachments are recomputed whenever the
     /// set of zero-inverse-mass particles differs from the last call's (the slack is applied
     /// per step: it may change from step to step at no cost).
@@ -586,7 +584,7 @@ class StrainLimiter {
     std::vector<Index> heldIndex_;
     std::vector<Vec3> heldPull_; ///< per particle (nonzero for heldIndex_ only) [kg m]
     AnchorField anchors_;
-    detail::ThreadPool* pool_ = nullptr;
+    Executor* executor_ = nullptr;
     std::vector<double> soa_;    ///< scan scratch: x of every particle, then y, then z
     std::vector<double> ratio2_; ///< scan scratch: (l / L0)^2 per family slot
     /// The scan's segments of kScanSegment slots and the largest ratio of each.
