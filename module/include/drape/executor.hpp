@@ -28,9 +28,12 @@ class Executor {
 
     /// Calls body(begin, end) on contiguous pieces that cover [0, n) exactly once, on any of the
     /// executor's threads, and returns when every piece has run. `grain` is the fewest elements
-    /// the cloth wants in a piece: a loop of fewer than two grains is best run as one call on
-    /// the calling thread. Called only from the thread that steps the cloth (or from a task the
-    /// executor itself runs); must not throw unless body throws.
+    /// the cloth wants in a piece when its threads must be woken for the loop (the cloth's own
+    /// pool: 32768 for the per-particle passes, 1 for loops over blocks of springs); an
+    /// executor whose threads stay ready between loops may cut pieces a few times smaller
+    /// (drape::bullet's arena takes an eighth). A loop of fewer than two pieces is best run as
+    /// one call on the calling thread. Called only from the thread that steps the cloth (or
+    /// from a task the executor itself runs); must not throw unless body throws.
     virtual void parallelFor(std::size_t n, std::size_t grain, const Body& body) = 0;
 };
 
