@@ -130,7 +130,9 @@ namespace {
 /// included) in which the world's cloths take their steps, one task each, and the loops of a
 /// cloth that asks for threads run as nested parallel_for (work stealing shares the arena's
 /// threads between both levels). A loop of fewer than two of its pieces runs on the calling
-/// thread.
+/// thread. A cloth's loop is isolated: a thread that waits for its pieces takes no other
+/// cloth's step meanwhile (which would hold this cloth's step, and its timers, until that one
+/// ended).
 class ArenaExecutor final : public Executor {
   public:
     static constexpr std::size_t kReadyDivisor = 8;
@@ -139,17 +141,19 @@ class ArenaExecutor final : public Executor {
     void parallelFor(std::size_t n, std::size_t grain, const Body& body) override {
         // The core's grains are set for its own pool, whose workers sleep between steps; the
         // arena's stay ready, and pieces 8 times smaller pay (drape-bench-cloths, one cloth
-        // with ClothSettings::threads 2: 180 x 180 0.93 -> 1.15x, 250 x 250 1.02 -> 1.27x the
-        // one-thread speed; samples/benchmarks/PERF.md).
+        // with ClothSettings::threads 2: 180 x 180 0.94 -> 1.17-1.22x, 250 x 250 1.03 -> 1.27x
+        // the one-thread speed; samples/benchmarks/PERF.md).
         grain = std::max<std::size_t>(grain / kReadyDivisor, 1);
         if (n < 2 * grain) {
             if (n > 0) body(0, n);
             return;
         }
         arena_.execute([&] {
-            tbb::parallel_for(
-                tbb::blocked_range<std::size_t>(0, n, grain),
-                [&](const tbb::blocked_range<std::size_t>& r) { body(r.begin(), r.end()); });
+            tbb::this_task_arena::isolate([&] {
+                tbb::parallel_for(
+                    tbb::blocked_range<std::size_t>(0, n, grain),
+                    [&](const tbb::blocked_range<std::size_t>& r) { body(r.begin(), r.end()); });
+            });
         });
     }
     tbb::task_arena& arena() { return arena_; }
@@ -158,6 +162,12 @@ class ArenaExecutor final : public Executor {
     tbb::task_arena arena_;
     int threads_;
 };
+
+/// Whether `e` is a world's arena lent to a cloth (by any world's stepper, a destroyed one's
+/// included), not an executor of the cloth's program.
+bool isWorldLoan(const Executor* e) {
+    return dynamic_cast<const ArenaExecutor*>(e) != nullptr;
+}
 } // namespace
 
 struct BulletCloth::Impl {
@@ -278,16 +288,28 @@ class BulletCloth::Impl::Stepper final : public btActionInterface {
                 errors_[k] = std::current_exception();
             }
         };
-        int threads = 1;
-        for (const Impl* c : cloths)
-            threads = std::max({threads, c->settings.threads, c->cloth->settings().threads});
-        // No more than the machine has (oneTBB would refuse the extra workers, with a warning).
-        threads = std::min(threads, tbb::info::default_concurrency());
-        if (threads > 1 && (!executor_ || executor_->concurrency() != threads))
-            executor_ = std::make_shared<ArenaExecutor>(threads);
+        // The cloths step in parallel on up to the largest BulletClothSettings::threads; the
+        // arena also serves the loops of the cloths that ask for threads of their own and have
+        // no executor of their program (lendExecutor), so it has the largest of both. No more
+        // than the machine has (oneTBB would refuse the extra workers, with a warning).
+        int worldThreads = 1, arenaThreads = 1;
+        for (const Impl* c : cloths) {
+            worldThreads = std::max(worldThreads, c->settings.threads);
+            arenaThreads = std::max(arenaThreads, c->settings.threads);
+            if (borrows(*c->cloth))
+                arenaThreads = std::max(arenaThreads, c->cloth->settings().threads);
+        }
+        const int machine = tbb::info::default_concurrency();
+        worldThreads = std::min(worldThreads, machine);
+        arenaThreads = std::min(arenaThreads, machine);
+        if (arenaThreads <= 1) {
+            executor_.reset();
+        } else if (!executor_ || executor_->concurrency() != arenaThreads) {
+            executor_ = std::make_shared<ArenaExecutor>(arenaThreads);
+        }
         for (Impl* c : cloths)
             lendExecutor(*c);
-        if (threads > 1 && n > 1) {
+        if (worldThreads > 1 && n > 1) {
             executor_->arena().execute([&] {
                 tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1),
                                   [&](const tbb::blocked_range<std::size_t>& r) {
@@ -316,20 +338,25 @@ class BulletCloth::Impl::Stepper final : public btActionInterface {
             c->draw(drawer);
     }
 
-    /// Gives a cloth that asks for threads of its own (ClothSettings::threads > 1) and has no
-    /// executor of its caller the world's, so that its loops and the world's cloths share one
-    /// set of threads; takes it back when the world has none (any more).
+    /// A cloth that asks for threads of its own and has no executor of its program (a loan of
+    /// a world, this one's or a destroyed one's, may be replaced).
+    static bool borrows(const Cloth& cloth) {
+        return cloth.settings().threads > 1 &&
+               (!cloth.hasCallerExecutor() || isWorldLoan(cloth.executor()));
+    }
+    /// Gives a cloth that borrows the world's executor, so that its loops and the world's
+    /// cloths share one set of threads; takes it back when the world has none (any more).
+    /// Runs on the world's thread before the cloths step.
     void lendExecutor(Impl& c) const {
         Cloth& cloth = *c.cloth;
-        const bool ours = c.lent && cloth.executor() == c.lent.get();
-        if (!ours && cloth.hasCallerExecutor()) return; // the caller's own choice
+        if (cloth.hasCallerExecutor() && !isWorldLoan(cloth.executor())) {
+            c.lent.reset(); // the program's own choice
+            return;
+        }
         const std::shared_ptr<Executor> want =
-            cloth.settings().threads > 1 && executor_ && executor_->concurrency() > 1
-                ? std::shared_ptr<Executor>(executor_)
-                : nullptr;
-        if (ours && want == c.lent) return;
-        if (!ours && !want) return;
-        cloth.setExecutor(want);
+            borrows(cloth) && executor_ ? std::shared_ptr<Executor>(executor_) : nullptr;
+        if (want ? cloth.executor() != want.get() : cloth.hasCallerExecutor())
+            cloth.setExecutor(want);
         c.lent = want;
     }
 
@@ -394,7 +421,15 @@ void BulletCloth::Impl::leaveStepper(bool worldAlive) {
             stepper->inWorld = false;
         }
     }
-    if (lent && cloth->executor() == lent.get()) cloth->setExecutor(nullptr);
+    if (lent && cloth->executor() == lent.get()) {
+        // (Not possible inside the cloth's own step, where a stage destroyed its handle: the
+        // cloth then keeps the loan, which it holds, until another world or the program
+        // replaces it.)
+        try {
+            cloth->setExecutor(nullptr);
+        } catch (const Error&) {
+        }
+    }
     lent.reset();
     stepper.reset();
 }

@@ -198,14 +198,10 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     state_.v.assign(state_.x.size(), Vec3::Zero());
     state_.f.assign(state_.x.size(), Vec3::Zero());
     state_.pinned.assign(state_.x.size(), 0);
-    if (settings_.threads > 1)
-        poolStorage_ = std::make_unique<detail::ThreadPool>(settings_.threads);
-    loops_ = poolStorage_.get();
     std::vector<double> stiffness = buildStiffness(*topology_, settings_, mass);
     // The masses live in the force model (gravity reads them); masses() returns its copy.
     forceModel_ = std::make_unique<ForceModel>(topology_, std::move(stiffness), std::move(mass),
-                                               settings_, timers_, loops_);
-    limiter_.setExecutor(loops_);
+                                               settings_, timers_, nullptr);
     integrator_ = makeIntegrator(settings_.integrator, settings_.implicit);
     integrator_->bind(*forceModel_);
     for (const Stage& st : kStages)
@@ -447,6 +443,7 @@ void Cloth::stepOnce(double dt) {
     // Reactions on held particles are worth recording only where a body may take them: the
     // kinematic (attached) ones (see constraintImpulses()).
     limiter_.setRecordHeld(!kinematic_.empty());
+    bindLoops(true);
     StepContext ctx{
         dt, false, 0.0, 0.0,
         IntegratorContext{state_.x, state_.v, state_.f, invMass_, dt, *forceModel_, loops_}};
@@ -999,9 +996,22 @@ void Cloth::setExecutor(std::shared_ptr<Executor> executor) {
     if (inStep_)
         throw Error(ErrorCode::InvalidArgument, "Cloth::setExecutor: not allowed during a step");
     executor_ = std::move(executor);
-    loops_ = executor_ ? executor_.get() : poolStorage_.get();
-    forceModel_->setExecutor(loops_);
-    limiter_.setExecutor(loops_);
+    bindLoops(false);
+}
+
+void Cloth::bindLoops(bool startPool) {
+    Executor* want = executor_.get();
+    if (!want && settings_.threads > 1) {
+        // The cloth's own pool, started by the first step that needs it (a cloth that is
+        // given an executor before it steps never starts one).
+        if (!poolStorage_ && startPool)
+            poolStorage_ = std::make_unique<detail::ThreadPool>(settings_.threads);
+        want = poolStorage_.get();
+    }
+    if (want == loops_) return;
+    loops_ = want;
+    forceModel_->setExecutor(want);
+    limiter_.setExecutor(want);
 }
 
 void Cloth::addStage(std::shared_ptr<ClothStage> stage) {

@@ -8,7 +8,9 @@
 
 #include <catch2/catch.hpp>
 
-#include <thread>
+#include <oneapi/tbb/info.h>
+
+#include <atomic>
 
 using namespace drape;
 using namespace drape::testing;
@@ -283,36 +285,69 @@ TEST_CASE("the cloths of a world stepped on several threads end bit-identical to
     }
 }
 
-TEST_CASE("a cloth that asks for threads runs its loops on the world's threads, same bits",
+namespace {
+/// A program's own executor: runs every loop as one call on the calling thread, and counts.
+class CountingExecutor final : public Executor {
+  public:
+    int concurrency() const override { return 1; }
+    void parallelFor(std::size_t n, std::size_t, const Body& body) override {
+        ++loops;
+        if (n > 0) body(0, n);
+    }
+    std::atomic<std::size_t> loops{0};
+};
+} // namespace
+
+TEST_CASE("cloths that ask for threads run their loops on the world's threads, same bits",
           "[world][determinism][threads]") {
-    // 260 x 260 particles: every loop long enough to be split (drape/executor.hpp's grain).
-    auto run = [](int threads) {
+    // Two 120 x 120 cloths that ask for threads (their loops split: drape/executor.hpp's
+    // grain, nested in the per-cloth tasks) falling on a sphere, and a small one whose program
+    // gave it an executor of its own, which the world must leave in place.
+    const bool machineHasTwo = tbb::info::default_concurrency() > 1;
+    auto run = [&](int threads) {
         TestWorld w;
         w.body(w.shape<btSphereShape>(btScalar(0.5)), 0.0, Vec3(0, 0, 0));
         ClothSettings cs = softCloth();
         cs.particleMass = 1e-3;
         cs.threads = threads;
-        auto cloth = makeCloth(horizontalSheet(260, 260, 0.01, 0.52), cs);
-        Executor* own = cloth->executor();
-        CHECK((own != nullptr) == (threads > 1)); // its own pool
         bullet::BulletClothSettings bs;
         bs.threads = threads;
-        bullet::BulletCloth& handle = w.add(cloth, bs);
+        std::vector<std::shared_ptr<Cloth>> cloths;
+        for (double cx : {-0.3, 0.3}) {
+            cloths.push_back(makeCloth(horizontalSheet(120, 120, 0.005, 0.52, cx), cs));
+            CHECK(cloths.back()->executor() == nullptr); // no pool before its first step
+            w.add(cloths.back(), bs);
+        }
+        auto own = std::make_shared<CountingExecutor>();
+        auto small = makeCloth(horizontalSheet(9, 9, 0.05, 0.6, 0.0, 0.5), cs);
+        small->setExecutor(own);
+        w.add(small, bs);
         for (int k = 0; k < 3; ++k)
             w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
-        if (threads > 1 && std::thread::hardware_concurrency() > 1) {
-            // The world's arena, not the cloth's pool: one set of threads for both levels.
-            CHECK(cloth->hasCallerExecutor());
-            CHECK(cloth->executor() != own);
-            CHECK(cloth->executor()->concurrency() == threads);
+        CHECK(small->executor() == own.get());
+        CHECK(own->loops > 0);
+        for (const auto& c : cloths) {
+            // The world's arena, one set of threads for both levels (the cloth's own pool was
+            // never started); none on one thread.
+            CHECK(c->hasCallerExecutor() == (threads > 1 && machineHasTwo));
+            if (c->hasCallerExecutor()) CHECK(c->executor()->concurrency() == threads);
+            if (threads == 1) CHECK(c->executor() == nullptr);
         }
-        CHECK(handle.lastStats().candidateBodies > 0); // it met the sphere
-        std::vector<Vec3> state(cloth->positions());
-        state.insert(state.end(), cloth->velocities().begin(), cloth->velocities().end());
-        // Taken out of the world, the cloth has its own pool again.
+        CHECK(w.cloths.front()->lastStats().candidateBodies > 0); // it met the sphere
+        std::vector<Vec3> state;
+        for (const auto& c : cloths) {
+            state.insert(state.end(), c->positions().begin(), c->positions().end());
+            state.insert(state.end(), c->velocities().begin(), c->velocities().end());
+        }
+        // Taken out of the world, the cloths go back to their own pools (started by their
+        // next step); the program's executor stays.
         w.cloths.clear();
-        CHECK(cloth->executor() == own);
-        CHECK_FALSE(cloth->hasCallerExecutor());
+        for (const auto& c : cloths) {
+            CHECK_FALSE(c->hasCallerExecutor());
+            c->step(1e-3);
+            CHECK((c->executor() != nullptr) == (threads > 1));
+        }
+        CHECK(small->executor() == own.get());
         return state;
     };
     const auto one = run(1);

@@ -184,13 +184,18 @@ class Cloth {
     // --- threads --------------------------------------------------------------------------
     /// Runs the step's data-parallel loops (springs, gravity, damping, integration, the
     /// limiter's scan) on `executor` (drape/executor.hpp) from the next step on, instead of the
-    /// cloth's own pool (ClothSettings::threads); null goes back to that pool (or to the
-    /// calling thread when threads is 1). The cloth shares ownership. Results are bit-identical
-    /// for any executor and thread count. Not during a step (drape::Error InvalidArgument).
+    /// cloth's own pool (ClothSettings::threads > 1, started by the first step that needs it);
+    /// null goes back to that pool (or to the calling thread when threads is 1). The cloth
+    /// shares ownership. Results are bit-identical for any executor and thread count. Not
+    /// during a step (drape::Error InvalidArgument); like every edit, not while another thread
+    /// steps the cloth. In a drape::bullet world, a cloth with threads > 1 is given the
+    /// world's executor unless it has one of its program's (BulletClothSettings::threads).
     void setExecutor(std::shared_ptr<Executor> executor);
-    /// The executor the loops run on: the caller's, the cloth's own pool, or null (this thread).
-    Executor* executor() const { return loops_; }
-    /// Whether the loops run on an executor given with setExecutor.
+    /// The executor the loops run on now, to tell which it is: the one given with
+    /// setExecutor, the cloth's own pool (once started), or null (the calling thread).
+    const Executor* executor() const { return loops_; }
+    /// Whether the loops run on an executor given with setExecutor (a drape::bullet world's
+    /// included).
     bool hasCallerExecutor() const { return executor_ != nullptr; }
 
     // --- stages ---------------------------------------------------------------------------
@@ -372,6 +377,9 @@ class Cloth {
     std::unique_ptr<detail::ThreadPool> poolStorage_; ///< ClothSettings::threads > 1
     std::shared_ptr<Executor> executor_;              ///< the caller's (setExecutor)
     Executor* loops_ = nullptr; ///< executor_, else poolStorage_, else null (this thread)
+    /// Points loops_ (and the force model's and limiter's) at executor_, else at the cloth's
+    /// own pool when threads > 1 (starting it if `startPool`), else at null.
+    void bindLoops(bool startPool);
     std::unique_ptr<ForceModel> forceModel_;
     std::unique_ptr<Integrator> integrator_;
     std::vector<std::shared_ptr<ClothStage>> stages_;

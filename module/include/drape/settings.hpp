@@ -276,9 +276,10 @@ struct ClothSettings {
     /// explicit integrators' particle loops and the limiter's scan are split over them; results
     /// are bit-identical for any thread count. Worth it from about 1e4 particles; smaller
     /// loops run on the calling thread only. The limiter's walk and aerodynamics run on one
-    /// thread. With more than 1 the cloth starts a small pool of its own; a program that owns
-    /// threads gives the cloth an Executor over them instead (Cloth::setExecutor), and a
-    /// drape::bullet world gives it the world's (BulletClothSettings::threads).
+    /// thread. With more than 1 the cloth's first step starts a small pool of its own, unless a
+    /// program that owns threads gave the cloth an Executor over them (Cloth::setExecutor); a
+    /// drape::bullet world gives it the world's (BulletClothSettings::threads), which may have
+    /// more threads than this.
     int threads = 1;
 
     /// Refuse (drape::Error UnstableTimeStep) a step whose dt exceeds the explicit

@@ -104,11 +104,11 @@ struct BulletClothSettings {
     /// among the world's cloths, and at most the machine's hardware threads (a oneTBB arena of
     /// that many threads, the calling thread included). Each cloth's result is bit-identical for
     /// any count. 1 (the default): every cloth steps on the thread that calls stepSimulation, one
-    /// after the other. A cloth whose ClothSettings::threads is more than 1 splits its own
-    /// passes in the same arena (nested tasks: one set of threads for both levels, sized by the
-    /// largest of both settings among the world's cloths), unless its program gave it an
-    /// executor of its own (Cloth::setExecutor); taken out of the world, it has its own pool
-    /// again.
+    /// after the other. A cloth whose ClothSettings::threads is more than 1 and that has no
+    /// executor of its program (Cloth::setExecutor) splits its own passes in the world's arena
+    /// (nested, isolated tasks: one set of threads for both levels; the arena then has the
+    /// largest of both settings, and it exists for that cloth even when this is 1); taken out
+    /// of the world, it runs on its own pool again.
     int threads = 1;
 };
 
