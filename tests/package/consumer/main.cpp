@@ -1,8 +1,10 @@
 // drape_consumer: the README's "Putting a cloth into a Bullet world", as a program built
 // against an installed drape (find_package(drape CONFIG REQUIRED), tests/package). It hangs
 // the README's curtain from a pole, lets a second sheet fall freely beside it, and exits
-// non-zero if what it sees is not physical.
+// non-zero if what it sees is not physical. The falling sheet runs its loops on the program's
+// own threads (drape::Executor, Cloth::setExecutor).
 #include <drape/bullet/bullet_cloth.hpp>
+#include <drape/executor.hpp>
 
 #include <btBulletDynamicsCommon.h>
 
@@ -11,6 +13,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <memory>
+#include <thread>
 #include <vector>
 
 namespace {
@@ -35,6 +38,19 @@ bool allFinite(const std::vector<drape::Vec3>& x) {
     }
     return true;
 }
+
+/// The program's threads as an executor: the second half of every loop on another thread.
+class TwoThreads final : public drape::Executor {
+  public:
+    int concurrency() const override { return 2; }
+    void parallelFor(std::size_t n, std::size_t, const Body& body) override {
+        ++loops;
+        std::thread other([&] { body(n / 2, n); });
+        body(0, n / 2);
+        other.join();
+    }
+    std::size_t loops = 0;
+};
 
 } // namespace
 
@@ -87,6 +103,8 @@ int main() {
     freeSheet.origin = {3.0, 1.5, 0.0};
     auto falling = std::make_shared<drape::Cloth>(
         drape::ClothTopology::build(drape::makeSheet(freeSheet)), settings);
+    auto threads = std::make_shared<TwoThreads>();
+    falling->setExecutor(threads);
     auto fallingHandle = drape::bullet::addCloth(world, falling, options);
 
     const double curtainStart = meanHeight(cloth->positions());
@@ -110,6 +128,8 @@ int main() {
                 static_cast<unsigned long long>(cloth->stepCount()));
     expect(cloth->stepCount() == static_cast<std::uint64_t>(frames) * 4 * 2,
            "cloth steps (frames x 4 sub-steps x 2)", static_cast<double>(cloth->stepCount()));
+    expect(threads->loops > 0 && falling->executor() == threads.get(),
+           "free sheet: loops run on the program's executor", static_cast<double>(threads->loops));
     // The free sheet falls as a body does: 0.5 g t^2 (no drag, no damping).
     const double fallen = fallingStart - meanHeight(falling->positions());
     expect(std::abs(fallen - freeFall) < 0.02 * freeFall, "free sheet: drop [m] (0.5 g t^2 +- 2 %)",
