@@ -5,6 +5,7 @@
 
 #include "drape/error.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <btBulletDynamicsCommon.h>
 
 #include <algorithm>
@@ -61,6 +62,30 @@ void BodySnapshot::displace(const Vec3& shift, const Vec3& turn) {
     aabbMin += shift.cwiseMin(Vec3::Zero());
     aabbMax += shift.cwiseMax(Vec3::Zero());
     moved_ = true;
+}
+
+void limitSpin(BodySnapshot& b, double gyration) {
+    if (!b.dynamicBody || !(b.invMass > 0.0) || !(gyration > 0.0)) return;
+    const double most = b.invMass / (gyration * gyration); // 1 / (m gyration^2)
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(b.invInertia);
+    if (eig.info() != Eigen::Success || !(eig.eigenvalues().maxCoeff() > most)) return;
+    // Only an elongated body's light axis: about it the body is at least 4 times lighter than
+    // about its heaviest axis (a ball's contact normals pass through its centre: nothing to
+    // add up).
+    const double floorLight = 4.0 * eig.eigenvalues().minCoeff();
+    Vec3 kept, filter;
+    bool limited = false;
+    for (int k = 0; k < 3; ++k) {
+        const double l = eig.eigenvalues()[k];
+        const bool cap = l > most && l > floorLight;
+        kept[k] = cap ? most : l;
+        filter[k] = cap ? most / l : 1.0;
+        limited = limited || cap;
+    }
+    if (!limited) return;
+    const Eigen::Matrix3d& q = eig.eigenvectors();
+    b.invInertia = q * kept.asDiagonal() * q.transpose();
+    b.spinFilter = q * filter.asDiagonal() * q.transpose();
 }
 
 void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies) {
@@ -192,7 +217,7 @@ bool BodySnapshot::applyAccumulatedImpulses(double clothSpeed, double floorSpeed
     const double threshold = double(rb->getLinearSleepingThreshold());
     if (!rb->isActive() && dv < threshold && contactSpeed < threshold) return pushedActive;
     rb->applyCentralImpulse(toBt(linearImpulse));
-    rb->applyTorqueImpulse(toBt(angularImpulse));
+    rb->applyTorqueImpulse(toBt(spinFilter * angularImpulse)); // (limitSpin)
     // Where the cloth's sub-steps took it (stopped on the way, pushed back out).
     if (moved_ && !supported) rb->setCenterOfMassTransform(toBtTransform(pose));
     // Only a sleeping body is woken: activate() on an awake one would restart its

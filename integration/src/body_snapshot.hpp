@@ -14,7 +14,9 @@ class btDispatcher;
 
 namespace drape::bullet::detail {
 
-constexpr double kRefusedSpeedFactor = 10.0;
+/// No body leaves a contact with the cloth faster than twice the fastest thing in it: an elastic
+/// bounce off an infinitely heavy wall (applyAccumulatedImpulses).
+constexpr double kRefusedSpeedFactor = 2.0;
 
 /// A rigid body as the cloth sees it during one Bullet sub-step.
 struct BodySnapshot {
@@ -25,7 +27,11 @@ struct BodySnapshot {
     Vec3 com = Vec3::Zero();
     Vec3 v = Vec3::Zero(), w = Vec3::Zero(); ///< velocities, updated by the cloth's impulses
     double invMass = 0.0;
-    Eigen::Matrix3d invInertia = Eigen::Matrix3d::Zero(); ///< world frame
+    /// World frame; for a body that spins more easily than the cloth can resolve, the one
+    /// limitSpin leaves (the same as Bullet's otherwise).
+    Eigen::Matrix3d invInertia = Eigen::Matrix3d::Zero();
+    /// What of a torque impulse the body takes (limitSpin: identity unless it limits the spin).
+    Eigen::Matrix3d spinFilter = Eigen::Matrix3d::Identity();
     double friction = 0.0;
     /// A static plane (btStaticPlaneShape): its world normal and offset, nW . x - offset being
     /// the signed distance, for the cheap rejection of particles far above it (its AABB is
@@ -100,10 +106,11 @@ struct BodySnapshot {
     /// leave a point of the body moving more than kRefusedSpeedFactor times faster than
     /// anything in the contact: the body's fastest point before, `clothSpeed` (the cloth's
     /// fastest particle before the sub-step [m/s]) and `floorSpeed` (1 m/s, in the world's
-    /// length unit: BulletClothSettings::unitsPerMetre). A cloth pushes a body at most
-    /// as fast as it moves itself, or, caught and thrown back by the strain limiter, as fast
-    /// as the body came; what goes far beyond is the limiter's walk fighting a body wedged
-    /// between particles (ContactStats::refusedBodyImpulses).
+    /// length unit: BulletClothSettings::unitsPerMetre). A cloth throws a body at most twice
+    /// as fast as it moves itself (an elastic bounce off a heavy wall), or, caught and thrown
+    /// back by the strain limiter, as fast as the body came; what goes beyond is the limiter's
+    /// walk pushing a body wedged between particles out of the hole
+    /// (ContactStats::refusedBodyImpulses).
     bool applyAccumulatedImpulses(double clothSpeed, double floorSpeed);
     bool refused = false;
 
@@ -119,6 +126,17 @@ struct BodySnapshot {
 /// friction is negative or not finite.
 bool snapshotBody(const btCollisionObject* object, double reach, double frictionScale,
                   BodySnapshot& out, double dt);
+
+/// An elongated dynamic body (4 times lighter about an axis than about its heaviest one) that is
+/// lighter about that axis than a ring of radius `gyration` [m] of its mass (a
+/// rod or bar thinner than the cloth's spacing, about its own axis) is treated as that ring
+/// about that axis: its inverse inertia is capped at 1 / (m gyration^2) there, and the torque
+/// impulses the cloth gives it are filtered to match (spinFilter). The cloth resolves levers
+/// only down to its spacing: pushes a fraction of a millimetre off such a body's axis, added
+/// up over a walk, spun it by more than half a turn (refused, and the body passed). The spin
+/// about that axis the cloth would have given it is not given (angular momentum about it is
+/// not conserved); everything else is unchanged.
+void limitSpin(BodySnapshot& b, double gyration);
 
 /// Sets BodySnapshot::supported of the dynamic bodies: in one of the dispatcher's contact
 /// manifolds with points, with a body that has contact response.

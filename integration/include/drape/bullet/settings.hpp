@@ -153,9 +153,10 @@ struct ContactStats {
     /// dynamic bodies and no attachments it is exactly -impulseOnBodies.
     Vec3 impulseOnCloth = Vec3::Zero();
     /// Dynamic bodies whose impulses from the cloth in a Bullet sub-step were refused: they
-    /// would have left a point of the body moving more than kRefusedSpeedFactor (10) times
-    /// faster than anything in the contact (the body's fastest point and the cloth's fastest
-    /// particle before the sub-step, and 1 m/s: unitsPerMetre), which no cloth can do; the body
+    /// would have left a point of the body moving more than twice as fast as anything in the
+    /// contact (the body's fastest point and the cloth's fastest particle before the sub-step,
+    /// and 1 m/s: unitsPerMetre), which no cloth can do (an elastic bounce off an infinitely
+    /// heavy wall gives twice its speed); the body
     /// keeps Bullet's state, and the cloth keeps the momentum the body did not take (not in
     /// impulseOnBodies). Also counted: a free body's share of one strain-limiter walk that would
     /// have turned it by more than half a turn (or to a non-finite place), which is not applied to
