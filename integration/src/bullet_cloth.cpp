@@ -235,17 +235,6 @@ struct BulletCloth::Impl {
     /// Adds to the candidates the moving bodies that swept through the box lo..hi in the
     /// sub-step of dt [s] although the broadphase did not pair them with the proxy.
     void addFastBodies(const Vec3& lo, const Vec3& hi, double dt);
-    /// The cloth's longest spring [m], its spacing: the smallest lever its contacts resolve
-    /// (detail::limitSpin); found once (the topology never changes).
-    double spinRadius() {
-        if (spinRadius_ < 0.0) {
-            spinRadius_ = 0.0;
-            for (const Spring& sp : cloth->topology().springs())
-                spinRadius_ = std::max(spinRadius_, sp.restLength);
-        }
-        return spinRadius_;
-    }
-    double spinRadius_ = -1.0;
     double lastStrain = 0.0;     ///< Cloth::maxStrain() at the end of the last sub-step
     bool strainMeasured = false; ///< lastStrain holds a measurement
     /// Follows the world's gravity if the user changes it (that wakes the cloth).
@@ -576,7 +565,8 @@ void BulletCloth::Impl::gatherBodies(double dt) {
         if (!obj || obj == proxy.object()) continue;
         detail::BodySnapshot b;
         if (detail::snapshotBody(obj, reach, settings.contact.frictionScale, b, dt)) {
-            detail::limitSpin(b, spinRadius());
+            // The cloth's spacing: the smallest lever its contacts resolve.
+            detail::limitSpin(b, contacts.longestSpring(*cloth));
             bodies.push_back(b);
         }
     }

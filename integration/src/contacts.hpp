@@ -121,6 +121,14 @@ class ContactSolver {
     /// on bytes that are not n finite, non-negative values for the cloth's n particles.
     std::vector<unsigned char> saveState() const;
     void loadState(std::size_t particles, const std::vector<unsigned char>& bytes);
+    /// The cloth's longest spring rest length [m], its spacing (found once: the topology never
+    /// changes).
+    double longestSpring(const Cloth& c) {
+        if (maxRest_ < 0.0)
+            for (const Spring& sp : c.topology().springs())
+                maxRest_ = std::max(maxRest_, sp.restLength);
+        return maxRest_;
+    }
 
     /// The bodies of this Bullet sub-step (snapshotted by the handle), whose accumulated
     /// impulses the handle applies after the cloth's steps.
@@ -336,13 +344,6 @@ class ContactSolver {
     std::uint64_t lastBoxVersion_ = 0;
     double maxRest_ = -1.0;   ///< the longest spring's rest length (once) [m]
     double totalMass_ = -1.0; ///< the cloth's mass (once: masses never change) [kg]
-    /// The cloth's longest spring rest length [m] (found once: the topology never changes).
-    double longestSpring(const Cloth& c) {
-        if (maxRest_ < 0.0)
-            for (const Spring& sp : c.topology().springs())
-                maxRest_ = std::max(maxRest_, sp.restLength);
-        return maxRest_;
-    }
     double totalMass(const Cloth& c) {
         if (totalMass_ < 0.0) totalMass_ = c.totalMass();
         return totalMass_;

@@ -201,7 +201,7 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     std::vector<double> stiffness = buildStiffness(*topology_, settings_, mass);
     // The masses live in the force model (gravity reads them); masses() returns its copy.
     forceModel_ = std::make_unique<ForceModel>(topology_, std::move(stiffness), std::move(mass),
-                                               settings_, timers_, nullptr);
+                                               settings_, timers_);
     integrator_ = makeIntegrator(settings_.integrator, settings_.implicit);
     integrator_->bind(*forceModel_);
     for (const Stage& st : kStages)

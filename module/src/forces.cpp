@@ -316,11 +316,7 @@ void ForceModel::evaluate(const Vec3List& x, const Vec3List& v, Vec3List& f) {
                 for (std::size_t k = b; k < end; ++k)
                     range(k);
             };
-            if (executor_) {
-                executor_->parallelFor(nb, 1, blockRange);
-            } else {
-                blockRange(0, nb);
-            }
+            detail::forChunks(executor_, nb, blockRange, 1);
             range(nb);
             break;
         }
@@ -723,11 +719,7 @@ void ForceModel::applySpringDampingFlow(const Vec3List& x, Vec3List& v,
             for (std::size_t k = b; k < end; ++k)
                 range(k);
         };
-        if (executor_) {
-            executor_->parallelFor(nb, 1, body);
-        } else {
-            body(0, nb);
-        }
+        detail::forChunks(executor_, nb, body, 1);
     };
     if (forward) {
         blocks();

@@ -496,11 +496,7 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology,
             segmentWorst_[sg] = largestRatio(r2 + b, e - b);
         }
     };
-    if (executor_) {
-        executor_->parallelFor(segments, 2, measure);
-    } else {
-        measure(0, segments);
-    }
+    detail::forChunks(executor_, segments, measure, 2);
     st.work += topology.springCount() - layout.looseSprings.size();
     // Springs beyond the band. A hole has ratio 0. The warm-started springs below the band are
     // found by limit() from its list.
