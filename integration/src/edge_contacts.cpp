@@ -35,21 +35,25 @@ double boxSignedDistance(const Vec3& half, const Vec3& p, Vec3& gradient) {
     return q[k];
 }
 
+/// Set in a region code when exactly one axis is beyond the box: a face's prism.
+constexpr int kFaceRegion = 32;
+
 /// The region around a box a local point is in: per axis 0 (within the box's extent), 1 (beyond
-/// the + face) or 2 (beyond the - face), as base-3 digits; 0 for a point inside.
+/// the + face) or 2 (beyond the - face), as base-3 digits (0 for a point inside), with
+/// kFaceRegion set for a face's prism. Two points are in one region when their codes are equal.
 int regionCode(const Vec3& half, const Vec3& p) {
-    int code = 0;
-    for (int k = 2; k >= 0; --k)
-        code = 3 * code + (p[k] > half[k] ? 1 : p[k] < -half[k] ? 2 : 0);
-    return code;
+    int code = 0, beyond = 0;
+    for (int k = 2; k >= 0; --k) {
+        const int digit = p[k] > half[k] ? 1 : p[k] < -half[k] ? 2 : 0;
+        code = 3 * code + digit;
+        beyond += digit != 0;
+    }
+    return beyond == 1 ? code | kFaceRegion : code;
 }
 
 /// A face's prism: exactly one axis beyond the box.
 bool isFaceRegion(int code) {
-    int beyond = 0;
-    for (int k = 0; k < 3; ++k, code /= 3)
-        beyond += code % 3 != 0;
-    return beyond == 1;
+    return (code & kFaceRegion) != 0;
 }
 
 /// The deepest point of a segment: its parameter t, and the signed distance d and gradient g
@@ -207,7 +211,7 @@ void ContactSolver::collideEdges(Cloth& c) {
     for (std::size_t si = 0; si < springs.size(); ++si) {
         const Spring& s = springs[si];
         const std::int32_t ba = edgeBody_[s.a], bb = edgeBody_[s.b];
-        if (w[s.a] == 0.0 && w[s.b] == 0.0) continue;
+        if ((ba < 0 && bb < 0) || (w[s.a] == 0.0 && w[s.b] == 0.0)) continue;
         // Both ends in one face's prism of the same box: nothing to test (collideSpringWithBox
         // says why), decided here for the many springs lying on a face.
         if (ba >= 0 &&
