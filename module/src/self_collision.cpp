@@ -41,6 +41,7 @@ SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,
                                       int iterations) {
     SelfCollisionCounts counts;
     const auto& tris = topology.triangles();
+    const auto& rest = topology.restPositions();
     const std::size_t n = x.size();
     for (int iter = 0; iter < iterations; ++iter) {
         double cell = 2.0 * thickness;
@@ -78,6 +79,15 @@ SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,
                 Vec3 bary;
                 const Vec3 q = closestPointOnTriangle(x[p], a, b, c, bary);
                 if ((x[p] - q).squaredNorm() >= thickness * thickness) continue;
+                // A particle and a triangle that lie within the thickness of each other in the
+                // rest shape are neighbours, not a collision (on a mesh finer than the thickness,
+                // the triangles next to a particle's own): pushing them the thickness apart
+                // threw a flat sheet at rest apart (a 1.2 cm mesh with the default 1 cm: 59 J
+                // from nothing).
+                Vec3 restBary;
+                const Vec3 restQ =
+                    closestPointOnTriangle(rest[p], rest[t[0]], rest[t[1]], rest[t[2]], restBary);
+                if ((rest[p] - restQ).squaredNorm() < thickness * thickness) continue;
                 Vec3 face = (b - a).cross(c - a);
                 const double len = face.norm();
                 if (!(len > 0.0)) continue;

@@ -171,10 +171,16 @@ struct SleepSettings {
 /// it is not a corner of, on the side it was on at the step's start, with momentum kept and
 /// Coulomb friction between the layers. Runs after the strain limiter. Off by default.
 struct SelfCollisionSettings {
-    bool enabled = false;    ///< run the self-collision pass
-    double thickness = 0.01; ///< distance a particle keeps from the cloth's other triangles [m]
-    int iterations = 2;      ///< passes over all particle-triangle pairs per step (>= 1)
-    double friction = 0.2;   ///< Coulomb mu between layers of the cloth [-]
+    bool enabled = false; ///< run the self-collision pass
+    /// Distance a particle keeps from the cloth's other triangles [m]. A particle and a
+    /// triangle within it of each other in the rest shape are neighbours and are left alone
+    /// (on a mesh finer than the thickness, the triangles next to a particle's own). Keep it
+    /// below about 0.7 times the mesh spacing where layers of the cloth press together: with
+    /// it at the spacing, a sheet landing on another part of the cloth gains energy (a 4 x 4
+    /// patch on a 1.2 cm mesh with 1 cm: 1.8 J; on an 8 mm mesh: 17 J).
+    double thickness = 0.01;
+    int iterations = 2;    ///< passes over all particle-triangle pairs per step (>= 1)
+    double friction = 0.2; ///< Coulomb mu between layers of the cloth [-]
 };
 
 /// How Cloth::step(dt) divides a step into sub-steps.
