@@ -264,26 +264,56 @@ struct BulletCloth::Impl {
 // that many threads; each cloth's result is the same on any number of threads), and finishes
 // them in order. A cloth that throws is left out of the rest of that sub-step; the first error,
 // by cloth order, is rethrown after the others finished.
-class BulletCloth::Impl::Stepper final : public btActionInterface {
+/// The lock of the worlds' steppers (joinStepper, leaveStepper, a stepper's graveyard).
+std::mutex& steppersLock();
+
+class BulletCloth::Impl::Stepper final : public btActionInterface,
+                                         public std::enable_shared_from_this<Stepper> {
   public:
     std::vector<Impl*> cloths; ///< in the order they were added
     bool inWorld = false;
 
+    /// Inside updateAction: a handle removed or destroyed now (by a stage of a cloth, a
+    /// callback) leaves the world at once, but its state lives on in `graveyard` until the
+    /// step's loops, which still list it, are done with it.
+    bool stepping = false;
+    std::vector<std::unique_ptr<Impl>> graveyard;
+
     void updateAction(btCollisionWorld*, btScalar dt) override {
-        const std::size_t n = cloths.size();
+        // This stepper and the cloths it steps, as the step begins: a handle removed during
+        // it (it leaves `cloths`, and may take the last reference to this stepper) is passed
+        // over from then on.
+        const std::shared_ptr<Stepper> keep = shared_from_this();
+        struct Stepping {
+            Stepper& s;
+            explicit Stepping(Stepper& st) : s(st) { s.stepping = true; }
+            ~Stepping() {
+                s.stepping = false;
+                std::vector<std::unique_ptr<Impl>> gone;
+                {
+                    std::lock_guard<std::mutex> guard(steppersLock());
+                    gone.swap(s.graveyard);
+                }
+            }
+            Stepping(const Stepping&) = delete;
+            Stepping& operator=(const Stepping&) = delete;
+        } during(*this);
+        const std::vector<Impl*> list = cloths;
+        const std::size_t n = list.size();
         errors_.assign(n, nullptr);
         for (std::size_t k = 0; k < n; ++k) {
-            const std::optional<double>& exact = cloths[k]->settings.timeStep;
+            if (!list[k]->inWorld) continue;
+            const std::optional<double>& exact = list[k]->settings.timeStep;
             try {
-                cloths[k]->prepare(exact && btScalar(*exact) == dt ? *exact : double(dt));
+                list[k]->prepare(exact && btScalar(*exact) == dt ? *exact : double(dt));
             } catch (...) {
                 errors_[k] = std::current_exception();
             }
         }
-        auto advance = [this](std::size_t k) {
-            if (errors_[k]) return;
+        auto advance = [this, &list](std::size_t k) {
+            if (errors_[k] || !list[k]->inWorld) return;
             try {
-                cloths[k]->advance();
+                list[k]->advance();
             } catch (...) {
                 errors_[k] = std::current_exception();
             }
@@ -293,7 +323,7 @@ class BulletCloth::Impl::Stepper final : public btActionInterface {
         // no executor of their program (lendExecutor), so it has the largest of both. No more
         // than the machine has (oneTBB would refuse the extra workers, with a warning).
         int worldThreads = 1, arenaThreads = 1;
-        for (const Impl* c : cloths) {
+        for (const Impl* c : list) {
             worldThreads = std::max(worldThreads, c->settings.threads);
             arenaThreads = std::max(arenaThreads, c->settings.threads);
             if (borrows(*c->cloth))
@@ -307,8 +337,8 @@ class BulletCloth::Impl::Stepper final : public btActionInterface {
         } else if (!executor_ || executor_->concurrency() != arenaThreads) {
             executor_ = std::make_shared<ArenaExecutor>(arenaThreads);
         }
-        for (Impl* c : cloths)
-            lendExecutor(*c);
+        for (Impl* c : list)
+            if (c->inWorld) lendExecutor(*c);
         if (worldThreads > 1 && n > 1) {
             executor_->arena().execute([&] {
                 tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1),
@@ -322,9 +352,9 @@ class BulletCloth::Impl::Stepper final : public btActionInterface {
                 advance(k);
         }
         for (std::size_t k = 0; k < n; ++k) {
-            if (errors_[k]) continue;
+            if (errors_[k] || !list[k]->inWorld) continue;
             try {
-                cloths[k]->finish();
+                list[k]->finish();
             } catch (...) {
                 errors_[k] = std::current_exception();
             }
@@ -377,6 +407,10 @@ Steppers& steppers() {
     return s;
 }
 } // namespace
+
+std::mutex& steppersLock() {
+    return steppers().lock;
+}
 
 void BulletCloth::Impl::joinStepper() {
     Steppers& all = steppers();
@@ -513,6 +547,7 @@ void BulletCloth::Impl::advance() {
             b.advance(stepH);
         c.stepPart(stepH, stepSubsteps); // the contact stage runs inside it, the contact
                                          // force is one of its terms
+        if (!inWorld) return; // removed during the step (by a stage): nothing more to give
         ++last.steps;
         last.selfPairTests += c.lastSelfCollision().pairTests;
         last.selfContacts += c.lastSelfCollision().contacts;
@@ -755,7 +790,14 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
 }
 
 BulletCloth::~BulletCloth() {
+    // Destroyed inside its world's step (by a cloth's stage, say): it leaves the world now,
+    // and its stepper keeps its state until the step's loops are done with it.
+    const std::shared_ptr<Impl::Stepper> stepper = impl_ ? impl_->stepper : nullptr;
     remove();
+    if (stepper && stepper->stepping) {
+        std::lock_guard<std::mutex> guard(steppersLock());
+        stepper->graveyard.push_back(std::move(impl_));
+    }
 }
 
 void BulletCloth::remove() {

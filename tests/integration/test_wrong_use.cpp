@@ -8,8 +8,11 @@
 
 #include <catch2/catch.hpp>
 
+#include <cstdint>
+#include <functional>
 #include <limits>
 #include <memory>
+#include <utility>
 
 using namespace drape;
 using namespace drape::testing;
@@ -166,4 +169,62 @@ TEST_CASE("BulletClothSettings::inUnits refuses a unit outside [1e-6, 1e6]",
     bad.unitsPerMetre = 0.0;
     CHECK_THROWS_WITH(w.add(makeCloth(horizontalSheet(3, 3, 0.1, 1.0), softCloth()), bad),
                       Catch::Contains("unitsPerMetre must be in [1e-6, 1e6]"));
+}
+
+namespace {
+/// A caller stage that runs `act` once, in the cloth's first step after it was added.
+struct OnceStage final : ClothStage {
+    std::function<void()> act;
+    explicit OnceStage(std::function<void()> a) : act(std::move(a)) {}
+    std::string name() const override { return "once"; }
+    void run(Cloth&, double) override {
+        if (act) std::exchange(act, nullptr)();
+    }
+};
+} // namespace
+
+TEST_CASE("a cloth's handle removed or destroyed inside the world's step leaves the world safely",
+          "[world][wrong_use]") {
+    // A stage of cloth A (running inside stepSimulation) destroys cloth B's handle, removes
+    // A's own handle, or destroys it: the handle leaves the world at once, the step's loops
+    // pass over it (before: freed memory read, or the stepper freed while it ran), the other
+    // cloth steps on, and the world steps on after.
+    for (int how = 0; how < 3; ++how) {
+        INFO("case " << how);
+        BareWorld b;
+        b.world->setGravity(btVector3(0, -9.81f, 0));
+        auto a = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), softCloth());
+        auto c = makeCloth(horizontalSheet(5, 5, 0.1, 1.0, 2.0), softCloth());
+        auto ha = bullet::addCloth(b.world.get(), a);
+        auto hc = bullet::addCloth(b.world.get(), c);
+        std::function<void()> act;
+        if (how == 0) act = [&] { hc.reset(); };
+        if (how == 1) act = [&] { ha->remove(); };
+        if (how == 2) act = [&] { ha.reset(); };
+        a->addStage(std::make_shared<OnceStage>(act));
+        for (int k = 0; k < 5; ++k)
+            b.world->stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+        // (Cloth steps per world step: lastStats().substeps; the cloths step in the order
+        // they were added, so C's first step comes after A's.)
+        if (how == 0) {
+            CHECK(hc == nullptr);
+            CHECK(ha->inWorld());
+            CHECK(a->stepCount() == 5u * std::uint64_t(ha->lastStats().substeps)); // stepped on
+            CHECK(c->stepCount() == 0); // gone before its first step
+        } else {
+            CHECK((ha == nullptr || !ha->inWorld()));
+            CHECK(hc->inWorld());
+            CHECK(c->stepCount() == 5u * std::uint64_t(hc->lastStats().substeps));
+            CHECK(a->stepCount() == 1); // the step it left in, then no more
+        }
+        // The cloths are finite and can join a world again.
+        for (const auto& cl : {a, c})
+            for (const Vec3& x : cl->positions())
+                CHECK(x.allFinite());
+        hc.reset();
+        ha.reset();
+        auto again = bullet::addCloth(b.world.get(), a);
+        b.world->stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+        CHECK(again->inWorld());
+    }
 }

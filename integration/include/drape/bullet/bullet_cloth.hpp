@@ -56,7 +56,10 @@ namespace drape::bullet {
 ///   world step detaches those particles and throws drape::Error naming them (detach first;
 ///   a new body created at the freed body's address and added to the world is not told apart);
 /// - the same cloth added to a second world (or twice): addCloth throws drape::Error;
-/// - attaching to a body that is not in the cloth's world: attach throws drape::Error.
+/// - attaching to a body that is not in the cloth's world: attach throws drape::Error;
+/// - the handle removed or destroyed inside its world's step (by a cloth's stage, a callback):
+///   it leaves the world at once, the rest of the step passes over it and its state is freed
+///   when the step ends (a cloth's own step finishes the sub-step it was in).
 class BulletCloth {
   public:
     /// Prefer addCloth(). Throws drape::Error on a null world or cloth or bad settings.
