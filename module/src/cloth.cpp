@@ -263,7 +263,23 @@ void Cloth::step(double dt) {
     stepPart(dt, 1);
 }
 
+void Cloth::checkStateSizes(const std::string& who) const {
+    const std::size_t n = particleCount();
+    auto check = [&](const Vec3List& list, const char* what, const char* access) {
+        if (list.size() == n) return;
+        throw Error(ErrorCode::InvalidArgument,
+                    who + ": the " + what + " hold " + std::to_string(list.size()) +
+                        " entries but the cloth has " + std::to_string(n) +
+                        " particles (the vector returned by " + access +
+                        " was resized); change its values, not its size: resize it back to "
+                        "particleCount() entries");
+    };
+    check(state_.x, "positions", "mutablePositions()");
+    check(state_.v, "velocities", "mutableVelocities()");
+}
+
 void Cloth::stepPart(double dt, int parts) {
+    checkStateSizes("Cloth::step");
     if (parts < 1)
         throw Error(ErrorCode::InvalidArgument,
                     "stepPart: parts must be >= 1, got " + std::to_string(parts));
@@ -696,15 +712,23 @@ void Cloth::stageLimit(StepContext& ctx) {
 
 void Cloth::stageCallerStagesBefore(StepContext& ctx) {
     for (std::size_t s = 0; s < stages_.size(); ++s) {
-        ScopedPhase t(timers_, callerStageBeforeSlots_[s]);
-        stages_[s]->beforeLimit(*this, ctx.dt);
+        {
+            ScopedPhase t(timers_, callerStageBeforeSlots_[s]);
+            stages_[s]->beforeLimit(*this, ctx.dt);
+        }
+        if (state_.x.size() != particleCount() || state_.v.size() != particleCount())
+            checkStateSizes("stage '" + stages_[s]->name() + "' (beforeLimit)");
     }
 }
 
 void Cloth::stageCallerStages(StepContext& ctx) {
     for (std::size_t s = 0; s < stages_.size(); ++s) {
-        ScopedPhase t(timers_, callerStageSlots_[s]);
-        stages_[s]->run(*this, ctx.dt);
+        {
+            ScopedPhase t(timers_, callerStageSlots_[s]);
+            stages_[s]->run(*this, ctx.dt);
+        }
+        if (state_.x.size() != particleCount() || state_.v.size() != particleCount())
+            checkStateSizes("stage '" + stages_[s]->name() + "'");
     }
 }
 

@@ -97,6 +97,20 @@ std::uint64_t topologyFingerprint(const ClothTopology& topology) {
 }
 
 std::vector<unsigned char> saveSnapshot(const Cloth& cloth) {
+    // The writer reads particleCount() entries of each: a vector the caller resized through
+    // mutablePositions() or mutableVelocities() is refused by name.
+    const std::size_t n = cloth.particleCount();
+    auto checkSize = [n](std::size_t got, const char* what, const char* access) {
+        if (got == n) return;
+        throw Error(ErrorCode::InvalidArgument,
+                    std::string("saveSnapshot: the ") + what + " hold " + std::to_string(got) +
+                        " entries but the cloth has " + std::to_string(n) +
+                        " particles (the vector returned by " + access +
+                        " was resized); change its values, not its size: resize it back to "
+                        "particleCount() entries");
+    };
+    checkSize(cloth.positions().size(), "positions", "mutablePositions()");
+    checkSize(cloth.velocities().size(), "velocities", "mutableVelocities()");
     Writer w;
     for (char c : kMagic)
         w.pod(c);

@@ -109,7 +109,9 @@ class Cloth {
     /// on a dt beyond the stability limit (if settings.rejectUnstableTimeStep), and when the
     /// state stops being finite or fails a check of settings.failure (the state is then left
     /// as it was before the step). With failure.retrySubsteps >= 2 a failed step is first
-    /// retried as that many sub-steps.
+    /// retried as that many sub-steps. Throws drape::Error (InvalidArgument) when the positions
+    /// or velocities (mutablePositions(), mutableVelocities()) no longer hold particleCount()
+    /// entries.
     /// With settings.substeps.automatic (the default) a dt beyond substeps.fraction of the
     /// stability limit is taken as substepsFor(dt) equal sub-steps; the step then counts once
     /// (stepCount()), and what it reports (lastLimiterStats(), constraintImpulses()) sums them.
@@ -206,7 +208,8 @@ class Cloth {
     const ClothTopology& topology() const { return *topology_; }
     const TopologyPtr& topologyPtr() const { return topology_; }
     const ClothSettings& settings() const { return settings_; }
-    std::size_t particleCount() const { return state_.x.size(); }
+    /// The topology's particle count (what positions() and velocities() must hold).
+    std::size_t particleCount() const { return invMass_.size(); }
     const Vec3List& positions() const { return state_.x; }  ///< [m]
     const Vec3List& velocities() const { return state_.v; } ///< [m/s]
     /// Last evaluated forces [N]. With Velocity-Verlet the velocity-dependent terms (linear and
@@ -214,7 +217,8 @@ class Cloth {
     /// them itself, see integrators.hpp); held particles' entries include them.
     const Vec3List& forces() const { return state_.f; }
     /// Mutable access for stages and users; marks the cached forces stale. Moving a pinned
-    /// particle re-pins it where it is put.
+    /// particle re-pins it where it is put. Change the values, not the size: a step (and
+    /// saveSnapshot) refuses vectors that do not hold particleCount() entries.
     Vec3List& mutablePositions();
     Vec3List& mutableVelocities();
     void setPosition(Index i, const Vec3& x);
@@ -337,6 +341,9 @@ class Cloth {
     void stageLimit(StepContext& ctx);
     void stageCallerStages(StepContext& ctx);
     void stageCallerStagesBefore(StepContext& ctx);
+    /// Throws drape::Error (InvalidArgument) naming `who` unless the positions and velocities
+    /// hold particleCount() entries (O(1)).
+    void checkStateSizes(const std::string& who) const;
     void stageForces(StepContext& ctx);
     void stageFinish(StepContext& ctx);
     void stageRelativeDamping(StepContext& ctx);
