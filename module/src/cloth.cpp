@@ -278,7 +278,16 @@ void Cloth::checkStateSizes(const std::string& who) const {
     check(state_.v, "velocities", "mutableVelocities()");
 }
 
+void Cloth::refuseInStep(const char* who) const {
+    if (!inStep_) return;
+    throw Error(ErrorCode::InvalidArgument,
+                std::string(who) +
+                    ": not allowed during the cloth's own step (from a stage); a stage runs "
+                    "once per step with the step's dt: call it before or after the step");
+}
+
 void Cloth::stepPart(double dt, int parts) {
+    refuseInStep("Cloth::step");
     checkStateSizes("Cloth::step");
     if (parts < 1)
         throw Error(ErrorCode::InvalidArgument,
@@ -551,6 +560,7 @@ void Cloth::checkState(const ClothState& state, const std::vector<double>& warmS
 }
 
 void Cloth::restoreState(ClothState state, std::vector<double> warmStart) {
+    refuseInStep("Cloth::restoreState");
     checkState(state, warmStart);
     const bool asleep = state.asleep && settings_.sleep.enabled;
     state_ = std::move(state);
@@ -711,24 +721,45 @@ void Cloth::stageLimit(StepContext& ctx) {
 }
 
 void Cloth::stageCallerStagesBefore(StepContext& ctx) {
-    for (std::size_t s = 0; s < stages_.size(); ++s) {
-        {
-            ScopedPhase t(timers_, callerStageBeforeSlots_[s]);
-            stages_[s]->beforeLimit(*this, ctx.dt);
-        }
-        if (state_.x.size() != particleCount() || state_.v.size() != particleCount())
-            checkStateSizes("stage '" + stages_[s]->name() + "' (beforeLimit)");
-    }
+    runCallerStages(ctx.dt, true);
 }
 
 void Cloth::stageCallerStages(StepContext& ctx) {
-    for (std::size_t s = 0; s < stages_.size(); ++s) {
+    runCallerStages(ctx.dt, false);
+}
+
+// A stage may add or remove stages (itself included) while it runs: the loop goes over the
+// stages as they were when it began, each kept alive while it runs, and skips one removed
+// before its turn. The copies reuse their storage (no allocation after the first step).
+void Cloth::runCallerStages(double dt, bool beforeLimit) {
+    struct Running {
+        std::vector<std::shared_ptr<ClothStage>>& list;
+        explicit Running(std::vector<std::shared_ptr<ClothStage>>& l) : list(l) {}
+        ~Running() { list.clear(); } // the last owner of a removed stage lets it go here
+        Running(const Running&) = delete;
+        Running& operator=(const Running&) = delete;
+    } running(runningStages_);
+    runningStages_.assign(stages_.begin(), stages_.end());
+    const auto& slots = beforeLimit ? callerStageBeforeSlots_ : callerStageSlots_;
+    runningSlots_.assign(slots.begin(), slots.end());
+    stagesRemoved_ = false;
+    for (std::size_t s = 0; s < runningStages_.size(); ++s) {
+        ClothStage* stage = runningStages_[s].get();
+        if (stagesRemoved_ && std::none_of(stages_.begin(), stages_.end(),
+                                           [stage](const std::shared_ptr<ClothStage>& p) {
+                                               return p.get() == stage;
+                                           }))
+            continue;
         {
-            ScopedPhase t(timers_, callerStageSlots_[s]);
-            stages_[s]->run(*this, ctx.dt);
+            ScopedPhase t(timers_, runningSlots_[s]);
+            if (beforeLimit)
+                stage->beforeLimit(*this, dt);
+            else
+                stage->run(*this, dt);
         }
         if (state_.x.size() != particleCount() || state_.v.size() != particleCount())
-            checkStateSizes("stage '" + stages_[s]->name() + "'");
+            checkStateSizes("stage '" + stage->name() + "'" +
+                            (beforeLimit ? " (beforeLimit)" : ""));
     }
 }
 
@@ -1017,8 +1048,7 @@ void Cloth::setContacts(std::shared_ptr<ContactSet> contacts) {
 }
 
 void Cloth::setExecutor(std::shared_ptr<Executor> executor) {
-    if (inStep_)
-        throw Error(ErrorCode::InvalidArgument, "Cloth::setExecutor: not allowed during a step");
+    refuseInStep("Cloth::setExecutor");
     executor_ = std::move(executor);
     bindLoops(false);
 }
@@ -1053,6 +1083,7 @@ void Cloth::removeStage(const ClothStage* stage) {
             callerStageSlots_.erase(callerStageSlots_.begin() + static_cast<std::ptrdiff_t>(s));
             callerStageBeforeSlots_.erase(callerStageBeforeSlots_.begin() +
                                           static_cast<std::ptrdiff_t>(s));
+            stagesRemoved_ = true;
             edited();
             return;
         }

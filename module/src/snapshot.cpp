@@ -156,6 +156,13 @@ std::vector<unsigned char> saveSnapshot(const Cloth& cloth) {
 }
 
 void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
+    // Replacing the state mid-step would leave the step's other half on another state (and the
+    // stages' states would be loaded while they run): refused before anything is read.
+    if (cloth.inStep())
+        throw Error(ErrorCode::InvalidArgument,
+                    "loadSnapshot: not allowed during the cloth's own step (from a stage); a "
+                    "stage runs once per step with the step's dt: load the snapshot before or "
+                    "after the step");
     if (bytes.size() < sizeof(kMagic) || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
         throw Error(ErrorCode::InvalidArgument, "not a drape snapshot (bad magic bytes)");
     }

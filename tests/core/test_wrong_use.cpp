@@ -6,6 +6,7 @@
 #include "drape/cloth.hpp"
 #include "drape/snapshot.hpp"
 
+#include <functional>
 #include <limits>
 #include <memory>
 
@@ -79,4 +80,101 @@ TEST_CASE("Resized positions or velocities are refused by step and saveSnapshot,
     auto copy = smallSheet();
     loadSnapshot(*copy, saveSnapshot(*c));
     CHECK(stateHash(*copy) == stateHash(*c));
+}
+
+namespace {
+
+/// A stage that runs a function of the cloth.
+struct FnStage : ClothStage {
+    explicit FnStage(std::string n, std::function<void(Cloth&)> f)
+        : label(std::move(n)), fn(std::move(f)) {}
+    std::string name() const override { return label; }
+    void run(Cloth& cloth, double) override {
+        ++runs;
+        if (fn) fn(cloth);
+    }
+    std::string label;
+    std::function<void(Cloth&)> fn;
+    int runs = 0;
+};
+
+} // namespace
+
+TEST_CASE("Calls that replace the state are refused from inside the cloth's own step",
+          "[errors][wrong-use][stages]") {
+    auto c = smallSheet();
+    c->step(kDt);
+    const auto saved = saveSnapshot(*c);
+    const ClothState state = c->state();
+    const std::vector<double> warm(c->limiter().warmStartState().begin(),
+                                   c->limiter().warmStartState().end());
+    int attempt = 0;
+    auto stage = std::make_shared<FnStage>("reentrant", [&](Cloth& cloth) {
+        CHECK(cloth.inStep());
+        if (attempt == 1) cloth.step(kDt / 10); // used to recurse until the stack overflowed
+        if (attempt == 2) cloth.stepPart(kDt / 10, 2);
+        if (attempt == 3) loadSnapshot(cloth, saved); // used to be accepted mid-step
+        if (attempt == 4) cloth.restoreState(state, warm);
+        if (attempt == 5) cloth.setExecutor(nullptr);
+    });
+    c->addStage(stage);
+    const char* names[] = {
+        "", "Cloth::step", "Cloth::step", "loadSnapshot", "restoreState", "setExecutor"};
+    for (attempt = 1; attempt <= 5; ++attempt) {
+        INFO("attempt " << attempt);
+        const std::uint64_t before = stateHash(*c);
+        const std::uint64_t steps = c->stepCount();
+        REQUIRE_DRAPE_ERROR(c->step(kDt), ErrorCode::InvalidArgument, names[attempt]);
+        REQUIRE_DRAPE_ERROR(c->step(kDt), ErrorCode::InvalidArgument,
+                            "not allowed during the cloth's own step (from a stage)");
+        // The failed step is undone, and the cloth steps on once the stage behaves.
+        CHECK(stateHash(*c) == before);
+        CHECK(c->stepCount() == steps);
+        CHECK_FALSE(c->inStep());
+    }
+    attempt = 0;
+    c->step(kDt);
+    CHECK(c->stepCount() == 2);
+    CHECK_FALSE(c->inStep());
+    // Outside a step the same calls are fine.
+    loadSnapshot(*c, saved);
+    CHECK(c->stepCount() == 1);
+    c->restoreState(state, warm);
+}
+
+TEST_CASE("A stage that removes itself during the step does not make the next stage skip",
+          "[wrong-use][stages]") {
+    auto c = smallSheet();
+    const int n = c->substepsFor(kDt); // a stage runs once per sub-step
+    REQUIRE(n >= 1);
+    // A's only owner is the cloth: removing itself used to free it while it ran, and the loop
+    // skipped B for that step.
+    auto b = std::make_shared<FnStage>("B", nullptr);
+    {
+        auto a = std::make_shared<FnStage>(
+            "A", [](Cloth& cloth) { cloth.removeStage(cloth.stages().front().get()); });
+        c->addStage(a);
+    }
+    c->addStage(b);
+    c->step(kDt);
+    CHECK(b->runs == n);
+    REQUIRE(c->stages().size() == 1);
+    CHECK(c->stages().front().get() == b.get());
+    c->step(kDt);
+    CHECK(b->runs == 2 * n);
+
+    // A stage that removes a later one: that one does not run in the step.
+    auto d = std::make_shared<FnStage>("D", nullptr);
+    auto e = std::make_shared<FnStage>("E", nullptr);
+    auto killer =
+        std::make_shared<FnStage>("killer", [&](Cloth& cloth) { cloth.removeStage(d.get()); });
+    c->addStage(killer);
+    c->addStage(d);
+    c->addStage(e);
+    c->step(kDt);
+    CHECK(b->runs == 3 * n);
+    CHECK(d->runs == 0);
+    CHECK(e->runs == n);
+    CHECK(c->stages().size() == 3);
+    CHECK(c->pipeline().size() > 0);
 }
