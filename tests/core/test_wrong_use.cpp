@@ -6,9 +6,19 @@
 #include "drape/cloth.hpp"
 #include "drape/snapshot.hpp"
 
+#include <chrono>
+#include <filesystem>
 #include <functional>
+#include <future>
 #include <limits>
 #include <memory>
+#include <thread>
+
+#if !defined(_WIN32)
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#endif
 
 using namespace drape;
 using namespace drape_test;
@@ -178,3 +188,85 @@ TEST_CASE("A stage that removes itself during the step does not make the next st
     CHECK(c->stages().size() == 3);
     CHECK(c->pipeline().size() > 0);
 }
+
+namespace {
+
+/// A fresh temporary folder, removed when the test ends.
+struct TempDir {
+    std::filesystem::path path;
+    explicit TempDir(const std::string& name)
+        : path(std::filesystem::temp_directory_path() /
+               (name + "_" +
+                std::to_string(std::chrono::steady_clock::now().time_since_epoch().count()))) {
+        std::filesystem::remove_all(path);
+        std::filesystem::create_directories(path);
+    }
+    ~TempDir() {
+        std::error_code ec;
+        std::filesystem::remove_all(path, ec);
+    }
+    TempDir(const TempDir&) = delete;
+    TempDir& operator=(const TempDir&) = delete;
+};
+
+} // namespace
+
+TEST_CASE("A snapshot path that is a folder is refused by name", "[errors][wrong-use][snapshot]") {
+    auto c = smallSheet();
+    c->step(kDt);
+    const std::uint64_t before = stateHash(*c);
+    TempDir dir("drape_snapshot_folder");
+    // A folder used to let a std::ios_base::failure escape.
+    REQUIRE_DRAPE_ERROR(loadSnapshotFile(*c, dir.path.string()), ErrorCode::InvalidArgument,
+                        "folder");
+    REQUIRE_DRAPE_ERROR(loadSnapshotFile(*c, dir.path.string()), ErrorCode::InvalidArgument,
+                        dir.path.string());
+    REQUIRE_DRAPE_ERROR(loadSnapshotFile(*c, (dir.path / "missing.snap").string()),
+                        ErrorCode::InvalidArgument, "missing.snap");
+    CHECK(stateHash(*c) == before);
+    // A real snapshot file still loads.
+    const std::string file = (dir.path / "ok.snap").string();
+    saveSnapshotFile(*c, file);
+    c->step(kDt);
+    loadSnapshotFile(*c, file);
+    CHECK(stateHash(*c) == before);
+}
+
+#if !defined(_WIN32)
+TEST_CASE("A snapshot path that is a FIFO is refused by name without blocking",
+          "[errors][wrong-use][snapshot]") {
+    auto c = smallSheet();
+    c->step(kDt);
+    const std::uint64_t before = stateHash(*c);
+    TempDir dir("drape_snapshot_fifo");
+    // A FIFO used to block forever in open(). The load runs on a thread; if it has not
+    // returned in 5 s the test opens the FIFO for writing (and closes it) to let it go.
+    const std::filesystem::path fifo = dir.path / "snapshot.fifo";
+    REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
+    std::promise<std::string> result;
+    std::future<std::string> done = result.get_future();
+    std::thread loader([&] {
+        try {
+            loadSnapshotFile(*c, fifo.string());
+            result.set_value("no error");
+        } catch (const Error& e) {
+            result.set_value(std::string("drape::Error(") + toString(e.code()) + "): " + e.what());
+        } catch (const std::exception& e) {
+            result.set_value(std::string("other exception: ") + e.what());
+        }
+    });
+    const bool quick = done.wait_for(std::chrono::seconds(5)) == std::future_status::ready;
+    while (done.wait_for(std::chrono::milliseconds(50)) != std::future_status::ready) {
+        const int writer = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
+        if (writer >= 0) ::close(writer);
+    }
+    loader.join();
+    const std::string message = done.get();
+    INFO(message);
+    CHECK(quick);
+    CHECK_THAT(message, Catch::Matchers::StartsWith("drape::Error(invalid argument)"));
+    CHECK_THAT(message, Catch::Matchers::Contains("FIFO"));
+    CHECK_THAT(message, Catch::Matchers::Contains(fifo.string()));
+    CHECK(stateHash(*c) == before);
+}
+#endif
