@@ -110,7 +110,24 @@ void validateSelfCollision(const SelfCollisionSettings& sc) {
     requireNonNegative(sc.friction, "selfCollision.friction");
 }
 
+/// An enum value cast from an integer outside the enum's values (`Kind(99)`) is refused,
+/// naming the setting and the values it takes.
+template <class E> void requireEnum(E value, E last, const char* name, const char* values) {
+    const auto v = static_cast<long long>(value);
+    if (v < 0 || v > static_cast<long long>(last))
+        throw Error(ErrorCode::InvalidArgument, std::string(name) + " is not one of its values (" +
+                                                    std::to_string(v) + "); use one of " + values);
+}
+
 void validateSettings(const ClothSettings& s) {
+    requireEnum(s.integrator, IntegratorKind::ImplicitEuler, "integrator",
+                "IntegratorKind::VelocityVerlet, ExplicitEuler, SymplecticEuler, RungeKutta4, "
+                "ImplicitEuler");
+    requireEnum(s.limiter.kind, LimiterKind::StressOrderedOneSided, "limiter.kind",
+                "LimiterKind::None, StressOrdered, Provot, StressOrderedOneSided");
+    requireEnum(s.lumping, MassLumping::AreaLumped, "lumping", "MassLumping::Uniform, AreaLumped");
+    requireEnum(s.implicit.solver, LinearSolverKind::LDLT, "implicit.solver",
+                "LinearSolverKind::ConjugateGradient, LDLT");
     requireFinite(s.gravity, "gravity");
     validateSelfCollision(s.selfCollision);
     requireNonNegative(s.damping, "damping");
@@ -160,7 +177,7 @@ void validateSettings(const ClothSettings& s) {
                     "threads must be between 1 and 256, got " + std::to_string(s.threads));
     }
     requirePositive(s.sleep.distance, "sleep.distance");
-    requireNonNegative(s.sleep.time, "sleep.time");
+    requirePositive(s.sleep.time, "sleep.time");
     if (s.implicit.cgMaxIterations < 1) {
         throw Error(ErrorCode::InvalidArgument, "implicit.cgMaxIterations must be >= 1, got " +
                                                     std::to_string(s.implicit.cgMaxIterations));
@@ -579,7 +596,7 @@ void Cloth::wake() {
 
 void Cloth::setSleep(const SleepSettings& sleep) {
     requirePositive(sleep.distance, "sleep.distance");
-    requireNonNegative(sleep.time, "sleep.time");
+    requirePositive(sleep.time, "sleep.time");
     settings_.sleep = sleep;
     wake();
 }

@@ -270,3 +270,88 @@ TEST_CASE("A snapshot path that is a FIFO is refused by name without blocking",
     CHECK(stateHash(*c) == before);
 }
 #endif
+
+TEST_CASE("Enum settings outside their values are refused by name",
+          "[errors][wrong-use][settings]") {
+    SheetSpec spec;
+    spec.rows = 3;
+    spec.cols = 3;
+    const TopologyPtr topo = ClothTopology::build(makeSheet(spec));
+    ClothSettings s;
+    s.limiter.kind = static_cast<LimiterKind>(99);
+    REQUIRE_DRAPE_ERROR(Cloth(topo, s), ErrorCode::InvalidArgument, "limiter.kind");
+    REQUIRE_DRAPE_ERROR(Cloth(topo, s), ErrorCode::InvalidArgument, "StressOrdered");
+    s = {};
+    s.lumping = static_cast<MassLumping>(99);
+    REQUIRE_DRAPE_ERROR(Cloth(topo, s), ErrorCode::InvalidArgument, "lumping");
+    s = {};
+    s.lumping = static_cast<MassLumping>(-1);
+    REQUIRE_DRAPE_ERROR(Cloth(topo, s), ErrorCode::InvalidArgument, "lumping");
+    s = {};
+    s.integrator = IntegratorKind::ImplicitEuler;
+    s.implicit.solver = static_cast<LinearSolverKind>(7);
+    REQUIRE_DRAPE_ERROR(Cloth(topo, s), ErrorCode::InvalidArgument, "implicit.solver");
+    s = {};
+    s.implicit.solver = static_cast<LinearSolverKind>(7); // refused whatever the integrator
+    REQUIRE_DRAPE_ERROR(Cloth(topo, s), ErrorCode::InvalidArgument, "implicit.solver");
+    s = {};
+    s.integrator = static_cast<IntegratorKind>(99);
+    REQUIRE_DRAPE_ERROR(Cloth(topo, s), ErrorCode::InvalidArgument, "integrator");
+    // Every enumerator is still taken.
+    for (auto k : {LimiterKind::None, LimiterKind::StressOrdered, LimiterKind::Provot,
+                   LimiterKind::StressOrderedOneSided}) {
+        s = {};
+        s.limiter.kind = k;
+        CHECK_NOTHROW(Cloth(topo, s));
+    }
+    for (auto l : {MassLumping::Uniform, MassLumping::AreaLumped}) {
+        s = {};
+        s.lumping = l;
+        CHECK_NOTHROW(Cloth(topo, s));
+    }
+    for (auto solver : {LinearSolverKind::ConjugateGradient, LinearSolverKind::LDLT}) {
+        s = {};
+        s.integrator = IntegratorKind::ImplicitEuler;
+        s.implicit.solver = solver;
+        CHECK_NOTHROW(Cloth(topo, s));
+    }
+}
+
+TEST_CASE("A sleep time of 0 is refused: a falling cloth would fall asleep after one step",
+          "[errors][wrong-use][settings][sleep]") {
+    ClothSettings s;
+    s.sleep.enabled = true;
+    s.sleep.time = 0.0;
+    SheetSpec spec;
+    spec.rows = 3;
+    spec.cols = 3;
+    const TopologyPtr topo = ClothTopology::build(makeSheet(spec));
+    REQUIRE_DRAPE_ERROR(Cloth(topo, s), ErrorCode::InvalidArgument, "sleep.time must be positive");
+    auto c = smallSheet();
+    SleepSettings sleep;
+    sleep.enabled = true;
+    sleep.time = 0.0;
+    REQUIRE_DRAPE_ERROR(c->setSleep(sleep), ErrorCode::InvalidArgument, "sleep.time");
+    c->step(kDt);
+    CHECK_FALSE(c->isAsleep()); // falling, and the refused setting left it as it was
+    sleep.time = 1e-9;          // tiny but positive: allowed
+    c->setSleep(sleep);
+}
+
+TEST_CASE("A negative or non-finite minAreaRatio is refused by name", "[errors][wrong-use][mesh]") {
+    TriangleMesh m;
+    m.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(2, 0, 0)}; // collinear: zero area
+    m.triangles = {{0, 1, 2}};
+    TopologyOptions o;
+    o.minAreaRatio = -1.0; // used to let the zero-area triangle through
+    REQUIRE_DRAPE_ERROR(ClothTopology::build(m, o), ErrorCode::InvalidArgument,
+                        "TopologyOptions::minAreaRatio must be >= 0");
+    o.minAreaRatio = std::numeric_limits<double>::quiet_NaN();
+    REQUIRE_DRAPE_ERROR(ClothTopology::build(m, o), ErrorCode::InvalidArgument, "minAreaRatio");
+    o.minAreaRatio = std::numeric_limits<double>::infinity();
+    REQUIRE_DRAPE_ERROR(ClothTopology::build(m, o), ErrorCode::InvalidArgument, "minAreaRatio");
+    REQUIRE_DRAPE_ERROR(validateMesh(m, -1.0), ErrorCode::InvalidArgument, "minAreaRatio");
+    REQUIRE_DRAPE_ERROR(dropUnusableTriangles(m, -1.0), ErrorCode::InvalidArgument, "minAreaRatio");
+    o.minAreaRatio = 0.0; // allowed: the collinear triangle is still degenerate (area 0)
+    REQUIRE_DRAPE_ERROR(ClothTopology::build(m, o), ErrorCode::DegenerateTriangle, "triangle 0");
+}
