@@ -238,6 +238,24 @@ void Cloth::checkFinite(const char* where) {
     for (std::size_t i = 0; i < state_.x.size(); ++i)
         sum += state_.x[i].sum() + state_.v[i].sum() + state_.f[i].sum();
     if (std::isfinite(sum)) return;
+    // A value already non-finite before the step (the caller wrote it, through
+    // mutablePositions() or mutableVelocities()) is the cause, not the step: name it. Inside
+    // the step, step_.x0 and step_.v0 hold the state from before it (stageIntegrate).
+    if (step_.x0.size() == state_.x.size() && step_.v0.size() == state_.v.size()) {
+        for (std::size_t i = 0; i < step_.x0.size(); ++i) {
+            const bool x = !step_.x0[i].allFinite();
+            if (!x && step_.v0[i].allFinite()) continue;
+            throw Error(ErrorCode::NonFinite,
+                        std::string("the ") + (x ? "position" : "velocity") + " of particle " +
+                            std::to_string(i) + " was not finite before step " +
+                            std::to_string(state_.steps + 1) + " (t = " + num(state_.time) +
+                            " s): set by the caller (through " +
+                            (x ? "mutablePositions()" : "mutableVelocities()") +
+                            ", for example), not by the step; the cloth keeps its state from "
+                            "before the step. Write finite values (setPosition and setVelocity "
+                            "check them)");
+        }
+    }
     for (std::size_t i = 0; i < state_.x.size(); ++i) {
         if (!state_.x[i].allFinite() || !state_.v[i].allFinite() || !state_.f[i].allFinite()) {
             throw Error(ErrorCode::SimulationFailure,

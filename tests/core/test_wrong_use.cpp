@@ -355,3 +355,43 @@ TEST_CASE("A negative or non-finite minAreaRatio is refused by name", "[errors][
     o.minAreaRatio = 0.0; // allowed: the collinear triangle is still degenerate (area 0)
     REQUIRE_DRAPE_ERROR(ClothTopology::build(m, o), ErrorCode::DegenerateTriangle, "triangle 0");
 }
+
+TEST_CASE("A NaN the caller wrote before the step is reported as such, not as a blow-up",
+          "[errors][wrong-use]") {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    for (bool velocity : {false, true}) {
+        INFO((velocity ? "velocity" : "position"));
+        auto c = smallSheet();
+        c->step(kDt);
+        const Vec3 keep = velocity ? c->velocities()[5] : c->positions()[5];
+        const std::uint64_t steps = c->stepCount();
+        if (velocity)
+            c->mutableVelocities()[5] = Vec3(nan, 0, 0);
+        else
+            c->mutablePositions()[5] = Vec3(nan, 0, 0);
+        try {
+            c->step(kDt);
+            FAIL("a NaN written before the step was not reported");
+        } catch (const Error& e) {
+            const std::string what = e.what();
+            INFO(what);
+            // Used to be: "state became non-finite at particle 3 after the step ... Reduce the
+            // time step or the stiffness."
+            CHECK(e.code() == ErrorCode::NonFinite);
+            CHECK_THAT(what, Catch::Matchers::Contains("particle 5 was not finite before step"));
+            CHECK_THAT(what, Catch::Matchers::Contains(velocity ? "mutableVelocities()"
+                                                                : "mutablePositions()"));
+            CHECK_THAT(what, !Catch::Matchers::Contains("Reduce the time step"));
+        }
+        CHECK(c->stepCount() == steps);
+        // Written back finite, the cloth steps on.
+        if (velocity)
+            c->mutableVelocities()[5] = keep;
+        else
+            c->mutablePositions()[5] = keep;
+        c->step(kDt);
+        CHECK(c->stepCount() == steps + 1);
+        for (const Vec3& x : c->positions())
+            CHECK(x.allFinite());
+    }
+}
