@@ -85,9 +85,9 @@ class Reader {
 /// only (a folder, a FIFO or a device such as /dev/zero is refused by name, without blocking
 /// or reading it), of at most kMaxSnapshotFileBytes, read up to the size it had when opened.
 std::vector<unsigned char> readSnapshotFile(const std::string& path) {
-    auto fail = [&path](const std::string& why) {
+    auto fail = [&path](const std::string& why, const char* verb = "read") {
         throw Error(ErrorCode::InvalidArgument,
-                    "cannot read snapshot file '" + path + "': " + why +
+                    std::string("cannot ") + verb + " snapshot file '" + path + "': " + why +
                         "; give the path of a snapshot written by saveSnapshotFile");
     };
     auto checkSize = [&](std::uint64_t size) {
@@ -99,14 +99,14 @@ std::vector<unsigned char> readSnapshotFile(const std::string& path) {
 #if defined(_WIN32)
     std::error_code ec;
     const std::filesystem::path file(path);
-    if (!std::filesystem::exists(file, ec)) fail("no such file");
+    if (!std::filesystem::exists(file, ec)) fail("no such file", "open");
     if (std::filesystem::is_directory(file, ec)) fail("it is a folder, not a file");
     if (!std::filesystem::is_regular_file(file, ec)) fail("it is not a regular file");
     const std::uint64_t size = std::filesystem::file_size(file, ec);
     if (ec) fail(ec.message());
     checkSize(size);
     std::ifstream in(path, std::ios::binary);
-    if (!in) fail("it cannot be opened");
+    if (!in) fail("it cannot be opened", "open");
     bytes.resize(static_cast<std::size_t>(size));
     in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(size));
     bytes.resize(static_cast<std::size_t>(in.gcount()));
@@ -114,7 +114,7 @@ std::vector<unsigned char> readSnapshotFile(const std::string& path) {
     // O_NONBLOCK: opening a FIFO returns at once (a blocking open waits for a writer); fstat
     // then tells what the path is.
     const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_NOCTTY | O_CLOEXEC);
-    if (fd < 0) fail(std::strerror(errno));
+    if (fd < 0) fail(std::strerror(errno), "open");
     struct Closer {
         int fd;
         ~Closer() { ::close(fd); }

@@ -223,6 +223,8 @@ TEST_CASE("A snapshot path that is a folder is refused by name", "[errors][wrong
                         dir.path.string());
     REQUIRE_DRAPE_ERROR(loadSnapshotFile(*c, (dir.path / "missing.snap").string()),
                         ErrorCode::InvalidArgument, "missing.snap");
+    REQUIRE_DRAPE_ERROR(loadSnapshotFile(*c, (dir.path / "missing.snap").string()),
+                        ErrorCode::InvalidArgument, "cannot open");
     CHECK(stateHash(*c) == before);
     // A real snapshot file still loads.
     const std::string file = (dir.path / "ok.snap").string();
