@@ -735,6 +735,16 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
     require(world != nullptr, ErrorCode::InvalidArgument, "addCloth: the Bullet world is null");
     require(cloth != nullptr, ErrorCode::InvalidArgument, "addCloth: the cloth is null");
     detail::validate(settings);
+    // The cloth's own bound on the steps one step may take: a step of the world is never more
+    // cloth steps than the cloth would take itself (100000 ran for minutes).
+    const int maxSubsteps = cloth->settings().substeps.maxSubsteps;
+    if (settings.substeps)
+        require(*settings.substeps <= maxSubsteps, ErrorCode::InvalidArgument,
+                "addCloth: substeps (" + std::to_string(*settings.substeps) +
+                    ") is more than the cloth's ClothSettings::substeps.maxSubsteps (" +
+                    std::to_string(maxSubsteps) +
+                    "); use fewer cloth steps per Bullet sub-step (or leave substeps unset for "
+                    "the automatic count), or raise maxSubsteps");
     {
         Registry& r = registry();
         std::lock_guard<std::mutex> guard(r.lock);

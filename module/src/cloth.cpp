@@ -110,7 +110,24 @@ void validateSelfCollision(const SelfCollisionSettings& sc) {
     requireNonNegative(sc.friction, "selfCollision.friction");
 }
 
+/// An enum value cast from an integer outside the enum's values (`Kind(99)`) is refused,
+/// naming the setting and the values it takes.
+template <class E> void requireEnum(E value, E last, const char* name, const char* values) {
+    const auto v = static_cast<long long>(value);
+    if (v < 0 || v > static_cast<long long>(last))
+        throw Error(ErrorCode::InvalidArgument, std::string(name) + " is not one of its values (" +
+                                                    std::to_string(v) + "); use one of " + values);
+}
+
 void validateSettings(const ClothSettings& s) {
+    requireEnum(s.integrator, IntegratorKind::ImplicitEuler, "integrator",
+                "IntegratorKind::VelocityVerlet, ExplicitEuler, SymplecticEuler, RungeKutta4, "
+                "ImplicitEuler");
+    requireEnum(s.limiter.kind, LimiterKind::StressOrderedOneSided, "limiter.kind",
+                "LimiterKind::None, StressOrdered, Provot, StressOrderedOneSided");
+    requireEnum(s.lumping, MassLumping::AreaLumped, "lumping", "MassLumping::Uniform, AreaLumped");
+    requireEnum(s.implicit.solver, LinearSolverKind::LDLT, "implicit.solver",
+                "LinearSolverKind::ConjugateGradient, LDLT");
     requireFinite(s.gravity, "gravity");
     validateSelfCollision(s.selfCollision);
     requireNonNegative(s.damping, "damping");
@@ -160,7 +177,7 @@ void validateSettings(const ClothSettings& s) {
                     "threads must be between 1 and 256, got " + std::to_string(s.threads));
     }
     requirePositive(s.sleep.distance, "sleep.distance");
-    requireNonNegative(s.sleep.time, "sleep.time");
+    requirePositive(s.sleep.time, "sleep.time");
     if (s.implicit.cgMaxIterations < 1) {
         throw Error(ErrorCode::InvalidArgument, "implicit.cgMaxIterations must be >= 1, got " +
                                                     std::to_string(s.implicit.cgMaxIterations));
@@ -221,6 +238,24 @@ void Cloth::checkFinite(const char* where) {
     for (std::size_t i = 0; i < state_.x.size(); ++i)
         sum += state_.x[i].sum() + state_.v[i].sum() + state_.f[i].sum();
     if (std::isfinite(sum)) return;
+    // A value already non-finite before the step (the caller wrote it, through
+    // mutablePositions() or mutableVelocities()) is the cause, not the step: name it. Inside
+    // the step, step_.x0 and step_.v0 hold the state from before it (stageIntegrate).
+    if (step_.x0.size() == state_.x.size() && step_.v0.size() == state_.v.size()) {
+        for (std::size_t i = 0; i < step_.x0.size(); ++i) {
+            const bool x = !step_.x0[i].allFinite();
+            if (!x && step_.v0[i].allFinite()) continue;
+            throw Error(ErrorCode::NonFinite,
+                        std::string("the ") + (x ? "position" : "velocity") + " of particle " +
+                            std::to_string(i) + " was not finite before step " +
+                            std::to_string(state_.steps + 1) + " (t = " + num(state_.time) +
+                            " s): set by the caller (through " +
+                            (x ? "mutablePositions()" : "mutableVelocities()") +
+                            ", for example), not by the step; the cloth keeps its state from "
+                            "before the step. Write finite values (setPosition and setVelocity "
+                            "check them)");
+        }
+    }
     for (std::size_t i = 0; i < state_.x.size(); ++i) {
         if (!state_.x[i].allFinite() || !state_.v[i].allFinite() || !state_.f[i].allFinite()) {
             throw Error(ErrorCode::SimulationFailure,
@@ -263,7 +298,32 @@ void Cloth::step(double dt) {
     stepPart(dt, 1);
 }
 
+void Cloth::checkStateSizes(const std::string& who) const {
+    const std::size_t n = particleCount();
+    auto check = [&](const Vec3List& list, const char* what, const char* access) {
+        if (list.size() == n) return;
+        throw Error(ErrorCode::InvalidArgument,
+                    who + ": the " + what + " hold " + std::to_string(list.size()) +
+                        " entries but the cloth has " + std::to_string(n) +
+                        " particles (the vector returned by " + access +
+                        " was resized); change its values, not its size: resize it back to "
+                        "particleCount() entries");
+    };
+    check(state_.x, "positions", "mutablePositions()");
+    check(state_.v, "velocities", "mutableVelocities()");
+}
+
+void Cloth::refuseInStep(const char* who) const {
+    if (!inStep_) return;
+    throw Error(ErrorCode::InvalidArgument,
+                std::string(who) +
+                    ": not allowed during the cloth's own step (from a stage); a stage runs "
+                    "once per step with the step's dt: call it before or after the step");
+}
+
 void Cloth::stepPart(double dt, int parts) {
+    refuseInStep("Cloth::step");
+    checkStateSizes("Cloth::step");
     if (parts < 1)
         throw Error(ErrorCode::InvalidArgument,
                     "stepPart: parts must be >= 1, got " + std::to_string(parts));
@@ -535,6 +595,7 @@ void Cloth::checkState(const ClothState& state, const std::vector<double>& warmS
 }
 
 void Cloth::restoreState(ClothState state, std::vector<double> warmStart) {
+    refuseInStep("Cloth::restoreState");
     checkState(state, warmStart);
     const bool asleep = state.asleep && settings_.sleep.enabled;
     state_ = std::move(state);
@@ -553,7 +614,7 @@ void Cloth::wake() {
 
 void Cloth::setSleep(const SleepSettings& sleep) {
     requirePositive(sleep.distance, "sleep.distance");
-    requireNonNegative(sleep.time, "sleep.time");
+    requirePositive(sleep.time, "sleep.time");
     settings_.sleep = sleep;
     wake();
 }
@@ -695,16 +756,45 @@ void Cloth::stageLimit(StepContext& ctx) {
 }
 
 void Cloth::stageCallerStagesBefore(StepContext& ctx) {
-    for (std::size_t s = 0; s < stages_.size(); ++s) {
-        ScopedPhase t(timers_, callerStageBeforeSlots_[s]);
-        stages_[s]->beforeLimit(*this, ctx.dt);
-    }
+    runCallerStages(ctx.dt, true);
 }
 
 void Cloth::stageCallerStages(StepContext& ctx) {
-    for (std::size_t s = 0; s < stages_.size(); ++s) {
-        ScopedPhase t(timers_, callerStageSlots_[s]);
-        stages_[s]->run(*this, ctx.dt);
+    runCallerStages(ctx.dt, false);
+}
+
+// A stage may add or remove stages (itself included) while it runs: the loop goes over the
+// stages as they were when it began, each kept alive while it runs, and skips one removed
+// before its turn. The copies reuse their storage (no allocation after the first step).
+void Cloth::runCallerStages(double dt, bool beforeLimit) {
+    struct Running {
+        std::vector<std::shared_ptr<ClothStage>>& list;
+        explicit Running(std::vector<std::shared_ptr<ClothStage>>& l) : list(l) {}
+        ~Running() { list.clear(); } // the last owner of a removed stage lets it go here
+        Running(const Running&) = delete;
+        Running& operator=(const Running&) = delete;
+    } running(runningStages_);
+    runningStages_.assign(stages_.begin(), stages_.end());
+    const auto& slots = beforeLimit ? callerStageBeforeSlots_ : callerStageSlots_;
+    runningSlots_.assign(slots.begin(), slots.end());
+    stagesRemoved_ = false;
+    for (std::size_t s = 0; s < runningStages_.size(); ++s) {
+        ClothStage* stage = runningStages_[s].get();
+        if (stagesRemoved_ && std::none_of(stages_.begin(), stages_.end(),
+                                           [stage](const std::shared_ptr<ClothStage>& p) {
+                                               return p.get() == stage;
+                                           }))
+            continue;
+        {
+            ScopedPhase t(timers_, runningSlots_[s]);
+            if (beforeLimit)
+                stage->beforeLimit(*this, dt);
+            else
+                stage->run(*this, dt);
+        }
+        if (state_.x.size() != particleCount() || state_.v.size() != particleCount())
+            checkStateSizes("stage '" + stage->name() + "'" +
+                            (beforeLimit ? " (beforeLimit)" : ""));
     }
 }
 
@@ -993,8 +1083,7 @@ void Cloth::setContacts(std::shared_ptr<ContactSet> contacts) {
 }
 
 void Cloth::setExecutor(std::shared_ptr<Executor> executor) {
-    if (inStep_)
-        throw Error(ErrorCode::InvalidArgument, "Cloth::setExecutor: not allowed during a step");
+    refuseInStep("Cloth::setExecutor");
     executor_ = std::move(executor);
     bindLoops(false);
 }
@@ -1029,6 +1118,7 @@ void Cloth::removeStage(const ClothStage* stage) {
             callerStageSlots_.erase(callerStageSlots_.begin() + static_cast<std::ptrdiff_t>(s));
             callerStageBeforeSlots_.erase(callerStageBeforeSlots_.begin() +
                                           static_cast<std::ptrdiff_t>(s));
+            stagesRemoved_ = true;
             edited();
             return;
         }

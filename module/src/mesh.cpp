@@ -152,7 +152,19 @@ WeldResult weldVertices(const TriangleMesh& mesh, double tolerance) {
     return out;
 }
 
+namespace {
+void requireMinAreaRatio(double minAreaRatio, const char* name) {
+    if (!(minAreaRatio >= 0.0 && std::isfinite(minAreaRatio)))
+        throw Error(ErrorCode::InvalidArgument,
+                    std::string(name) + " must be >= 0 and finite, got " +
+                        std::to_string(minAreaRatio) +
+                        " (a negative ratio lets zero-area triangles through); the default is "
+                        "1e-10");
+}
+} // namespace
+
 void validateMesh(const TriangleMesh& mesh, double minAreaRatio) {
+    requireMinAreaRatio(minAreaRatio, "validateMesh: minAreaRatio");
     checkSizesAndIndices(mesh);
     for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
         const std::string why = degeneracy(mesh, t, minAreaRatio);
@@ -161,6 +173,7 @@ void validateMesh(const TriangleMesh& mesh, double minAreaRatio) {
 }
 
 UnusableTriangles dropUnusableTriangles(TriangleMesh& mesh, double minAreaRatio) {
+    requireMinAreaRatio(minAreaRatio, "dropUnusableTriangles: minAreaRatio");
     checkSizesAndIndices(mesh);
     UnusableTriangles out;
     const std::size_t n = mesh.triangles.size();

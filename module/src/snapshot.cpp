@@ -3,10 +3,18 @@
 
 #include "drape/error.hpp"
 
+#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <fstream>
-#include <iterator>
+
+#if defined(_WIN32)
+#include <filesystem>
+#else
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#endif
 
 namespace drape {
 namespace {
@@ -73,6 +81,66 @@ class Reader {
     std::size_t end; ///< where the data ends (the checksum starts)
 };
 
+/// The bytes of a snapshot file, by the rule drape::io applies to mesh files: a regular file
+/// only (a folder, a FIFO or a device such as /dev/zero is refused by name, without blocking
+/// or reading it), of at most kMaxSnapshotFileBytes, read up to the size it had when opened.
+std::vector<unsigned char> readSnapshotFile(const std::string& path) {
+    auto fail = [&path](const std::string& why, const char* verb = "read") {
+        throw Error(ErrorCode::InvalidArgument,
+                    std::string("cannot ") + verb + " snapshot file '" + path + "': " + why +
+                        "; give the path of a snapshot written by saveSnapshotFile");
+    };
+    auto checkSize = [&](std::uint64_t size) {
+        if (size > kMaxSnapshotFileBytes)
+            fail("it is " + std::to_string(size) + " bytes, more than the limit of " +
+                 std::to_string(kMaxSnapshotFileBytes >> 20) + " MiB (kMaxSnapshotFileBytes)");
+    };
+    std::vector<unsigned char> bytes;
+#if defined(_WIN32)
+    std::error_code ec;
+    const std::filesystem::path file(path);
+    if (!std::filesystem::exists(file, ec)) fail("no such file", "open");
+    if (std::filesystem::is_directory(file, ec)) fail("it is a folder, not a file");
+    if (!std::filesystem::is_regular_file(file, ec)) fail("it is not a regular file");
+    const std::uint64_t size = std::filesystem::file_size(file, ec);
+    if (ec) fail(ec.message());
+    checkSize(size);
+    std::ifstream in(path, std::ios::binary);
+    if (!in) fail("it cannot be opened", "open");
+    bytes.resize(static_cast<std::size_t>(size));
+    in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(size));
+    bytes.resize(static_cast<std::size_t>(in.gcount()));
+#else
+    // O_NONBLOCK: opening a FIFO returns at once (a blocking open waits for a writer); fstat
+    // then tells what the path is.
+    const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_NOCTTY | O_CLOEXEC);
+    if (fd < 0) fail(std::strerror(errno), "open");
+    struct Closer {
+        int fd;
+        ~Closer() { ::close(fd); }
+    } closer{fd};
+    struct stat st {};
+    if (::fstat(fd, &st) != 0) fail(std::strerror(errno));
+    if (S_ISDIR(st.st_mode)) fail("it is a folder, not a file");
+    if (S_ISFIFO(st.st_mode)) fail("it is a FIFO, not a regular file");
+    if (S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode)) fail("it is a device, not a regular file");
+    if (!S_ISREG(st.st_mode)) fail("it is not a regular file");
+    const std::uint64_t size = static_cast<std::uint64_t>(st.st_size);
+    checkSize(size);
+    bytes.resize(static_cast<std::size_t>(size));
+    std::size_t got = 0;
+    while (got < bytes.size()) { // never past the size it had when opened
+        const ssize_t n = ::read(fd, bytes.data() + got, bytes.size() - got);
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) fail(std::strerror(errno));
+        if (n == 0) break; // the file shrank: loadSnapshot reports it truncated
+        got += static_cast<std::size_t>(n);
+    }
+    bytes.resize(got);
+#endif
+    return bytes;
+}
+
 } // namespace
 
 std::uint64_t stateHash(const Cloth& cloth) {
@@ -97,6 +165,20 @@ std::uint64_t topologyFingerprint(const ClothTopology& topology) {
 }
 
 std::vector<unsigned char> saveSnapshot(const Cloth& cloth) {
+    // The writer reads particleCount() entries of each: a vector the caller resized through
+    // mutablePositions() or mutableVelocities() is refused by name.
+    const std::size_t n = cloth.particleCount();
+    auto checkSize = [n](std::size_t got, const char* what, const char* access) {
+        if (got == n) return;
+        throw Error(ErrorCode::InvalidArgument,
+                    std::string("saveSnapshot: the ") + what + " hold " + std::to_string(got) +
+                        " entries but the cloth has " + std::to_string(n) +
+                        " particles (the vector returned by " + access +
+                        " was resized); change its values, not its size: resize it back to "
+                        "particleCount() entries");
+    };
+    checkSize(cloth.positions().size(), "positions", "mutablePositions()");
+    checkSize(cloth.velocities().size(), "velocities", "mutableVelocities()");
     Writer w;
     for (char c : kMagic)
         w.pod(c);
@@ -142,6 +224,13 @@ std::vector<unsigned char> saveSnapshot(const Cloth& cloth) {
 }
 
 void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
+    // Replacing the state mid-step would leave the step's other half on another state (and the
+    // stages' states would be loaded while they run): refused before anything is read.
+    if (cloth.inStep())
+        throw Error(ErrorCode::InvalidArgument,
+                    "loadSnapshot: not allowed during the cloth's own step (from a stage); a "
+                    "stage runs once per step with the step's dt: load the snapshot before or "
+                    "after the step");
     if (bytes.size() < sizeof(kMagic) || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
         throw Error(ErrorCode::InvalidArgument, "not a drape snapshot (bad magic bytes)");
     }
@@ -281,10 +370,7 @@ void saveSnapshotFile(const Cloth& cloth, const std::string& path) {
 }
 
 void loadSnapshotFile(Cloth& cloth, const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw Error(ErrorCode::InvalidArgument, "cannot open snapshot file '" + path + "'");
-    std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
-                                     std::istreambuf_iterator<char>());
+    const std::vector<unsigned char> bytes = readSnapshotFile(path);
     try {
         loadSnapshot(cloth, bytes);
     } catch (const Error& e) {

@@ -32,6 +32,13 @@ std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& in
         throw Error(ErrorCode::InvalidArgument, "weldTolerance must be >= 0 and finite, got " +
                                                     std::to_string(*options.weldTolerance));
     }
+    if (!(options.minAreaRatio >= 0.0 && std::isfinite(options.minAreaRatio))) {
+        throw Error(ErrorCode::InvalidArgument,
+                    "TopologyOptions::minAreaRatio must be >= 0 and finite, got " +
+                        std::to_string(options.minAreaRatio) +
+                        " (a negative ratio lets zero-area triangles through); the default is "
+                        "1e-10");
+    }
     const double tolerance =
         options.weldTolerance ? *options.weldTolerance : automaticWeldTolerance(input.vertices);
     WeldResult welded = weldVertices(input, tolerance);

@@ -228,3 +228,22 @@ TEST_CASE("a cloth's handle removed or destroyed inside the world's step leaves 
         CHECK(again->inWorld());
     }
 }
+
+TEST_CASE("BulletClothSettings::substeps beyond the cloth's maxSubsteps is refused by name",
+          "[world][wrong_use]") {
+    TestWorld w;
+    auto cloth = makeCloth(horizontalSheet(3, 3, 0.1, 1.0), softCloth());
+    const int limit = cloth->settings().substeps.maxSubsteps;
+    bullet::BulletClothSettings s;
+    // 100000 cloth steps per Bullet sub-step used to be accepted (a minute-long world step).
+    for (int bad : {limit + 1, 100000}) {
+        s.substeps = bad;
+        CHECK_THROWS_AS(w.add(cloth, s), Error);
+        CHECK_THROWS_WITH(w.add(cloth, s),
+                          Catch::Contains("substeps (" + std::to_string(bad)) &&
+                              Catch::Contains("substeps.maxSubsteps (" + std::to_string(limit)));
+    }
+    s.substeps = limit; // the bound itself is allowed
+    auto& handle = w.add(cloth, s);
+    CHECK(handle.inWorld());
+}

@@ -109,7 +109,9 @@ class Cloth {
     /// on a dt beyond the stability limit (if settings.rejectUnstableTimeStep), and when the
     /// state stops being finite or fails a check of settings.failure (the state is then left
     /// as it was before the step). With failure.retrySubsteps >= 2 a failed step is first
-    /// retried as that many sub-steps.
+    /// retried as that many sub-steps. Throws drape::Error (InvalidArgument) when the positions
+    /// or velocities (mutablePositions(), mutableVelocities()) no longer hold particleCount()
+    /// entries, and when called during the cloth's own step (from a stage: inStep()).
     /// With settings.substeps.automatic (the default) a dt beyond substeps.fraction of the
     /// stability limit is taken as substepsFor(dt) equal sub-steps; the step then counts once
     /// (stepCount()), and what it reports (lastLimiterStats(), constraintImpulses()) sums them.
@@ -126,6 +128,10 @@ class Cloth {
     void stepPart(double dt, int parts);
     /// Steps that failed and succeeded when retried as sub-steps.
     std::uint64_t retriedSteps() const { return retries_; }
+    /// Whether the cloth is inside its own step (true while its stages run). step, stepPart,
+    /// restoreState, loadSnapshot and setExecutor refuse to run then (drape::Error
+    /// InvalidArgument).
+    bool inStep() const { return inStep_; }
 
     // --- sleeping (see the top of this file and SleepSettings) -----------------------------
     bool isAsleep() const { return state_.asleep; }
@@ -199,14 +205,18 @@ class Cloth {
     bool hasCallerExecutor() const { return executor_ != nullptr; }
 
     // --- stages ---------------------------------------------------------------------------
+    /// Adds a stage after the others. During a step (from a stage) it runs from the next step.
     void addStage(std::shared_ptr<ClothStage> stage);
+    /// Removes a stage (nothing if it is not one of this cloth's). During a step (from a stage,
+    /// itself included) the stages after it still run in that step, and it does not run again.
     void removeStage(const ClothStage* stage);
 
     // --- state ----------------------------------------------------------------------------
     const ClothTopology& topology() const { return *topology_; }
     const TopologyPtr& topologyPtr() const { return topology_; }
     const ClothSettings& settings() const { return settings_; }
-    std::size_t particleCount() const { return state_.x.size(); }
+    /// The topology's particle count (what positions() and velocities() must hold).
+    std::size_t particleCount() const { return invMass_.size(); }
     const Vec3List& positions() const { return state_.x; }  ///< [m]
     const Vec3List& velocities() const { return state_.v; } ///< [m/s]
     /// Last evaluated forces [N]. With Velocity-Verlet the velocity-dependent terms (linear and
@@ -214,7 +224,8 @@ class Cloth {
     /// them itself, see integrators.hpp); held particles' entries include them.
     const Vec3List& forces() const { return state_.f; }
     /// Mutable access for stages and users; marks the cached forces stale. Moving a pinned
-    /// particle re-pins it where it is put.
+    /// particle re-pins it where it is put. Change the values, not the size: a step (and
+    /// saveSnapshot) refuses vectors that do not hold particleCount() entries.
     Vec3List& mutablePositions();
     Vec3List& mutableVelocities();
     void setPosition(Index i, const Vec3& x);
@@ -230,7 +241,8 @@ class Cloth {
     /// Puts back a state read from this cloth or one with the same topology, and the limiter's
     /// warm start (one value per spring, >= 0, or empty for none), after checkState (the cloth
     /// unchanged when it throws). The inverse masses follow `pinned` (kinematic paths and
-    /// targets are not part of the state); a cloth whose sleep is off stays awake.
+    /// targets are not part of the state); a cloth whose sleep is off stays awake. Not during
+    /// the cloth's own step (from a stage: drape::Error InvalidArgument).
     void restoreState(ClothState state, std::vector<double> warmStart);
     /// Throws drape::Error (InvalidArgument or NonFinite, naming it) unless `state` and
     /// `warmStart` fit this cloth: every size, finite values, a quiet time >= 0, sleep anchors
@@ -337,6 +349,14 @@ class Cloth {
     void stageLimit(StepContext& ctx);
     void stageCallerStages(StepContext& ctx);
     void stageCallerStagesBefore(StepContext& ctx);
+    /// Throws drape::Error (InvalidArgument) naming `who` unless the positions and velocities
+    /// hold particleCount() entries (O(1)).
+    void checkStateSizes(const std::string& who) const;
+    /// Runs the caller's stages' beforeLimit (or run) in order, robust to stages added or
+    /// removed by a stage during the loop.
+    void runCallerStages(double dt, bool beforeLimit);
+    /// Throws drape::Error (InvalidArgument) naming `who` when called during the step.
+    void refuseInStep(const char* who) const;
     void stageForces(StepContext& ctx);
     void stageFinish(StepContext& ctx);
     void stageRelativeDamping(StepContext& ctx);
@@ -387,6 +407,11 @@ class Cloth {
     std::vector<std::size_t> callerStageSlots_; ///< timer slot of each caller stage
     /// Timer slot of each caller stage's beforeLimit ("<name>_before_limit").
     std::vector<std::size_t> callerStageBeforeSlots_;
+    /// runCallerStages' copy of the stages and their timer slots as its loop began (a stage
+    /// may remove stages, itself included, while it runs); empty outside the loop.
+    std::vector<std::shared_ptr<ClothStage>> runningStages_;
+    std::vector<std::size_t> runningSlots_;
+    bool stagesRemoved_ = false; ///< removeStage was called since that loop began
     StrainLimiter limiter_;
     StrainLimitStats limiterStats_;
     std::unique_ptr<detail::SelfCollider> selfCollider_; ///< scratch of the self-collision stage

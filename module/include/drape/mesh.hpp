@@ -38,7 +38,8 @@ WeldResult weldVertices(const TriangleMesh& mesh, double tolerance);
 
 /// Checks that a mesh can be a cloth: at least one triangle, finite vertices, indices in range,
 /// no repeated vertex in a triangle and no triangle whose area is below
-/// `minAreaRatio` times the square of its longest edge. Throws drape::Error naming the triangle.
+/// `minAreaRatio` (>= 0 and finite, else drape::Error InvalidArgument) times the square of its
+/// longest edge. Throws drape::Error naming the triangle.
 void validateMesh(const TriangleMesh& mesh, double minAreaRatio = 1e-10);
 
 /// Triangles a mesh cannot use as cloth, as removed by dropUnusableTriangles.

@@ -160,7 +160,8 @@ struct SleepSettings {
     /// from bodies anyway) and, over the default time, a mean speed of 1 cm/s (Jolt lets a
     /// body sleep at 3 cm/s).
     double distance = 1e-2;
-    /// Quiet simulated time before the cloth falls asleep [s]. Like Bullet's rigid bodies
+    /// Quiet simulated time before the cloth falls asleep [s] (> 0: with 0 a cloth would fall
+    /// asleep after its first step, even in free fall). Like Bullet's rigid bodies
     /// (2 s before deactivation): long enough that the turning point of a slow swing is not
     /// mistaken for rest (a swing of period below ~2 s leaves the 1 mm ball within it).
     double time = 1.0;
@@ -220,8 +221,9 @@ inline constexpr double kRelativeDampingInterval = 1.0 / 60.0;
 inline constexpr double kMinUnitsPerMetre = 1e-6;
 inline constexpr double kMaxUnitsPerMetre = 1e6;
 
-/// Everything a Cloth needs besides its topology. A default-constructed ClothSettings is
-/// valid: a 200 g/m^2 cotton, the automatic stiffness (kAutomaticStretchWaveSpeed) with
+/// Everything a Cloth needs besides its topology. Enum fields must hold one of their
+/// enumerators (a value cast from another integer is refused). A default-constructed ClothSettings
+/// is valid: a 200 g/m^2 cotton, the automatic stiffness (kAutomaticStretchWaveSpeed) with
 /// automatic sub-steps, Velocity-Verlet, the paper's stress-ordered limiting at 10 %,
 /// gravity -9.81 m/s^2 along y. Its defaults are in SI units (metres, kilograms, seconds);
 /// a scene in another length unit starts from inUnits().

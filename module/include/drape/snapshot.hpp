@@ -38,9 +38,16 @@ std::uint64_t topologyFingerprint(const ClothTopology& topology);
 std::vector<unsigned char> saveSnapshot(const Cloth& cloth);
 void saveSnapshotFile(const Cloth& cloth, const std::string& path);
 
+/// The largest snapshot file loadSnapshotFile reads (4 GiB: a cloth of kMaxParticles with
+/// its sleep anchors and warm start fits) [bytes].
+inline constexpr std::uint64_t kMaxSnapshotFileBytes = 4ull << 30;
+
 /// Restores a state saved by saveSnapshot. Throws drape::Error (InvalidArgument) naming the
 /// problem for a truncated, corrupt or foreign snapshot; the cloth is unchanged then.
 void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes);
+/// loadSnapshot of a file's bytes. The path must name a regular file of at most
+/// kMaxSnapshotFileBytes, as drape::io requires of mesh files: a folder, a FIFO or a device
+/// (/dev/zero) is refused by name (drape::Error InvalidArgument) without blocking or reading.
 void loadSnapshotFile(Cloth& cloth, const std::string& path);
 
 } // namespace drape

@@ -34,7 +34,8 @@ struct TopologyOptions {
     /// automaticWeldTolerance, which welds exact and near-exact duplicates (the seams an
     /// exporter leaves) without touching real geometry.
     std::optional<double> weldTolerance;
-    /// A triangle whose area is below this times its longest edge squared is degenerate.
+    /// A triangle whose area is below this times its longest edge squared is degenerate
+    /// (>= 0 and finite; ClothTopology::build refuses other values).
     double minAreaRatio = 1e-10;
 };
 

@@ -78,7 +78,9 @@ struct BulletClothSettings {
     /// Particle-triangle self-collision: when enabled, addCloth sets it as the cloth's own
     /// ClothSettings::selfCollision (Cloth::setSelfCollision), which the cloth's step runs.
     SelfCollisionSettings selfCollision;
-    /// Cloth steps per internal Bullet sub-step (>= 1): a stiff cloth runs at
+    /// Cloth steps per internal Bullet sub-step (>= 1, and at most the cloth's
+    /// ClothSettings::substeps.maxSubsteps, 1000 by default; addCloth refuses more with a
+    /// drape::Error InvalidArgument): a stiff cloth runs at
     /// fixedTimeStep / substeps while the rigid bodies keep the world's step. Not given (the
     /// default): Cloth::substepsFor, chosen in every sub-step: the fewest cloth steps within
     /// ClothSettings::substeps.fraction (90 %) of the cloth's stability limit, or 1 if the
