@@ -928,6 +928,7 @@ BulletClothSettings BulletClothSettings::inUnits(double unitsPerMetre) {
     s.unitsPerMetre = unitsPerMetre;
     detail::validate(s); // the range of unitsPerMetre, named
     s.contact.thickness *= unitsPerMetre;
+    s.contact.depenetrationSpeed *= unitsPerMetre;
     s.selfCollision.thickness *= unitsPerMetre;
     return s;
 }

@@ -342,6 +342,9 @@ class ContactSolver {
     std::vector<StillBox> stillBoxes_, stillBoxesNext_;
     std::vector<std::uint64_t> boxVersion_; ///< per body this pass: its version, 0 if it moves
     std::uint64_t lastBoxVersion_ = 0;
+    /// In collideMoved: what the limiter moved is projected again (a particle coming out of a
+    /// body slowly, collideParticle, is left where the limiter put it).
+    bool reprojecting_ = false;
     double maxRest_ = -1.0;   ///< the longest spring's rest length (once) [m]
     double totalMass_ = -1.0; ///< the cloth's mass (once: masses never change) [kg]
     double totalMass(const Cloth& c) {

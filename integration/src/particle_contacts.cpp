@@ -107,11 +107,30 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
     const bool sweep = cs.continuous && (xi - from).squaredNorm() > h * h;
 
     SurfaceHit hit;
+    // Where the contact holds the particle: `reach` above the surface (the thickness, or less
+    // for a particle that started the step deep inside the body).
+    double reach = h;
     if (!(sweep && pathHit(b, from, xi, hit))) {
         hit = b.box ? boxSurface(b.boxHalf, b.boxFaceNormal, b.pose, xi, counters)
                     : closestSurface(b.object->getCollisionShape(), b.pose, xi, from, h + band_,
                                      counters);
         if (!hit.valid || hit.distance >= h + band_) return false;
+        // Deeper than the thickness inside the body now and at the step's start (placed or
+        // teleported there, not come in on its way): out at contact.depenetrationSpeed only
+        // (its neighbours follow it through the limiter at the speed it moves).
+        if (hit.distance < -h) {
+            const SurfaceHit start =
+                b.box ? boxSurface(b.boxHalf, b.boxFaceNormal, b.pose, from, counters)
+                      : closestSurface(b.object->getCollisionShape(), b.pose, from, from, h,
+                                       counters);
+            if (start.valid && start.distance < -h) {
+                // Once a step, before the limiter: the limiter then keeps the bound over it
+                // (projected again after it, particles pushed out through different faces
+                // tore the cloth apart, and it flew off at 26 m/s when they came out).
+                if (reprojecting_) return true;
+                reach = std::min(h, start.distance + cs.depenetrationSpeed * dt);
+            }
+        }
     }
     // A particle that a static or kinematic body holds from behind (a rug on the floor) does
     // not give way to a dynamic body: one pressing it into that body (normals more than 120
@@ -141,9 +160,10 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
     // as an impulse, at most what stops its approach (flushPlane). (On a supported body lighter
     // than the cloth, the plane's impulses and Bullet's contacts would feed on each other;
     // there the projection and the walk alternate instead.)
-    if (!b.dynamicBody || !b.supported ||
-        b.inverseMassAlong(hit.point, hit.normal) * clothMass_ <= 1.0)
-        keepPlane(c, bi, i, hit.normal, hit.normal.dot(hit.point) + h, hit.point, false, dt);
+    // (Not for a particle coming out of a body slowly: the limiter keeps the bound over it.)
+    if (reach == h && (!b.dynamicBody || !b.supported ||
+                       b.inverseMassAlong(hit.point, hit.normal) * clothMass_ <= 1.0))
+        keepPlane(c, bi, i, hit.normal, hit.normal.dot(hit.point) + reach, hit.point, false, dt);
 
     // The contact record the force term reads (addContactForces, drape/contacts.hpp): for every
     // particle touching the body (below the thickness, or resting at it), and with eq. (7) on for
@@ -170,7 +190,7 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
     ++stats.projections;
     stats.maxDepth = std::max(stats.maxDepth, h - hit.distance);
     touching_[i] = 1;
-    x[i] = xi + (h - hit.distance) * hit.normal;
+    if (reach > hit.distance) x[i] = xi + (reach - hit.distance) * hit.normal;
     const Vec3 rel = v[i] - b.velocityAt(hit.point);
     const double vn = rel.dot(hit.normal);
     if (vn < 0.0) {

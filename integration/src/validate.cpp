@@ -26,6 +26,10 @@ void validate(const BulletClothSettings& s) {
                 "contact.penaltyForce must be >= 0 and finite, got " + num(*c.penaltyForce));
     require(std::isfinite(c.frictionScale) && c.frictionScale >= 0.0, ErrorCode::InvalidArgument,
             "contact.frictionScale must be >= 0 and finite, got " + num(c.frictionScale));
+    require(std::isfinite(c.depenetrationSpeed) && c.depenetrationSpeed > 0.0,
+            ErrorCode::InvalidArgument,
+            "contact.depenetrationSpeed must be positive and finite, got " +
+                num(c.depenetrationSpeed));
     if (c.broadphaseMargin)
         require(std::isfinite(*c.broadphaseMargin) && *c.broadphaseMargin >= 0.0,
                 ErrorCode::InvalidArgument,

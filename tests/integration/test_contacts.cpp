@@ -211,19 +211,70 @@ TEST_CASE("a cloth far inside a body: the contact stage's limiter stops at one b
     // the bound. Provot's sweeps (no worklist) stop at their cap (5 here); the re-limiting
     // passes then stop too, so a step costs the first walk and one re-limiting walk, not
     // kRelimitPasses (8) more capped walks (a fuzzed scene with a 5 m capsule around a flag
-    // spent 8,000 sweeps a step that way).
+    // spent 8,000 sweeps a step that way). (Out at once: by default a particle this deep comes
+    // out at contact.depenetrationSpeed, and nothing tears.)
     TestWorld w;
     w.body(w.shape<btBoxShape>(btVector3(0.2f, 1.0f, 0.2f)), 0.0, Vec3(0, 0, 0));
     ClothSettings s = smallCloth();
     s.limiter.kind = LimiterKind::Provot;
     s.limiter.maxRounds = 5;
     auto cloth = makeCloth(horizontalSheet(8, 8, 0.05, 0.0), s);
-    w.add(cloth);
+    bullet::BulletClothSettings bs;
+    bs.contact.depenetrationSpeed = 1e9;
+    w.add(cloth, bs);
     run(w, 1);
     const StrainLimitStats& st = cloth->lastLimiterStats();
     INFO(st.rounds << " sweeps, cap hits " << cloth->limiterCapHits());
     CHECK(cloth->limiterCapHits() == 1);
     CHECK(st.rounds <= 2 * s.limiter.maxRounds);
+}
+
+TEST_CASE("a cloth placed inside a body comes out at contact.depenetrationSpeed, not thrown",
+          "[contacts][depenetration]") {
+    // Default settings, 60 Hz. (1) A 1 m sheet placed at the middle of a 2 m static box, 1 m
+    // from every face: each particle is pushed toward its nearest face. Moved out in one step,
+    // they dragged their neighbours along through the limiter: the sheet left at 1,460 m/s.
+    // Now each comes out at 1 m/s at most and the limiter keeps the bound over them.
+    auto frames = [](TestWorld& w, int n, const std::function<void()>& each) {
+        for (int f = 0; f < n; ++f) {
+            w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+            each();
+        }
+    };
+    {
+        TestWorld w;
+        w.body(w.shape<btBoxShape>(btVector3(1, 1, 1)), 0.0, Vec3::Zero());
+        auto cloth = makeCloth(horizontalSheet(10, 10, 0.1, 0.0), ClothSettings{});
+        w.add(cloth);
+        double fastest = 0.0, strain = 0.0;
+        frames(w, 30, [&] {
+            for (const Vec3& v : cloth->velocities())
+                fastest = std::max(fastest, v.norm());
+            strain = std::max(strain, cloth->maxStrain());
+        });
+        INFO("fastest particle " << fastest << " m/s, peak strain " << strain);
+        CHECK(fastest < 3.0);
+        CHECK(strain <= 0.101 + 1e-9);
+    }
+    // (2) A sheet placed 3 cm below the top of a 20 cm thick table: out to the thickness
+    // above the top within a few frames, and at rest there.
+    {
+        TestWorld w;
+        w.body(w.shape<btBoxShape>(btVector3(1, 0.1f, 1)), 0.0, Vec3::Zero());
+        auto cloth = makeCloth(horizontalSheet(10, 10, 0.1, 0.07), ClothSettings{});
+        bullet::BulletClothSettings bs;
+        w.add(cloth, bs);
+        frames(w, 10, [] {});
+        for (const Vec3& x : cloth->positions())
+            CHECK(x.y() >= 0.1 + bs.contact.thickness * (1.0 - 1e-6));
+        CHECK(cloth->kineticEnergy() < 1e-6);
+    }
+    // A speed that is not positive and finite is refused by name.
+    TestWorld w;
+    bullet::BulletClothSettings bad;
+    bad.contact.depenetrationSpeed = 0.0;
+    CHECK_THROWS_WITH(w.add(makeCloth(horizontalSheet(3, 3, 0.1, 1.0), ClothSettings{}), bad),
+                      Catch::Contains("contact.depenetrationSpeed"));
 }
 
 TEST_CASE("a cloth drapes over a static sphere", "[contacts][drape]") {
