@@ -185,6 +185,9 @@ struct BulletCloth::Impl {
     double band = 0.0;   ///< eq. (7) band width [m]
     double margin = 0.0; ///< broadphase margin [m]
     bool inWorld = false;
+    /// The world stepped with the proxy out of it (the program removed it; prepare): the
+    /// world lived then, so remove() takes the stepper out of it.
+    bool proxyLost = false;
 
     detail::ClothProxy proxy;
     detail::ContactSolver contacts;      ///< the contact stage's state, and the bodies
@@ -504,6 +507,14 @@ void BulletCloth::Impl::prepare(double dt) {
     using Clock = std::chrono::steady_clock;
     const auto start = Clock::now();
     Cloth& c = *cloth;
+    // The world steps, so it lives: a proxy out of it was taken out by the program.
+    if (!proxy.inLiveWorld()) {
+        proxyLost = true;
+        throw Error(ErrorCode::InvalidArgument,
+                    "the cloth's proxy (BulletCloth::proxyObject()) was removed from its world: "
+                    "take a cloth out with removeCloth or BulletCloth::remove(), not "
+                    "btCollisionWorld::removeCollisionObject");
+    }
     last = ContactStats{};
     outside.clear();
     stepDt = dt;
@@ -813,7 +824,7 @@ BulletCloth::~BulletCloth() {
 void BulletCloth::remove() {
     Impl& m = *impl_;
     if (!m.inWorld) return;
-    if (m.proxy.inLiveWorld()) {
+    if (m.proxy.inLiveWorld() || m.proxyLost) { // (lost: the world stepped without it)
         m.leaveStepper(true);
         m.proxy.removeFromWorld();
     } else {

@@ -97,7 +97,8 @@ void ClothProxy::setBounds(const Vec3& lo, const Vec3& hi) {
     min_ = lo;
     max_ = hi;
     shape_->set(lo, hi);
-    if (world_) world_->updateSingleAabb(ghost_.get());
+    // (Not while out of the world's broadphase: taken out by the program, or the world gone.)
+    if (world_ && ghost_->getBroadphaseHandle()) world_->updateSingleAabb(ghost_.get());
 }
 
 bool ClothProxy::candidates(const Vec3& lo, const Vec3& hi,

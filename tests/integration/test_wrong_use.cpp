@@ -247,3 +247,28 @@ TEST_CASE("BulletClothSettings::substeps beyond the cloth's maxSubsteps is refus
     auto& handle = w.add(cloth, s);
     CHECK(handle.inWorld());
 }
+
+TEST_CASE("the cloth's proxy taken out of the world by the program: the step says so, the "
+          "handle's removal is safe",
+          "[world][wrong_use]") {
+    // proxyObject() is const for a reason; a program that casts that away and removes the
+    // ghost from the world crashed the next step (its box updated outside the broadphase),
+    // and the handle's removal then left its stepper in the world, freed.
+    TestWorld w;
+    w.world.setGravity(btVector3(0, -9.81f, 0));
+    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), softCloth());
+    auto handle = bullet::addCloth(&w.world, cloth);
+    w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    w.world.removeCollisionObject(const_cast<btCollisionObject*>(handle->proxyObject()));
+    CHECK_THROWS_WITH(w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0)),
+                      Catch::Contains("proxy") && Catch::Contains("removeCloth"));
+    CHECK_FALSE(handle->inWorld());
+    handle.reset();
+    // The world steps on without the cloth; the cloth can join it again.
+    for (int k = 0; k < 3; ++k)
+        w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    auto again = bullet::addCloth(&w.world, cloth);
+    w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    CHECK(again->inWorld());
+    CHECK(cloth->positions()[12].y() < 1.0);
+}

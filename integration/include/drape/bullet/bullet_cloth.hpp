@@ -59,7 +59,9 @@ namespace drape::bullet {
 /// - attaching to a body that is not in the cloth's world: attach throws drape::Error;
 /// - the handle removed or destroyed inside its world's step (by a cloth's stage, a callback):
 ///   it leaves the world at once, the rest of the step passes over it and its state is freed
-///   when the step ends (a cloth's own step finishes the sub-step it was in).
+///   when the step ends (a cloth's own step finishes the sub-step it was in);
+/// - the proxy (proxyObject()) taken out of the world by the program: the next world step
+///   throws drape::Error saying so; inWorld() turns false and remove() is safe.
 class BulletCloth {
   public:
     /// Prefer addCloth(). Throws drape::Error on a null world or cloth or bad settings.
