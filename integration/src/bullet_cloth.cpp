@@ -188,6 +188,8 @@ struct BulletCloth::Impl {
     /// The world stepped with the proxy out of it (the program removed it; prepare): the
     /// world lived then, so remove() takes the stepper out of it.
     bool proxyLost = false;
+    /// The stepper stepping this cloth right now (Stepper::Stepping), else null.
+    Stepper* steppingIn = nullptr;
 
     detail::ClothProxy proxy;
     detail::ContactSolver contacts;      ///< the contact stage's state, and the bodies
@@ -276,32 +278,39 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
     std::vector<Impl*> cloths; ///< in the order they were added
     bool inWorld = false;
 
-    /// Inside updateAction: a handle removed or destroyed now (by a stage of a cloth, a
-    /// callback) leaves the world at once, but its state lives on in `graveyard` until the
-    /// step's loops, which still list it, are done with it.
-    bool stepping = false;
+    /// A handle destroyed while its cloth is listed in a step of this stepper (by a stage of a
+    /// cloth, a callback; Impl::steppingIn) leaves the world at once, but its state lives on
+    /// here until the step's loops, which still list it, are done with it.
     std::vector<std::unique_ptr<Impl>> graveyard;
+
+    /// While it lives, `list` is being stepped by stepper `s` (updateAction, stepInWorld).
+    struct Stepping {
+        Stepper& s;
+        const std::vector<Impl*>& list;
+        Stepping(Stepper& st, const std::vector<Impl*>& l) : s(st), list(l) {
+            for (Impl* c : list)
+                c->steppingIn = &s;
+        }
+        ~Stepping() {
+            std::vector<std::unique_ptr<Impl>> gone;
+            {
+                std::lock_guard<std::mutex> guard(steppersLock());
+                for (Impl* c : list) // alive, or in the graveyard: not freed yet
+                    c->steppingIn = nullptr;
+                gone.swap(s.graveyard);
+            }
+        }
+        Stepping(const Stepping&) = delete;
+        Stepping& operator=(const Stepping&) = delete;
+    };
 
     void updateAction(btCollisionWorld*, btScalar dt) override {
         // This stepper and the cloths it steps, as the step begins: a handle removed during
         // it (it leaves `cloths`, and may take the last reference to this stepper) is passed
         // over from then on.
         const std::shared_ptr<Stepper> keep = shared_from_this();
-        struct Stepping {
-            Stepper& s;
-            explicit Stepping(Stepper& st) : s(st) { s.stepping = true; }
-            ~Stepping() {
-                s.stepping = false;
-                std::vector<std::unique_ptr<Impl>> gone;
-                {
-                    std::lock_guard<std::mutex> guard(steppersLock());
-                    gone.swap(s.graveyard);
-                }
-            }
-            Stepping(const Stepping&) = delete;
-            Stepping& operator=(const Stepping&) = delete;
-        } during(*this);
         const std::vector<Impl*> list = cloths;
+        const Stepping during(*this, list);
         const std::size_t n = list.size();
         errors_.assign(n, nullptr);
         for (std::size_t k = 0; k < n; ++k) {
@@ -507,6 +516,13 @@ void BulletCloth::Impl::prepare(double dt) {
     using Clock = std::chrono::steady_clock;
     const auto start = Clock::now();
     Cloth& c = *cloth;
+    // Sizes the program could have changed (Cloth::step checks them too, but the body
+    // snapshots read the positions first).
+    if (c.positions().size() != c.particleCount() || c.velocities().size() != c.particleCount())
+        throw Error(ErrorCode::InvalidArgument,
+                    "the cloth's positions or velocities were resized (through "
+                    "mutablePositions() or mutableVelocities()); change their values, not their "
+                    "size: resize them back to particleCount() entries");
     // The world steps, so it lives: a proxy out of it was taken out by the program.
     if (!proxy.inLiveWorld()) {
         proxyLost = true;
@@ -813,11 +829,11 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
 BulletCloth::~BulletCloth() {
     // Destroyed inside its world's step (by a cloth's stage, say): it leaves the world now,
     // and its stepper keeps its state until the step's loops are done with it.
-    const std::shared_ptr<Impl::Stepper> stepper = impl_ ? impl_->stepper : nullptr;
+    Impl::Stepper* const stepping = impl_ ? impl_->steppingIn : nullptr;
     remove();
-    if (stepper && stepper->stepping) {
+    if (stepping) {
         std::lock_guard<std::mutex> guard(steppersLock());
-        stepper->graveyard.push_back(std::move(impl_));
+        stepping->graveyard.push_back(std::move(impl_));
     }
 }
 
@@ -931,7 +947,11 @@ void BulletCloth::stepInWorld(double dt) {
             "stepInWorld: dt must be positive and finite, got " + num(dt));
     require(impl_->live(), ErrorCode::InvalidArgument,
             "stepInWorld: the cloth has been removed from its world (or the world destroyed)");
-    impl_->step(dt);
+    Impl& m = *impl_; // (a stage may destroy this handle: `this` is not used after the step)
+    const std::shared_ptr<Impl::Stepper> keep = m.stepper;
+    const std::vector<Impl*> list{&m};
+    const Impl::Stepper::Stepping during(*keep, list);
+    m.step(dt);
 }
 
 BulletClothSettings BulletClothSettings::inUnits(double unitsPerMetre) {

@@ -189,7 +189,7 @@ TEST_CASE("a cloth's handle removed or destroyed inside the world's step leaves 
     // A's own handle, or destroys it: the handle leaves the world at once, the step's loops
     // pass over it (before: freed memory read, or the stepper freed while it ran), the other
     // cloth steps on, and the world steps on after.
-    for (int how = 0; how < 3; ++how) {
+    for (int how = 0; how < 4; ++how) {
         INFO("case " << how);
         BareWorld b;
         b.world->setGravity(btVector3(0, -9.81f, 0));
@@ -201,6 +201,11 @@ TEST_CASE("a cloth's handle removed or destroyed inside the world's step leaves 
         if (how == 0) act = [&] { hc.reset(); };
         if (how == 1) act = [&] { ha->remove(); };
         if (how == 2) act = [&] { ha.reset(); };
+        if (how == 3)
+            act = [&] { // removed, then destroyed, in the same step
+                ha->remove();
+                ha.reset();
+            };
         a->addStage(std::make_shared<OnceStage>(act));
         for (int k = 0; k < 5; ++k)
             b.world->stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));

@@ -205,7 +205,8 @@ class Cloth {
     bool hasCallerExecutor() const { return executor_ != nullptr; }
 
     // --- stages ---------------------------------------------------------------------------
-    /// Adds a stage after the others. During a step (from a stage) it runs from the next step.
+    /// Adds a stage after the others. During a step (from a stage) it runs from the next pass
+    /// over the stages (its run() in the same step when added from a beforeLimit).
     void addStage(std::shared_ptr<ClothStage> stage);
     /// Removes a stage (nothing if it is not one of this cloth's). During a step (from a stage,
     /// itself included) the stages after it still run in that step, and it does not run again.

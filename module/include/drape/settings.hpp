@@ -160,8 +160,9 @@ struct SleepSettings {
     /// from bodies anyway) and, over the default time, a mean speed of 1 cm/s (Jolt lets a
     /// body sleep at 3 cm/s).
     double distance = 1e-2;
-    /// Quiet simulated time before the cloth falls asleep [s] (> 0: with 0 a cloth would fall
-    /// asleep after its first step, even in free fall). Like Bullet's rigid bodies
+    /// Quiet simulated time before the cloth falls asleep [s] (> 0, checked even with sleep
+    /// off). A time shorter than a few steps lets a cloth that barely moved in its first steps
+    /// (one released at rest, even in free fall) fall asleep at once. Like Bullet's rigid bodies
     /// (2 s before deactivation): long enough that the turning point of a slow swing is not
     /// mistaken for rest (a swing of period below ~2 s leaves the 1 mm ball within it).
     double time = 1.0;

@@ -57,11 +57,16 @@ namespace drape::bullet {
 ///   a new body created at the freed body's address and added to the world is not told apart);
 /// - the same cloth added to a second world (or twice): addCloth throws drape::Error;
 /// - attaching to a body that is not in the cloth's world: attach throws drape::Error;
-/// - the handle removed or destroyed inside its world's step (by a cloth's stage, a callback):
-///   it leaves the world at once, the rest of the step passes over it and its state is freed
-///   when the step ends (a cloth's own step finishes the sub-step it was in);
+/// - the handle removed or destroyed inside its world's step (by a cloth's stage, a callback,
+///   on the world's thread: not while the world steps its cloths in parallel,
+///   BulletClothSettings::threads > 1): it leaves the world at once, the rest of the step
+///   passes over it and its state is freed when the step ends (a cloth's own step finishes
+///   the sub-step it was in); when it was the world's last cloth, the world's next action
+///   misses that one sub-step;
 /// - the proxy (proxyObject()) taken out of the world by the program: the next world step
-///   throws drape::Error saying so; inWorld() turns false and remove() is safe.
+///   throws drape::Error saying so, inWorld() turns false, and remove() (with the world
+///   alive) takes the cloth out; removing the handle before such a step, or after the world
+///   is destroyed, is not safe.
 class BulletCloth {
   public:
     /// Prefer addCloth(). Throws drape::Error on a null world or cloth or bad settings.
