@@ -516,13 +516,8 @@ void BulletCloth::Impl::prepare(double dt) {
     using Clock = std::chrono::steady_clock;
     const auto start = Clock::now();
     Cloth& c = *cloth;
-    // Sizes the program could have changed (Cloth::step checks them too, but the body
-    // snapshots read the positions first).
-    if (c.positions().size() != c.particleCount() || c.velocities().size() != c.particleCount())
-        throw Error(ErrorCode::InvalidArgument,
-                    "the cloth's positions or velocities were resized (through "
-                    "mutablePositions() or mutableVelocities()); change their values, not their "
-                    "size: resize them back to particleCount() entries");
+    // (Cloth::step checks them too, but the body snapshots read the positions first.)
+    c.checkStateSizes("the cloth's world step");
     // The world steps, so it lives: a proxy out of it was taken out by the program.
     if (!proxy.inLiveWorld()) {
         proxyLost = true;
@@ -560,13 +555,7 @@ void BulletCloth::Impl::advance() {
     using Clock = std::chrono::steady_clock;
     Cloth& c = *cloth;
     // 3. step
-    struct InStep {
-        bool& flag;
-        explicit InStep(bool& f) : flag(f) { flag = true; }
-        ~InStep() { flag = false; }
-        InStep(const InStep&) = delete;
-        InStep& operator=(const InStep&) = delete;
-    } guard(contacts.inStep);
+    const detail::ScopedFlag guard(contacts.inStep);
     for (int s = 0; s < stepSubsteps; ++s) {
         const bool wasAsleep = c.isAsleep();
         // The bodies move through the Bullet sub-step with the cloth (BodySnapshot::advance).

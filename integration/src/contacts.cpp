@@ -292,13 +292,7 @@ void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counter
 
 void ContactSolver::collideMoved(Cloth& c, double dt, const std::vector<Index>& moved,
                                  QueryCounters& counters) {
-    struct Again {
-        bool& flag;
-        explicit Again(bool& f) : flag(f) { flag = true; }
-        ~Again() { flag = false; }
-        Again(const Again&) = delete;
-        Again& operator=(const Again&) = delete;
-    } again(reprojecting_);
+    const ScopedFlag again(reprojecting_);
     const Vec3List& x = c.positions();
     moved_.assign(moved.begin(), moved.end());
     std::sort(moved_.begin(), moved_.end());

@@ -79,6 +79,15 @@
 
 namespace drape::bullet::detail {
 
+/// Sets a flag while it lives (ContactSolver::inStep, the re-projection pass).
+struct ScopedFlag {
+    bool& flag;
+    explicit ScopedFlag(bool& f) : flag(f) { flag = true; }
+    ~ScopedFlag() { flag = false; }
+    ScopedFlag(const ScopedFlag&) = delete;
+    ScopedFlag& operator=(const ScopedFlag&) = delete;
+};
+
 /// Follow-up walks and re-projections after the limiter's walk, at most.
 constexpr int kRelimitPasses = 8;
 /// A triangle contact whose point lies within this share of its fixed corners (barycentric

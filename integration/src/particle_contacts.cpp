@@ -166,7 +166,7 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
     // (Not for a particle coming out of a body slowly: the limiter keeps the bound over it.)
     if (reach == h && (!b.dynamicBody || !b.supported ||
                        b.inverseMassAlong(hit.point, hit.normal) * clothMass_ <= 1.0))
-        keepPlane(c, bi, i, hit.normal, hit.normal.dot(hit.point) + reach, hit.point, false, dt);
+        keepPlane(c, bi, i, hit.normal, hit.normal.dot(hit.point) + h, hit.point, false, dt);
 
     // The contact record the force term reads (addContactForces, drape/contacts.hpp): for every
     // particle touching the body (below the thickness, or resting at it), and with eq. (7) on for

@@ -309,6 +309,11 @@ class Cloth {
     std::vector<std::string> pipeline() const;
     const Integrator& integrator() const { return *integrator_; }
 
+    /// Throws drape::Error (InvalidArgument) naming `who` unless the positions and velocities
+    /// still hold particleCount() entries (a vector from mutablePositions() or
+    /// mutableVelocities() resized); step() and saveSnapshot check it (O(1)).
+    void checkStateSizes(const std::string& who) const;
+
   private:
     struct StepContext;
     /// Per-step scratch, as Jolt keeps its update context apart from the body's state: what a
@@ -350,9 +355,6 @@ class Cloth {
     void stageLimit(StepContext& ctx);
     void stageCallerStages(StepContext& ctx);
     void stageCallerStagesBefore(StepContext& ctx);
-    /// Throws drape::Error (InvalidArgument) naming `who` unless the positions and velocities
-    /// hold particleCount() entries (O(1)).
-    void checkStateSizes(const std::string& who) const;
     /// Runs the caller's stages' beforeLimit (or run) in order, robust to stages added or
     /// removed by a stage during the loop.
     void runCallerStages(double dt, bool beforeLimit);
