@@ -61,6 +61,8 @@ void ContactSolver::detect(Cloth& c, double dt) {
         std::sort(half.data(), half.data() + 3);
         thin_[bi] = half[1] + contact_.thickness < longestSpring(c);
         small_[bi] = half[2] + contact_.thickness < longestSpring(c);
+        if (moverOf_[bi] >= 0)
+            records->planes.movers[std::size_t(moverOf_[bi])].backed = !thin_[bi];
     }
     // The free mass decides which dynamic bodies get limiter planes: only needed near one.
     clothMass_ = 0.0;

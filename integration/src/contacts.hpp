@@ -215,6 +215,11 @@ class ContactSolver {
     /// by in the limiter's walk (m push / dt), with the Coulomb friction that normal impulse
     /// allows, and clears the push.
     void flushPlane(Cloth& c, std::size_t k, double dt);
+    /// What the pins behind the particle of mover plane k pushed its body with in the walk
+    /// (ContactPlanes::held) reaches the body as an impulse, at most what stops its approach
+    /// to the particle (inelastic: the walk moved the body out by all of it, and a net holding
+    /// a body does not throw it back).
+    void flushHeld(std::size_t k, double dt);
     /// Springs whose two ends have planes of one body on opposite sides that the bound cannot
     /// both hold (a body thinner than the gap with the thickness around it): both ends get
     /// the plane on the side the two normals share.
@@ -387,6 +392,7 @@ inline void ContactSolver::keepPlane(Cloth& c, std::uint32_t bi, std::size_t i, 
 }
 
 inline void ContactSolver::flushPlane(Cloth& c, std::size_t k, double dt) {
+    if (records->planes.mover[k] >= 0) flushHeld(k, dt);
     Vec3 push = records->planes.push[k];
     if (push == Vec3::Zero()) return;
     // A plane the walk let go of (ContactPlanes::pushLimit) pushed one move past the limit:
@@ -427,6 +433,21 @@ inline void ContactSolver::flushPlane(Cloth& c, std::size_t k, double dt) {
     vi = without + (wi * lambda) * n;
     exchange(b, lambda * n, p);
     frictionImpulse(c, i, b, p, n, b.friction * lambda);
+}
+
+inline void ContactSolver::flushHeld(std::size_t k, double dt) {
+    Vec3& held = records->planes.held[k];
+    if (held == Vec3::Zero()) return;
+    const Vec3& n = records->planes.normal[k];
+    const Vec3& p = planePoint_[k];
+    BodySnapshot& b = bodies[planeBody_[k]];
+    // The pins do not move: the body's approach is its own velocity into the particle.
+    const double approach = b.velocityAt(p).dot(n);
+    const double give = b.inverseMassAlong(p, n);
+    const double lambda =
+        give > 0.0 ? std::min(held.norm() / dt, std::max(0.0, approach) / give) : 0.0;
+    held = Vec3::Zero();
+    exchange(b, lambda * n, p);
 }
 
 } // namespace drape::bullet::detail

@@ -212,7 +212,18 @@ Vec3 StrainLimiter::keepAbove(Index i, const Vec3& dx, const std::vector<Vec3>& 
     const Vec3& n = planes_->normal[kk];
     double below = planes_->offsetNow(kk) - n.dot(x[i] + dx);
     if (!(below > 0.0)) return dx;
-    if (planes_->mover[kk] >= 0) below = planes_->giveWay(kk, below, (*planeInvMass_)[i]);
+    if (planes_->mover[kk] >= 0) {
+        // A particle its long-range attachment holds (taut from a pinned particle) is backed
+        // by the pin: the body takes what the attachment leaves no room for.
+        // Only where the plane pushes the body mostly through its centre of mass (its give
+        // there at most twice its inverse mass): pushed off-centre by the whole pin's hold, a
+        // light body (a bar struck near its end) spins up instead.
+        const ContactPlanes::Mover& body = planes_->movers[std::size_t(planes_->mover[kk])];
+        const double room = anchorsHold_ && body.backed && planes_->give[kk] <= 2.0 * body.invMass
+                                ? anchorRoom(i, x[i] + dx, n, x)
+                                : std::numeric_limits<double>::infinity();
+        below = planes_->giveWay(kk, below, (*planeInvMass_)[i], room);
+    }
     Vec3& push = planes_->push[kk];
     push += below * n;
     if (const double most = planes_->pushLimit[kk]; push.squaredNorm() > most * most) {
@@ -254,6 +265,7 @@ void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<dou
     upper2_ = upper * upper;
     lower2_ = lower * lower;
     limit_ = 1.0 + s.maxStrain;
+    anchorsHold_ = false;
     if (!s.longRangeAttachments) return;
     // The anchors are the particles that never move in the limiter.
     auto& list = anchorScratch_;
@@ -266,6 +278,19 @@ void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<dou
         setSlack(anchors_, s.longRangeSlack); // another dt (longRangeSlackAt): O(n), no search
     }
     anchorSlack_ = s.longRangeSlack;
+    anchorsHold_ = !anchorList_.empty();
+}
+
+double StrainLimiter::anchorRoom(Index i, const Vec3& at, const Vec3& n,
+                                 const std::vector<Vec3>& x) const {
+    const Index a = anchors_.anchor[i];
+    if (a == kNoParticle) return std::numeric_limits<double>::infinity();
+    // The largest t >= 0 with |at + t n - x_a| <= r: t^2 + 2 t (y . n) + |y|^2 - r^2 <= 0.
+    const Vec3 y = at - x[a];
+    const double r = limit_ * anchors_.restDistance[i];
+    const double yn = y.dot(n);
+    const double disc = yn * yn - y.squaredNorm() + r * r;
+    return disc > 0.0 ? std::max(0.0, std::sqrt(disc) - yn) : 0.0;
 }
 
 double StrainLimiter::check(std::size_t si, const ClothTopology& topology,

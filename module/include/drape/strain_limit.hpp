@@ -57,6 +57,11 @@ struct ContactPlanes {
     /// m push / dt on the particle, and its opposite on the body). A vector, so that a plane
     /// replaced by set() keeps what its earlier normals pushed.
     std::vector<Vec3> push;
+    /// Per plane of a mover, filled by the walk: what the pins behind its particle pushed the
+    /// body with (giveWay's room: the particle's long-range attachment taut) [kg m]. The
+    /// body's walk moved it by that; its impulse is at most what stops its approach there
+    /// (flushPlane: a net does not throw back what it holds).
+    std::vector<Vec3> held;
     /// Per plane: a push in one step past this [m] lets the plane go for the rest of the
     /// step (its offset becomes -infinity; push keeps what it held): the walk was fighting it
     /// against springs it cannot satisfy together with it (a neighbour pinned across the
@@ -83,6 +88,11 @@ struct ContactPlanes {
         Vec3 shift = Vec3::Zero();  ///< moved in the walk [m]
         Vec3 turn = Vec3::Zero();   ///< turned in the walk [rad]
         bool broken = false;        ///< the walk turned it too far (giveWay): not applied
+        /// Its planes' particles are backed by their long-range attachments (keepAbove): a
+        /// particle taut from its pin does not give way to it, the body does. Off for a body
+        /// thinner than the spacing (a rod wedged between particles: pins pushing it from
+        /// both sides would spin it).
+        bool backed = true;
         /// What the walk did to it can be applied: not broken, finite, at most kBrokenTurn.
         bool applied() const {
             return !broken && shift.allFinite() && turn.allFinite() && turn.norm() <= kBrokenTurn;
@@ -186,6 +196,7 @@ struct ContactPlanes {
         normal.clear();
         offset.clear();
         push.clear();
+        held.clear();
         pushLimit.clear();
         letGo = 0;
         mover.clear();
@@ -209,10 +220,23 @@ struct ContactPlanes {
     }
     /// Plane k of a mover pushes its particle (inverse mass w) out of `below` [m]: the body
     /// takes its share; returns the particle's [m].
-    double giveWay(std::size_t k, double below, double w) {
-        const double lambda = below / (w + give[k]); // [kg m]
+    /// A particle with at most `room` [m] to go along the normal (its long-range attachment
+    /// taut) moves that far, and the body takes the rest of `below` (pushed by what holds
+    /// the particle).
+    double giveWay(std::size_t k, double below, double w,
+                   double room = std::numeric_limits<double>::infinity()) {
+        double lambda = below / (w + give[k]); // [kg m]
+        double own = w * lambda;
+        const bool backed = own > room;
+        if (backed) {
+            own = room;
+            lambda = (below - room) / give[k];
+        }
         if (!movers[std::size_t(mover[k])].take(lambda, normal[k], lever[k])) return below;
-        return w * lambda;
+        // The body took lambda; the particle's share of it is what it moves (the caller adds
+        // that to push), the rest is what holds the particle (held).
+        if (backed) held[k] += (lambda - own / w) * normal[k];
+        return own;
     }
     /// A walk that turns a mover further than this [rad] is not applied to it.
     static constexpr double kBrokenTurn = 3.14159265358979323846;
@@ -256,6 +280,7 @@ struct ContactPlanes {
             normal.push_back(n);
             offset.push_back(off);
             push.push_back(Vec3::Zero());
+            held.push_back(Vec3::Zero());
             pushLimit.push_back(std::numeric_limits<double>::infinity());
             mover.push_back(-1);
             lever.push_back(Vec3::Zero());
@@ -437,6 +462,9 @@ class StrainLimiter {
                          double eps) const;
     /// The move dx of particle i in a correction, kept above its contact plane (if any).
     Vec3 keepAbove(Index i, const Vec3& dx, const std::vector<Vec3>& x) const;
+    /// How far particle i, moved to `at`, can go along unit n before its long-range
+    /// attachment is taut [m] (infinite without an anchor, 0 past it).
+    double anchorRoom(Index i, const Vec3& at, const Vec3& n, const std::vector<Vec3>& x) const;
     /// keepAbove when the walk has planes, else dx.
     Vec3 abovePlanes(Index i, const Vec3& dx, const std::vector<Vec3>& x) const {
         return planes_ ? keepAbove(i, dx, x) : dx;
@@ -592,6 +620,9 @@ class StrainLimiter {
     std::vector<double> segmentWorst_;
     ContactPlanes* planes_ = nullptr;                   ///< during a walk with planes only
     const std::vector<double>* planeInvMass_ = nullptr; ///< the particles' (with planes_)
+    /// The long-range attachments are on and anchored (prepare): a mover's plane pushes a
+    /// particle only as far as its attachment leaves room (keepAbove).
+    bool anchorsHold_ = false;
     std::vector<Index> anchorList_, anchorScratch_;
     bool anchorsValid_ = false;
     /// The particles with zero inverse mass of the last pinsApart check, and the shortest
