@@ -7,6 +7,7 @@
 
 #include "parallel.hpp"
 #include "restrict.hpp"
+#include "simd.hpp"
 #include "spring.hpp"
 #include "spring_layout.hpp"
 
@@ -350,6 +351,7 @@ namespace {
 // compiler vectorises them without run-time overlap checks.
 
 /// Spring forces of m consecutive slots: a and b are the coordinate runs of the two ends.
+DRAPE_WIDE_KERNEL
 void familySlotForces(std::size_t m, const double* DRAPE_RESTRICT ax,
                       const double* DRAPE_RESTRICT ay, const double* DRAPE_RESTRICT az,
                       const double* DRAPE_RESTRICT bx, const double* DRAPE_RESTRICT by,
@@ -366,11 +368,13 @@ void familySlotForces(std::size_t m, const double* DRAPE_RESTRICT ax,
     }
 }
 
+DRAPE_WIDE_KERNEL
 void addRun(std::size_t m, const double* DRAPE_RESTRICT in, double* DRAPE_RESTRICT out) {
     for (std::size_t j = 0; j < m; ++j)
         out[j] += in[j];
 }
 
+DRAPE_WIDE_KERNEL
 void subtractRun(std::size_t m, const double* DRAPE_RESTRICT in, double* DRAPE_RESTRICT out) {
     for (std::size_t j = 0; j < m; ++j)
         out[j] -= in[j];
@@ -410,6 +414,7 @@ void fusedTerms(std::size_t m, const double* const* run, double* DRAPE_RESTRICT 
     }
 }
 
+DRAPE_WIDE_KERNEL
 void addFusedTerms(std::size_t groupSize, std::size_t m, const double* const* run, double* out) {
     switch (groupSize) {
     case 1:

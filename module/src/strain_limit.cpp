@@ -436,6 +436,7 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
 namespace {
 /// (l / L0)^2 of m consecutive family slots (0 for a hole): a and b are the coordinate runs of
 /// the two ends. The arrays never overlap (DRAPE_RESTRICT), so the loop vectorises.
+DRAPE_WIDE_KERNEL
 void slotRatios(std::size_t m, const double* DRAPE_RESTRICT ax, const double* DRAPE_RESTRICT ay,
                 const double* DRAPE_RESTRICT az, const double* DRAPE_RESTRICT bx,
                 const double* DRAPE_RESTRICT by, const double* DRAPE_RESTRICT bz,
