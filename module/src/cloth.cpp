@@ -634,8 +634,16 @@ void Cloth::updateSleep(double dt) {
     if (!sl.enabled) return;
     const double d2 = sl.distance * sl.distance;
     bool quiet = !limiterStats_.capHit && state_.anchor.size() == state_.x.size();
-    for (std::size_t i = 0; quiet && i < state_.x.size(); ++i)
-        quiet = (state_.x[i] - state_.anchor[i]).squaredNorm() <= d2;
+    // By blocks without branches inside (a NaN distance is not quiet), stopping at the first
+    // block with a particle beyond the distance.
+    constexpr std::size_t kBlock = 64;
+    for (std::size_t b = 0; quiet && b < state_.x.size(); b += kBlock) {
+        const std::size_t e = std::min(state_.x.size(), b + kBlock);
+        bool far = false;
+        for (std::size_t i = b; i < e; ++i)
+            far |= !((state_.x[i] - state_.anchor[i]).squaredNorm() <= d2);
+        quiet = !far;
+    }
     if (!quiet) {
         state_.anchor = state_.x;
         state_.quietTime = 0.0;

@@ -396,7 +396,8 @@ void addFamilyTerms(const detail::SpringFamily& fam, const double* in, double* o
 /// out[j] += sum over the G families of (start[j] - end[j]), for m particles; run holds each
 /// family's start and end pointers.
 template <int G>
-void fusedTerms(std::size_t m, const double* const* run, double* DRAPE_RESTRICT out) {
+DRAPE_WIDE_KERNEL void fusedTerms(std::size_t m, const double* const* run,
+                                  double* DRAPE_RESTRICT out) {
     const double* DRAPE_RESTRICT s0 = run[0];
     const double* DRAPE_RESTRICT e0 = run[1];
     const double* DRAPE_RESTRICT s1 = G > 1 ? run[2] : run[0];
@@ -414,7 +415,6 @@ void fusedTerms(std::size_t m, const double* const* run, double* DRAPE_RESTRICT 
     }
 }
 
-DRAPE_WIDE_KERNEL
 void addFusedTerms(std::size_t groupSize, std::size_t m, const double* const* run, double* out) {
     switch (groupSize) {
     case 1:

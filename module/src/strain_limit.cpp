@@ -241,6 +241,17 @@ void heldParticles(const std::vector<double>& invMass, std::vector<Index>& out) 
     for (std::size_t i = 0; i < invMass.size(); ++i)
         if (invMass[i] == 0.0) out.push_back(static_cast<Index>(i));
 }
+
+/// Whether `list` (ascending, as heldParticles makes it) holds exactly the particles of zero
+/// inverse mass: one count without branches, then a look at the listed ones.
+bool heldAre(const std::vector<double>& invMass, const std::vector<Index>& list) {
+    std::size_t held = 0;
+    for (double w : invMass)
+        held += w == 0.0;
+    if (held != list.size()) return false;
+    return std::all_of(list.begin(), list.end(),
+                       [&](Index i) { return i < invMass.size() && invMass[i] == 0.0; });
+}
 } // namespace
 
 void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<double>& invMass,
@@ -268,10 +279,8 @@ void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<dou
     anchorsHold_ = false;
     if (!s.longRangeAttachments) return;
     // The anchors are the particles that never move in the limiter.
-    auto& list = anchorScratch_;
-    heldParticles(invMass, list);
-    if (!anchorsValid_ || list != anchorList_) {
-        anchorList_ = list;
+    if (!anchorsValid_ || !heldAre(invMass, anchorList_)) {
+        heldParticles(invMass, anchorList_);
         anchors_ = geodesicAnchors(topology, anchorList_, s.longRangeSlack);
         anchorsValid_ = true;
     } else if (anchorSlack_ != s.longRangeSlack) {
@@ -328,10 +337,8 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
         const double* restDistance = anchors_.restDistance.data();
         const double* w = invMass.data();
         std::size_t evaluated = 0;
-        for (std::size_t i = 0; i < x.size(); ++i) {
+        auto pullIn = [&](std::size_t i) {
             const Index a = anchor[i];
-            if (a == kNoParticle || w[i] == 0.0) continue;
-            ++evaluated;
             const Vec3 d = x[i] - x[a];
             const double l2 = d.squaredNorm(), r = f * restDistance[i];
             if (l2 > r * r) {
@@ -340,6 +347,34 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
                 if (planes_) holdTriangles(Index(i), x, moveTo);
                 if (record) pullHeld(a, -dx / w[i]);
             }
+        };
+        if (planes_) {
+            // A move may move other particles (holdTriangles): one pass, in index order.
+            for (std::size_t i = 0; i < x.size(); ++i) {
+                if (anchor[i] == kNoParticle || w[i] == 0.0) continue;
+                ++evaluated;
+                pullIn(i);
+            }
+        } else {
+            // A move moves its own particle only (an anchor never moves), so every particle
+            // beyond its reach is known before the first move: they are listed without
+            // branches (which particles sit at their reach follows no pattern), then moved in
+            // index order, as one pass would.
+            beyondReach_.resize(x.size());
+            Index* beyond = beyondReach_.data();
+            const Vec3* xp = x.data();
+            std::size_t count = 0;
+            for (std::size_t i = 0; i < x.size(); ++i) {
+                const Index a = anchor[i];
+                const bool free = (a != kNoParticle) & (w[i] != 0.0);
+                const Vec3 d = xp[i] - xp[free ? a : Index(i)];
+                const double r = f * restDistance[i];
+                beyond[count] = static_cast<Index>(i);
+                count += free & (d.squaredNorm() > r * r);
+                evaluated += free;
+            }
+            for (std::size_t k = 0; k < count; ++k)
+                pullIn(beyond[k]);
         }
         st.work += evaluated;
     }

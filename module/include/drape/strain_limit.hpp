@@ -623,7 +623,8 @@ class StrainLimiter {
     /// The long-range attachments are on and anchored (prepare): a mover's plane pushes a
     /// particle only as far as its attachment leaves room (keepAbove).
     bool anchorsHold_ = false;
-    std::vector<Index> anchorList_, anchorScratch_;
+    std::vector<Index> anchorList_;
+    std::vector<Index> beyondReach_; ///< scratch: the particles beyond their anchors' reach
     bool anchorsValid_ = false;
     /// The particles with zero inverse mass of the last pinsApart check, and the shortest
     /// rest-length path through the springs between every two of them (row-major; infinity
