@@ -21,14 +21,87 @@
 
 namespace drape {
 
+namespace {
+/// (l / L0)^2 of m consecutive family slots (0 for a hole): a and b are the coordinate runs of
+/// the two ends. The arrays never overlap (DRAPE_RESTRICT), so the loop vectorises.
+DRAPE_WIDE_KERNEL
+void slotRatios(std::size_t m, const double* DRAPE_RESTRICT ax, const double* DRAPE_RESTRICT ay,
+                const double* DRAPE_RESTRICT az, const double* DRAPE_RESTRICT bx,
+                const double* DRAPE_RESTRICT by, const double* DRAPE_RESTRICT bz,
+                const double* DRAPE_RESTRICT inv2, double* DRAPE_RESTRICT out) {
+    for (std::size_t j = 0; j < m; ++j) {
+        const double dx = bx[j] - ax[j], dy = by[j] - ay[j], dz = bz[j] - az[j];
+        out[j] = detail::squaredLengthRatio(dx, dy, dz, inv2[j]);
+    }
+}
+} // namespace
+
+namespace {
+/// The largest of r[0 .. m) (0 for none; the ratios are >= 0): four running maxima, so that
+/// the maxima do not wait for each other (two-lane maxima, Double2, which return the same value
+/// as std::max for any order of the non-negative ratios).
+double largestRatio(const double* r, std::size_t m) {
+    using detail::Double2;
+    std::size_t j = 0;
+    Double2 w01 = Double2::zero(), w23 = Double2::zero();
+    for (; j + 4 <= m; j += 4) {
+        w01 = max(Double2::load(r + j), w01);
+        w23 = max(Double2::load(r + j + 2), w23);
+    }
+    const Double2 both = max(w01, w23);
+    double w = std::max(both.low(), both.high());
+    for (; j < m; ++j)
+        w = std::max(w, r[j]);
+    return w;
+}
+
+/// The first j in [from, end) with r[j] > bound, or end: four slots per test (Double2; most
+/// slots are within the band).
+std::size_t nextAbove(const double* r, std::size_t from, std::size_t end, double bound) {
+    using detail::Double2;
+    std::size_t j = from;
+    const Double2 b = Double2::splat(bound);
+    for (; j + 4 <= end; j += 4) {
+        if (anyGreater(Double2::load(r + j), b) || anyGreater(Double2::load(r + j + 2), b)) break;
+    }
+    for (; j < end; ++j)
+        if (r[j] > bound) return j;
+    return end;
+}
+} // namespace
+
 double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x) {
     if (topology.springCount() == 0) return -std::numeric_limits<double>::infinity();
+    // The largest squared length ratio, one square root at the end: the family slots from
+    // coordinate arrays (the limiter's scan kernel, four lanes where the CPU has them), then
+    // the loose springs. The largest of the same ratios in any order: the same value as one
+    // loop over the springs.
+    const detail::SpringLayout& layout = topology.springLayout();
     const auto& springs = topology.springs();
-    const auto& inv2 = topology.springLayout().inverseSquaredRest;
-    double worst2 = 0.0; // the largest squared length ratio, one square root at the end
-    for (std::size_t s = 0; s < springs.size(); ++s) {
-        worst2 = std::max(worst2,
-                          detail::squaredLengthRatio(x[springs[s].b] - x[springs[s].a], inv2[s]));
+    const auto& inv2 = layout.inverseSquaredRest;
+    double worst2 = 0.0;
+    if (!layout.families.empty()) {
+        thread_local std::vector<double> soa, ratio2;
+        detail::toCoordinateArrays(nullptr, x, soa);
+        ratio2.resize(layout.slotSpring.size());
+        const std::size_t n = x.size();
+        const double* px = soa.data();
+        const double* py = px + n;
+        const double* pz = py + n;
+        for (const detail::SpringFamily& fam : layout.families) {
+            const std::size_t a = fam.first;
+            slotRatios(fam.count, px + a, py + a, pz + a, px + a + fam.offset, py + a + fam.offset,
+                       pz + a + fam.offset, layout.slotInverseSquaredRest.data() + fam.slot,
+                       ratio2.data() + fam.slot);
+        }
+        worst2 = largestRatio(ratio2.data(), ratio2.size());
+        for (Index s : layout.looseSprings)
+            worst2 = std::max(
+                worst2, detail::squaredLengthRatio(x[springs[s].b] - x[springs[s].a], inv2[s]));
+    } else {
+        for (std::size_t s = 0; s < springs.size(); ++s)
+            worst2 = std::max(
+                worst2, detail::squaredLengthRatio(x[springs[s].b] - x[springs[s].a], inv2[s]));
     }
     return std::sqrt(worst2) - 1.0;
 }
@@ -467,55 +540,6 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
     finish(topology, x, st);
     return st;
 }
-
-namespace {
-/// (l / L0)^2 of m consecutive family slots (0 for a hole): a and b are the coordinate runs of
-/// the two ends. The arrays never overlap (DRAPE_RESTRICT), so the loop vectorises.
-DRAPE_WIDE_KERNEL
-void slotRatios(std::size_t m, const double* DRAPE_RESTRICT ax, const double* DRAPE_RESTRICT ay,
-                const double* DRAPE_RESTRICT az, const double* DRAPE_RESTRICT bx,
-                const double* DRAPE_RESTRICT by, const double* DRAPE_RESTRICT bz,
-                const double* DRAPE_RESTRICT inv2, double* DRAPE_RESTRICT out) {
-    for (std::size_t j = 0; j < m; ++j) {
-        const double dx = bx[j] - ax[j], dy = by[j] - ay[j], dz = bz[j] - az[j];
-        out[j] = detail::squaredLengthRatio(dx, dy, dz, inv2[j]);
-    }
-}
-} // namespace
-
-namespace {
-/// The largest of r[0 .. m) (0 for none; the ratios are >= 0): four running maxima, so that
-/// the maxima do not wait for each other (two-lane maxima, Double2, which return the same value
-/// as std::max for any order of the non-negative ratios).
-double largestRatio(const double* r, std::size_t m) {
-    using detail::Double2;
-    std::size_t j = 0;
-    Double2 w01 = Double2::zero(), w23 = Double2::zero();
-    for (; j + 4 <= m; j += 4) {
-        w01 = max(Double2::load(r + j), w01);
-        w23 = max(Double2::load(r + j + 2), w23);
-    }
-    const Double2 both = max(w01, w23);
-    double w = std::max(both.low(), both.high());
-    for (; j < m; ++j)
-        w = std::max(w, r[j]);
-    return w;
-}
-
-/// The first j in [from, end) with r[j] > bound, or end: four slots per test (Double2; most
-/// slots are within the band).
-std::size_t nextAbove(const double* r, std::size_t from, std::size_t end, double bound) {
-    using detail::Double2;
-    std::size_t j = from;
-    const Double2 b = Double2::splat(bound);
-    for (; j + 4 <= end; j += 4) {
-        if (anyGreater(Double2::load(r + j), b) || anyGreater(Double2::load(r + j + 2), b)) break;
-    }
-    for (; j < end; ++j)
-        if (r[j] > bound) return j;
-    return end;
-}
-} // namespace
 
 double StrainLimiter::scanFamilies(const ClothTopology& topology,
                                    const std::vector<double>& invMass,

@@ -341,6 +341,31 @@ TEST_CASE("The worklist sets a spring to exactly the limit and warm-starts the n
     }
 }
 
+TEST_CASE("maxSpringStrain is the largest strain of any spring, on family slots and loose springs",
+          "[limiter]") {
+    // Its kernel reads a sheet's springs by family slot from coordinate arrays, an irregular
+    // mesh's mostly as loose springs: both must give what a loop over the springs gives.
+    const std::shared_ptr<const ClothTopology> meshes[] = {
+        sheetTopology(17, 23, 0.05), ClothTopology::build(irregularMesh(9, 7, 5, true))};
+    Rng rng(11);
+    for (const auto& topo : meshes) {
+        for (int trial = 0; trial < 20; ++trial) {
+            std::vector<Vec3> x;
+            for (const Vec3& p : topo->restPositions())
+                x.push_back(1.05 * p + Vec3(rng.uniform(-0.02, 0.02), rng.uniform(-0.02, 0.02),
+                                            rng.uniform(-0.02, 0.02)));
+            // One spring, anywhere, stretched by far the most.
+            const Spring& far = topo->springs()[std::size_t(rng.below(int(topo->springCount())))];
+            x[far.b] = x[far.a] + 2.5 * (x[far.b] - x[far.a]);
+            double direct = -1.0;
+            for (const Spring& sp : topo->springs())
+                direct = std::max(direct, (x[sp.b] - x[sp.a]).norm() / sp.restLength - 1.0);
+            INFO("particles " << topo->particleCount() << ", trial " << trial);
+            CHECK(maxSpringStrain(*topo, x) == Approx(direct).epsilon(1e-12));
+        }
+    }
+}
+
 TEST_CASE("Limiters without pins keep the centre of mass (inverse-mass shares)", "[limiter]") {
     // Unpinned, unequal masses: every correction moves the two ends by w_a, w_b shares, so
     // sum m_i x_i is unchanged; on a badly overstretched irregular mesh the sweeps converge.
