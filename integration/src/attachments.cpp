@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 
 namespace drape::bullet::detail {
 
@@ -72,24 +73,76 @@ void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>
     }
 }
 
-void Attachments::holdTethers(const Cloth& c, double dt, std::vector<BodySnapshot>& bodies) {
-    if (list_.size() < 2 || !(dt > 0.0)) return;
-    if (!tethersValid_) {
-        tethers_.clear();
-        std::vector<std::int64_t> of(c.particleCount(), -1);
-        for (std::size_t k = 0; k < list_.size(); ++k)
-            if (list_[k].particle < of.size()) of[list_[k].particle] = std::int64_t(k);
-        const auto& springs = c.topology().springs();
-        for (std::size_t s = 0; s < springs.size(); ++s) {
-            const std::int64_t ka = of[springs[s].a], kb = of[springs[s].b];
-            if (ka < 0 || kb < 0) continue;
-            const Attachment &A = list_[std::size_t(ka)], &B = list_[std::size_t(kb)];
-            if (A.body == B.body) continue; // (whether either is dynamic is asked each step)
-            tethers_.push_back(Tether{Index(s), std::size_t(ka), std::size_t(kb)});
+void Attachments::buildTethers(const Cloth& c) {
+    tethers_.clear();
+    reaches_.clear();
+    std::vector<std::int64_t> of(c.particleCount(), -1);
+    for (std::size_t k = 0; k < list_.size(); ++k)
+        if (list_[k].particle < of.size()) of[list_[k].particle] = std::int64_t(k);
+    const auto& springs = c.topology().springs();
+    for (std::size_t s = 0; s < springs.size(); ++s) {
+        const std::int64_t ka = of[springs[s].a], kb = of[springs[s].b];
+        if (ka < 0 || kb < 0) continue;
+        const Attachment &A = list_[std::size_t(ka)], &B = list_[std::size_t(kb)];
+        if (A.body == B.body) continue; // (whether either is dynamic is asked each step)
+        tethers_.push_back(Tether{Index(s), std::size_t(ka), std::size_t(kb)});
+    }
+    // The reaches: per body, the geodesic front from every held particle not on it.
+    double shortest = std::numeric_limits<double>::infinity();
+    for (const Spring& sp : springs)
+        shortest = std::min(shortest, sp.restLength);
+    reachCatchUp_ = springs.empty() ? 0.0 : kTetherCatchUp * shortest;
+    std::vector<const btCollisionObject*> done;
+    for (const Attachment& a : list_) {
+        if (std::find(done.begin(), done.end(), a.body) != done.end()) continue;
+        done.push_back(a.body);
+        std::vector<Index> anchors;
+        for (Index i : reachHeld_)
+            if (of[i] < 0 || list_[std::size_t(of[i])].body != a.body) anchors.push_back(i);
+        if (anchors.empty()) continue;
+        const AnchorField field = geodesicAnchors(c.topology(), anchors, reachSlack_);
+        for (std::size_t k = 0; k < list_.size(); ++k) {
+            if (list_[k].body != a.body) continue;
+            const Index anchor = field.anchor[list_[k].particle];
+            if (anchor == kNoParticle) continue; // no path: another piece of the cloth
+            reaches_.push_back(Reach{k, anchor, of[anchor], field.restDistance[list_[k].particle]});
         }
+    }
+}
+
+void Attachments::holdApart(BodySnapshot* A, const Vec3& pa, const Vec3& va, BodySnapshot& B,
+                            const Vec3& pb, double room, double catchUpLimit, double dt) {
+    const Vec3 d = pb - pa;
+    const double l = d.norm(), beyond = l - room;
+    if (!(beyond > 0.0)) return;
+    const Vec3 u = d / l;
+    // Its ends' separation speed, plus the stretch beyond the limit taken back in one step
+    // (at most catchUpLimit per step: a post teleported away is pulled back over many steps,
+    // not thrown).
+    const double catchUp = std::min(beyond, catchUpLimit) / dt;
+    const double apart = (B.velocityAt(pb) - (A ? A->velocityAt(pa) : va)).dot(u) + catchUp;
+    const double k = (A ? A->inverseMassAlong(pa, u) : 0.0) + B.inverseMassAlong(pb, u);
+    if (!(apart > 0.0) || !(k > 0.0)) return;
+    const Vec3 j = (apart / k) * u;
+    if (A) A->applyImpulse(j, pa);
+    B.applyImpulse(-j, pb);
+}
+
+void Attachments::holdTethers(const Cloth& c, double dt, std::vector<BodySnapshot>& bodies) {
+    if (list_.empty() || !(dt > 0.0)) return;
+    const double slack = c.settings().limiter.longRangeSlack;
+    const auto& w = c.inverseMasses();
+    const std::size_t held = static_cast<std::size_t>(std::count(w.begin(), w.end(), 0.0));
+    if (!tethersValid_ || reachSlack_ != slack || held != reachHeld_.size() ||
+        !std::all_of(reachHeld_.begin(), reachHeld_.end(),
+                     [&](Index i) { return i < w.size() && w[i] == 0.0; })) {
+        reachHeld_.clear();
+        for (std::size_t i = 0; i < w.size(); ++i)
+            if (w[i] == 0.0) reachHeld_.push_back(Index(i));
+        reachSlack_ = slack;
+        buildTethers(c);
         tethersValid_ = true;
     }
-    if (tethers_.empty()) return;
     const auto& springs = c.topology().springs();
     const Vec3List& x = c.positions();
     const double limit = 1.0 + c.settings().limiter.maxStrain;
@@ -97,22 +150,20 @@ void Attachments::holdTethers(const Cloth& c, double dt, std::vector<BodySnapsho
         BodySnapshot* A = snapshotOf(bodies, list_[t.a].body);
         BodySnapshot* B = snapshotOf(bodies, list_[t.b].body);
         if (!A || !B) continue; // a body outside the proxy: left to the free particles' pulls
-        const Spring& sp = springs[t.spring];
-        const Vec3 pa = x[list_[t.a].particle], pb = x[list_[t.b].particle];
-        const Vec3 d = pb - pa;
-        const double l = d.norm(), beyond = l - limit * sp.restLength;
-        if (!(beyond > 0.0)) continue;
-        const Vec3 u = d / l;
-        // Its ends' separation speed, plus the stretch beyond the limit taken back in one step
-        // (at most kTetherCatchUp of the rest length per step: a post teleported away is
-        // pulled back over many steps, not thrown).
-        const double catchUp = std::min(beyond, kTetherCatchUp * sp.restLength) / dt;
-        const double apart = (B->velocityAt(pb) - A->velocityAt(pa)).dot(u) + catchUp;
-        const double k = A->inverseMassAlong(pa, u) + B->inverseMassAlong(pb, u);
-        if (!(apart > 0.0) || !(k > 0.0)) continue;
-        const Vec3 j = (apart / k) * u;
-        A->applyImpulse(j, pa);
-        B->applyImpulse(-j, pb);
+        const double rest = springs[t.spring].restLength;
+        holdApart(A, x[list_[t.a].particle], Vec3::Zero(), *B, x[list_[t.b].particle], limit * rest,
+                  kTetherCatchUp * rest, dt);
+    }
+    for (const Reach& r : reaches_) {
+        BodySnapshot* B = snapshotOf(bodies, list_[r.k].body);
+        if (!B || !B->dynamicBody) continue;
+        BodySnapshot* A = nullptr;
+        if (r.anchorK >= 0) {
+            A = snapshotOf(bodies, list_[std::size_t(r.anchorK)].body);
+            if (!A) continue;
+        }
+        holdApart(A, x[r.anchor], c.velocities()[r.anchor], *B, x[list_[r.k].particle],
+                  limit * r.length, reachCatchUp_, dt);
     }
 }
 

@@ -11,6 +11,7 @@
 #include "drape/bullet/settings.hpp"
 #include "drape/cloth.hpp"
 
+#include <cstdint>
 #include <vector>
 
 namespace drape::bullet::detail {
@@ -49,6 +50,16 @@ class Attachments {
     /// weight and that spring passes the bound at rest (strain 0.56). The impulses act one
     /// Bullet step late, after Bullet's solver (as every impulse of the cloth): a steady
     /// pull apart leaves the spring the drift of one step beyond the limit (0.11).
+    ///
+    /// The same rope holds a body the cloth carries from elsewhere (a weight hanging from a
+    /// pinned cloth, a lantern under a banner): every particle attached to a body has a reach,
+    /// (1 + maxStrain) times the rest length of the spring path to the nearest held particle
+    /// that is not on the same body (pinned, or attached to another body), as the limiter's
+    /// long-range attachments measure it (geodesicAnchors). Beyond it, the body gets the
+    /// impulse that stops it moving away (and the rest of the stretch back, as above); a
+    /// dynamic body at the other end the opposite one. The limiter cannot: it moves neither
+    /// end. Without it the body fell through, drawing the cloth to strain 3.4 in 0.5 s (10 kg
+    /// under a 0.16 kg sheet), and a light one (0.05 to 1 kg) was thrown about.
     void holdTethers(const Cloth& c, double dt, std::vector<BodySnapshot>& bodies);
     static constexpr double kTetherCatchUp = 0.1;
 
@@ -61,7 +72,28 @@ class Attachments {
         std::size_t a, b;
     };
     std::vector<Tether> tethers_;
+    /// The reach of attachment k: the held particle `anchor` (its attachment index, or -1 for
+    /// a particle pinned by the program) and the rest length of the path between them.
+    struct Reach {
+        std::size_t k;
+        Index anchor;
+        std::int64_t anchorK;
+        double length;
+    };
+    std::vector<Reach> reaches_;
+    /// The held particles and the slack the reaches were measured for (a pin set or removed
+    /// by the program changes them).
+    std::vector<Index> reachHeld_;
+    double reachSlack_ = 0.0;
     bool tethersValid_ = false;
+    void buildTethers(const Cloth& c);
+    /// Equal and opposite impulses on the bodies at pa (A, null for a pin moving at va) and
+    /// pb (B) that stop their separation beyond `room` and take back the stretch beyond it,
+    /// at most `catchUp` [m] in the step, as holdTethers says.
+    static void holdApart(BodySnapshot* A, const Vec3& pa, const Vec3& va, BodySnapshot& B,
+                          const Vec3& pb, double room, double catchUp, double dt);
+    /// The catch-up of a reach per step: kTetherCatchUp of the cloth's shortest spring.
+    double reachCatchUp_ = 0.0;
 };
 
 /// Where attachment a's point on its body is now [m].
