@@ -20,7 +20,8 @@
 /// multi-versioning, an ifunc), so a build for every x86-64 machine still runs four lanes
 /// where the CPU has them. Same bits either way: element-wise IEEE operations, and the build
 /// turns off floating-point contraction (-ffp-contract=off), so AVX2 fuses no multiply-add.
-/// Empty with DRAPE_SIMD=OFF, on other targets, and where the build targets AVX2 already.
+/// Empty with DRAPE_SIMD=OFF, on other targets, where the build targets AVX2 already, and
+/// under GCC's AddressSanitizer (the sanitizer build runs the scalar fallback).
 #if DRAPE_SIMD_SSE2 && defined(__x86_64__) && defined(__ELF__) && !defined(__AVX2__) &&            \
     (defined(__GNUC__) || defined(__clang__)) && !defined(__SANITIZE_ADDRESS__)
 #define DRAPE_WIDE_KERNEL __attribute__((target_clones("avx2", "default")))
