@@ -56,12 +56,19 @@ class Attachments {
     /// (1 + maxStrain) times the rest length of the spring path to the nearest held particle
     /// that is not on the same body (pinned, or attached to another body), as the limiter's
     /// long-range attachments measure it (geodesicAnchors). Beyond it, the body gets the
-    /// impulse that stops it moving away (and the rest of the stretch back, as above); a
-    /// dynamic body at the other end the opposite one. The limiter cannot: it moves neither
-    /// end. Without it the body fell through, drawing the cloth to strain 3.4 in 0.5 s (10 kg
-    /// under a 0.16 kg sheet), and a light one (0.05 to 1 kg) was thrown about.
+    /// impulse that stops it moving away (and the rest of the stretch back, as above), two
+    /// steps' fall of gravity along the rope (kReachMargin g dt^2) inside the reach but never
+    /// shorter than the rest path, so that Bullet's next step does not carry it beyond; a
+    /// dynamic body at the other end the opposite one. The taut ropes are solved together. The
+    /// limiter cannot: it moves neither end. Without it the body fell through, drawing the cloth to
+    /// strain 3.4 in 0.5 s (10 kg under a 0.16 kg sheet), and a light one (0.05 to 1 kg) was thrown
+    /// about.
     void holdTethers(const Cloth& c, double dt, std::vector<BodySnapshot>& bodies);
     static constexpr double kTetherCatchUp = 0.1;
+    /// A reach's rope holds its body this many times g dt^2 inside the reach (see holdTethers).
+    static constexpr double kReachMargin = 2.0;
+    /// Passes over the taut reaches (projected Gauss-Seidel, see holdTethers).
+    static constexpr int kReachIterations = 8;
 
   private:
     std::vector<Attachment> list_;
@@ -94,6 +101,15 @@ class Attachments {
                           const Vec3& pb, double room, double catchUp, double dt);
     /// The catch-up of a reach per step: kTetherCatchUp of the cloth's shortest spring.
     double reachCatchUp_ = 0.0;
+    /// A taut reach in this step: its bodies (A null for a pin moving at va), ends, direction
+    /// from A to B, catch-up speed, inverse mass along it and the impulse it has given.
+    struct Taut {
+        BodySnapshot* A;
+        BodySnapshot* B;
+        Vec3 pa, pb, va, u;
+        double catchUp, k, impulse;
+    };
+    std::vector<Taut> taut_;
 };
 
 /// Where attachment a's point on its body is now [m].

@@ -86,8 +86,9 @@ class BulletCloth {
     /// body; for a dynamic body the cloth's force on the particle is applied to the body, and
     /// the cloth holds the body within the particle's reach of the nearest particle held
     /// elsewhere (pinned, or attached to another body): (1 + maxStrain) times their rest
-    /// path, as a rope (integration/README.md). Keep dynamic bodies at least about 10 times
-    /// the cloth's mass at a 60 Hz world step: lighter ones swing about.
+    /// path, as a rope (integration/README.md). Keep a dynamic body's effective mass at the
+    /// attached points (its inertia through their lever arms counts) at least about 10 times
+    /// the cloth's at a 60 Hz world step: lighter ones may swing about.
     /// Throws drape::Error on an index out of range, a null body, a non-finite point, a body not
     /// in the cloth's world, or an object that is not a rigid body or collision object (a
     /// ghost object such as a cloth's proxyObject(), a soft body).
