@@ -110,22 +110,34 @@ void Attachments::buildTethers(const Cloth& c) {
     }
 }
 
-void Attachments::holdApart(BodySnapshot* A, const Vec3& pa, const Vec3& va, BodySnapshot& B,
-                            const Vec3& pb, double room, double catchUpLimit, double dt) {
+void Attachments::addTaut(BodySnapshot* A, const Vec3& pa, const Vec3& va, BodySnapshot& B,
+                          const Vec3& pb, double room, double catchUpLimit, double dt) {
     const Vec3 d = pb - pa;
     const double l = d.norm(), beyond = l - room;
     if (!(beyond > 0.0)) return;
     const Vec3 u = d / l;
-    // Its ends' separation speed, plus the stretch beyond the limit taken back in one step
-    // (at most catchUpLimit per step: a post teleported away is pulled back over many steps,
-    // not thrown).
-    const double catchUp = std::min(beyond, catchUpLimit) / dt;
-    const double apart = (B.velocityAt(pb) - (A ? A->velocityAt(pa) : va)).dot(u) + catchUp;
     const double k = (A ? A->inverseMassAlong(pa, u) : 0.0) + B.inverseMassAlong(pb, u);
-    if (!(apart > 0.0) || !(k > 0.0)) return;
-    const Vec3 j = (apart / k) * u;
-    if (A) A->applyImpulse(j, pa);
-    B.applyImpulse(-j, pb);
+    if (!(k > 0.0)) return;
+    // The stretch beyond the limit is taken back in one step, at most catchUpLimit per step:
+    // a post teleported away is pulled back over many steps, not thrown.
+    taut_.push_back(Taut{A, &B, pa, pb, va, u, std::min(beyond, catchUpLimit) / dt, k, 0.0});
+}
+
+void Attachments::solveTaut(int passes) {
+    // Projected Gauss-Seidel: each rope stops its ends' separation (plus its catch-up), and
+    // its accumulated impulse stays >= 0 (a rope pulls, never pushes).
+    for (int pass = 0; pass < passes; ++pass) {
+        for (Taut& t : taut_) {
+            const double apart =
+                (t.B->velocityAt(t.pb) - (t.A ? t.A->velocityAt(t.pa) : t.va)).dot(t.u) + t.catchUp;
+            const double total = std::max(0.0, t.impulse + apart / t.k);
+            if (total == t.impulse) continue;
+            const Vec3 j = (total - t.impulse) * t.u;
+            t.impulse = total;
+            if (t.A) t.A->applyImpulse(j, t.pa);
+            t.B->applyImpulse(-j, t.pb);
+        }
+    }
 }
 
 void Attachments::holdTethers(const Cloth& c, double dt, std::vector<BodySnapshot>& bodies) {
@@ -146,19 +158,20 @@ void Attachments::holdTethers(const Cloth& c, double dt, std::vector<BodySnapsho
     const auto& springs = c.topology().springs();
     const Vec3List& x = c.positions();
     const double limit = 1.0 + c.settings().limiter.maxStrain;
+    // The springs between two bodies: one pass, each rope in turn.
+    taut_.clear();
     for (const Tether& t : tethers_) {
         BodySnapshot* A = snapshotOf(bodies, list_[t.a].body);
         BodySnapshot* B = snapshotOf(bodies, list_[t.b].body);
         if (!A || !B) continue; // a body outside the proxy: left to the free particles' pulls
         const double rest = springs[t.spring].restLength;
-        holdApart(A, x[list_[t.a].particle], Vec3::Zero(), *B, x[list_[t.b].particle], limit * rest,
-                  kTetherCatchUp * rest, dt);
+        addTaut(A, x[list_[t.a].particle], Vec3::Zero(), *B, x[list_[t.b].particle], limit * rest,
+                kTetherCatchUp * rest, dt);
     }
-    // The ropes of the reaches that are taut, solved together: one body hangs from several
-    // (a bar along a row), and one impulse after another, each final, over-corrects the
-    // ones before it through the body's rotation (a 30 kg bar bounced back up at 1.8 m/s).
-    // Projected Gauss-Seidel: each rope's accumulated impulse stays >= 0 (a rope pulls, never
-    // pushes) over kReachIterations passes.
+    solveTaut(1);
+    // The reaches' ropes that are taut, solved together: one body hangs from several (a bar
+    // along a row), and one impulse after another, each final, over-corrects the ones before
+    // it through the body's rotation (a 30 kg bar bounced back up at 1.8 m/s).
     // The rope holds the body two steps' fall of gravity along it inside the reach (never
     // shorter than the rest path): Bullet's next step lets it fall about g dt^2 before the
     // rope acts again, and a body that ends the step beyond the reach leaves the limiter's walk
@@ -177,28 +190,12 @@ void Attachments::holdTethers(const Cloth& c, double dt, std::vector<BodySnapsho
         const Vec3 pa = x[r.anchor], pb = x[list_[r.k].particle];
         const Vec3 d = pb - pa;
         const double l = d.norm();
-        if (!(l > r.length)) continue; // not stretched: the margin below never goes further
-        const Vec3 u = d / l;
-        const double room =
-            std::max(r.length, limit * r.length - kReachMargin * std::abs(fall.dot(u)));
-        const double beyond = l - room;
-        if (!(beyond > 0.0)) continue;
-        const double k = (A ? A->inverseMassAlong(pa, u) : 0.0) + B->inverseMassAlong(pb, u);
-        if (!(k > 0.0)) continue;
-        taut_.push_back(Taut{A, B, pa, pb, c.velocities()[r.anchor], u,
-                             std::min(beyond, reachCatchUp_) / dt, k, 0.0});
+        if (!(l > r.length)) continue; // not stretched: the room below is never shorter
+        const double margin = kReachMargin * std::abs(fall.dot(d / l));
+        addTaut(A, pa, c.velocities()[r.anchor], *B, pb,
+                std::max(r.length, limit * r.length - margin), reachCatchUp_, dt);
     }
-    for (int pass = 0; pass < kReachIterations && !taut_.empty(); ++pass) {
-        for (Taut& t : taut_) {
-            const double apart =
-                (t.B->velocityAt(t.pb) - (t.A ? t.A->velocityAt(t.pa) : t.va)).dot(t.u) + t.catchUp;
-            const double total = std::max(0.0, t.impulse + apart / t.k);
-            const Vec3 j = (total - t.impulse) * t.u;
-            t.impulse = total;
-            if (t.A) t.A->applyImpulse(j, t.pa);
-            t.B->applyImpulse(-j, t.pb);
-        }
-    }
+    solveTaut(kReachIterations);
 }
 
 } // namespace drape::bullet::detail

@@ -94,14 +94,17 @@ class Attachments {
     double reachSlack_ = 0.0;
     bool tethersValid_ = false;
     void buildTethers(const Cloth& c);
-    /// Equal and opposite impulses on the bodies at pa (A, null for a pin moving at va) and
-    /// pb (B) that stop their separation beyond `room` and take back the stretch beyond it,
-    /// at most `catchUp` [m] in the step, as holdTethers says.
-    static void holdApart(BodySnapshot* A, const Vec3& pa, const Vec3& va, BodySnapshot& B,
-                          const Vec3& pb, double room, double catchUp, double dt);
+    /// A rope between the bodies at pa (A, null for a pin moving at va) and pb (B), taut
+    /// beyond `room`: listed in taut_ when it is, with its catch-up (the stretch beyond, at
+    /// most catchUpLimit [m], taken back in the step).
+    void addTaut(BodySnapshot* A, const Vec3& pa, const Vec3& va, BodySnapshot& B, const Vec3& pb,
+                 double room, double catchUpLimit, double dt);
+    /// Equal and opposite impulses on the bodies of taut_ that stop their ends' separation,
+    /// over `passes` passes (see holdTethers).
+    void solveTaut(int passes);
     /// The catch-up of a reach per step: kTetherCatchUp of the cloth's shortest spring.
     double reachCatchUp_ = 0.0;
-    /// A taut reach in this step: its bodies (A null for a pin moving at va), ends, direction
+    /// A taut rope in this step: its bodies (A null for a pin moving at va), ends, direction
     /// from A to B, catch-up speed, inverse mass along it and the impulse it has given.
     struct Taut {
         BodySnapshot* A;

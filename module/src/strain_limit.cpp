@@ -74,8 +74,8 @@ double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x
     if (topology.springCount() == 0) return -std::numeric_limits<double>::infinity();
     // The largest squared length ratio, one square root at the end: the family slots from
     // coordinate arrays (the limiter's scan kernel, four lanes where the CPU has them), then
-    // the loose springs. The largest of the same ratios in any order: the same value as one
-    // loop over the springs.
+    // the loose springs (every spring is in one or the other). The largest of the same ratios
+    // in any order: the same value as one loop over the springs.
     const detail::SpringLayout& layout = topology.springLayout();
     const auto& springs = topology.springs();
     const auto& inv2 = layout.inverseSquaredRest;
@@ -95,14 +95,10 @@ double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x
                        ratio2.data() + fam.slot);
         }
         worst2 = largestRatio(ratio2.data(), ratio2.size());
-        for (Index s : layout.looseSprings)
-            worst2 = std::max(
-                worst2, detail::squaredLengthRatio(x[springs[s].b] - x[springs[s].a], inv2[s]));
-    } else {
-        for (std::size_t s = 0; s < springs.size(); ++s)
-            worst2 = std::max(
-                worst2, detail::squaredLengthRatio(x[springs[s].b] - x[springs[s].a], inv2[s]));
     }
+    for (Index s : layout.looseSprings)
+        worst2 = std::max(worst2,
+                          detail::squaredLengthRatio(x[springs[s].b] - x[springs[s].a], inv2[s]));
     return std::sqrt(worst2) - 1.0;
 }
 
