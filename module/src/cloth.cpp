@@ -507,6 +507,10 @@ void Cloth::stepOnce(double dt) {
     StepContext ctx{
         dt, false, 0.0, 0.0,
         IntegratorContext{state_.x, state_.v, state_.f, invMass_, dt, *forceModel_, loops_}};
+    // The closing kick's aerodynamics stand for this step's opening ones only when nothing
+    // changed the state since (every edit clears forcesValid; read before forces_refresh).
+    ctx.integrator.aeroCarry = &state_.aero;
+    ctx.integrator.aeroCarried = state_.forcesValid && state_.aero.size() == state_.x.size();
     // Energy can only grow through wind, user forces, kinematic particles and stages
     // (contacts with moving bodies): check it only without those sources.
     ctx.checkEnergy = settings_.failure.maxEnergyGrowth.has_value() && kinematic_.empty() &&
@@ -570,6 +574,7 @@ void Cloth::checkState(const ClothState& state, const std::vector<double>& warmS
     requireSize(state.f.size(), n, "f");
     requireSize(state.pinned.size(), n, "pinned");
     if (!state.anchor.empty()) requireSize(state.anchor.size(), n, "anchor");
+    if (!state.aero.empty()) requireSize(state.aero.size(), n, "aero");
     if (!warmStart.empty()) requireSize(warmStart.size(), topology_->springCount(), "warmStart");
     auto requireFinite = [](const Vec3List& list, const char* what) {
         for (std::size_t i = 0; i < list.size(); ++i)
@@ -582,6 +587,7 @@ void Cloth::checkState(const ClothState& state, const std::vector<double>& warmS
     requireFinite(state.v, "v");
     requireFinite(state.f, "f");
     requireFinite(state.anchor, "sleep anchor");
+    requireFinite(state.aero, "aero");
     if (!std::isfinite(state.time))
         throw Error(ErrorCode::NonFinite, "cloth state: time is not finite");
     if (!(state.quietTime >= 0.0 && std::isfinite(state.quietTime)))
@@ -830,6 +836,7 @@ void Cloth::stageRelativeDamping(StepContext& ctx) {
     if (!(k1 > k0)) return;
     const double decay =
         std::exp(-settings_.relativeDamping * (k1 - k0) * kRelativeDampingInterval);
+    state_.aero.clear(); // the velocities change after the closing kick: nothing to carry
     const auto& m = masses();
     Vec3 p = Vec3::Zero();
     double mass = 0.0;

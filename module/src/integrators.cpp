@@ -168,9 +168,16 @@ bool closingKick(std::size_t b, std::size_t e, const double* w, const double* xs
 /// the kick's error is then dt/2 O(dt^2), and the step stays second order. Forces in balance
 /// give v* = v exactly. For a linear drag rate lambda the two kicks multiply the velocity by
 /// 1 - lambda dt + (lambda dt)^2 / 2 per step (second-order Taylor of exp(-lambda dt)): stable
-/// and never reversing for lambda dt < 2, the bound of the drag as a plain force. Cost: two
-/// aerodynamic evaluations per step instead of one. Unlike the force sum, an external term that
-/// reads the summed force (the contact penalty's support and static friction) no longer sees A.
+/// and never reversing for lambda dt < 2, the bound of the drag as a plain force. Unlike the
+/// force sum, an external term that reads the summed force (the contact penalty's support and
+/// static friction) no longer sees A.
+/// One evaluation of A per step, not two: without damping flows the next step's opening kick
+/// takes the closing kick's A(x(t+dt), v*) (ClothState::aero), when nothing changed the state
+/// in between (the caller's aeroCarried: no edit, no new wind, no relative damping). v* is
+/// v(t+dt) up to dt/2 (A_close - A_open) / m = O(dt^2), so the opening kick's error is
+/// dt/2 O(dt^2) as the closing one's, and the step stays second order; in balance v* = v and
+/// the two are the same. With damping flows the velocity moves by O(dt) between the kicks,
+/// which would cost an order: A is evaluated at both kicks.
 class VelocityVerlet final : public Integrator {
   public:
     IntegratorKind kind() const override { return IntegratorKind::VelocityVerlet; }
@@ -188,9 +195,16 @@ class VelocityVerlet final : public Integrator {
                 held_[i].setZero();
             });
             if (t.springs) c.forces.applySpringDampingFlow(x0, c.v, c.invMass, h, true, &held_);
-            if (t.aero) c.forces.aeroForces(x0, c.v, aeroOpen_);
+            open_ = &aeroOpen_;
+            if (t.aero) {
+                if (carries(c, t) && c.aeroCarried && c.aeroCarry->size() == c.x.size())
+                    open_ = c.aeroCarry; // the last closing kick's, at this state
+                else
+                    c.forces.aeroForces(x0, c.v, aeroOpen_);
+            }
+            const Vec3List& open = *open_;
             forParticles(c, [&](std::size_t i) {
-                const Vec3 fi = t.aero ? Vec3(c.f[i] + aeroOpen_[i]) : c.f[i];
+                const Vec3 fi = t.aero ? Vec3(c.f[i] + open[i]) : c.f[i];
                 const Vec3 vh = c.v[i] + (h * c.invMass[i]) * fi;
                 c.v[i] = vh;
                 c.x[i] = x0[i] + c.dt * vh;
@@ -229,23 +243,29 @@ class VelocityVerlet final : public Integrator {
         // aerodynamics of the closing kick), which is what it passes on to whatever holds it
         // (an attachment to a rigid body reads f). Its own kicks ignore f (inverse mass 0).
         const double invDt = 1.0 / c.dt;
+        // The closing kick's aerodynamics go where the next opening kick finds them when it may
+        // take them (carries); else into scratch, and nothing is carried.
+        const bool carry = carries(c, t);
+        if (c.aeroCarry && !carry) c.aeroCarry->clear();
+        Vec3List& close = carry ? *c.aeroCarry : aeroClose_;
         if (t.springs || t.aero) {
             if (t.aero) {
+                const Vec3List& open = *open_;
                 predicted_.resize(c.x.size());
                 forParticles(c, [&](std::size_t i) {
-                    predicted_[i] = c.v[i] + (h * c.invMass[i]) * (c.f[i] + aeroOpen_[i]);
+                    predicted_[i] = c.v[i] + (h * c.invMass[i]) * (c.f[i] + open[i]);
                 });
-                c.forces.aeroForces(c.x, predicted_, aeroClose_);
+                c.forces.aeroForces(c.x, predicted_, close); // open_ is not read after this
             }
             forParticles(c, [&](std::size_t i) {
-                const Vec3 fi = t.aero ? Vec3(c.f[i] + aeroClose_[i]) : c.f[i];
+                const Vec3 fi = t.aero ? Vec3(c.f[i] + close[i]) : c.f[i];
                 c.v[i] += (h * c.invMass[i]) * fi;
             });
             if (t.springs) c.forces.applySpringDampingFlow(c.x, c.v, c.invMass, h, false, &held_);
             passes([&](std::size_t i) {
                 if (c.invMass[i] == 0.0) {
                     if (t.springs) c.f[i] += invDt * held_[i];
-                    if (t.aero) c.f[i] += aeroClose_[i];
+                    if (t.aero) c.f[i] += close[i];
                     if (t.linear) c.f[i] -= t.cd * c.v[i];
                 } else if (t.linear) {
                     c.v[i] *= dampedBy(t.cdh, c.invMass[i]);
@@ -278,12 +298,20 @@ class VelocityVerlet final : public Integrator {
         double cd;  ///< C_d [N s/m]
         double cdh; ///< C_d dt / 2
     };
-    // Scratch of one step only (filled in advanceFrom, read in finish): nothing is carried
-    // from one step to the next, so a restored snapshot continues bit for bit.
-    Vec3List held_;      ///< impulse of the spring damping on each held particle [N s]
-    Vec3List aeroOpen_;  ///< aerodynamic forces of the opening kick [N]
-    Vec3List aeroClose_; ///< aerodynamic forces of the closing kick [N]
-    Vec3List predicted_; ///< predicted end velocity v* [m/s]
+    /// Whether this step's closing aerodynamics may serve as the next step's opening ones:
+    /// aerodynamics without damping flows (with them the velocity moves by O(dt) between the
+    /// two kicks) and somewhere to keep them.
+    static bool carries(const IntegratorContext& c, const Terms& t) {
+        return t.aero && !t.springs && !t.linear && c.aeroCarry != nullptr;
+    }
+    // Scratch of one step only (filled in advanceFrom, read in finish): what is carried from
+    // one step to the next is in the cloth's state (ClothState::aero), so a restored snapshot
+    // continues bit for bit.
+    const Vec3List* open_ = nullptr; ///< the opening kick's aerodynamics (aeroOpen_ or carried)
+    Vec3List held_;                  ///< impulse of the spring damping on each held particle [N s]
+    Vec3List aeroOpen_;              ///< aerodynamic forces of the opening kick [N]
+    Vec3List aeroClose_;             ///< aerodynamic forces of the closing kick [N]
+    Vec3List predicted_;             ///< predicted end velocity v* [m/s]
     /// exp(-C_d (dt/2) / m) for cdh = C_d dt / 2: the exact decay of m v' = -C_d v over dt/2. A
     /// DecayOf per thread keeps the last value (most cloths have one mass: one exp per pass).
     static double dampedBy(double cdh, double invMass) {

@@ -21,7 +21,7 @@ namespace {
 
 constexpr char kMagic[8] = {'D', 'R', 'A', 'P', 'E', 'S', 'N', 'P'};
 // 2: the limiter's warm start per spring; 3: sleep state and the caller stages' states.
-constexpr std::uint32_t kVersion = 3;
+constexpr std::uint32_t kVersion = 4;
 constexpr std::uint32_t kOldestVersion = 2;
 /// Caps on the variable part, so a corrupt length fails cleanly instead of allocating.
 constexpr std::uint32_t kMaxStages = 1024;
@@ -207,6 +207,12 @@ std::vector<unsigned char> saveSnapshot(const Cloth& cloth) {
     if (anchored)
         for (const Vec3& a : st.anchor)
             w.bytes(a.data(), 3 * sizeof(double));
+    // Version 4: the aerodynamic forces the next opening kick takes (ClothState::aero).
+    const bool carried = st.aero.size() == cloth.particleCount();
+    w.pod(static_cast<std::uint8_t>(carried ? 1 : 0));
+    if (carried)
+        for (const Vec3& a : st.aero)
+            w.bytes(a.data(), 3 * sizeof(double));
     // The caller stages' states, by name (ClothStage::saveState).
     w.pod(static_cast<std::uint32_t>(cloth.stages().size()));
     for (const auto& stage : cloth.stages()) {
@@ -260,7 +266,8 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
     const std::size_t ns = cloth.topology().springCount();
     // The fixed part (version 2 is only that); version 3 has a variable part after it.
     const std::size_t fixed = sizeof(kMagic) + 4 + 8 + 8 + 8 + 8 + 1 + n * (9 * 8 + 1) + ns * 8 + 8;
-    const std::size_t expected = version == 2 ? fixed : fixed + 1 + 8 + 1 + 4;
+    const std::size_t expected =
+        version == 2 ? fixed : fixed + 1 + 8 + 1 + 4 + (version >= 4 ? 1 : 0);
     if (version == 2 ? bytes.size() != expected : bytes.size() < expected) {
         throw Error(ErrorCode::InvalidArgument,
                     "snapshot is " + std::to_string(bytes.size()) + " bytes, expected " +
@@ -289,7 +296,7 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
         lambda[s] = r.pod<double>("the limiter's warm start");
     bool asleep = false;
     double quietTime = 0.0;
-    Vec3List anchor;
+    Vec3List anchor, aero;
     std::vector<std::pair<std::string, std::vector<unsigned char>>> stageStates;
     if (version >= 3) {
         asleep = r.pod<std::uint8_t>("the sleep flag") != 0;
@@ -298,6 +305,11 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
             const auto raw = r.take(std::uint64_t(n) * 3 * sizeof(double), "the sleep anchors");
             anchor.resize(n);
             std::memcpy(static_cast<void*>(anchor.data()), raw.data(), raw.size());
+        }
+        if (version >= 4 && r.pod<std::uint8_t>("the aerodynamics flag") != 0) {
+            const auto raw = r.take(std::uint64_t(n) * 3 * sizeof(double), "the aerodynamics");
+            aero.resize(n);
+            std::memcpy(static_cast<void*>(aero.data()), raw.data(), raw.size());
         }
         const auto count = r.pod<std::uint32_t>("the stage count");
         if (count > kMaxStages)
@@ -331,6 +343,7 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
         st.asleep = asleep;
         st.quietTime = quietTime;
         st.anchor = std::move(anchor);
+        st.aero = std::move(aero);
     }
     cloth.checkState(st, lambda);
     // The stages take their states first: a stage that refuses its bytes throws before the

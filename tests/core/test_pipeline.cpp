@@ -176,6 +176,43 @@ TEST_CASE("Phase timers count calls", "[pipeline][timers]") {
     }
 }
 
+TEST_CASE("Velocity-Verlet evaluates the aerodynamics once a step while nothing changes",
+          "[pipeline][timers][aero]") {
+    // The closing kick's aerodynamics serve the next opening kick (integrators.cpp): one
+    // evaluation per step, plus one at the first step and after each change of the state or
+    // the wind, and two per step with a damping flow (which moves the velocity in between).
+    ClothSettings s = basic();
+    s.relativeDamping = 0.0;
+    s.aero.airDensity = 1.2;
+    s.aero.wind = Vec3(1.0, 0.0, 0.5);
+    Cloth cloth(smallSheet(), s);
+    cloth.pin(0);
+    for (int k = 0; k < 10; ++k)
+        cloth.step(0.002);
+    CHECK(calls(cloth, "aero") == 11);
+    cloth.setWind(Vec3(2.0, 0.0, 0.5));
+    cloth.step(0.002);
+    CHECK(calls(cloth, "aero") == 13);
+    cloth.setVelocity(3, cloth.velocities()[3]);
+    cloth.step(0.002);
+    cloth.step(0.002);
+    CHECK(calls(cloth, "aero") == 16);
+    // The default relative damping acts once per 1/60 s: each time, the next step evaluates
+    // both kicks' aerodynamics.
+    cloth.setRelativeDamping(kDefaultRelativeDamping);
+    cloth.timers().reset();
+    const int steps = 50; // 0.1 s: six intervals of the relative damping
+    for (int k = 0; k < steps; ++k)
+        cloth.step(0.002);
+    CHECK(calls(cloth, "aero") >= steps + 6);
+    CHECK(calls(cloth, "aero") <= steps + 8);
+    s.damping = 1e-3;
+    Cloth damped(smallSheet(), s);
+    for (int k = 0; k < 10; ++k)
+        damped.step(0.002);
+    CHECK(calls(damped, "aero") == 20);
+}
+
 TEST_CASE("Phase timers measure thread CPU time when asked", "[pipeline][timers]") {
     PhaseTimers timers;
     const std::size_t sleeping = timers.slot("sleeping");

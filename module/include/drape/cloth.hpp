@@ -84,6 +84,10 @@ struct ClothState {
     Vec3List f; ///< last evaluated forces [N] (Cloth::forces())
     /// f is the force of (x, v) under the cloth's force terms (else the next step evaluates it).
     bool forcesValid = false;
+    /// Velocity-Verlet with aerodynamics and no damping flows: the aerodynamic forces [N] of the
+    /// last closing kick (at x and the predicted end velocity), which the next opening kick
+    /// takes instead of evaluating them again when forcesValid (integrators.cpp). Empty: none.
+    Vec3List aero;
     /// Per particle: held (pinned or kinematic: zero inverse mass) or free.
     std::vector<unsigned char> pinned;
     double time = 0.0;       ///< simulated time [s]

@@ -34,6 +34,11 @@ struct IntegratorContext {
     double dt;                          ///< time step [s]
     ForceModel& forces;                 ///< for integrators that evaluate forces more than once
     Executor* executor = nullptr; ///< splits particle loops over threads when set (executor.hpp)
+    /// Where Velocity-Verlet's closing kick leaves its aerodynamic forces for the next step's
+    /// opening kick (ClothState::aero; null: nowhere), and whether they hold the forces of the
+    /// state this step starts from (the caller knows: nothing changed it since).
+    Vec3List* aeroCarry = nullptr;
+    bool aeroCarried = false;
     /// Set by finish() when it found a non-finite value in x, v or f while it passed over them
     /// (integrators whose finish() does not look leave it false: the caller checks).
     bool nonFiniteSeen = false;
