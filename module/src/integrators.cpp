@@ -188,24 +188,29 @@ class VelocityVerlet final : public Integrator {
         const double h = 0.5 * c.dt;
         if (t.springs || t.aero) {
             // L(dt/2) then the forward sweep S(dt/2) at x(t), into the output velocities (v0
-            // stays as it was).
-            held_.resize(c.x.size());
-            forParticles(c, [&](std::size_t i) {
-                c.v[i] = t.linear ? dampedBy(t.cdh, c.invMass[i]) * v0[i] : v0[i];
-                held_[i].setZero();
-            });
-            if (t.springs) c.forces.applySpringDampingFlow(x0, c.v, c.invMass, h, true, &held_);
+            // stays as it was); without them the kick starts from v0 itself.
+            const Vec3List* start = &v0;
+            if (t.springs || t.linear) {
+                held_.resize(c.x.size());
+                forParticles(c, [&](std::size_t i) {
+                    c.v[i] = t.linear ? dampedBy(t.cdh, c.invMass[i]) * v0[i] : v0[i];
+                    held_[i].setZero();
+                });
+                if (t.springs) c.forces.applySpringDampingFlow(x0, c.v, c.invMass, h, true, &held_);
+                start = &c.v;
+            }
             open_ = &aeroOpen_;
             if (t.aero) {
                 if (carries(c, t) && c.aeroCarried && c.aeroCarry->size() == c.x.size())
                     open_ = c.aeroCarry; // the last closing kick's, at this state
                 else
-                    c.forces.aeroForces(x0, c.v, aeroOpen_);
+                    c.forces.aeroForces(x0, *start, aeroOpen_);
             }
             const Vec3List& open = *open_;
+            const Vec3List& vs = *start; // may be c.v: each i is read before it is written
             forParticles(c, [&](std::size_t i) {
                 const Vec3 fi = t.aero ? Vec3(c.f[i] + open[i]) : c.f[i];
-                const Vec3 vh = c.v[i] + (h * c.invMass[i]) * fi;
+                const Vec3 vh = vs[i] + (h * c.invMass[i]) * fi;
                 c.v[i] = vh;
                 c.x[i] = x0[i] + c.dt * vh;
             });
@@ -256,6 +261,16 @@ class VelocityVerlet final : public Integrator {
                     predicted_[i] = c.v[i] + (h * c.invMass[i]) * (c.f[i] + open[i]);
                 });
                 c.forces.aeroForces(c.x, predicted_, close); // open_ is not read after this
+            }
+            if (!t.springs && !t.linear) {
+                // Aerodynamics alone: the closing kick, the held particles' f and the check in
+                // one pass.
+                passes([&](std::size_t i) {
+                    c.v[i] += (h * c.invMass[i]) * Vec3(c.f[i] + close[i]);
+                    if (c.invMass[i] == 0.0) c.f[i] += close[i];
+                });
+                c.nonFiniteSeen = bad.load();
+                return;
             }
             forParticles(c, [&](std::size_t i) {
                 const Vec3 fi = t.aero ? Vec3(c.f[i] + close[i]) : c.f[i];
