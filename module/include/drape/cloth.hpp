@@ -84,10 +84,6 @@ struct ClothState {
     Vec3List f; ///< last evaluated forces [N] (Cloth::forces())
     /// f is the force of (x, v) under the cloth's force terms (else the next step evaluates it).
     bool forcesValid = false;
-    /// Velocity-Verlet with aerodynamics and no damping flows: the aerodynamic forces [N] of the
-    /// last closing kick (at x and the predicted end velocity), which the next opening kick
-    /// takes instead of evaluating them again when forcesValid (integrators.cpp). Empty: none.
-    Vec3List aero;
     /// Per particle: held (pinned or kinematic: zero inverse mass) or free.
     std::vector<unsigned char> pinned;
     double time = 0.0;       ///< simulated time [s]
@@ -95,6 +91,11 @@ struct ClothState {
     bool asleep = false;     ///< Cloth::isAsleep()
     double quietTime = 0.0;  ///< consecutive quiet simulated time while awake [s]
     Vec3List anchor;         ///< positions at the start of the quiet time (empty: none yet)
+    /// Velocity-Verlet with aerodynamics and no damping flows: the aerodynamic forces [N] of the
+    /// last closing kick (at x and the predicted end velocity), which the next opening kick
+    /// takes instead of evaluating them again when forcesValid (integrators.cpp). Empty: none.
+    /// (Last, so that a ClothState built field by field in order stays as it was.)
+    Vec3List aero;
 };
 
 /// A prescribed path for a kinematic particle: position [m] at simulated time t [s].
