@@ -58,6 +58,10 @@ struct BodySnapshot {
     /// push it back out with energy). A free one (a projectile, a thrown ball) ends the Bullet
     /// sub-step where its sweep through the cloth's steps took it.
     bool supported = false;
+    /// How many times lighter the limiter's walks count it (ContactPlanes::Mover::lighten),
+    /// kept from one cloth sub-step's walks to the next through the world step (a snapshot
+    /// starts every world step at 1).
+    double lighten = 1.0;
     /// Particles of the cloth are attached to it: it moves them as kinematic targets set
     /// before the cloth's steps, so it does not give way in the limiter's walk (a mover whose
     /// attached particles stay put while its planes recede fights them without end).

@@ -44,6 +44,7 @@ void ContactSolver::detect(Cloth& c, double dt) {
         if (!b.dynamicBody || b.supported || b.attached || !(b.invMass > 0.0)) continue;
         moverOf_[bi] = static_cast<std::int32_t>(records->planes.movers.size());
         records->planes.movers.push_back(ContactPlanes::Mover{b.invMass, b.invInertia, b.com});
+        records->planes.movers.back().lighten = b.lighten;
     }
     // A body thinner across than the longest spring (its second-smallest half extent plus the
     // thickness below that length: a rod, a small ball) fits between two particles.
@@ -216,6 +217,7 @@ void ContactSolver::settleMovers(Cloth& c, double dt) {
     for (std::size_t bi = 0; bi < bodies.size(); ++bi)
         if (const std::int32_t m = moverOf_[bi]; m >= 0) {
             const ContactPlanes::Mover& mv = pl.movers[std::size_t(m)];
+            bodies[bi].lighten = mv.lighten;
             if (mv.applied())
                 bodies[bi].displace(mv.shift, mv.turn);
             else

@@ -288,10 +288,10 @@ Vec3 StrainLimiter::keepAbove(Index i, const Vec3& dx, const std::vector<Vec3>& 
         // there at most twice its inverse mass): pushed off-centre by the whole pin's hold, a
         // light body (a bar struck near its end) spins up instead.
         const ContactPlanes::Mover& body = planes_->movers[std::size_t(planes_->mover[kk])];
-        const double room = anchorsHold_ && body.backed && planes_->give[kk] <= 2.0 * body.invMass
-                                ? anchorRoom(i, x[i] + dx, n, x)
-                                : std::numeric_limits<double>::infinity();
-        below = planes_->giveWay(kk, below, (*planeInvMass_)[i], room);
+        const bool pinned = anchorsHold_ && body.backed && planes_->give[kk] <= 2.0 * body.invMass;
+        const double room =
+            pinned ? anchorRoom(i, x[i] + dx, n, x) : std::numeric_limits<double>::infinity();
+        below = planes_->giveWay(kk, below, (*planeInvMass_)[i], room, pinned ? body.lighten : 1.0);
     }
     Vec3& push = planes_->push[kk];
     push += below * n;
@@ -824,6 +824,11 @@ void StrainLimiter::runWaves(const ClothTopology& topology, const std::vector<do
         wave_.swap(next_);
         next_.clear();
         ++st.rounds;
+        // A walk still going after kLightenAfter waves with a free body in it: the body
+        // counts lighter wave by wave (ContactPlanes::Mover::lighten).
+        if (planes_ && st.rounds > kLightenAfter)
+            for (ContactPlanes::Mover& m : planes_->movers)
+                m.lighten = std::min(kMaxLighten, m.lighten * kLightenRate);
         if (++stamp_ == kStampEnd) { // the stamp wrapped: forget every old one
             for (std::uint32_t& c : checkedAt_)
                 c &= kWarmBit;

@@ -88,6 +88,19 @@ struct ContactPlanes {
         Vec3 shift = Vec3::Zero();  ///< moved in the walk [m]
         Vec3 turn = Vec3::Zero();   ///< turned in the walk [rad]
         bool broken = false;        ///< the walk turned it too far (giveWay): not applied
+        /// How many times lighter it counts where the pins hold its particle (keepAbove's
+        /// `pinned`: the cloth has held particles, the body is backed and pushed through its
+        /// centre) [-]. 1 until a walk has run StrainLimiter::kLightenAfter waves; each wave
+        /// after that multiplies it by kLightenRate, and it stays for the caller's later walks
+        /// with this mover (the glue keeps it for a body through its world step). In
+        /// Gauss-Seidel a body 4,000 particle masses heavy pressed into a cloth at its bound (a
+        /// ball in a net) recedes by 1/4,000 of each push, and a walk took thousands of waves
+        /// (up to 4.9 million spring checks) to move it; counted lighter it recedes within
+        /// tens. The converged state differs only where the cloth is not at its bound yet (the
+        /// body stops a little early). What it moves beyond its own share is pushed by the pins
+        /// behind the particle (held: at most what stops its approach, flushHeld): no momentum
+        /// from the cloth, nothing thrown back.
+        double lighten = 1.0;
         /// Its planes' particles are backed by their long-range attachments (keepAbove): a
         /// particle taut from its pin does not give way to it, the body does. Off for a body
         /// thinner than the spacing (a rod wedged between particles: pins pushing it from
@@ -224,20 +237,27 @@ struct ContactPlanes {
     /// taut) moves that far, and the body takes the rest of `below` (pushed by what holds
     /// the particle).
     double giveWay(std::size_t k, double below, double w,
-                   double room = std::numeric_limits<double>::infinity()) {
-        double lambda = below / (w + give[k]); // [kg m]
+                   double room = std::numeric_limits<double>::infinity(), double lighter = 1.0) {
+        // In a long walk the body counts lighter (Mover::lighten), never below kLightest
+        // particles.
+        const double g = std::max(give[k], std::min(give[k] * lighter, w / kLightest));
+        double lambda = below / (w + g); // [kg m]
         double own = w * lambda;
         const bool backed = own > room;
         if (backed) {
             own = room;
-            lambda = (below - room) / give[k];
+            lambda = (below - room) / g;
         }
-        if (!movers[std::size_t(mover[k])].take(lambda, normal[k], lever[k])) return below;
-        // The body took lambda; the particle's share of it is what it moves (the caller adds
+        const double body = lambda * (g / give[k]); // moves the body g lambda along n
+        if (!movers[std::size_t(mover[k])].take(body, normal[k], lever[k])) return below;
+        // The body took `body`; the particle's share of it is what it moves (the caller adds
         // that to push), the rest is what holds the particle (held).
-        if (backed) held[k] += (lambda - own / w) * normal[k];
+        if (backed || g != give[k]) held[k] += (body - own / w) * normal[k];
         return own;
     }
+    /// The lightest a mover counts: its give at most the particle's inverse mass over this
+    /// (it weighs at least this many of the particles it presses) [-].
+    static constexpr double kLightest = 10.0;
     /// A walk that turns a mover further than this [rad] is not applied to it.
     static constexpr double kBrokenTurn = 3.14159265358979323846;
     /// After a walk: each mover's planes move and turn with it, exactly (the caller moves the
@@ -375,6 +395,14 @@ class StrainLimiter {
     /// too far apart for the bound (StrainLimitStats::pinsApart) and stops if they are: it
     /// would only spend the rest of its budget (maxRounds) on a bound that cannot hold.
     static constexpr int kApartCheck = 8;
+    /// Waves a walk runs with free bodies at their own masses; after them each wave counts
+    /// the bodies kLightenRate times lighter than the last (ContactPlanes::Mover::lighten, up
+    /// to kMaxLighten). A walk that converges within them is unchanged (every game scene's
+    /// but net_ball's and the banners'). At 16 the ball in the net stopped 1.6 cm higher and a
+    /// box in a hammock slid more (samples/benchmarks/PERF.md).
+    static constexpr int kLightenAfter = 32;
+    static constexpr double kLightenRate = 1.25;
+    static constexpr double kMaxLighten = 1e12;
     /// More held particles than this are not checked (their pairwise paths would cost more
     /// than they save).
     static constexpr std::size_t kMaxApartPins = 512;
