@@ -88,6 +88,11 @@ struct ContactPlanes {
         Vec3 shift = Vec3::Zero();  ///< moved in the walk [m]
         Vec3 turn = Vec3::Zero();   ///< turned in the walk [rad]
         bool broken = false;        ///< the walk turned it too far (giveWay): not applied
+        /// Its planes' particles are backed by their long-range attachments (keepAbove): a
+        /// particle taut from its pin does not give way to it, the body does. Off for a body
+        /// thinner than the spacing (a rod wedged between particles: pins pushing it from
+        /// both sides would spin it).
+        bool backed = true;
         /// How many times lighter it counts where the pins hold its particle (keepAbove's
         /// `pinned`: the cloth has held particles, the body is backed and pushed through its
         /// centre) [-]. 1 until a walk has run StrainLimiter::kLightenAfter waves; each wave
@@ -101,11 +106,6 @@ struct ContactPlanes {
         /// behind the particle (held: at most what stops its approach, flushHeld): no momentum
         /// from the cloth, nothing thrown back.
         double lighten = 1.0;
-        /// Its planes' particles are backed by their long-range attachments (keepAbove): a
-        /// particle taut from its pin does not give way to it, the body does. Off for a body
-        /// thinner than the spacing (a rod wedged between particles: pins pushing it from
-        /// both sides would spin it).
-        bool backed = true;
         /// What the walk did to it can be applied: not broken, finite, at most kBrokenTurn.
         bool applied() const {
             return !broken && shift.allFinite() && turn.allFinite() && turn.norm() <= kBrokenTurn;
