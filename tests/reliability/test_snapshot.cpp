@@ -437,3 +437,51 @@ TEST_CASE("a crafted snapshot with a valid checksum but impossible lengths is re
     // The untouched file still loads (the offsets above are the real ones).
     CHECK_NOTHROW(loadSnapshot(*fresh, reseal(good)));
 }
+
+TEST_CASE("a version 3 snapshot still loads (its next step evaluates the aerodynamics), and "
+          "non-finite carried aerodynamics are refused",
+          "[snapshot][errors][aero]") {
+    auto cloth = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered, 0.0);
+    cloth->setRelativeDamping(0.0);
+    for (int i = 0; i < 20; ++i)
+        cloth->step(0.002);
+    const std::size_t n = cloth->particleCount(), ns = cloth->topology().springCount();
+    REQUIRE(cloth->state().aero.size() == n);
+    const std::size_t anchors = cloth->state().anchor.size() == n ? n * 3 * 8 : 0;
+    const auto good = saveSnapshot(*cloth);
+    auto reseal = [](std::vector<unsigned char> b) { // recompute the FNV-1a checksum
+        std::uint64_t h = 1469598103934665603ull;
+        for (std::size_t i = 0; i + 8 < b.size(); ++i) {
+            h ^= b[i];
+            h *= 1099511628211ull;
+        }
+        std::memcpy(b.data() + b.size() - 8, &h, 8);
+        return b;
+    };
+    // Layout (snapshot.hpp): magic 8, version 4, fingerprint 8, count 8, time 8, steps 8,
+    // forces flag 1, per particle 9 f64 and a pin byte, per spring a f64, asleep 1, quiet time
+    // 8, anchor flag 1 and the anchors, then version 4's aerodynamics flag and forces.
+    const std::size_t flag =
+        8 + 4 + 8 + 8 + 8 + 8 + 1 + n * (9 * 8 + 1) + ns * 8 + 1 + 8 + 1 + anchors;
+    REQUIRE(good[flag] == 1);
+    // Version 3: the same without the aerodynamics.
+    std::vector<unsigned char> old(good.begin(), good.begin() + std::ptrdiff_t(flag));
+    old.insert(old.end(), good.begin() + std::ptrdiff_t(flag + 1 + n * 3 * 8), good.end());
+    const std::uint32_t three = 3;
+    std::memcpy(old.data() + 8, &three, 4);
+    auto resumed = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered, 0.0);
+    resumed->setRelativeDamping(0.0);
+    REQUIRE_NOTHROW(loadSnapshot(*resumed, reseal(old)));
+    CHECK(resumed->state().aero.empty());
+    CHECK(stateHash(*resumed) == stateHash(*cloth));
+    const PhaseTimer* before = resumed->timers().find("aero");
+    const std::uint64_t calls = before ? before->calls : 0;
+    resumed->step(0.002);
+    CHECK(resumed->timers().find("aero")->calls == calls + 2); // both kicks evaluated
+    // A NaN among the carried forces: refused by name.
+    auto bad = good;
+    const double nan = std::nan("");
+    std::memcpy(bad.data() + flag + 1, &nan, 8);
+    auto target = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered, 0.0);
+    CHECK_THROWS_WITH(loadSnapshot(*target, reseal(bad)), Catch::Contains("aero"));
+}
