@@ -1066,3 +1066,44 @@ TEST_CASE("With the limiter on, the trajectory converges as dt halves", "[limite
     for (std::size_t k = 0; k + 1 < err.size(); ++k)
         CHECK(err[k + 1] < 0.7 * err[k]);
 }
+
+TEST_CASE("a mover counted lighter takes more of a push, the rest of it held, never lighter "
+          "than kLightest particles",
+          "[limiter][contacts]") {
+    // One plane of a 1 kg body through its centre (lever along the normal: its give there is
+    // 1/M), pushing a particle of 1 g out by 1 mm. At its own mass the body takes
+    // w_body / (w + w_body) of the overlap; counted lighter by L it takes L w_body / (w + L
+    // w_body), but never more than the share of a body of kLightest particles. What the
+    // particle moves is its own momentum; the body's extra share is held (the pins').
+    auto run = [](double lighter, double& own, double& bodyMoved, Vec3& held) {
+        ContactPlanes planes;
+        planes.reset(1);
+        const Vec3 n = Vec3::UnitY();
+        const Vec3 centre(0.0, -0.1, 0.0);
+        planes.movers.push_back(ContactPlanes::Mover{1.0, Eigen::Matrix3d::Identity(), centre});
+        const auto k = std::size_t(planes.set(0, n, 0.0));
+        planes.moveWith(k, 0, Vec3(0.0, 0.1, 0.0)); // straight above the centre
+        const double w = 1000.0, below = 1e-3;
+        own = planes.giveWay(k, below, w, std::numeric_limits<double>::infinity(), lighter);
+        bodyMoved = -planes.movers[0].moved(n, planes.lever[k]);
+        held = planes.held[k];
+        CHECK(own + bodyMoved == Approx(below).epsilon(1e-12)); // the overlap is gone
+    };
+    double own = 0.0, moved = 0.0;
+    Vec3 held;
+    run(1.0, own, moved, held);
+    CHECK(moved == Approx(1e-3 * 1.0 / 1001.0).epsilon(1e-9));
+    CHECK(held.norm() == 0.0);
+    const double ownAtMass = own;
+    run(50.0, own, moved, held);
+    CHECK(moved == Approx(1e-3 * 50.0 / 1050.0).epsilon(1e-9));
+    // The particle's own momentum (own / w) plus what is held is what moved the body (its
+    // mass times its move): the body's extra share came from the pins.
+    CHECK(own / 1000.0 + held.y() == Approx(1.0 * moved).epsilon(1e-9));
+    CHECK(own < ownAtMass);
+    // At most kLightest particles' worth of give: w / kLightest = 100 here, so a factor of
+    // 1e6 counts the body as 1/100 kg.
+    run(1e6, own, moved, held);
+    const double g = 1000.0 / ContactPlanes::kLightest;
+    CHECK(moved == Approx(1e-3 * g / (1000.0 + g)).epsilon(1e-9));
+}
