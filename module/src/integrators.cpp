@@ -201,7 +201,7 @@ class VelocityVerlet final : public Integrator {
             }
             open_ = &aeroOpen_;
             if (t.aero) {
-                if (carries(c, t) && c.aeroCarried && c.aeroCarry->size() == c.x.size())
+                if (carries(c, t) && c.aeroCarried)
                     open_ = c.aeroCarry; // the last closing kick's, at this state
                 else
                     c.forces.aeroForces(x0, *start, aeroOpen_);

@@ -49,6 +49,15 @@ class Writer {
         const auto* p = static_cast<const unsigned char*>(data);
         out.insert(out.end(), p, p + n);
     }
+    /// An optional per-particle list: u8 1 and 3 f64 per particle when it holds n entries,
+    /// else u8 0.
+    void optionalList(const Vec3List& list, std::size_t n) {
+        const bool present = list.size() == n;
+        pod(static_cast<std::uint8_t>(present ? 1 : 0));
+        if (present)
+            for (const Vec3& a : list)
+                bytes(a.data(), 3 * sizeof(double));
+    }
     std::vector<unsigned char> out;
 };
 
@@ -75,6 +84,15 @@ class Reader {
                                        bytes.begin() + std::ptrdiff_t(pos + n));
         pos += std::size_t(n);
         return out;
+    }
+    /// What Writer::optionalList wrote for n particles (empty when absent).
+    Vec3List optionalList(std::size_t n, const char* flag, const char* what) {
+        Vec3List list;
+        if (pod<std::uint8_t>(flag) == 0) return list;
+        const auto raw = take(std::uint64_t(n) * 3 * sizeof(double), what);
+        list.resize(n);
+        std::memcpy(static_cast<void*>(list.data()), raw.data(), raw.size());
+        return list;
     }
     const std::vector<unsigned char>& bytes;
     std::size_t pos = 0;
@@ -202,17 +220,9 @@ std::vector<unsigned char> saveSnapshot(const Cloth& cloth) {
     // Sleep: asleep, the quiet time, and the positions the quiet time is measured from.
     w.pod(static_cast<std::uint8_t>(st.asleep ? 1 : 0));
     w.pod(st.quietTime);
-    const bool anchored = st.anchor.size() == cloth.particleCount();
-    w.pod(static_cast<std::uint8_t>(anchored ? 1 : 0));
-    if (anchored)
-        for (const Vec3& a : st.anchor)
-            w.bytes(a.data(), 3 * sizeof(double));
+    w.optionalList(st.anchor, cloth.particleCount());
     // Version 4: the aerodynamic forces the next opening kick takes (ClothState::aero).
-    const bool carried = st.aero.size() == cloth.particleCount();
-    w.pod(static_cast<std::uint8_t>(carried ? 1 : 0));
-    if (carried)
-        for (const Vec3& a : st.aero)
-            w.bytes(a.data(), 3 * sizeof(double));
+    w.optionalList(st.aero, cloth.particleCount());
     // The caller stages' states, by name (ClothStage::saveState).
     w.pod(static_cast<std::uint32_t>(cloth.stages().size()));
     for (const auto& stage : cloth.stages()) {
@@ -301,16 +311,8 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
     if (version >= 3) {
         asleep = r.pod<std::uint8_t>("the sleep flag") != 0;
         quietTime = r.pod<double>("the quiet time");
-        if (r.pod<std::uint8_t>("the anchor flag") != 0) {
-            const auto raw = r.take(std::uint64_t(n) * 3 * sizeof(double), "the sleep anchors");
-            anchor.resize(n);
-            std::memcpy(static_cast<void*>(anchor.data()), raw.data(), raw.size());
-        }
-        if (version >= 4 && r.pod<std::uint8_t>("the aerodynamics flag") != 0) {
-            const auto raw = r.take(std::uint64_t(n) * 3 * sizeof(double), "the aerodynamics");
-            aero.resize(n);
-            std::memcpy(static_cast<void*>(aero.data()), raw.data(), raw.size());
-        }
+        anchor = r.optionalList(n, "the anchor flag", "the sleep anchors");
+        if (version >= 4) aero = r.optionalList(n, "the aerodynamics flag", "the aerodynamics");
         const auto count = r.pod<std::uint32_t>("the stage count");
         if (count > kMaxStages)
             throw Error(ErrorCode::InvalidArgument,

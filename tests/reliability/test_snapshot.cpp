@@ -39,6 +39,18 @@ std::unique_ptr<Cloth> makeCloth(IntegratorKind integrator, LimiterKind limiter,
     return c;
 }
 
+/// The bytes with their FNV-1a checksum (the last 8) computed again: a crafted snapshot
+/// that passes the checksum, so that what is refused is refused for its content.
+std::vector<unsigned char> reseal(std::vector<unsigned char> b) {
+    std::uint64_t h = 1469598103934665603ull;
+    for (std::size_t i = 0; i + 8 < b.size(); ++i) {
+        h ^= b[i];
+        h *= 1099511628211ull;
+    }
+    std::memcpy(b.data() + b.size() - 8, &h, 8);
+    return b;
+}
+
 } // namespace
 
 TEST_CASE("the same cloth stepped twice gives bit-identical states", "[determinism]") {
@@ -396,15 +408,6 @@ TEST_CASE("a crafted snapshot with a valid checksum but impossible lengths is re
     cloth->addStage(std::make_shared<CountingStage>());
     cloth->step(0.002);
     const auto good = saveSnapshot(*cloth);
-    auto reseal = [](std::vector<unsigned char> b) { // recompute the FNV-1a checksum
-        std::uint64_t h = 1469598103934665603ull;
-        for (std::size_t i = 0; i + 8 < b.size(); ++i) {
-            h ^= b[i];
-            h *= 1099511628211ull;
-        }
-        std::memcpy(b.data() + b.size() - 8, &h, 8);
-        return b;
-    };
     // Layout of the tail: ... u32 stage count, u32 name length, "counting", u64 state length,
     // 8 state bytes, u64 checksum.
     const std::size_t stateLength = good.size() - 8 - 8 - 8;
@@ -449,15 +452,6 @@ TEST_CASE("a version 3 snapshot still loads (its next step evaluates the aerodyn
     REQUIRE(cloth->state().aero.size() == n);
     const std::size_t anchors = cloth->state().anchor.size() == n ? n * 3 * 8 : 0;
     const auto good = saveSnapshot(*cloth);
-    auto reseal = [](std::vector<unsigned char> b) { // recompute the FNV-1a checksum
-        std::uint64_t h = 1469598103934665603ull;
-        for (std::size_t i = 0; i + 8 < b.size(); ++i) {
-            h ^= b[i];
-            h *= 1099511628211ull;
-        }
-        std::memcpy(b.data() + b.size() - 8, &h, 8);
-        return b;
-    };
     // Layout (snapshot.hpp): magic 8, version 4, fingerprint 8, count 8, time 8, steps 8,
     // forces flag 1, per particle 9 f64 and a pin byte, per spring a f64, asleep 1, quiet time
     // 8, anchor flag 1 and the anchors, then version 4's aerodynamics flag and forces.
