@@ -171,7 +171,9 @@ class NearestTriangle : public btTriangleCallback {
         const double len = d.norm();
         double signedDist;
         Vec3 n;
-        if (sidePrev * sideNow < 0.0) { // crossed the plane of this triangle since last step
+        if (sidePrev * sideNow < 0.0 && crossesInside(a, b, c, face, sidePrev, sideNow)) {
+            // crossed this triangle since last step (its plane within its edges: beside it, the
+            // path crossed the plane of a slope it passed, not the surface)
             n = sidePrev > 0.0 ? face : Vec3(-face);
             signedDist = -len;
         } else if (len > 1e-12) {
@@ -194,6 +196,18 @@ class NearestTriangle : public btTriangleCallback {
     Vec3 point_ = Vec3::Zero();
 
   private:
+    /// Whether the path prev_ -> p_, whose ends lie on the two sides of the triangle's plane
+    /// (signed distances sidePrev and sideNow along the unit normal `face`), meets the plane
+    /// within the triangle's edges (or on them, to a relative 1e-9: a path through a shared
+    /// edge crosses both triangles).
+    bool crossesInside(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& face,
+                       double sidePrev, double sideNow) const {
+        const double t = sidePrev / (sidePrev - sideNow);
+        const Vec3 x = prev_ + t * (p_ - prev_);
+        const double tol = -1e-9 * ((b - a).squaredNorm() + (c - a).squaredNorm());
+        return (b - a).cross(x - a).dot(face) >= tol && (c - b).cross(x - b).dot(face) >= tol &&
+               (a - c).cross(x - c).dot(face) >= tol;
+    }
     Vec3 p_, prev_;
 };
 
