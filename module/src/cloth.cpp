@@ -1170,13 +1170,22 @@ void Cloth::setVelocity(Index i, const Vec3& v) {
 
 // --- diagnostics ----------------------------------------------------------------------------
 
+// Each reads the positions or velocities by particle (or by spring end): a vector resized
+// through mutablePositions() or mutableVelocities() is refused by name, not read past its end.
+void Cloth::checkDiagnosticSizes(const char* who) const {
+    if (state_.x.size() == invMass_.size() && state_.v.size() == invMass_.size()) return;
+    checkStateSizes(who);
+}
 double Cloth::maxStrain() const {
+    checkDiagnosticSizes("Cloth::maxStrain");
     return maxSpringStrain(*topology_, state_.x);
 }
 double Cloth::meanStrain() const {
+    checkDiagnosticSizes("Cloth::meanStrain");
     return meanSpringStrain(*topology_, state_.x);
 }
 double Cloth::kineticEnergy() const {
+    checkDiagnosticSizes("Cloth::kineticEnergy");
     if (state_.asleep) return 0.0; // at rest; state_.v keeps the frozen state to resume from
     const std::vector<double>& m = masses();
     double e = 0.0;
@@ -1191,6 +1200,7 @@ double Cloth::totalMass() const {
     return sum;
 }
 Vec3 Cloth::momentum() const {
+    checkDiagnosticSizes("Cloth::momentum");
     Vec3 p = Vec3::Zero();
     if (state_.asleep) return p;
     const std::vector<double>& m = masses();
@@ -1199,9 +1209,11 @@ Vec3 Cloth::momentum() const {
     return p;
 }
 double Cloth::springEnergy() const {
+    checkDiagnosticSizes("Cloth::springEnergy");
     return drape::springEnergy(topology_->springs(), forceModel_->stiffness(), state_.x);
 }
 double Cloth::gravityEnergy() const {
+    checkDiagnosticSizes("Cloth::gravityEnergy");
     const std::vector<double>& m = masses();
     double e = 0.0;
     for (std::size_t i = 0; i < state_.x.size(); ++i)

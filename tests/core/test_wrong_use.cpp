@@ -7,6 +7,7 @@
 #include "drape/snapshot.hpp"
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <functional>
 #include <future>
@@ -53,8 +54,15 @@ TEST_CASE("Resized positions or velocities are refused by step and saveSnapshot,
             REQUIRE_DRAPE_ERROR(c->step(kDt), ErrorCode::InvalidArgument, "mutablePositions()");
             REQUIRE_DRAPE_ERROR(c->stepPart(kDt, 2), ErrorCode::InvalidArgument, "resize it back");
             REQUIRE_DRAPE_ERROR(saveSnapshot(*c), ErrorCode::InvalidArgument, "positions");
+            // The diagnostics read by particle and spring end: refused, not read past the end
+            // (springEnergy read freed memory after a shrink, maxStrain returned inf).
+            REQUIRE_DRAPE_ERROR(c->maxStrain(), ErrorCode::InvalidArgument, "Cloth::maxStrain");
+            REQUIRE_DRAPE_ERROR(c->meanStrain(), ErrorCode::InvalidArgument, "positions");
+            REQUIRE_DRAPE_ERROR(c->springEnergy(), ErrorCode::InvalidArgument, "positions");
+            REQUIRE_DRAPE_ERROR(c->gravityEnergy(), ErrorCode::InvalidArgument, "positions");
             c->mutablePositions() = keep;
         }
+        CHECK(std::isfinite(c->maxStrain()));
     }
     SECTION("velocities shrunk or grown") {
         const Vec3List keep = c->velocities();
@@ -62,6 +70,8 @@ TEST_CASE("Resized positions or velocities are refused by step and saveSnapshot,
             c->mutableVelocities().resize(size, Vec3::Zero());
             REQUIRE_DRAPE_ERROR(c->step(kDt), ErrorCode::InvalidArgument, "mutableVelocities()");
             REQUIRE_DRAPE_ERROR(saveSnapshot(*c), ErrorCode::InvalidArgument, "velocities");
+            REQUIRE_DRAPE_ERROR(c->kineticEnergy(), ErrorCode::InvalidArgument, "velocities");
+            REQUIRE_DRAPE_ERROR(c->momentum(), ErrorCode::InvalidArgument, "Cloth::momentum");
             c->mutableVelocities() = keep;
         }
     }

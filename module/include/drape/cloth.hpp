@@ -320,6 +320,9 @@ class Cloth {
     void checkStateSizes(const std::string& who) const;
 
   private:
+    /// checkStateSizes for the diagnostics (maxStrain, energies, momentum): the common case,
+    /// sizes unchanged, without building the message.
+    void checkDiagnosticSizes(const char* who) const;
     struct StepContext;
     /// Per-step scratch, as Jolt keeps its update context apart from the body's state: what a
     /// step fills and reads, kept between steps only so that no step allocates. None of it is
