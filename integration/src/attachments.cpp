@@ -52,6 +52,52 @@ void Attachments::advance(Cloth& c, double dt) const {
         c.setKinematicTarget(a.particle, attachmentPoint(a), arrival);
 }
 
+bool Attachments::carryTeleported(Cloth& c, double dt, double speed) {
+    // The bodies' poses now, and the one rigid motion they all made since the last call.
+    std::vector<std::pair<const btCollisionObject*, Pose>> now;
+    for (const Attachment& a : list_)
+        if (std::none_of(now.begin(), now.end(), [&](const auto& p) { return p.first == a.body; }))
+            now.emplace_back(a.body, toPose(a.body->getWorldTransform()));
+    std::vector<std::pair<const btCollisionObject*, Pose>> before;
+    before.swap(seen_);
+    seen_ = now;
+    if (list_.empty() || !(speed > 0.0) || !(dt > 0.0)) return false;
+    Pose motion; // now = motion * before, for every body
+    for (std::size_t k = 0; k < now.size(); ++k) {
+        const auto was = std::find_if(before.begin(), before.end(),
+                                      [&](const auto& p) { return p.first == now[k].first; });
+        if (was == before.end()) return false; // attached since: no pose to compare
+        const Pose& p0 = was->second;
+        const Pose& p1 = now[k].second;
+        const Pose m{p1.R * p0.R.transpose(), p1.t - p1.R * p0.R.transpose() * p0.t};
+        if (k == 0) {
+            motion = m;
+            continue;
+        }
+        // Another body that moved otherwise (to float precision: Bullet's transforms): the
+        // cloth is not carried (it hangs between them).
+        const double scale = 1.0 + p1.t.norm();
+        if ((m.R - motion.R).cwiseAbs().maxCoeff() > 1e-5 || (m.t - motion.t).norm() > 1e-5 * scale)
+            return false;
+    }
+    // Fast enough to be a teleport: an attachment's point moved beyond speed dt.
+    const Vec3List& x = c.positions();
+    double jump = 0.0;
+    for (const Attachment& a : list_)
+        jump = std::max(jump, (motion.toWorld(x[a.particle]) - x[a.particle]).norm());
+    if (!(jump > speed * dt)) return false;
+    // Particles the program pinned stay where they are: no carry.
+    const auto& w = c.inverseMasses();
+    if (std::size_t(std::count(w.begin(), w.end(), 0.0)) != list_.size()) return false;
+    Vec3List& xs = c.mutablePositions();
+    for (Vec3& xi : xs)
+        xi = motion.toWorld(xi);
+    Vec3List& vs = c.mutableVelocities();
+    for (Vec3& vi : vs)
+        vi = motion.R * vi;
+    return true;
+}
+
 void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>& bodies,
                              ContactStats& stats, std::vector<OutsideImpulse>& outside) const {
     // The body carries the force the cloth puts on the attached particle (springs and the

@@ -28,6 +28,12 @@ class Attachments {
     /// A Bullet sub-step of dt begins: every attached particle gets its point on the body as
     /// the body is now as the target it reaches at the end of the sub-step.
     void advance(Cloth& c, double dt) const;
+    /// Before a Bullet sub-step of dt [s] (before advance): when every attachment body moved
+    /// by one rigid motion since the last sub-step and a point of an attachment moved faster
+    /// than `speed` [m/s] (a teleport; 0: never), moves the whole cloth with it (positions
+    /// carried, velocities turned) and returns true. Not for a cloth with particles the program
+    /// pinned. Remembers every attachment body's pose for the next call.
+    bool carryTeleported(Cloth& c, double dt, double speed);
     /// An impulse j [N s] at `at` for a dynamic body that is not among the snapshots.
     struct OutsideImpulse {
         btRigidBody* body = nullptr;
@@ -72,6 +78,8 @@ class Attachments {
 
   private:
     std::vector<Attachment> list_;
+    /// Each attachment body's pose at the last carryTeleported.
+    std::vector<std::pair<const btCollisionObject*, Pose>> seen_;
     /// The springs between particles attached to two different bodies and their two
     /// attachments' indices in list_, rebuilt after list_ changes.
     struct Tether {

@@ -87,6 +87,7 @@ void accumulate(ContactStats& total, const ContactStats& s) {
     total.triangleContacts += s.triangleContacts;
     total.sweptTriangles += s.sweptTriangles;
     total.edgeContacts += s.edgeContacts;
+    total.teleports += s.teleports;
     total.contacts += s.contacts;
     total.projections += s.projections;
     total.heldBetween += s.heldBetween;
@@ -530,6 +531,9 @@ void BulletCloth::Impl::prepare(double dt) {
     outside.clear();
     stepDt = dt;
     if (!attachments.list().empty()) checkAttachmentBodies();
+    // 0. a teleported attachment body carries the cloth (before the bodies are gathered: the
+    // proxy's candidates are found where the cloth is then)
+    if (attachments.carryTeleported(c, dt, settings.teleportSpeed)) ++last.teleports;
     // 1. bodies
     gatherBodies(dt);
     // 2. attach
@@ -949,6 +953,7 @@ BulletClothSettings BulletClothSettings::inUnits(double unitsPerMetre) {
     detail::validate(s); // the range of unitsPerMetre, named
     s.contact.thickness *= unitsPerMetre;
     s.contact.depenetrationSpeed *= unitsPerMetre;
+    s.teleportSpeed *= unitsPerMetre;
     s.selfCollision.thickness *= unitsPerMetre;
     return s;
 }

@@ -41,6 +41,8 @@ void validate(const BulletClothSettings& s) {
     if (s.timeStep)
         require(std::isfinite(*s.timeStep) && *s.timeStep > 0.0, ErrorCode::InvalidArgument,
                 "timeStep must be positive and finite, got " + num(*s.timeStep));
+    require(std::isfinite(s.teleportSpeed) && s.teleportSpeed >= 0.0, ErrorCode::InvalidArgument,
+            "teleportSpeed must be >= 0 and finite (0: off), got " + num(s.teleportSpeed));
     require(s.unitsPerMetre >= kMinUnitsPerMetre && s.unitsPerMetre <= kMaxUnitsPerMetre,
             ErrorCode::InvalidArgument,
             "unitsPerMetre must be in [1e-6, 1e6] (100 for centimetres), got " +

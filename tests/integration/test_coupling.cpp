@@ -217,6 +217,92 @@ TEST_CASE("a cloth attached to a moving kinematic pole follows it",
     CHECK(cloth->maxStrain() <= cloth->settings().limiter.maxStrain + 0.005);
 }
 
+TEST_CASE("a cape comes along when its character is teleported, turned or not",
+          "[coupling][attach][kinematic][teleport]") {
+    // A kinematic capsule (a character) with a 0.5 m cape (21 x 21, default cloth) attached by
+    // its top row; after 1 s the game sets the capsule's transform 2 m away, later 30 m away
+    // and turned half a turn. Dragged there by its attached row (teleportSpeed 0), the cape
+    // was whipped to 100-250 m/s and the walks hit their caps (up to 1.6 s of CPU a frame
+    // for a 41 x 41 cape). Carried, every particle keeps its place relative to the body.
+    auto run = [](double teleportSpeed, bool pinOne, std::size_t jumps) {
+        TestWorld w;
+        btRigidBody* body =
+            w.kinematic(w.shape<btCapsuleShape>(btScalar(0.25), btScalar(1.2)), Vec3(0, 1.2, 0));
+        SheetSpec spec;
+        spec.rows = spec.cols = 21;
+        spec.spacing = 0.025;
+        spec.origin = Vec3(-0.25, 1.8, 0.27);
+        spec.uAxis = Vec3::UnitX();
+        spec.vAxis = -Vec3::UnitY();
+        auto cloth = makeCloth(makeSheet(spec), ClothSettings{});
+        bullet::BulletClothSettings bs;
+        bs.teleportSpeed = teleportSpeed;
+        auto& handle = w.add(cloth, bs);
+        for (Index c = 1; c < spec.cols; ++c)
+            handle.attachHere(c, body);
+        if (pinOne)
+            cloth->pin(0); // held by the program where it is: no carry
+        else
+            handle.attachHere(0, body);
+        struct Result {
+            double fastest = 0.0, drift = 0.0;
+            std::size_t teleports = 0;
+            std::uint64_t capHits = 0;
+        } r;
+        auto local = [&] { // the particles in the body's frame
+            Vec3List out;
+            const btTransform toBody = body->getWorldTransform().inverse();
+            for (const Vec3& x : cloth->positions())
+                out.push_back(eig(toBody * bt(x)));
+            return out;
+        };
+        auto frames = [&](int n) { // at 60 Hz
+            for (int f = 0; f < n; ++f) {
+                w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+                r.teleports += handle.lastStats().teleports;
+                for (const Vec3& v : cloth->velocities())
+                    r.fastest = std::max(r.fastest, v.norm());
+            }
+        };
+        frames(60);
+        const btTransform jumpsTo[] = {
+            btTransform(btQuaternion::getIdentity(), btVector3(2, 1.2f, 0)),
+            btTransform(btQuaternion(btVector3(0, 1, 0), btScalar(M_PI)), btVector3(0, 1.2f, -30))};
+        for (std::size_t k = 0; k < jumps; ++k) {
+            const btTransform& to = jumpsTo[k];
+            const Vec3List before = local();
+            body->getMotionState()->setWorldTransform(to);
+            frames(1);
+            const Vec3List after = local();
+            for (std::size_t i = 0; i < before.size(); ++i)
+                r.drift = std::max(r.drift, (after[i] - before[i]).norm());
+            frames(30);
+        }
+        r.capHits = cloth->limiterCapHits();
+        return r;
+    };
+    const auto carried = run(bullet::BulletClothSettings{}.teleportSpeed, false, 2);
+    INFO("carried: fastest " << carried.fastest << " m/s, drift in the body's frame "
+                             << carried.drift << " m, teleports " << carried.teleports);
+    CHECK(carried.teleports == 2);
+    CHECK(carried.fastest < 1.0);
+    CHECK(carried.drift < 0.01); // what one frame of swinging moves it
+    CHECK(carried.capHits == 0);
+    // Off, or a particle pinned by the program: dragged as before (the 2 m jump only).
+    for (const auto& dragged :
+         {run(0.0, false, 1), run(bullet::BulletClothSettings{}.teleportSpeed, true, 1)}) {
+        INFO("dragged: fastest " << dragged.fastest << " m/s, teleports " << dragged.teleports);
+        CHECK(dragged.teleports == 0);
+        CHECK(dragged.fastest > 20.0);
+    }
+    // A negative or non-finite speed is refused by name.
+    TestWorld w;
+    bullet::BulletClothSettings bad;
+    bad.teleportSpeed = -1.0;
+    CHECK_THROWS_WITH(w.add(makeCloth(horizontalSheet(3, 3, 0.1, 1.0), ClothSettings{}), bad),
+                      Catch::Contains("teleportSpeed"));
+}
+
 TEST_CASE("a kinematic paddle pushes a hanging cloth", "[coupling][kinematic]") {
     TestWorld w;
     btRigidBody* paddle =

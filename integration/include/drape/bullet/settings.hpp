@@ -119,6 +119,17 @@ struct BulletClothSettings {
     /// largest of both settings, and it exists for that cloth even when this is 1); taken out
     /// of the world, it runs on its own pool again.
     int threads = 1;
+    /// Teleports [m/s, times unitsPerMetre]: when every body the cloth is attached to
+    /// (BulletCloth::attach) moved by one rigid motion in a Bullet sub-step, and a point of an
+    /// attachment on it moved faster than this (a game that sets a character's transform to
+    /// where it respawns), the whole cloth is moved with the body before the sub-step, its
+    /// velocities turned with it: a cape comes along with its character instead of being
+    /// dragged there by its attached row at the speed of the jump (a 2 m jump of a kinematic
+    /// capsule was 120 m/s and cost up to 1.6 s of CPU a frame). Not for a cloth that is also
+    /// pinned by the program or attached to bodies that moved differently. A body truly this fast
+    /// is carried too (its cloth does not trail). Counted in ContactStats::teleports. 0 turns
+    /// it off; must be >= 0 and finite.
+    double teleportSpeed = 50.0;
 };
 
 /// Work done in the last Bullet sub-step (all cloth sub-steps summed). Counts, not times, so
@@ -134,6 +145,9 @@ struct ContactStats {
     /// ahead of it (contact.continuous; their queries count in triangleQueries).
     std::size_t sweptTriangles = 0;
     std::size_t edgeContacts = 0; ///< springs moved out of a box they cut into (boxEdges)
+    /// Sub-steps in which the cloth was carried with the bodies it is attached to
+    /// (BulletClothSettings::teleportSpeed).
+    std::size_t teleports = 0;
     /// Particle-body contacts: particles touching a body (projected, or resting at the
     /// thickness) or, with eq. (7) on, inside its band; once per particle and body per cloth
     /// step, summed over the sub-steps.
