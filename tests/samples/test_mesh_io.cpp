@@ -124,6 +124,39 @@ TEST_CASE("named groups of an OBJ file select their vertices", "[mesh]") {
         CHECK(m.mesh.vertices[i].y() > 2.3);
 }
 
+TEST_CASE("an OBJ file's groups are its g names, each name of a g line, never its materials",
+          "[mesh]") {
+    if (!meshIoAvailable()) {
+        WARN("skipped: built without assimp");
+        return;
+    }
+    // A skirt whose faces use the materials "cotton" and "waistband", and a real group
+    // "waistband" elsewhere: assimp names its meshes after the materials, which used to add
+    // the skirt's waistband-material face to the group (6 vertices instead of 3, a pin by
+    // name pinning the skirt) and make a group "cotton". "g a b" puts a face in a and b.
+    const fs::path file = fs::temp_directory_path() / "drape_test_obj_groups.obj";
+    writeText(file, "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\n"
+                    "v 0 5 0\nv 1 5 0\nv 1 6 0\nv 5 5 0\nv 6 5 0\nv 6 6 0\n"
+                    "g skirt\nusemtl cotton\nf 1 2 3\nusemtl waistband\nf 1 3 4\n"
+                    "usemtl cotton\nf 2 5 6\n"
+                    "g waistband\nusemtl waistband\nf 7 8 9\n"
+                    "g hem trim\nf 10 11 12\n");
+    const ImportedMesh m = importMesh(file);
+    fs::remove(file);
+    CHECK(m.groups.count("cotton") == 0);
+    REQUIRE(m.groups.count("waistband"));
+    CHECK(m.groups.at("waistband").size() == 3u);
+    for (Index i : m.groups.at("waistband"))
+        CHECK(m.mesh.vertices[i].y() >= 5.0);
+    REQUIRE(m.groups.count("skirt"));
+    CHECK(m.groups.at("skirt").size() == 6u);
+    CHECK(m.groups.count("hem trim") == 0);
+    REQUIRE(m.groups.count("hem"));
+    REQUIRE(m.groups.count("trim"));
+    CHECK(m.groups.at("hem") == m.groups.at("trim"));
+    CHECK(m.groups.at("hem").size() == 3u);
+}
+
 TEST_CASE("the 3DS sample cloth (the paper's format) reads as a flat 29 x 29 sheet", "[mesh]") {
     if (!meshIoAvailable()) {
         WARN("skipped: built without assimp");

@@ -497,6 +497,27 @@ struct RawMesh {
 /// collapsed (to a line or a point) from the file's own lines and points.
 using TriangleMasks = std::map<const aiMesh*, std::vector<unsigned char>>;
 
+/// The groups the vertices of mesh m under `node` belong to. An OBJ file's groups are its
+/// `g` (and `o`) names, which assimp gives as the node's name: "g a b" puts the faces in two
+/// groups, a and b. Assimp's OBJ reader names its meshes after their materials (`usemtl`),
+/// which are no groups: a material named like a group would add its faces to it. Other formats
+/// name meshes and nodes (glTF meshes and nodes, 3DS objects): both count.
+std::vector<std::string> groupNames(const aiMesh& m, const aiNode& node,
+                                    const std::filesystem::path& file) {
+    std::vector<std::string> names;
+    const std::string nodeName = node.mName.C_Str();
+    if (lowerExtension(file) == ".obj") {
+        std::istringstream words(nodeName);
+        for (std::string w; words >> w;)
+            if (std::find(names.begin(), names.end(), w) == names.end()) names.push_back(w);
+        return names;
+    }
+    for (std::string name : {std::string(m.mName.C_Str()), nodeName})
+        if (!name.empty() && std::find(names.begin(), names.end(), name) == names.end())
+            names.push_back(std::move(name));
+    return names;
+}
+
 void gather(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent, RawMesh& out,
             const TriangleMasks& wasTriangle, const std::filesystem::path& file) {
     const aiMatrix4x4 world = parent * node.mTransformation;
@@ -541,9 +562,7 @@ void gather(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent,
         std::vector<Index> all(m.mNumVertices);
         for (unsigned i = 0; i < m.mNumVertices; ++i)
             all[i] = static_cast<Index>(base + i);
-        for (const std::string& name :
-             {std::string(m.mName.C_Str()), std::string(node.mName.C_Str())}) {
-            if (name.empty()) continue;
+        for (const std::string& name : groupNames(m, node, file)) {
             auto& g = out.rawGroups[name];
             g.insert(g.end(), all.begin(), all.end());
         }

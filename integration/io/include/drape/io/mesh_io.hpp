@@ -3,8 +3,10 @@
 // Import reads any format assimp knows (OBJ, 3DS, PLY, glTF/GLB, STL, FBX, Collada, OFF...),
 // keeps the triangles, welds duplicate vertices (the seams exporters leave at UV and normal
 // breaks) and records named groups (OBJ groups, 3DS objects, glTF meshes and nodes) as lists
-// of welded vertex indices. Export writes a mesh with its vertex order preserved, so a cloth's
-// particle i is vertex i of the file. This is the loader drape-run uses.
+// of welded vertex indices. An OBJ file's groups are the names of its `g` lines, each name of
+// a line (`g a b`: groups a and b), and an `o` line's name where no `g` follows it; its
+// materials (`usemtl`) are no groups. Export writes a mesh with its vertex order preserved, so a
+// cloth's particle i is vertex i of the file. This is the loader drape-run uses.
 //
 //     #include <drape/io/mesh_io.hpp>                      // target_link_libraries(... drape::io)
 //     drape::io::ImportedMesh garment = drape::io::importMesh("shirt.obj");
