@@ -37,6 +37,15 @@ void requirePositive(double v, const std::string& name) {
     if (!(v > 0.0))
         throw Error(ErrorCode::InvalidArgument, name + " must be positive, got " + num(v));
 }
+/// Particle i of n exists, or an IndexOutOfRange error names `what`.
+void checkIndex(Index i, std::size_t n, const char* what) {
+    if (i >= n) {
+        throw Error(ErrorCode::IndexOutOfRange,
+                    std::string(what) + ": particle " + std::to_string(i) +
+                        " does not exist (the cloth has " + std::to_string(n) + " particles)");
+    }
+}
+
 /// A time step must be finite and positive.
 void requireStepValue(double dt) {
     if (!std::isfinite(dt)) throw Error(ErrorCode::NonFinite, "time step is not finite");
@@ -898,6 +907,9 @@ void Cloth::stageVerify(StepContext& ctx) {
 
 StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt,
                                 ContactPlanes* planes) {
+    requireStepValue(dt);
+    for (Index i : touched)
+        checkIndex(i, state_.x.size(), "relimit");
     StrainLimitStats st;
     limiter_.clearMoved();
     if (settings_.limiter.kind == LimiterKind::None || touched.empty()) return st;
@@ -952,16 +964,6 @@ std::vector<std::string> Cloth::pipeline() const {
 }
 
 // --- pins ---------------------------------------------------------------------------------
-
-namespace {
-void checkIndex(Index i, std::size_t n, const char* what) {
-    if (i >= n) {
-        throw Error(ErrorCode::IndexOutOfRange,
-                    std::string(what) + ": particle " + std::to_string(i) +
-                        " does not exist (the cloth has " + std::to_string(n) + " particles)");
-    }
-}
-} // namespace
 
 void Cloth::setHeld(Index i, bool held) {
     state_.pinned[i] = held ? 1 : 0;
@@ -1099,6 +1101,12 @@ void Cloth::setContacts(std::shared_ptr<ContactSet> contacts) {
 
 void Cloth::setExecutor(std::shared_ptr<Executor> executor) {
     refuseInStep("Cloth::setExecutor");
+    if (executor && executor->concurrency() < 1)
+        throw Error(ErrorCode::InvalidArgument,
+                    "Cloth::setExecutor: the executor's concurrency() is " +
+                        std::to_string(executor->concurrency()) +
+                        "; it must be >= 1 (the threads its parallelFor runs the pieces on, the "
+                        "caller's included)");
     executor_ = std::move(executor);
     bindLoops(false);
 }

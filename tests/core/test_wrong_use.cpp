@@ -4,6 +4,7 @@
 #include "helpers.hpp"
 
 #include "drape/cloth.hpp"
+#include "drape/executor.hpp"
 #include "drape/snapshot.hpp"
 
 #include <chrono>
@@ -406,4 +407,28 @@ TEST_CASE("A NaN the caller wrote before the step is reported as such, not as a 
         for (const Vec3& x : c->positions())
             CHECK(x.allFinite());
     }
+}
+
+TEST_CASE("An executor without threads and relimit's bad arguments are refused by name",
+          "[errors][wrong-use]") {
+    auto c = smallSheet();
+    // concurrency() 0 breaks Executor's contract (>= 1, the caller's thread included): one
+    // whose parallelFor ran nothing left the cloth's passes unwritten (positions zeroed).
+    struct NoThreads : Executor {
+        int concurrency() const override { return 0; }
+        void parallelFor(std::size_t, std::size_t, const Body&) override {}
+    };
+    REQUIRE_DRAPE_ERROR(c->setExecutor(std::make_shared<NoThreads>()), ErrorCode::InvalidArgument,
+                        "concurrency() is 0");
+    c->step(kDt); // still on its own loops
+    for (const Vec3& x : c->positions())
+        CHECK(x.allFinite());
+    // Cloth::relimit (a collision stage's follow-up walk): the step and the particles named.
+    const std::vector<Index> touched{0, 1};
+    REQUIRE_DRAPE_ERROR(c->relimit(touched, std::numeric_limits<double>::quiet_NaN()),
+                        ErrorCode::NonFinite, "time step");
+    REQUIRE_DRAPE_ERROR(c->relimit(touched, -kDt), ErrorCode::InvalidArgument, "time step");
+    REQUIRE_DRAPE_ERROR(c->relimit({0, 36}, kDt), ErrorCode::IndexOutOfRange,
+                        "relimit: particle 36");
+    CHECK_NOTHROW(c->relimit(touched, kDt));
 }
