@@ -62,9 +62,11 @@ int main(int argc, char** argv) {
     const CLI::Validator count = CLI::Range(2LL, 100000LL);
     sheetOption("--rows", rows, "Rows of the sheet (2 to 100000)", count);
     sheetOption("--cols", cols, "Columns of the sheet (2 to 100000)", count);
-    sheetOption("--spacing", spacing, "Grid spacing", positive);
-    sheetOption("--mass", mass, "Particle mass", positive);
-    sheetOption("--stiffness", stiffness, "Spring stiffness", positive);
+    // Ranges that keep the sheet's extent and sqrt(k / m) within double precision.
+    const CLI::Validator physical = finite & CLI::Range(1e-12, 1e12);
+    sheetOption("--spacing", spacing, "Grid spacing (1e-12 to 1e12)", physical);
+    sheetOption("--mass", mass, "Particle mass (1e-12 to 1e12)", physical);
+    sheetOption("--stiffness", stiffness, "Spring stiffness (1e-12 to 1e12)", physical);
     sheetOption("--damping", damping, "C_d of eq. (8)", nonNegative);
     sheetOption("--spring-damping", springDamping, "Damping along the springs", nonNegative);
     sheetOption("--pins", pins, "top-corners or none", CLI::IsMember({"top-corners", "none"}));

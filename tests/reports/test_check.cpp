@@ -7,6 +7,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <limits>
 
 using namespace drape;
 using namespace drape::samples;
@@ -69,6 +70,20 @@ TEST_CASE("checkTimeStep: Velocity-Verlet limit is 2 / sqrt(2 k / m) and holds i
     CHECK(bounded(*c, 3.0 * 2.0 / omega / bad.substeps, 4000));
     auto c2 = oscillator(IntegratorKind::VelocityVerlet, k, m, 0.0);
     CHECK_FALSE(bounded(*c2, 3.0 * 2.0 / omega, 4000));
+}
+
+TEST_CASE("checkTimeStep: a step far beyond the limit names the count it needs, not an int's "
+          "overflow") {
+    const double k = 50.0, m = 0.2;
+    const double omega = std::sqrt(2.0 * k / m);
+    auto c = oscillator(IntegratorKind::VelocityVerlet, k, m, 0.0);
+    // dt = 1e10 limits: 1.1e10 sub-steps, beyond an int (it said "1 sub-steps").
+    const double dt = 1e10 * 2.0 / omega;
+    const TimeStepCheck bad = checkTimeStep(*c, dt);
+    CHECK_FALSE(bad.stable);
+    CHECK(bad.substeps == std::numeric_limits<int>::max());
+    INFO(bad.message);
+    CHECK(bad.message.find("1.111e+10 sub-steps") != std::string::npos);
 }
 
 TEST_CASE("checkTimeStep: RK4's limit is 2.785 / omega") {

@@ -20,6 +20,18 @@ std::string fmt(double value, int digits = 4) {
     return o.str();
 }
 
+/// Why omega_max is 0: nothing to oscillate, or frequencies below double precision.
+std::string noOscillation(const Cloth& cloth) {
+    bool freeSpring = false;
+    const auto& w = cloth.inverseMasses();
+    for (const Spring& sp : cloth.topology().springs())
+        freeSpring = freeSpring || w[sp.a] != 0.0 || w[sp.b] != 0.0;
+    if (!freeSpring)
+        return "nothing can oscillate: every particle is pinned or there are no springs";
+    return "the springs' frequencies sqrt(k / m) are zero to double precision (stiffness and "
+           "mass far apart)";
+}
+
 } // namespace
 
 double explicitEulerLimit(double omegaMax, double particleDamping, double springDamping,
@@ -65,13 +77,10 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
     if (!std::isfinite(c.limit)) {
         c.suggestedTimeStep = dt;
         c.substeps = 1;
-        c.message =
-            name + " at dt = " + fmt(dt) + " s: stable (" +
-            (c.omegaMax > 0.0
-                 ? std::string("implicit Euler has no stability limit")
-                 : std::string(
-                       "nothing can oscillate: every particle is pinned or there are no springs")) +
-            "; accuracy, not stability, bounds the time step).";
+        c.message = name + " at dt = " + fmt(dt) + " s: stable (" +
+                    (c.omegaMax > 0.0 ? std::string("implicit Euler has no stability limit")
+                                      : noOscillation(cloth)) +
+                    "; accuracy, not stability, bounds the time step).";
         return c;
     }
     if (c.limit <= 0.0) {
@@ -88,8 +97,12 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
         return c;
     }
     c.suggestedTimeStep = 0.9 * c.limit;
-    c.substeps = static_cast<int>(std::ceil(dt / c.suggestedTimeStep - 1e-12));
-    c.substeps = c.stable ? 1 : std::max(c.substeps, 1);
+    // The count as a double first: dt / suggestedTimeStep can exceed any int (--dt 1e9).
+    const double needed = std::max(1.0, std::ceil(dt / c.suggestedTimeStep - 1e-12));
+    c.substeps =
+        c.stable ? 1 : static_cast<int>(std::min(needed, double(std::numeric_limits<int>::max())));
+    const std::string substepText =
+        needed < 1e9 ? std::to_string(static_cast<long long>(needed)) : fmt(needed);
     const std::string why =
         "omega_max = " + fmt(c.omegaMax) + " rad/s, limit " + fmt(c.limit) + " s";
     if (!c.stable && integrator == IntegratorKind::ExplicitEuler) {
@@ -97,12 +110,11 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
         // stiffest mode's growth per step. Say how fast, since it can pass unnoticed.
         const double w2 = c.omegaMax * c.omegaMax;
         const double rate = 0.5 * std::log1p(w2 * dt * (dt - c.limit)) / dt;
-        c.message = name + " at dt = " + fmt(dt) + " s: UNSTABLE (" + why + ", dt is " +
-                    fmt(dt / c.limit, 3) +
-                    "x the limit; the stiffest mode grows by a factor e every " +
-                    fmt(1.0 / rate, 3) + " s). Use dt <= " + fmt(c.suggestedTimeStep) +
-                    " s, i.e. " + std::to_string(c.substeps) +
-                    " sub-steps per step, or better velocity_verlet or implicit_euler.";
+        c.message =
+            name + " at dt = " + fmt(dt) + " s: UNSTABLE (" + why + ", dt is " +
+            fmt(dt / c.limit, 3) + "x the limit; the stiffest mode grows by a factor e every " +
+            fmt(1.0 / rate, 3) + " s). Use dt <= " + fmt(c.suggestedTimeStep) + " s, i.e. " +
+            substepText + " sub-steps per step, or better velocity_verlet or implicit_euler.";
         return c;
     }
     if (c.stable) {
@@ -111,8 +123,7 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
     } else {
         c.message = name + " at dt = " + fmt(dt) + " s: UNSTABLE (" + why + ", dt is " +
                     fmt(dt / c.limit, 3) + "x the limit). Use dt <= " + fmt(c.suggestedTimeStep) +
-                    " s, i.e. " + std::to_string(c.substeps) +
-                    " sub-steps per step, or implicit_euler.";
+                    " s, i.e. " + substepText + " sub-steps per step, or implicit_euler.";
     }
     return c;
 }
