@@ -80,11 +80,19 @@ bool Attachments::carryTeleported(Cloth& c, double dt, double speed) {
         if ((m.R - motion.R).cwiseAbs().maxCoeff() > 1e-5 || (m.t - motion.t).norm() > 1e-5 * scale)
             return false;
     }
-    // Fast enough to be a teleport: an attachment's point moved beyond speed dt.
+    // The attached particles are where the bodies' poses of the last call put them (else the
+    // program moved them, or restored the cloth from a snapshot: nothing to carry), and fast
+    // enough to be a teleport: an attachment's point moved beyond speed dt.
     const Vec3List& x = c.positions();
     double jump = 0.0;
-    for (const Attachment& a : list_)
-        jump = std::max(jump, (motion.toWorld(x[a.particle]) - x[a.particle]).norm());
+    for (const Attachment& a : list_) {
+        const Pose& p0 = std::find_if(before.begin(), before.end(), [&](const auto& p) {
+                             return p.first == a.body;
+                         })->second;
+        const Vec3& xi = x[a.particle];
+        if ((p0.toWorld(a.localPoint) - xi).norm() > 1e-9 * (1.0 + xi.norm())) return false;
+        jump = std::max(jump, (motion.toWorld(xi) - xi).norm());
+    }
     if (!(jump > speed * dt)) return false;
     // Particles the program pinned stay where they are: no carry.
     const auto& w = c.inverseMasses();
