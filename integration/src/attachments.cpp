@@ -69,7 +69,8 @@ bool Attachments::carryTeleported(Cloth& c, double dt, double speed) {
         if (was == before.end()) return false; // attached since: no pose to compare
         const Pose& p0 = was->second;
         const Pose& p1 = now[k].second;
-        const Pose m{p1.R * p0.R.transpose(), p1.t - p1.R * p0.R.transpose() * p0.t};
+        const Eigen::Matrix3d turn = p1.R * p0.R.transpose();
+        const Pose m{turn, p1.t - turn * p0.t};
         if (k == 0) {
             motion = m;
             continue;

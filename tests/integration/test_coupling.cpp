@@ -217,6 +217,26 @@ TEST_CASE("a cloth attached to a moving kinematic pole follows it",
     CHECK(cloth->maxStrain() <= cloth->settings().limiter.maxStrain + 0.005);
 }
 
+namespace {
+
+/// A kinematic capsule (a character, 0.25 m radius, 1.2 m between its caps, its centre at
+/// y 1.2 m) in w, and an n x n cape of the default cloth with that spacing hanging behind it
+/// from y 1.8 m (row 0 on top, not yet added to the world).
+std::pair<btRigidBody*, std::shared_ptr<Cloth>> capedCharacter(TestWorld& w, Index n,
+                                                               double spacing) {
+    btRigidBody* body =
+        w.kinematic(w.shape<btCapsuleShape>(btScalar(0.25), btScalar(1.2)), Vec3(0, 1.2, 0));
+    SheetSpec spec;
+    spec.rows = spec.cols = n;
+    spec.spacing = spacing;
+    spec.origin = Vec3(-0.25, 1.8, 0.27);
+    spec.uAxis = Vec3::UnitX();
+    spec.vAxis = -Vec3::UnitY();
+    return {body, makeCloth(makeSheet(spec), ClothSettings{})};
+}
+
+} // namespace
+
 TEST_CASE("a cape comes along when its character is teleported, turned or not",
           "[coupling][attach][kinematic][teleport]") {
     // A kinematic capsule (a character) with a 0.5 m cape (21 x 21, default cloth) attached by
@@ -226,19 +246,13 @@ TEST_CASE("a cape comes along when its character is teleported, turned or not",
     // for a 41 x 41 cape). Carried, every particle keeps its place relative to the body.
     auto run = [](double teleportSpeed, bool pinOne, std::size_t jumps) {
         TestWorld w;
-        btRigidBody* body =
-            w.kinematic(w.shape<btCapsuleShape>(btScalar(0.25), btScalar(1.2)), Vec3(0, 1.2, 0));
-        SheetSpec spec;
-        spec.rows = spec.cols = 21;
-        spec.spacing = 0.025;
-        spec.origin = Vec3(-0.25, 1.8, 0.27);
-        spec.uAxis = Vec3::UnitX();
-        spec.vAxis = -Vec3::UnitY();
-        auto cloth = makeCloth(makeSheet(spec), ClothSettings{});
+        const auto made = capedCharacter(w, 21, 0.025);
+        btRigidBody* body = made.first;
+        const std::shared_ptr<Cloth>& cloth = made.second;
         bullet::BulletClothSettings bs;
         bs.teleportSpeed = teleportSpeed;
         auto& handle = w.add(cloth, bs);
-        for (Index c = 1; c < spec.cols; ++c)
+        for (Index c = 1; c < 21; ++c)
             handle.attachHere(c, body);
         if (pinOne)
             cloth->pin(0); // held by the program where it is: no carry
@@ -300,17 +314,11 @@ TEST_CASE("a cape comes along when its character is teleported, turned or not",
     // pose put them, so nothing is carried (the cloth is where the snapshot put it).
     {
         TestWorld w;
-        btRigidBody* body =
-            w.kinematic(w.shape<btCapsuleShape>(btScalar(0.25), btScalar(1.2)), Vec3(0, 1.2, 0));
-        SheetSpec spec;
-        spec.rows = spec.cols = 11;
-        spec.spacing = 0.05;
-        spec.origin = Vec3(-0.25, 1.8, 0.27);
-        spec.uAxis = Vec3::UnitX();
-        spec.vAxis = -Vec3::UnitY();
-        auto cloth = makeCloth(makeSheet(spec), ClothSettings{});
+        const auto made = capedCharacter(w, 11, 0.05);
+        btRigidBody* body = made.first;
+        const std::shared_ptr<Cloth>& cloth = made.second;
         auto& handle = w.add(cloth);
-        for (Index c = 0; c < spec.cols; ++c)
+        for (Index c = 0; c < 11; ++c)
             handle.attachHere(c, body);
         auto frame = [&] { w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0)); };
         for (int f = 0; f < 30; ++f)
