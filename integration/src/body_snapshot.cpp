@@ -89,27 +89,69 @@ void limitSpin(BodySnapshot& b, double gyration) {
 }
 
 void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies) {
-    std::vector<const btCollisionObject*> dynamic;
+    bool anyDynamic = false;
     for (const BodySnapshot& b : bodies)
-        if (b.dynamicBody) dynamic.push_back(b.object);
-    if (dynamic.empty()) return;
-    std::sort(dynamic.begin(), dynamic.end());
-    std::vector<unsigned char> touching(dynamic.size(), 0);
-    auto mark = [&](const btCollisionObject* o, const btCollisionObject* other) {
-        if (!other->hasContactResponse()) return; // a ghost (a cloth's proxy), a trigger
-        const auto it = std::lower_bound(dynamic.begin(), dynamic.end(), o);
-        if (it != dynamic.end() && *it == o) touching[std::size_t(it - dynamic.begin())] = 1;
-    };
+        anyDynamic = anyDynamic || b.dynamicBody;
+    if (!anyDynamic) return;
+    // The contact graph of Bullet's manifolds with points between bodies with contact response
+    // (a ghost, such as a cloth's proxy, or a trigger holds nothing). A dynamic body is
+    // supported when a chain of such contacts through dynamic bodies reaches a static or
+    // kinematic one: only then does Bullet's solver hold it in place against the cloth. Bodies
+    // that rest only on each other (items dropped in a pile on a net) are free together: the
+    // cloth is what holds them, so they give way in the walk as free bodies do.
+    std::vector<const btCollisionObject*> nodes;
+    std::vector<std::pair<const btCollisionObject*, const btCollisionObject*>> links;
     for (int k = 0; k < dispatcher.getNumManifolds(); ++k) {
         const btPersistentManifold* m = dispatcher.getManifoldByIndexInternal(k);
         if (m->getNumContacts() == 0) continue;
-        mark(m->getBody0(), m->getBody1());
-        mark(m->getBody1(), m->getBody0());
+        const btCollisionObject* a = m->getBody0();
+        const btCollisionObject* b = m->getBody1();
+        if (!a->hasContactResponse() || !b->hasContactResponse()) continue;
+        links.emplace_back(a, b);
+        nodes.push_back(a);
+        nodes.push_back(b);
+    }
+    std::sort(nodes.begin(), nodes.end());
+    nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+    auto index = [&](const btCollisionObject* o) -> std::ptrdiff_t {
+        const auto it = std::lower_bound(nodes.begin(), nodes.end(), o);
+        return it != nodes.end() && *it == o ? it - nodes.begin() : -1;
+    };
+    // Adjacency in compressed rows, then a search from every static or kinematic node.
+    std::vector<std::size_t> start(nodes.size() + 1, 0), next;
+    for (const auto& l : links) {
+        ++start[std::size_t(index(l.first)) + 1];
+        ++start[std::size_t(index(l.second)) + 1];
+    }
+    for (std::size_t i = 0; i < nodes.size(); ++i)
+        start[i + 1] += start[i];
+    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+    std::vector<std::size_t> adjacent(start.back());
+    for (const auto& l : links) {
+        const std::size_t a = std::size_t(index(l.first)), b = std::size_t(index(l.second));
+        adjacent[fill[a]++] = b;
+        adjacent[fill[b]++] = a;
+    }
+    std::vector<unsigned char> grounded(nodes.size(), 0);
+    for (std::size_t i = 0; i < nodes.size(); ++i)
+        if (nodes[i]->isStaticOrKinematicObject()) {
+            grounded[i] = 1;
+            next.push_back(i);
+        }
+    while (!next.empty()) {
+        const std::size_t i = next.back();
+        next.pop_back();
+        for (std::size_t e = start[i]; e < start[i + 1]; ++e) {
+            const std::size_t j = adjacent[e];
+            if (grounded[j] || nodes[j]->isStaticOrKinematicObject()) continue;
+            grounded[j] = 1;
+            next.push_back(j);
+        }
     }
     for (BodySnapshot& b : bodies) {
         if (!b.dynamicBody) continue;
-        const auto it = std::lower_bound(dynamic.begin(), dynamic.end(), b.object);
-        b.supported = touching[std::size_t(it - dynamic.begin())] != 0;
+        const std::ptrdiff_t i = index(b.object);
+        b.supported = i >= 0 && grounded[std::size_t(i)] != 0;
     }
 }
 

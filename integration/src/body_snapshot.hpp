@@ -52,11 +52,12 @@ struct BodySnapshot {
     /// [m/s]: a sleeping body is woken when this reaches its linear sleeping threshold (a cloth
     /// pushed across it moves), not only by impulses that large.
     double contactSpeed = 0.0;
-    /// A dynamic body in contact with another body in Bullet (one of Bullet's contact
-    /// manifolds with points): Bullet's solver holds its position, so the cloth moves it only
-    /// through impulses (a cloth pushing a box on the floor into the floor would make Bullet
-    /// push it back out with energy). A free one (a projectile, a thrown ball) ends the Bullet
-    /// sub-step where its sweep through the cloth's steps took it.
+    /// A dynamic body that a chain of Bullet contacts (manifolds with points) through dynamic
+    /// bodies joins to a static or kinematic body: Bullet's solver holds its position, so the
+    /// cloth moves it only through impulses (a cloth pushing a box on the floor into the floor
+    /// would make Bullet push it back out with energy). A free one (a projectile, a thrown
+    /// ball, items resting only on each other on a net) ends the Bullet sub-step where its
+    /// sweep through the cloth's steps took it.
     bool supported = false;
     /// How many times lighter the limiter's walks count it (ContactPlanes::Mover::lighten),
     /// kept from one cloth sub-step's walks to the next through the world step (a snapshot
@@ -142,8 +143,9 @@ bool snapshotBody(const btCollisionObject* object, double reach, double friction
 /// not conserved); everything else is unchanged.
 void limitSpin(BodySnapshot& b, double gyration);
 
-/// Sets BodySnapshot::supported of the dynamic bodies: in one of the dispatcher's contact
-/// manifolds with points, with a body that has contact response.
+/// Sets BodySnapshot::supported of the dynamic bodies: joined to a static or kinematic body
+/// by a chain of the dispatcher's contact manifolds with points, through dynamic bodies, all
+/// with contact response.
 void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies);
 
 /// The candidate bodies and their poses at the previous sub-step, for waking a sleeping cloth.
