@@ -30,6 +30,7 @@ void ContactSolver::detect(Cloth& c, double dt) {
     triangleBody_.clear();
     trianglePoint_.clear();
     anyTouching_ = false;
+    edgeHits_.clear();
     if (!inStep) return; // the cloth was stepped outside the world: no bodies to collide with
     from_ = &c.stepStartPositions();
     records->contacts.clear();
@@ -129,6 +130,7 @@ void ContactSolver::finish(Cloth& c, double dt) {
         flushPlane(c, k, dt);
     for (std::size_t t = 0; t < records->planes.triangles.size(); ++t)
         flushTriangle(t, dt);
+    stopEdgeApproach(c);
 
     // How fast the particles touching a dynamic body move against it, once the step's
     // constraints are met (BodySnapshot::contactSpeed: a sleeping body wakes at its threshold).

@@ -264,6 +264,18 @@ class ContactSolver {
     void collideEdges(Cloth& c);
     /// Spring si against box bi: moved out at its deepest point if nearer than the thickness.
     void collideSpringWithBox(Cloth& c, std::size_t si, std::uint32_t bi);
+    /// After the walk: the springs the detection moved off the edge of a static or kinematic
+    /// box stop approaching it (inelastic; a kinematic box takes the opposite impulse as every
+    /// body does). The edge push has no plane in the walk, so the walk pulls such a spring back
+    /// towards the edge, and its corrections become velocity: the next step carried the spring
+    /// into the edge again, to be pushed out again. A cloth draped over a box on the floor did
+    /// that at the box's edges in every cloth step for as long as it ran, moved more than the
+    /// sleep distance, and never fell asleep (3.9 ms a 60 Hz frame, forever).
+    void stopEdgeApproach(Cloth& c);
+    /// The point at t along spring si stops approaching body b along n at `point` (its ends
+    /// share the impulse by their weights), with Coulomb friction if `friction`.
+    void stopApproach(Cloth& c, std::size_t si, BodySnapshot& b, double t, const Vec3& n,
+                      const Vec3& point, bool friction);
 
     // Copies of the handle's settings (they never change), read in the per-particle loops.
     const ContactSettings contact_;
@@ -325,6 +337,16 @@ class ContactSolver {
         double mass = -1.0, dt = -1.0, gravity = -1.0, cp = 0.0, damping = 0.0;
     } penalty_;
     std::vector<MovedGroup> movedGroups_;
+    /// The springs collideEdges moved off a static or kinematic box this cloth step: the
+    /// spring, the box, where along the spring (the second end's weight), and the box's
+    /// outward normal and surface point there (stopEdgeApproach).
+    struct EdgeHit {
+        std::size_t spring = 0;
+        std::uint32_t body = 0;
+        double t = 0.0;
+        Vec3 normal = Vec3::Zero(), point = Vec3::Zero();
+    };
+    std::vector<EdgeHit> edgeHits_;
     std::vector<std::int32_t> edgeBody_; ///< per particle: the box of its contact, or -1
     std::vector<int> edgeRegion_;        ///< per particle: its region around that box
     std::vector<Block> edgeBlocks_;      ///< per block of particles: their positions' box
