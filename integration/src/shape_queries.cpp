@@ -1,16 +1,21 @@
 // Closest surface points of Bullet collision shapes (see shape_queries.hpp).
 #include "shape_queries.hpp"
 
+#include <BulletCollision/CollisionShapes/btConvexHullShape.h>
 #include <BulletCollision/CollisionShapes/btTriangleShape.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkEpaPenetrationDepthSolver.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkPairDetector.h>
 #include <BulletCollision/NarrowPhaseCollision/btPointCollector.h>
 #include <BulletCollision/NarrowPhaseCollision/btVoronoiSimplexSolver.h>
+#include <LinearMath/btConvexHullComputer.h>
 #include <btBulletCollisionCommon.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
+#include <unordered_map>
+#include <vector>
 
 namespace drape::bullet::detail {
 namespace {
@@ -149,6 +154,117 @@ SurfaceHit convexQuery(const btConvexShape* shape, const Vec3& p, const Pose& po
     if (!(len > 0.0) || !std::isfinite(len)) return {};
     n /= len;
     return makeHit(pose, double(out.m_distance), n, toVec(out.m_pointInWorld));
+}
+
+/// A convex hull shape's faces as planes n . x = d (outward unit n, local frame, scaled
+/// points, margin not included), built once per shape and kept while its points and scaling
+/// stay as they were.
+struct HullFaces {
+    std::vector<btVector3> points; ///< the shape's unscaled points when built (the key)
+    btVector3 scaling{1, 1, 1};
+    std::vector<Vec3> normal;
+    std::vector<double> offset;
+    double size = 0.0; ///< the hull's largest extent [m] (for the tolerance)
+};
+
+/// Builds the faces of the hull of `points` (btConvexHullComputer); none for a hull that is
+/// flat or has fewer than four faces (then the queries keep using GJK).
+void buildFaces(const std::vector<btVector3>& points, HullFaces& out) {
+    out.normal.clear();
+    out.offset.clear();
+    btConvexHullComputer hull;
+    hull.compute(&points[0].x(), int(sizeof(btVector3)), int(points.size()), 0, 0);
+    if (hull.faces.size() < 4) return;
+    Vec3 centre = Vec3::Zero(), lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+    for (int k = 0; k < hull.vertices.size(); ++k) {
+        const Vec3 v = toVec(hull.vertices[k]);
+        centre += v;
+        lo = lo.cwiseMin(v);
+        hi = hi.cwiseMax(v);
+    }
+    centre /= double(hull.vertices.size());
+    out.size = (hi - lo).maxCoeff();
+    for (int f = 0; f < hull.faces.size(); ++f) {
+        // Newell's normal of the face polygon, through its vertices' mean.
+        const btConvexHullComputer::Edge* first = &hull.edges[hull.faces[f]];
+        const btConvexHullComputer::Edge* e = first;
+        Vec3 n = Vec3::Zero(), mean = Vec3::Zero();
+        int count = 0;
+        do {
+            const Vec3 a = toVec(hull.vertices[e->getSourceVertex()]);
+            const Vec3 b = toVec(hull.vertices[e->getTargetVertex()]);
+            n += (a - b).cross(a + b) * -0.5;
+            mean += a;
+            ++count;
+            e = e->getNextEdgeOfFace();
+        } while (e != first && count <= hull.edges.size());
+        const double len = n.norm();
+        if (!(len > 1e-12 * out.size * out.size) || count < 3) continue;
+        n /= len;
+        mean /= double(count);
+        if (n.dot(mean - centre) < 0.0) n = -n;
+        out.normal.push_back(n);
+        out.offset.push_back(n.dot(mean));
+    }
+    if (out.normal.size() < 4) {
+        out.normal.clear();
+        out.offset.clear();
+    }
+}
+
+/// The faces of `shape` (thread-local cache by shape; rebuilt when its points or scaling
+/// changed, cleared when it holds many shapes).
+const HullFaces& hullFaces(const btConvexHullShape* shape) {
+    thread_local std::unordered_map<const btConvexHullShape*, HullFaces> cache;
+    const int n = shape->getNumPoints();
+    const btVector3* pts = shape->getUnscaledPoints();
+    auto it = cache.find(shape);
+    if (it != cache.end()) {
+        const HullFaces& h = it->second;
+        if (h.points.size() == std::size_t(n) && h.scaling == shape->getLocalScaling() &&
+            (n == 0 || std::memcmp(h.points.data(), pts, sizeof(btVector3) * std::size_t(n)) == 0))
+            return h;
+    } else {
+        if (cache.size() >= 256) cache.clear();
+        it = cache.emplace(shape, HullFaces{}).first;
+    }
+    HullFaces& h = it->second;
+    h.points.assign(pts, pts + n);
+    h.scaling = shape->getLocalScaling();
+    std::vector<btVector3> scaled(h.points);
+    for (btVector3& p : scaled)
+        p *= h.scaling;
+    if (n >= 4) buildFaces(scaled, h);
+    return h;
+}
+
+/// A convex hull shape (margin included) and a point in its frame, exactly from its faces
+/// where the nearest feature is a face, or the point is inside the hull: the face farthest
+/// ahead of the point decides (inside, the nearest face is that one; outside, if the point's
+/// projection on it lies in the hull, that projection is the nearest point). Invalid where
+/// an edge or a corner is nearest (the caller asks GJK then). GJK per particle and cloth step
+/// was 70 % of the cost of a cloth resting on a rock.
+SurfaceHit hullFaceQuery(const btConvexHullShape* shape, const Vec3& p, const Pose& pose) {
+    const HullFaces& h = hullFaces(shape);
+    if (h.normal.empty()) return {};
+    std::size_t best = 0;
+    double ahead = -std::numeric_limits<double>::infinity();
+    for (std::size_t f = 0; f < h.normal.size(); ++f) {
+        const double s = h.normal[f].dot(p) - h.offset[f];
+        if (s > ahead) {
+            ahead = s;
+            best = f;
+        }
+    }
+    const Vec3& n = h.normal[best];
+    if (ahead > 0.0) {
+        const Vec3 q = p - ahead * n;
+        const double tol = 1e-9 * h.size;
+        for (std::size_t f = 0; f < h.normal.size(); ++f)
+            if (h.normal[f].dot(q) - h.offset[f] > tol) return {};
+    }
+    const double distance = ahead - double(shape->getMargin());
+    return makeHit(pose, distance, n, p - distance * n);
 }
 
 // Concave shapes: the nearest triangle within reach. The surface is two-sided; the point
@@ -535,6 +651,11 @@ SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const
     }
     if (shape->isConvex()) {
         ++counters.queries;
+        if (shape->getShapeType() == CONVEX_HULL_SHAPE_PROXYTYPE) {
+            const SurfaceHit face =
+                hullFaceQuery(static_cast<const btConvexHullShape*>(shape), local, pose);
+            if (face.valid) return face;
+        }
         return convexQuery(static_cast<const btConvexShape*>(shape), local, pose);
     }
     if (shape->isConcave()) {

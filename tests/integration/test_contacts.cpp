@@ -4,6 +4,7 @@
 #include "world_fixture.hpp"
 
 #include <BulletCollision/CollisionShapes/btTriangleMesh.h>
+#include <BulletCollision/NarrowPhaseCollision/btGjkEpa2.h>
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -396,6 +397,57 @@ TEST_CASE("a cloth drapes over a static sphere", "[contacts][drape]") {
     // The contact projection runs after the limiter (the paper's order); the contact stage
     // re-limits, and 0.5 % strain is the tolerance for what the last projection may add.
     CHECK(cloth->maxStrain() <= cloth->settings().limiter.maxStrain + 0.005);
+}
+
+TEST_CASE("a cloth drapes over a convex hull rock at the thickness from its surface, as Bullet's "
+          "GJK measures it",
+          "[contacts][drape][hull]") {
+    // An irregular rock: 24 points on a squashed sphere, Bullet's default margin (0.04 m). The
+    // contact stage measures a hull from its faces where a face is nearest (or the particle is
+    // inside it) and asks GJK where an edge or a corner is: both must agree with Bullet's own
+    // signed distance of the shape (btGjkEpaSolver2, margin included), the test's reference.
+    TestWorld w;
+    auto* rock = w.shape<btConvexHullShape>();
+    for (int i = 0; i < 24; ++i) {
+        const double th = std::acos(1.0 - 2.0 * (i + 0.5) / 24.0), ph = i * 2.39996;
+        rock->addPoint(btVector3(btScalar(0.3 * std::sin(th) * std::cos(ph)),
+                                 btScalar(0.22 * std::cos(th)),
+                                 btScalar(0.25 * std::sin(th) * std::sin(ph))),
+                       false);
+    }
+    rock->recalcLocalAabb();
+    const btTransform pose(btQuaternion(btVector3(0, 1, 0), btScalar(0.4)), btVector3(0, 0.3f, 0));
+    w.body(rock, 0.0, eig(pose.getOrigin()), pose.getRotation());
+    auto cloth = makeCloth(horizontalSheet(21, 21, 0.05, 0.75), ClothSettings{});
+    bullet::BulletClothSettings bs;
+    bs.contact.thickness = kThickness;
+    w.add(cloth, bs);
+    auto signedDistance = [&](const Vec3& x) {
+        btGjkEpaSolver2::sResults res;
+        return double(btGjkEpaSolver2::SignedDistance(bt(x), 0, rock, pose, res));
+    };
+    double closest = std::numeric_limits<double>::infinity();
+    for (int f = 0; f < 180; ++f) {
+        w.world.stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
+        for (const Vec3& x : cloth->positions())
+            closest = std::min(closest, signedDistance(x));
+    }
+    // At rest: how many particles rest on it, and how far from its surface.
+    std::size_t resting = 0;
+    double farthestResting = 0.0;
+    for (const Vec3& x : cloth->positions()) {
+        const double d = signedDistance(x);
+        if (d > 2.0 * kThickness) continue;
+        ++resting;
+        farthestResting = std::max(farthestResting, d);
+    }
+    INFO("closest approach " << closest << " m, " << resting << " particles resting, farthest "
+                             << farthestResting << " m");
+    // Never nearer than the thickness by more than Bullet's single-precision GJK (its
+    // tolerance is about 1e-4 at this scale) plus the force term's one-step sag.
+    CHECK(closest >= kThickness - 1e-3);
+    CHECK(resting >= 40);
+    CHECK(farthestResting <= 2.0 * kThickness);
 }
 
 TEST_CASE("a cloth drapes over a static triangle mesh (a roof ridge)", "[contacts][drape][mesh]") {
