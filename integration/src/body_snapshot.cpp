@@ -99,6 +99,7 @@ void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies) 
     // kinematic one: only then does Bullet's solver hold it in place against the cloth. Bodies
     // that rest only on each other (items dropped in a pile on a net) are free together: the
     // cloth is what holds them, so they give way in the walk as free bodies do.
+    // Union-find over the dynamic bodies in contact; a group touching the ground is supported.
     std::vector<const btCollisionObject*> nodes;
     std::vector<std::pair<const btCollisionObject*, const btCollisionObject*>> links;
     for (int k = 0; k < dispatcher.getNumManifolds(); ++k) {
@@ -108,8 +109,8 @@ void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies) 
         const btCollisionObject* b = m->getBody1();
         if (!a->hasContactResponse() || !b->hasContactResponse()) continue;
         links.emplace_back(a, b);
-        nodes.push_back(a);
-        nodes.push_back(b);
+        for (const btCollisionObject* o : {a, b})
+            if (!o->isStaticOrKinematicObject()) nodes.push_back(o);
     }
     std::sort(nodes.begin(), nodes.end());
     nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
@@ -117,41 +118,28 @@ void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies) 
         const auto it = std::lower_bound(nodes.begin(), nodes.end(), o);
         return it != nodes.end() && *it == o ? it - nodes.begin() : -1;
     };
-    // Adjacency in compressed rows, then a search from every static or kinematic node.
-    std::vector<std::size_t> start(nodes.size() + 1, 0), next;
-    for (const auto& l : links) {
-        ++start[std::size_t(index(l.first)) + 1];
-        ++start[std::size_t(index(l.second)) + 1];
-    }
-    for (std::size_t i = 0; i < nodes.size(); ++i)
-        start[i + 1] += start[i];
-    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
-    std::vector<std::size_t> adjacent(start.back());
-    for (const auto& l : links) {
-        const std::size_t a = std::size_t(index(l.first)), b = std::size_t(index(l.second));
-        adjacent[fill[a]++] = b;
-        adjacent[fill[b]++] = a;
-    }
+    std::vector<std::size_t> parent(nodes.size());
+    for (std::size_t i = 0; i < parent.size(); ++i)
+        parent[i] = i;
+    auto root = [&](std::size_t i) {
+        while (parent[i] != i)
+            i = parent[i] = parent[parent[i]];
+        return i;
+    };
     std::vector<unsigned char> grounded(nodes.size(), 0);
-    for (std::size_t i = 0; i < nodes.size(); ++i)
-        if (nodes[i]->isStaticOrKinematicObject()) {
-            grounded[i] = 1;
-            next.push_back(i);
-        }
-    while (!next.empty()) {
-        const std::size_t i = next.back();
-        next.pop_back();
-        for (std::size_t e = start[i]; e < start[i + 1]; ++e) {
-            const std::size_t j = adjacent[e];
-            if (grounded[j] || nodes[j]->isStaticOrKinematicObject()) continue;
-            grounded[j] = 1;
-            next.push_back(j);
-        }
+    for (const auto& l : links) {
+        const std::ptrdiff_t a = index(l.first), b = index(l.second);
+        if (a >= 0 && b >= 0)
+            parent[root(std::size_t(a))] = root(std::size_t(b));
+        else if (a >= 0 || b >= 0) // the other end is static or kinematic
+            grounded[std::size_t(a >= 0 ? a : b)] = 1;
     }
+    for (std::size_t i = 0; i < nodes.size(); ++i)
+        if (grounded[i]) grounded[root(i)] = 1;
     for (BodySnapshot& b : bodies) {
         if (!b.dynamicBody) continue;
         const std::ptrdiff_t i = index(b.object);
-        b.supported = i >= 0 && grounded[std::size_t(i)] != 0;
+        b.supported = i >= 0 && grounded[root(std::size_t(i))] != 0;
     }
 }
 
