@@ -261,9 +261,14 @@ bool BodyPoses::changed(const std::vector<BodySnapshot>& bodies, double tol, dou
     if (bodies.size() != last_.size()) return true;
     for (const BodySnapshot& b : bodies) {
         const auto was = std::find_if(last_.begin(), last_.end(),
-                                      [&](const auto& p) { return p.first == b.object; });
+                                      [&](const Last& p) { return p.object == b.object; });
         if (was == last_.end()) return true; // a new candidate
-        const Pose& pose = was->second;
+        if (was->shape != b.object->getCollisionShape()) return true;
+        // A shape grown or shrunk in place (a static box's setLocalScaling under a sleeping
+        // cloth) moves its surface as motion would.
+        const Vec3 grown = b.aabbMax - b.aabbMin - was->extent; // (a plane's: 0)
+        if (grown.allFinite() && grown.cwiseAbs().maxCoeff() > 2.0 * tol * dt) return true;
+        const Pose& pose = was->pose;
         // Turning is measured at the body's extent (its AABB's half diagonal; an infinite
         // plane turns only when its pose changes at all).
         const double radius = 0.5 * (b.aabbMax - b.aabbMin).norm();
@@ -278,7 +283,8 @@ bool BodyPoses::changed(const std::vector<BodySnapshot>& bodies, double tol, dou
 void BodyPoses::record(const std::vector<BodySnapshot>& bodies) {
     last_.resize(bodies.size());
     for (std::size_t k = 0; k < bodies.size(); ++k)
-        last_[k] = {bodies[k].object, bodies[k].pose};
+        last_[k] = {bodies[k].object, bodies[k].object->getCollisionShape(), bodies[k].pose,
+                    bodies[k].aabbMax - bodies[k].aabbMin};
 }
 
 } // namespace drape::bullet::detail

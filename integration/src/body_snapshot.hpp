@@ -9,6 +9,7 @@
 #include <vector>
 
 class btCollisionObject;
+class btCollisionShape;
 class btRigidBody;
 class btDispatcher;
 
@@ -152,12 +153,19 @@ void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies);
 class BodyPoses {
   public:
     /// Whether a body is new or gone since the last record, or moves: farther or faster than
-    /// the speed `tol` [m/s] carries a point within dt (turning measured at its extent).
+    /// the speed `tol` [m/s] carries a point within dt (turning measured at its extent); or its
+    /// shape changed (another shape, or its extent grew or shrank that much: setLocalScaling).
     bool changed(const std::vector<BodySnapshot>& bodies, double tol, double dt) const;
     void record(const std::vector<BodySnapshot>& bodies);
 
   private:
-    std::vector<std::pair<const btCollisionObject*, Pose>> last_;
+    struct Last {
+        const btCollisionObject* object;
+        const btCollisionShape* shape;
+        Pose pose;
+        Vec3 extent; ///< the world AABB's size
+    };
+    std::vector<Last> last_;
 };
 
 } // namespace drape::bullet::detail

@@ -950,7 +950,11 @@ void BulletCloth::stepInWorld(double dt) {
 BulletClothSettings BulletClothSettings::inUnits(double unitsPerMetre) {
     BulletClothSettings s;
     s.unitsPerMetre = unitsPerMetre;
-    detail::validate(s); // the range of unitsPerMetre, named
+    require(unitsPerMetre >= kMinUnitsPerMetre && unitsPerMetre <= kMaxUnitsPerMetre,
+            ErrorCode::InvalidArgument,
+            "BulletClothSettings::inUnits: unitsPerMetre must be in [1e-6, 1e6] (100 for "
+            "centimetres), got " +
+                detail::num(unitsPerMetre));
     s.contact.thickness *= unitsPerMetre;
     s.contact.depenetrationSpeed *= unitsPerMetre;
     s.teleportSpeed *= unitsPerMetre;

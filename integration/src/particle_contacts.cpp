@@ -9,6 +9,31 @@
 
 namespace drape::bullet::detail {
 
+namespace {
+/// How far particle i at `at` may move along the unit n and stay within its long-range
+/// attachment's reach of its anchor, (1 + maxStrain) r_i (the walk would pull it back from
+/// farther): infinite without an anchor (none reaches it, the attachments are off, or the
+/// anchors were found for another set of held particles), 0 if it is beyond already. `anchor`:
+/// the anchor, when there is one.
+double anchorRoom(const Cloth& c, std::size_t i, const Vec3& at, const Vec3& n, Index& anchor) {
+    const auto& lim = c.settings().limiter;
+    const AnchorField& field = c.limiter().anchors();
+    constexpr double kFree = std::numeric_limits<double>::infinity();
+    if (lim.kind != LimiterKind::StressOrdered || !lim.longRangeAttachments ||
+        i >= field.anchor.size() || field.anchor.size() != c.particleCount())
+        return kFree;
+    const Index a = field.anchor[i];
+    if (a == kNoParticle || c.inverseMasses()[a] != 0.0) return kFree;
+    anchor = a;
+    // The largest t >= 0 with |at + t n - x_a| <= r.
+    const Vec3 y = at - c.positions()[a];
+    const double r = (1.0 + lim.maxStrain) * field.restDistance[i];
+    const double yn = y.dot(n);
+    const double disc = yn * yn - y.squaredNorm() + r * r;
+    return disc > 0.0 ? std::max(0.0, std::sqrt(disc) - yn) : 0.0;
+}
+} // namespace
+
 inline void ContactSolver::recordContact(const Cloth& c, std::uint32_t bi, std::size_t i,
                                          const SurfaceHit& hit, double cp, double damping) {
     const BodySnapshot& b = bodies[bi];
@@ -136,6 +161,27 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
                 if (reprojecting_) return true;
                 reach = std::min(h, start.distance + cs.depenetrationSpeed * dt);
             }
+        }
+    }
+    // A particle whose anchor (a pinned or attached particle it hangs from) is inside the body
+    // (a row attached to a cart that sank into the floor) comes out only as far as its
+    // long-range attachment reaches: there the cloth follows its anchor into the body, at the
+    // strain bound. Projected to the surface, it was pulled back in by the walk in every
+    // step, and the fight launched the cloth (strain 4, 45 m/s, 0.3-0.9 s a frame).
+    // Its anchor holds it there: no plane, no contact force or impulse against the pull that
+    // holds it in (they pushed it out again, and the walk pulled it back).
+    if (hit.distance < reach && moverOf_[bi] < 0) {
+        Index a = kNoParticle;
+        if (const double room = anchorRoom(c, i, xi, hit.normal, a); room < reach - hit.distance) {
+            ++stats.projections;
+            stats.maxDepth = std::max(stats.maxDepth, h - hit.distance);
+            touching_[i] = 1;
+            x[i] = xi + room * hit.normal;
+            // It moves into the body no faster than its anchor (the lift stops the rest, as
+            // the walk's long-range attachment would).
+            const double vn = (v[i] - v[a]).dot(hit.normal);
+            if (vn < 0.0) v[i] -= vn * hit.normal;
+            return true;
         }
     }
     // A particle that a static or kinematic body holds from behind (a rug on the floor) does

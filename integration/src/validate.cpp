@@ -14,7 +14,26 @@ std::string num(double v) {
 }
 
 void validate(const BulletClothSettings& s) {
+    require(s.unitsPerMetre >= kMinUnitsPerMetre && s.unitsPerMetre <= kMaxUnitsPerMetre,
+            ErrorCode::InvalidArgument,
+            "unitsPerMetre must be in [1e-6, 1e6] (100 for centimetres), got " +
+                num(s.unitsPerMetre));
     const auto& c = s.contact;
+    // unitsPerMetre set on its own leaves every length and speed at its value in metres: a
+    // centimetre world would get a 0.1 mm contact thickness (0.01 units), which no step keeps.
+    // Only inUnits (or the program, field by field) says what the world's units are.
+    const BulletClothSettings metres;
+    const bool allMetreDefaults = c.thickness == metres.contact.thickness &&
+                                  c.depenetrationSpeed == metres.contact.depenetrationSpeed &&
+                                  s.teleportSpeed == metres.teleportSpeed &&
+                                  s.selfCollision.thickness == metres.selfCollision.thickness;
+    require(s.unitsPerMetre == 1.0 || !allMetreDefaults, ErrorCode::InvalidArgument,
+            "unitsPerMetre is " + num(s.unitsPerMetre) +
+                " but the contact thickness, depenetration speed, teleport speed and "
+                "self-collision thickness are all still their defaults in metres (thickness " +
+                num(c.thickness) + "): start from BulletClothSettings::inUnits(" +
+                num(s.unitsPerMetre) +
+                "), which converts them, or set at least one of them in the world's units");
     require(std::isfinite(c.thickness) && c.thickness > 0.0, ErrorCode::InvalidArgument,
             "contact.thickness must be positive and finite, got " + num(c.thickness));
     if (c.penaltyBand)
@@ -43,10 +62,6 @@ void validate(const BulletClothSettings& s) {
                 "timeStep must be positive and finite, got " + num(*s.timeStep));
     require(std::isfinite(s.teleportSpeed) && s.teleportSpeed >= 0.0, ErrorCode::InvalidArgument,
             "teleportSpeed must be >= 0 and finite (0: off), got " + num(s.teleportSpeed));
-    require(s.unitsPerMetre >= kMinUnitsPerMetre && s.unitsPerMetre <= kMaxUnitsPerMetre,
-            ErrorCode::InvalidArgument,
-            "unitsPerMetre must be in [1e-6, 1e6] (100 for centimetres), got " +
-                num(s.unitsPerMetre));
     require(s.threads >= 1 && s.threads <= 1024, ErrorCode::InvalidArgument,
             "threads must be between 1 and 1024, got " + std::to_string(s.threads));
     // selfCollision is the cloth's own: Cloth::setSelfCollision validates it.

@@ -174,6 +174,32 @@ TEST_CASE("a hanging cloth sleeps and wakes when its body moves or gravity chang
     CHECK(cloth->positions()[48].x() - before[48].x() > 0.005);
 }
 
+TEST_CASE("a sleeping cloth wakes when the shape under it is scaled or replaced",
+          "[world][sleep]") {
+    // A cloth asleep on a static box. The game grows the box in place (setLocalScaling, its
+    // pose unchanged): the cloth wakes (before, a shape's size was not watched, and the cloth
+    // slept on 4 cm inside the grown box). The same for a shape swapped for a larger one.
+    for (const bool swap : {false, true}) {
+        TestWorld w;
+        auto* small = w.shape<btBoxShape>(btVector3(0.3f, 0.3f, 0.3f));
+        auto* large = w.shape<btBoxShape>(btVector3(0.34f, 0.34f, 0.34f));
+        btRigidBody* box = w.body(small, 0.0, Vec3::Zero());
+        auto cloth = makeCloth(horizontalSheet(7, 7, 0.05, 0.32), smallCloth());
+        w.add(cloth);
+        REQUIRE(runUntilAsleep(w, *cloth));
+        run(w, 30);
+        REQUIRE(cloth->isAsleep());
+        if (swap)
+            box->setCollisionShape(large);
+        else
+            small->setLocalScaling(btVector3(0.34f / 0.3f, 0.34f / 0.3f, 0.34f / 0.3f));
+        w.world.updateSingleAabb(box);
+        run(w, 1);
+        INFO((swap ? "shape replaced" : "shape scaled"));
+        CHECK_FALSE(cloth->isAsleep());
+    }
+}
+
 TEST_CASE("a cloth on a stack of dynamic boxes stays on it, lets it sleep, and wakes it when "
           "pushed",
           "[world][sleep][stack]") {

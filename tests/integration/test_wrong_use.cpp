@@ -171,6 +171,24 @@ TEST_CASE("BulletClothSettings::inUnits refuses a unit outside [1e-6, 1e6]",
                       Catch::Contains("unitsPerMetre must be in [1e-6, 1e6]"));
 }
 
+TEST_CASE("unitsPerMetre set without converting the lengths is refused by name",
+          "[world][wrong_use][units]") {
+    // A centimetre world that sets only unitsPerMetre would keep a 0.01-unit (0.1 mm) contact
+    // thickness: refused, naming inUnits. Starting from inUnits, or setting a length in the
+    // world's units, is accepted.
+    TestWorld w;
+    bullet::BulletClothSettings trap;
+    trap.unitsPerMetre = 100.0;
+    CHECK_THROWS_WITH(w.add(makeCloth(horizontalSheet(3, 3, 10.0, 100.0), softCloth()), trap),
+                      Catch::Contains("inUnits(100)"));
+    CHECK_NOTHROW(w.add(makeCloth(horizontalSheet(3, 3, 10.0, 100.0), softCloth()),
+                        bullet::BulletClothSettings::inUnits(100.0)));
+    bullet::BulletClothSettings byHand;
+    byHand.unitsPerMetre = 100.0;
+    byHand.contact.thickness = 1.0;
+    CHECK_NOTHROW(w.add(makeCloth(horizontalSheet(3, 3, 10.0, 100.0), softCloth()), byHand));
+}
+
 namespace {
 /// A caller stage that runs `act` once, in the cloth's first step after it was added.
 struct OnceStage final : ClothStage {

@@ -25,8 +25,9 @@
 //    Cloth::isAsleep() describes and then costs a broadphase-overlap scan per sub-step. It
 //    wakes before it steps when a candidate body (a broadphase overlap of its proxy) is new,
 //    has left, moves faster than v = sleep.distance / sleep.time (1 cm/s by default) or
-//    has moved or turned by more than v times the step since the last sub-step; when an
-//    attachment's body moves; when the world's gravity changes. It stays awake while it pushes an
+//    has moved or turned by more than v times the step since the last sub-step, or has another
+//    shape or a shape grown or shrunk by that much (setLocalScaling); when an attachment's body
+//    moves; when the world's gravity changes. It stays awake while it pushes an
 //    active dynamic body (a body resting on a sleeping cloth would lose its support).
 //
 // Units are the world's (metres, kilograms, seconds when the scene is in SI). Bullet is
