@@ -8,8 +8,10 @@
 #include "drape/error.hpp"
 #include "drape/timers.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <string>
 
 namespace drape::bullet::detail {
@@ -31,6 +33,9 @@ void ContactSolver::detect(Cloth& c, double dt) {
     trianglePoint_.clear();
     anyTouching_ = false;
     edgeHits_.clear();
+    exitLast_.swap(exitNow_);
+    exitNow_.assign(n, 0);
+    if (exitLast_.size() != n) exitLast_.assign(n, 0);
     if (!inStep) return; // the cloth was stepped outside the world: no bodies to collide with
     from_ = &c.stepStartPositions();
     records->contacts.clear();
@@ -353,24 +358,39 @@ void ContactSolver::applyContactForces(const Cloth& c, double h) {
 }
 
 std::vector<unsigned char> ContactSolver::saveState() const {
-    std::vector<unsigned char> out(frictionLeft_.size() * sizeof(double));
-    if (!out.empty()) std::memcpy(out.data(), frictionLeft_.data(), out.size());
+    // The friction left per particle (n doubles, or none); then, only while some particle is
+    // on a slow exit, one byte per particle saying which.
+    const bool exits = std::any_of(exitNow_.begin(), exitNow_.end(), [](auto e) { return e; });
+    std::vector<double> left = frictionLeft_;
+    if (exits) left.resize(exitNow_.size(), 0.0);
+    std::vector<unsigned char> out(left.size() * sizeof(double));
+    if (!left.empty()) std::memcpy(out.data(), left.data(), out.size());
+    if (exits) out.insert(out.end(), exitNow_.begin(), exitNow_.end());
     return out;
 }
 
 void ContactSolver::loadState(std::size_t n, const std::vector<unsigned char>& bytes) {
+    exitNow_.clear();
     if (bytes.empty()) {
         frictionLeft_.clear();
         return;
     }
-    require(bytes.size() == n * sizeof(double), ErrorCode::InvalidArgument,
-            "expected " + std::to_string(n * sizeof(double)) + " bytes (friction left for " +
-                std::to_string(n) + " particles), got " + std::to_string(bytes.size()));
+    const std::size_t row = n * sizeof(double);
+    require(bytes.size() == row || bytes.size() == row + n, ErrorCode::InvalidArgument,
+            "expected " + std::to_string(row) + " bytes (friction left for " + std::to_string(n) +
+                " particles) or " + std::to_string(row + n) +
+                " (and which are on a slow exit), got " + std::to_string(bytes.size()));
     std::vector<double> left(n);
-    std::memcpy(left.data(), bytes.data(), bytes.size());
+    std::memcpy(left.data(), bytes.data(), row);
     for (double l : left)
         require(std::isfinite(l) && l >= 0.0, ErrorCode::InvalidArgument,
                 "a particle's friction left is negative or not finite");
+    if (bytes.size() == row + n) {
+        exitNow_.assign(bytes.begin() + std::ptrdiff_t(row), bytes.end());
+        for (unsigned char e : exitNow_)
+            require(e <= 1, ErrorCode::InvalidArgument,
+                    "a particle's slow-exit flag is neither 0 nor 1");
+    }
     frictionLeft_ = std::move(left);
 }
 

@@ -273,6 +273,8 @@ void ContactSolver::collideSpringWithBox(Cloth& c, std::size_t si, std::uint32_t
     // An end inside the box is its particle contact's to resolve (a deep impact), not a spring
     // cutting a corner.
     if (ga == gb || da < 0.0 || db < 0.0) return;
+    // An end coming out of a body slowly (contact.depenetrationSpeed) takes the spring with it.
+    if (exiting(s.a) || exiting(s.b)) return;
     if (const double apart = 0.5 * (da + db - (pb - pa).norm()); apart >= h) {
         keepClear(apart);
         return;

@@ -133,28 +133,35 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
 
     SurfaceHit hit;
     // Where the contact holds the particle: `reach` above the surface (the thickness, or less
-    // for a particle that started the step deep inside the body).
+    // for a particle that started the step inside the body).
     double reach = h;
     if (!(sweep && pathHit(b, from, xi, hit))) {
         hit = b.box ? boxSurface(b.boxHalf, b.boxFaceNormal, b.pose, xi, counters)
                     : closestSurface(b.object->getCollisionShape(), b.pose, xi, from, h + band_,
                                      counters);
         if (!hit.valid || hit.distance >= h + band_) return false;
-        // Deeper than the thickness inside the body now and at the step's start, seen from
-        // the body (placed or teleported there, not come in on its way): out at
-        // contact.depenetrationSpeed only (its neighbours follow it through the limiter at the
-        // speed it moves). A moving body's pose at the step's start is reconstructed from its
-        // velocity at the end, so a fast body Bullet stopped on the way looks as if it had
-        // been there already, and its particles come out slowly too. Judged only for bodies
-        // that did not move, a dynamic body resting on the floor (never exactly still in
-        // Bullet) had a cloth spawned through it projected out in one step and thrown off at
-        // 15 km/s.
-        if (hit.distance < -h) {
+        // Inside the body now and at the step's start, seen from the body (placed or
+        // teleported there, or the body moved, grew or was placed round it: not come in on its
+        // way): out at contact.depenetrationSpeed only, all the way to the thickness (its
+        // neighbours follow it through the limiter at the speed it moves). (Within the
+        // thickness it was moved out at once: a particle near a box's edge then went out
+        // through the side, and one that reached the surface was moved the last centimetre in
+        // one sub-step; the walk dragged their neighbours along at 10-16 m/s.) A moving body's pose
+        // at the step's start is reconstructed from its velocity at the end, so a fast body Bullet
+        // stopped on the way looks as if it had been there already, and its particles come out
+        // slowly too. Judged only for bodies that did not move, a dynamic body resting on the floor
+        // (never exactly still in Bullet) had a cloth spawned through it projected out in one step
+        // and thrown off at 15 km/s.
+        if (i < exitLast_.size() && exitLast_[i] && hit.distance < h) {
+            // On its way out slowly in the last step: on at that speed to the thickness.
+            if (reprojecting_) return true;
+            reach = std::min(h, hit.distance + cs.depenetrationSpeed * dt);
+        } else if (hit.distance < 0.0) {
             const SurfaceHit start =
                 b.box ? boxSurface(b.boxHalf, b.boxFaceNormal, b.pose, from, counters)
                       : closestSurface(b.object->getCollisionShape(), b.pose, from, from, h,
                                        counters);
-            if (start.valid && start.distance < -h) {
+            if (start.valid && start.distance < 0.0) {
                 // Once a step, before the limiter: the limiter then keeps the bound over it
                 // (projected again after it, particles pushed out through different faces
                 // tore the cloth apart, and it flew off at 26 m/s when they came out).
@@ -162,6 +169,7 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
                 reach = std::min(h, start.distance + cs.depenetrationSpeed * dt);
             }
         }
+        if (reach < h && i < exitNow_.size()) exitNow_[i] = 1;
     }
     // A particle whose anchor (a pinned or attached particle it hangs from) is inside the body
     // (a row attached to a cart that sank into the floor) comes out only as far as its

@@ -30,12 +30,13 @@ struct ContactSettings {
     std::optional<double> penaltyForce;
     /// Multiplies the body's btCollisionObject friction coefficient (Coulomb mu) [-].
     double frictionScale = 1.0;
-    /// How fast a particle that starts a cloth step deeper inside a body than the thickness (a
-    /// cloth placed or teleported into a body) is moved out of it [m/s]: at most this far
-    /// per second until it is within the thickness of the surface, then out to the thickness
-    /// at once. Moved out in one step, it dragged its neighbours with it through the strain
-    /// limiter at the depth over the step (a sheet placed inside a 2 m box left it at
-    /// 1,460 m/s). Must be > 0 and finite.
+    /// How fast a particle that starts a cloth step inside a body (a cloth placed or teleported
+    /// into a body, a body moved, grown or created round a cloth) is moved out of it [m/s]: at
+    /// most this far per second, all the way out to the thickness (a spring with an end on its
+    /// way out is not pushed off a box's edge meanwhile). Moved out in one step, it dragged
+    /// its neighbours with it through the strain limiter at the depth over the step (a sheet
+    /// placed inside a 2 m box left it at 1,460 m/s; a box moved 4 cm up under a resting
+    /// cloth threw it 2 m high). Must be > 0 and finite.
     double depenetrationSpeed = 1.0;
     /// Ray-test the path of particles that moved more than `thickness` in a step, so that a
     /// fast particle does not pass through a thin body between two steps; and sweep every
