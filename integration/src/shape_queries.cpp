@@ -272,9 +272,23 @@ SurfaceHit hullFaceQuery(const btConvexHullShape* shape, const Vec3& p, const Po
 // within a step gets a negative distance and is pushed back.
 class NearestTriangle : public btTriangleCallback {
   public:
-    NearestTriangle(const Vec3& p, const Vec3& prev) : p_(p), prev_(prev) {}
+    NearestTriangle(const Vec3& p, const Vec3& prev)
+        : p_(p), prev_(prev), pathLo_(p.cwiseMin(prev)), pathHi_(p.cwiseMax(prev)) {}
     void processTriangle(btVector3* tri, int, int) override {
         const Vec3 a = toVec(tri[0]), b = toVec(tri[1]), c = toVec(tri[2]);
+        // A triangle that can neither be nearer than the best so far (its box is not) nor have
+        // been crossed (its box misses the path's) changes nothing: skipped (a heightfield
+        // hands over the cells around the query's box too).
+        if (found_) {
+            const Vec3 lo = a.cwiseMin(b).cwiseMin(c), hi = a.cwiseMax(b).cwiseMax(c);
+            const bool path =
+                (lo.array() <= pathHi_.array()).all() && (hi.array() >= pathLo_.array()).all();
+            if (!path) {
+                if (best_ < 0.0) return;
+                const Vec3 out = (lo - p_).cwiseMax(p_ - hi).cwiseMax(0.0);
+                if (out.squaredNorm() >= best_ * best_) return;
+            }
+        }
         Vec3 bary;
         const Vec3 q = closestPointOnTriangle(p_, a, b, c, bary);
         Vec3 face = (b - a).cross(c - a);
@@ -325,6 +339,7 @@ class NearestTriangle : public btTriangleCallback {
                (a - c).cross(x - c).dot(face) >= tol;
     }
     Vec3 p_, prev_;
+    Vec3 pathLo_, pathHi_; ///< the box of the path prev_ -> p_
 };
 
 } // namespace
