@@ -950,11 +950,7 @@ void BulletCloth::stepInWorld(double dt) {
 BulletClothSettings BulletClothSettings::inUnits(double unitsPerMetre) {
     BulletClothSettings s;
     s.unitsPerMetre = unitsPerMetre;
-    require(unitsPerMetre >= kMinUnitsPerMetre && unitsPerMetre <= kMaxUnitsPerMetre,
-            ErrorCode::InvalidArgument,
-            "BulletClothSettings::inUnits: unitsPerMetre must be in [1e-6, 1e6] (100 for "
-            "centimetres), got " +
-                detail::num(unitsPerMetre));
+    detail::validateUnitsPerMetre(unitsPerMetre, "BulletClothSettings::inUnits: ");
     s.contact.thickness *= unitsPerMetre;
     s.contact.depenetrationSpeed *= unitsPerMetre;
     s.teleportSpeed *= unitsPerMetre;

@@ -11,26 +11,20 @@ namespace drape::bullet::detail {
 
 namespace {
 /// How far particle i at `at` may move along the unit n and stay within its long-range
-/// attachment's reach of its anchor, (1 + maxStrain) r_i (the walk would pull it back from
-/// farther): infinite without an anchor (none reaches it, the attachments are off, or the
-/// anchors were found for another set of held particles), 0 if it is beyond already. `anchor`:
-/// the anchor, when there is one.
+/// attachment's reach of its anchor (StrainLimiter::anchorRoom): infinite without an anchor
+/// (none reaches it, the attachments are off, or the anchors were found for another set of
+/// held particles), 0 if it is beyond already. `anchor`: the anchor, when there is one.
 double anchorRoom(const Cloth& c, std::size_t i, const Vec3& at, const Vec3& n, Index& anchor) {
     const auto& lim = c.settings().limiter;
     const AnchorField& field = c.limiter().anchors();
-    constexpr double kFree = std::numeric_limits<double>::infinity();
     if (lim.kind != LimiterKind::StressOrdered || !lim.longRangeAttachments ||
-        i >= field.anchor.size() || field.anchor.size() != c.particleCount())
-        return kFree;
+        field.anchor.size() != c.particleCount())
+        return std::numeric_limits<double>::infinity();
     const Index a = field.anchor[i];
-    if (a == kNoParticle || c.inverseMasses()[a] != 0.0) return kFree;
+    if (a == kNoParticle || c.inverseMasses()[a] != 0.0)
+        return std::numeric_limits<double>::infinity();
     anchor = a;
-    // The largest t >= 0 with |at + t n - x_a| <= r.
-    const Vec3 y = at - c.positions()[a];
-    const double r = (1.0 + lim.maxStrain) * field.restDistance[i];
-    const double yn = y.dot(n);
-    const double disc = yn * yn - y.squaredNorm() + r * r;
-    return disc > 0.0 ? std::max(0.0, std::sqrt(disc) - yn) : 0.0;
+    return c.limiter().anchorRoom(Index(i), at, n, c.positions());
 }
 } // namespace
 

@@ -13,11 +13,15 @@ std::string num(double v) {
     return s.str();
 }
 
-void validate(const BulletClothSettings& s) {
-    require(s.unitsPerMetre >= kMinUnitsPerMetre && s.unitsPerMetre <= kMaxUnitsPerMetre,
+void validateUnitsPerMetre(double unitsPerMetre, const std::string& who) {
+    require(unitsPerMetre >= kMinUnitsPerMetre && unitsPerMetre <= kMaxUnitsPerMetre,
             ErrorCode::InvalidArgument,
-            "unitsPerMetre must be in [1e-6, 1e6] (100 for centimetres), got " +
-                num(s.unitsPerMetre));
+            who + "unitsPerMetre must be in [1e-6, 1e6] (100 for centimetres), got " +
+                num(unitsPerMetre));
+}
+
+void validate(const BulletClothSettings& s) {
+    validateUnitsPerMetre(s.unitsPerMetre);
     const auto& c = s.contact;
     // unitsPerMetre set on its own leaves every length and speed at its value in metres: a
     // centimetre world would get a 0.1 mm contact thickness (0.01 units), which no step keeps.

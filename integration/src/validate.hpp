@@ -17,6 +17,10 @@ inline void require(bool ok, ErrorCode code, const std::string& message) {
     if (!ok) throw Error(code, message);
 }
 
+/// Throws drape::Error (InvalidArgument) unless unitsPerMetre is in [kMinUnitsPerMetre,
+/// kMaxUnitsPerMetre]; `who` prefixes the message.
+void validateUnitsPerMetre(double unitsPerMetre, const std::string& who = "");
+
 /// Throws drape::Error naming the first bad setting.
 void validate(const BulletClothSettings& s);
 

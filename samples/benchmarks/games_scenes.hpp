@@ -204,6 +204,14 @@ inline GameScene makeCurtainWalk() {
     return s;
 }
 
+/// The flags' wind at time t [m/s]: gusts along x, a slow swing along z.
+inline Vec3 gustyWind(double t) {
+    const double wx =
+        8.0 + 4.0 * std::sin(2.0 * kPi * 0.5 * t) + 2.0 * std::sin(2.0 * kPi * 1.7 * t);
+    const double wz = 0.5 + 0.5 * std::sin(2.0 * kPi * 0.23 * t);
+    return Vec3(wx, 0.0, wz);
+}
+
 /// 3. flag: 25 x 17, 0.05 m (1.2 x 0.8 m) in the x-y plane, left column pinned, aerodynamics
 /// on (air 1.2 kg/m^3, C_d and C_l default), gusty wind along x with a small z component, set
 /// every frame.
@@ -219,12 +227,7 @@ inline GameScene makeFlag() {
     for (Index r = 0; r < sheet.rows; ++r)
         s.cloth->pin(sheetIndex(sheet, r, 0));
     Cloth* cloth = s.cloth.get();
-    s.beforeFrame = [cloth](double t) {
-        const double wx =
-            8.0 + 4.0 * std::sin(2.0 * kPi * 0.5 * t) + 2.0 * std::sin(2.0 * kPi * 1.7 * t);
-        const double wz = 0.5 + 0.5 * std::sin(2.0 * kPi * 0.23 * t);
-        cloth->setWind(Vec3(wx, 0.0, wz));
-    };
+    s.beforeFrame = [cloth](double t) { cloth->setWind(gustyWind(t)); };
     s.seconds = 6.0;
     return s;
 }
@@ -605,12 +608,7 @@ inline GameScene makeFlagPole() {
     for (Index r = 0; r < sheet.rows; ++r)
         s.handle->attachHere(sheetIndex(sheet, r, 0), pole);
     Cloth* cloth = s.cloth.get();
-    s.beforeFrame = [cloth](double t) {
-        const double wx =
-            8.0 + 4.0 * std::sin(2.0 * kPi * 0.5 * t) + 2.0 * std::sin(2.0 * kPi * 1.7 * t);
-        const double wz = 0.5 + 0.5 * std::sin(2.0 * kPi * 0.23 * t);
-        cloth->setWind(Vec3(wx, 0.0, wz));
-    };
+    s.beforeFrame = [cloth](double t) { cloth->setWind(gustyWind(t)); };
     auto fastest = std::make_shared<double>(0.0);
     s.afterFrame = [pole, fastest](double) {
         *fastest = std::max(*fastest, double(pole->getAngularVelocity().length()));

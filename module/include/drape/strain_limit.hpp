@@ -456,6 +456,10 @@ class StrainLimiter {
     }
     // (warmLeft_ needs no saving: it is rebuilt at the start of every step.)
     const AnchorField& anchors() const { return anchors_; }
+    /// How far particle i, moved to `at`, can go along unit n before its long-range
+    /// attachment (anchors(), at the last walk's limit) is taut [m] (infinite without an
+    /// anchor, 0 past it); x: the positions, its anchor's among them.
+    double anchorRoom(Index i, const Vec3& at, const Vec3& n, const std::vector<Vec3>& x) const;
 
   private:
     void prepare(const ClothTopology& topology, const std::vector<double>& invMass,
@@ -490,9 +494,6 @@ class StrainLimiter {
                          double eps) const;
     /// The move dx of particle i in a correction, kept above its contact plane (if any).
     Vec3 keepAbove(Index i, const Vec3& dx, const std::vector<Vec3>& x) const;
-    /// How far particle i, moved to `at`, can go along unit n before its long-range
-    /// attachment is taut [m] (infinite without an anchor, 0 past it).
-    double anchorRoom(Index i, const Vec3& at, const Vec3& n, const std::vector<Vec3>& x) const;
     /// keepAbove when the walk has planes, else dx.
     Vec3 abovePlanes(Index i, const Vec3& dx, const std::vector<Vec3>& x) const {
         return planes_ ? keepAbove(i, dx, x) : dx;
