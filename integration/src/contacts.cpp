@@ -44,12 +44,17 @@ void ContactSolver::detect(Cloth& c, double dt) {
     // A free dynamic body (in no Bullet contact: a projectile, a thrown rod) gives way in the
     // walk with its mass; a supported one is held by Bullet's contacts, and Bullet moves it;
     // one the cloth is attached to moves the attached particles before the walk.
+    // It gives way by shifting only: it turns through the impulses its planes hand it after the
+    // walk (flushPlane, at their points). Turning in the walk too, a box resting on a net on
+    // many planes rocked from corner to corner within every walk (Gauss-Seidel between opposite
+    // sides) until the walk's cap (integration/README.md: "a box rocked within every walk").
     moverOf_.assign(bodies.size(), -1);
     for (std::size_t bi = 0; bi < bodies.size(); ++bi) {
         const BodySnapshot& b = bodies[bi];
         if (!b.dynamicBody || b.supported || b.attached || !(b.invMass > 0.0)) continue;
         moverOf_[bi] = static_cast<std::int32_t>(records->planes.movers.size());
-        records->planes.movers.push_back(ContactPlanes::Mover{b.invMass, b.invInertia, b.com});
+        records->planes.movers.push_back(
+            ContactPlanes::Mover{b.invMass, Eigen::Matrix3d::Zero(), b.com});
         records->planes.movers.back().lighten = b.lighten;
     }
     // A body thinner across than the longest spring (its second-smallest half extent plus the
