@@ -4,6 +4,7 @@
 #include <btBulletDynamicsCommon.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 
@@ -195,7 +196,156 @@ void Attachments::solveTaut(int passes) {
     }
 }
 
-void Attachments::holdTethers(const Cloth& c, double dt, std::vector<BodySnapshot>& bodies) {
+void Attachments::solveTautWithJoints(btDynamicsWorld& world, std::vector<BodySnapshot>& bodies,
+                                      double dt) {
+    // The bodies the ropes hold (by their snapshot's index) and their velocities, copied.
+    const auto index = [&](const BodySnapshot* b) { return std::size_t(b - bodies.data()); };
+    std::vector<unsigned char> roped(bodies.size(), 0);
+    for (const Taut& t : taut_) {
+        roped[index(t.B)] = 1;
+        if (t.A) roped[index(t.A)] = 1;
+    }
+    std::vector<Vec3> v(bodies.size()), w(bodies.size());
+    for (std::size_t k = 0; k < bodies.size(); ++k) {
+        v[k] = bodies[k].v;
+        w[k] = bodies[k].w;
+        // Bullet's next step gives its gravity before it solves.
+        if (roped[k] && bodies[k].dynamicBody)
+            v[k] += dt * toVec(bodies[k].dynamicBody->getGravity());
+    }
+    const auto snapshotOfBody = [&](const btRigidBody& rb) -> std::int64_t {
+        for (std::size_t k = 0; k < bodies.size(); ++k)
+            if (bodies[k].dynamicBody == &rb) return std::int64_t(k);
+        return -1;
+    };
+    // The joints' rows (btTypedConstraint::getInfo2) on the roped bodies.
+    struct Row {
+        std::int64_t a, b;
+        Vec3 la, aa, lb, ab;
+        double rhs, cfm, lo, hi, k, lambda;
+    };
+    std::vector<Row> rows;
+    const btContactSolverInfo& info = world.getSolverInfo();
+    for (int ci = 0; ci < world.getNumConstraints(); ++ci) {
+        btTypedConstraint* tc = world.getConstraint(ci);
+        if (!tc || !tc->isEnabled()) continue;
+        const std::int64_t a = snapshotOfBody(tc->getRigidBodyA());
+        const std::int64_t b = snapshotOfBody(tc->getRigidBodyB());
+        if (!((a >= 0 && roped[std::size_t(a)]) || (b >= 0 && roped[std::size_t(b)]))) continue;
+        btTypedConstraint::btConstraintInfo1 i1;
+        tc->getInfo1(&i1);
+        const int n = i1.m_numConstraintRows;
+        if (n <= 0) continue;
+        // Every array is read and written with the row stride (as Bullet's solver lays them
+        // out in its rows): row r at r * rowskip.
+        const std::size_t len = 3 * std::size_t(n);
+        std::vector<btScalar> j1l(len, 0), j1a(len, 0), j2l(len, 0), j2a(len, 0), err(len, 0),
+            cfm(len, info.m_globalCfm), lo(len, -SIMD_INFINITY), hi(len, SIMD_INFINITY);
+        btTypedConstraint::btConstraintInfo2 i2;
+        i2.fps = btScalar(1.0 / dt);
+        i2.erp = info.m_erp;
+        i2.m_J1linearAxis = j1l.data();
+        i2.m_J1angularAxis = j1a.data();
+        i2.m_J2linearAxis = j2l.data();
+        i2.m_J2angularAxis = j2a.data();
+        i2.rowskip = 3;
+        i2.m_constraintError = err.data();
+        i2.cfm = cfm.data();
+        i2.m_lowerLimit = lo.data();
+        i2.m_upperLimit = hi.data();
+        i2.m_numIterations = info.m_numIterations;
+        i2.m_damping = info.m_damping;
+        tc->getInfo2(&i2);
+        for (int r = 0; r < n; ++r) {
+            const auto at = [&](const std::vector<btScalar>& m) {
+                return Vec3(double(m[3 * std::size_t(r)]), double(m[3 * std::size_t(r) + 1]),
+                            double(m[3 * std::size_t(r) + 2]));
+            };
+            const std::size_t q = 3 * std::size_t(r);
+            Row row{a,
+                    b,
+                    at(j1l),
+                    at(j1a),
+                    at(j2l),
+                    at(j2a),
+                    double(err[q]),
+                    double(cfm[q]),
+                    double(lo[q]),
+                    double(hi[q]),
+                    0.0,
+                    0.0};
+            double k = row.cfm;
+            if (a >= 0) {
+                const BodySnapshot& A = bodies[std::size_t(a)];
+                k += A.invMass * row.la.squaredNorm() + row.aa.dot(A.invInertia * row.aa);
+            }
+            if (b >= 0) {
+                const BodySnapshot& B = bodies[std::size_t(b)];
+                k += B.invMass * row.lb.squaredNorm() + row.ab.dot(B.invInertia * row.ab);
+            }
+            if (!(k > 0.0) || !std::isfinite(k)) continue;
+            row.k = k;
+            rows.push_back(row);
+        }
+    }
+    if (rows.empty()) {
+        solveTaut(1);
+        return;
+    }
+    const auto pointVelocity = [&](const BodySnapshot* b, const Vec3& p) {
+        const std::size_t k = index(b);
+        return Vec3(v[k] + w[k].cross(p - b->com));
+    };
+    const auto push = [&](BodySnapshot* b, const Vec3& j, const Vec3& p) {
+        if (!b || !b->dynamicBody) return;
+        const std::size_t k = index(b);
+        v[k] += b->invMass * j;
+        w[k] += b->invInertia * (p - b->com).cross(j);
+    };
+    for (int pass = 0; pass < kJointPasses; ++pass) {
+        for (Row& r : rows) {
+            double jv = 0.0;
+            if (r.a >= 0) jv += r.la.dot(v[std::size_t(r.a)]) + r.aa.dot(w[std::size_t(r.a)]);
+            if (r.b >= 0) jv += r.lb.dot(v[std::size_t(r.b)]) + r.ab.dot(w[std::size_t(r.b)]);
+            const double total =
+                std::clamp(r.lambda + (r.rhs - jv - r.cfm * r.lambda) / r.k, r.lo, r.hi);
+            const double d = total - r.lambda;
+            if (d == 0.0) continue;
+            r.lambda = total;
+            if (r.a >= 0) {
+                const BodySnapshot& A = bodies[std::size_t(r.a)];
+                v[std::size_t(r.a)] += (A.invMass * d) * r.la;
+                w[std::size_t(r.a)] += A.invInertia * (d * r.aa);
+            }
+            if (r.b >= 0) {
+                const BodySnapshot& B = bodies[std::size_t(r.b)];
+                v[std::size_t(r.b)] += (B.invMass * d) * r.lb;
+                w[std::size_t(r.b)] += B.invInertia * (d * r.ab);
+            }
+        }
+        for (Taut& t : taut_) {
+            const double apart =
+                (pointVelocity(t.B, t.pb) - (t.A ? pointVelocity(t.A, t.pa) : t.va)).dot(t.u) +
+                t.catchUp;
+            const double total = std::max(0.0, t.impulse + apart / t.k);
+            if (total == t.impulse) continue;
+            const Vec3 j = (total - t.impulse) * t.u;
+            t.impulse = total;
+            push(t.A, j, t.pa);
+            push(t.B, -j, t.pb);
+        }
+    }
+    // Only the ropes' impulses reach the bodies: Bullet solves its joints itself.
+    for (const Taut& t : taut_) {
+        if (!(t.impulse > 0.0)) continue;
+        const Vec3 j = t.impulse * t.u;
+        if (t.A) t.A->applyImpulse(j, t.pa);
+        t.B->applyImpulse(-j, t.pb);
+    }
+}
+
+void Attachments::holdTethers(const Cloth& c, double dt, std::vector<BodySnapshot>& bodies,
+                              btDynamicsWorld* world) {
     if (list_.empty() || !(dt > 0.0)) return;
     const double slack = c.settings().limiter.longRangeSlack;
     const auto& w = c.inverseMasses();
@@ -223,7 +373,10 @@ void Attachments::holdTethers(const Cloth& c, double dt, std::vector<BodySnapsho
         addTaut(A, x[list_[t.a].particle], Vec3::Zero(), *B, x[list_[t.b].particle], limit * rest,
                 kTetherCatchUp * rest, dt);
     }
-    solveTaut(1);
+    if (world && !taut_.empty())
+        solveTautWithJoints(*world, bodies, dt);
+    else
+        solveTaut(1);
     // The reaches' ropes that are taut, solved together: one body hangs from several (a bar
     // along a row), and one impulse after another, each final, over-corrects the ones before
     // it through the body's rotation (a 30 kg bar bounced back up at 1.8 m/s).

@@ -14,6 +14,8 @@
 #include <cstdint>
 #include <vector>
 
+class btDynamicsWorld;
+
 namespace drape::bullet::detail {
 
 class Attachments {
@@ -54,8 +56,10 @@ class Attachments {
     /// in the next step (at most kTetherCatchUp L0 per step). Without it two light bodies
     /// holding one cloth (a banner between two hanging posts) swing apart under the cloth's
     /// weight and that spring passes the bound at rest (strain 0.56). The impulses act one
-    /// Bullet step late, after Bullet's solver (as every impulse of the cloth): a steady
-    /// pull apart leaves the spring the drift of one step beyond the limit (0.11).
+    /// Bullet step late, after Bullet's solver (as every impulse of the cloth), so they are
+    /// solved with the world's joints on those bodies and the next step's gravity
+    /// (solveTautWithJoints, `world` given): alone, Bullet's next solve turned hanging posts
+    /// on their joints and left the spring a step's drift beyond the limit (0.11).
     ///
     /// The same rope holds a body the cloth carries from elsewhere (a weight hanging from a
     /// pinned cloth, a lantern under a banner): every particle attached to a body has a reach,
@@ -69,12 +73,15 @@ class Attachments {
     /// limiter cannot: it moves neither end. Without it the body fell through, drawing the cloth to
     /// strain 3.4 in 0.5 s (10 kg under a 0.16 kg sheet), and a light one (0.05 to 1 kg) was thrown
     /// about.
-    void holdTethers(const Cloth& c, double dt, std::vector<BodySnapshot>& bodies);
+    void holdTethers(const Cloth& c, double dt, std::vector<BodySnapshot>& bodies,
+                     btDynamicsWorld* world = nullptr);
     static constexpr double kTetherCatchUp = 0.1;
     /// A reach's rope holds its body this many times g dt^2 inside the reach (see holdTethers).
     static constexpr double kReachMargin = 2.0;
     /// Passes over the taut reaches (projected Gauss-Seidel, see holdTethers).
     static constexpr int kReachIterations = 8;
+    /// Passes of solveTautWithJoints.
+    static constexpr int kJointPasses = 20;
 
   private:
     std::vector<Attachment> list_;
@@ -110,6 +117,11 @@ class Attachments {
     /// Equal and opposite impulses on the bodies of taut_ that stop their ends' separation,
     /// over `passes` passes (see holdTethers).
     void solveTaut(int passes);
+    /// solveTaut for the ropes between two bodies, with the world's joints on their bodies and
+    /// the next Bullet step's gravity in the same projected Gauss-Seidel (on copies of the
+    /// velocities): the ropes' impulses are what keeps their ends together after Bullet's next
+    /// solve turns the bodies on their joints. Only the ropes' impulses are applied.
+    void solveTautWithJoints(btDynamicsWorld& world, std::vector<BodySnapshot>& bodies, double dt);
     /// The catch-up of a reach per step: kTetherCatchUp of the cloth's shortest spring.
     double reachCatchUp_ = 0.0;
     /// A taut rope in this step: its bodies (A null for a pin moving at va), ends, direction

@@ -593,7 +593,7 @@ void BulletCloth::Impl::finish() {
     const auto afterSteps = Clock::now();
     last.maxStrain = lastStrain;
     // 4. impulses
-    if (!slept) attachments.holdTethers(c, stepDt, contacts.bodies);
+    if (!slept) attachments.holdTethers(c, stepDt, contacts.bodies, world);
     applyImpulses();
     // 5. proxy
     if (!slept) proxy.setBounds(nextLo, nextHi);
