@@ -17,6 +17,24 @@ BodySnapshot* snapshotOf(std::vector<BodySnapshot>& bodies, const btCollisionObj
                                  [&](const BodySnapshot& b) { return b.object == o; });
     return it == bodies.end() ? nullptr : &*it;
 }
+
+/// One projected Gauss-Seidel pass over the taut ropes: each stops its ends' separation (plus
+/// its catch-up), its accumulated impulse staying >= 0 (a rope pulls, never pushes).
+/// `velocityAt(body, p)` is the velocity of a body's point, `kick(body, j, p)` gives a body an
+/// impulse j at p.
+template <class Ropes, class VelocityAt, class Kick>
+void ropePass(Ropes& taut, const VelocityAt& velocityAt, const Kick& kick) {
+    for (auto& t : taut) {
+        const double apart =
+            (velocityAt(t.B, t.pb) - (t.A ? velocityAt(t.A, t.pa) : t.va)).dot(t.u) + t.catchUp;
+        const double total = std::max(0.0, t.impulse + apart / t.k);
+        if (total == t.impulse) continue;
+        const Vec3 j = (total - t.impulse) * t.u;
+        t.impulse = total;
+        if (t.A) kick(t.A, j, t.pa);
+        kick(t.B, -j, t.pb);
+    }
+}
 } // namespace
 
 Vec3 attachmentPoint(const Attachment& a) {
@@ -180,20 +198,10 @@ void Attachments::addTaut(BodySnapshot* A, const Vec3& pa, const Vec3& va, BodyS
 }
 
 void Attachments::solveTaut(int passes) {
-    // Projected Gauss-Seidel: each rope stops its ends' separation (plus its catch-up), and
-    // its accumulated impulse stays >= 0 (a rope pulls, never pushes).
-    for (int pass = 0; pass < passes; ++pass) {
-        for (Taut& t : taut_) {
-            const double apart =
-                (t.B->velocityAt(t.pb) - (t.A ? t.A->velocityAt(t.pa) : t.va)).dot(t.u) + t.catchUp;
-            const double total = std::max(0.0, t.impulse + apart / t.k);
-            if (total == t.impulse) continue;
-            const Vec3 j = (total - t.impulse) * t.u;
-            t.impulse = total;
-            if (t.A) t.A->applyImpulse(j, t.pa);
-            t.B->applyImpulse(-j, t.pb);
-        }
-    }
+    const auto velocityAt = [](const BodySnapshot* b, const Vec3& p) { return b->velocityAt(p); };
+    const auto kick = [](BodySnapshot* b, const Vec3& j, const Vec3& p) { b->applyImpulse(j, p); };
+    for (int pass = 0; pass < passes; ++pass)
+        ropePass(taut_, velocityAt, kick);
 }
 
 void Attachments::solveTautWithJoints(btDynamicsWorld& world, std::vector<BodySnapshot>& bodies,
@@ -225,6 +233,7 @@ void Attachments::solveTautWithJoints(btDynamicsWorld& world, std::vector<BodySn
         double rhs, cfm, lo, hi, k, lambda;
     };
     std::vector<Row> rows;
+    std::vector<btScalar> scratch; // a joint's getInfo2 arrays, eight of 3 n each
     const btContactSolverInfo& info = world.getSolverInfo();
     for (int ci = 0; ci < world.getNumConstraints(); ++ci) {
         btTypedConstraint* tc = world.getConstraint(ci);
@@ -239,29 +248,38 @@ void Attachments::solveTautWithJoints(btDynamicsWorld& world, std::vector<BodySn
         // Every array is read and written with the row stride (as Bullet's solver lays them
         // out in its rows): row r at r * rowskip.
         const std::size_t len = 3 * std::size_t(n);
-        std::vector<btScalar> j1l(len, 0), j1a(len, 0), j2l(len, 0), j2a(len, 0), err(len, 0),
-            cfm(len, info.m_globalCfm), lo(len, -SIMD_INFINITY), hi(len, SIMD_INFINITY);
+        scratch.assign(8 * len, 0);
+        btScalar* const j1l = scratch.data();
+        btScalar* const j1a = j1l + len;
+        btScalar* const j2l = j1a + len;
+        btScalar* const j2a = j2l + len;
+        btScalar* const err = j2a + len;
+        btScalar* const cfm = err + len;
+        btScalar* const lo = cfm + len;
+        btScalar* const hi = lo + len;
+        std::fill(cfm, cfm + len, info.m_globalCfm);
+        std::fill(lo, lo + len, -SIMD_INFINITY);
+        std::fill(hi, hi + len, SIMD_INFINITY);
         btTypedConstraint::btConstraintInfo2 i2;
         i2.fps = btScalar(1.0 / dt);
         i2.erp = info.m_erp;
-        i2.m_J1linearAxis = j1l.data();
-        i2.m_J1angularAxis = j1a.data();
-        i2.m_J2linearAxis = j2l.data();
-        i2.m_J2angularAxis = j2a.data();
+        i2.m_J1linearAxis = j1l;
+        i2.m_J1angularAxis = j1a;
+        i2.m_J2linearAxis = j2l;
+        i2.m_J2angularAxis = j2a;
         i2.rowskip = 3;
-        i2.m_constraintError = err.data();
-        i2.cfm = cfm.data();
-        i2.m_lowerLimit = lo.data();
-        i2.m_upperLimit = hi.data();
+        i2.m_constraintError = err;
+        i2.cfm = cfm;
+        i2.m_lowerLimit = lo;
+        i2.m_upperLimit = hi;
         i2.m_numIterations = info.m_numIterations;
         i2.m_damping = info.m_damping;
         tc->getInfo2(&i2);
         for (int r = 0; r < n; ++r) {
-            const auto at = [&](const std::vector<btScalar>& m) {
-                return Vec3(double(m[3 * std::size_t(r)]), double(m[3 * std::size_t(r) + 1]),
-                            double(m[3 * std::size_t(r) + 2]));
-            };
             const std::size_t q = 3 * std::size_t(r);
+            const auto at = [&](const btScalar* m) {
+                return Vec3(double(m[q]), double(m[q + 1]), double(m[q + 2]));
+            };
             Row row{a,
                     b,
                     at(j1l),
@@ -292,48 +310,38 @@ void Attachments::solveTautWithJoints(btDynamicsWorld& world, std::vector<BodySn
         solveTaut(1);
         return;
     }
-    const auto pointVelocity = [&](const BodySnapshot* b, const Vec3& p) {
+    // The copies' velocities: a row's impulse d along (lin, ang) on body k, a rope's at a point.
+    const auto rowKick = [&](std::int64_t k, const Vec3& lin, const Vec3& ang, double d) {
+        if (k < 0) return;
+        const BodySnapshot& b = bodies[std::size_t(k)];
+        v[std::size_t(k)] += (b.invMass * d) * lin;
+        w[std::size_t(k)] += b.invInertia * (d * ang);
+    };
+    const auto velocityAt = [&](const BodySnapshot* b, const Vec3& p) {
         const std::size_t k = index(b);
         return Vec3(v[k] + w[k].cross(p - b->com));
     };
-    const auto push = [&](BodySnapshot* b, const Vec3& j, const Vec3& p) {
-        if (!b || !b->dynamicBody) return;
+    const auto kick = [&](BodySnapshot* b, const Vec3& j, const Vec3& p) {
+        if (!b->dynamicBody) return;
         const std::size_t k = index(b);
         v[k] += b->invMass * j;
         w[k] += b->invInertia * (p - b->com).cross(j);
     };
+    const auto rowVelocity = [&](std::int64_t k, const Vec3& lin, const Vec3& ang) {
+        return k < 0 ? 0.0 : lin.dot(v[std::size_t(k)]) + ang.dot(w[std::size_t(k)]);
+    };
     for (int pass = 0; pass < kJointPasses; ++pass) {
         for (Row& r : rows) {
-            double jv = 0.0;
-            if (r.a >= 0) jv += r.la.dot(v[std::size_t(r.a)]) + r.aa.dot(w[std::size_t(r.a)]);
-            if (r.b >= 0) jv += r.lb.dot(v[std::size_t(r.b)]) + r.ab.dot(w[std::size_t(r.b)]);
+            const double jv = rowVelocity(r.a, r.la, r.aa) + rowVelocity(r.b, r.lb, r.ab);
             const double total =
                 std::clamp(r.lambda + (r.rhs - jv - r.cfm * r.lambda) / r.k, r.lo, r.hi);
             const double d = total - r.lambda;
             if (d == 0.0) continue;
             r.lambda = total;
-            if (r.a >= 0) {
-                const BodySnapshot& A = bodies[std::size_t(r.a)];
-                v[std::size_t(r.a)] += (A.invMass * d) * r.la;
-                w[std::size_t(r.a)] += A.invInertia * (d * r.aa);
-            }
-            if (r.b >= 0) {
-                const BodySnapshot& B = bodies[std::size_t(r.b)];
-                v[std::size_t(r.b)] += (B.invMass * d) * r.lb;
-                w[std::size_t(r.b)] += B.invInertia * (d * r.ab);
-            }
+            rowKick(r.a, r.la, r.aa, d);
+            rowKick(r.b, r.lb, r.ab, d);
         }
-        for (Taut& t : taut_) {
-            const double apart =
-                (pointVelocity(t.B, t.pb) - (t.A ? pointVelocity(t.A, t.pa) : t.va)).dot(t.u) +
-                t.catchUp;
-            const double total = std::max(0.0, t.impulse + apart / t.k);
-            if (total == t.impulse) continue;
-            const Vec3 j = (total - t.impulse) * t.u;
-            t.impulse = total;
-            push(t.A, j, t.pa);
-            push(t.B, -j, t.pb);
-        }
+        ropePass(taut_, velocityAt, kick);
     }
     // Only the ropes' impulses reach the bodies: Bullet solves its joints itself.
     for (const Taut& t : taut_) {

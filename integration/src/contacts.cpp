@@ -214,9 +214,9 @@ void ContactSolver::flushTriangle(std::size_t t, double dt) {
 void ContactSolver::settleMovers(Cloth& c, double dt) {
     ContactPlanes& pl = records->planes;
     if (pl.movers.empty()) return;
-    // A walk that turned a body by more than half a turn (or to a non-finite place) is past
-    // what first-order planes describe (a thin bar wedged between particles, light about its
-    // axis): the body stays, and its planes give what they held as a body's that does not
+    // A walk that moved a body to a non-finite place (or turned it past half a turn: the core's
+    // movers may turn; this stage's only shift, see detect) is past what first-order planes
+    // describe: the body stays, and its planes give what they held as a body's that does not
     // give way (flushPlane's inelastic bound).
     for (std::size_t k = 0; k < pl.size(); ++k)
         if (pl.mover[k] >= 0 && !pl.movers[std::size_t(pl.mover[k])].applied()) pl.mover[k] = -1;
