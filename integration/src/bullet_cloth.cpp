@@ -99,6 +99,7 @@ void accumulate(ContactStats& total, const ContactStats& s) {
     total.impulseOnCloth += s.impulseOnCloth;
     total.refusedBodyImpulses += s.refusedBodyImpulses;
     total.planesLetGo += s.planesLetGo;
+    total.relimitWalks += s.relimitWalks;
     total.steps += s.steps;
     total.proxyRefreshes += s.proxyRefreshes;
 }

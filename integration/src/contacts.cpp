@@ -124,6 +124,7 @@ void ContactSolver::finish(Cloth& c, double dt) {
                 ScopedPhase timeLimiter(c.timers(), limiterSlot);
                 st = c.relimit(projected_, dt, planes ? &records->planes : nullptr);
             }
+            ++stats.relimitWalks;
             settleMovers(c, dt);
             // Nothing left to correct; or the walk used its whole budget (maxRounds, counted
             // as a cap hit): another pass would spend it again.

@@ -39,7 +39,8 @@
 // Fast particles and fast bodies: a particle that moved more than h in a step relative to the
 // body (its path from where it started, seen from where the body was then, to where it is now,
 // seen from where the body is now) is also ray-tested along that path
-// (btCollisionWorld::rayTestSingle), so neither passes through the other. A convex body that
+// (btCollisionWorld::rayTestSingle; a box that does not move exactly, drape::segmentEntersBox),
+// so neither passes through the other. A convex body that
 // moved more than h in the step, or is thinner across than the longest spring, is also swept
 // against the triangles on its way (sweepBodies, shape_queries.hpp's sweepToTriangle): a
 // triangle it reached is moved ahead of it as a triangle contact (pushTriangle), so that it

@@ -3,6 +3,8 @@
 // impulse and its Coulomb friction (see contacts.hpp).
 #include "contacts.hpp"
 
+#include "drape/geometry.hpp"
+
 #include <btBulletDynamicsCommon.h>
 
 #include <cmath>
@@ -264,6 +266,23 @@ bool ContactSolver::pathHit(const BodySnapshot& b, const Vec3& from, const Vec3&
                             SurfaceHit& hit) {
     // Did the particle's path since the last step enter the body?
     ++stats.rayQueries;
+    if (b.box && !b.sweeps()) {
+        // A box that does not move, exactly (segmentEntersBox): Bullet's ray cast stops within
+        // the shape's margin, near a corner up to a centimetre outside the box with the
+        // corner's normal, so a particle sliding past the corner in the thickness counted as
+        // entering and was put on the corner. (A moving box keeps Bullet's ray: there the
+        // margin also catches particles its corners sweep past, which holds a banner in front
+        // of a box driven through it.)
+        double t = 0.0;
+        Vec3 n;
+        const Vec3 o = b.pose.toLocal(from), e = b.pose.toLocal(xi);
+        if (!segmentEntersBox(o, e, b.boxHalf, t, n)) return false;
+        hit.valid = true;
+        hit.point = b.pose.toWorld(o + t * (e - o));
+        hit.normal = b.pose.R * n;
+        hit.distance = std::min((xi - hit.point).dot(hit.normal), 0.0);
+        return true;
+    }
     btTransform t0, t1;
     t0.setIdentity();
     t1.setIdentity();

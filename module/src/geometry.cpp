@@ -1,6 +1,10 @@
 // Closest-point geometry (see drape/geometry.hpp).
 #include "drape/geometry.hpp"
 
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
 namespace drape {
 
 Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c,
@@ -46,6 +50,32 @@ Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const V
     const double v = vb * denom, w = vc * denom;
     bary = Vec3(1 - v - w, v, w);
     return a + v * ab + w * ac;
+}
+
+bool segmentEntersBox(const Vec3& o, const Vec3& e, const Vec3& half, double& t, Vec3& normal) {
+    if ((o.cwiseAbs().array() <= half.array()).all()) return false; // starts inside
+    const Vec3 d = e - o;
+    double enter = 0.0, leave = 1.0;
+    int axis = -1;
+    for (int k = 0; k < 3; ++k) {
+        if (d[k] == 0.0) {
+            if (std::abs(o[k]) > half[k]) return false; // parallel to this slab, outside it
+            continue;
+        }
+        double t0 = (-half[k] - o[k]) / d[k], t1 = (half[k] - o[k]) / d[k];
+        if (t0 > t1) std::swap(t0, t1);
+        if (t0 > enter) {
+            enter = t0;
+            axis = k;
+        }
+        leave = std::min(leave, t1);
+        if (enter > leave) return false;
+    }
+    if (axis < 0) return false; // (o outside means some slab is entered after 0)
+    t = enter;
+    normal = Vec3::Zero();
+    normal[axis] = d[axis] > 0.0 ? -1.0 : 1.0;
+    return true;
 }
 
 } // namespace drape

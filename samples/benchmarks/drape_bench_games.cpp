@@ -79,6 +79,8 @@ struct Row {
     double firstAsleep = -1.0;   ///< scene time the cloth first fell asleep [s]
     double asleepSince = -1.0;   ///< start of the asleep run that lasted to the end [s]
     double mass = 0.0, stiffness = 0.0, stableDt = 0.0;
+    /// Limiter walks run again inside the contact stage (ContactStats::relimitWalks).
+    std::uint64_t relimitWalks = 0;
     std::string notes;
 };
 
@@ -120,6 +122,7 @@ Row runScene(const SceneEntry& entry, double secondsScale, long maxFrames) {
         btDiscreteDynamicsWorld* world = s.world->world();
         const std::uint64_t steps0 = handle.totalStats().steps, slept0 = cloth.sleptSteps();
         const std::uint64_t caps0 = cloth.limiterCapHits();
+        const std::uint64_t relimits0 = handle.totalStats().relimitWalks;
         for (std::size_t f = 0; f < r.plannedFrames; ++f) {
             const double tEnd = static_cast<double>(f + 1) / 60.0;
             if (s.beforeFrame) s.beforeFrame(tEnd);
@@ -149,6 +152,7 @@ Row runScene(const SceneEntry& entry, double secondsScale, long maxFrames) {
         r.clothSteps = handle.totalStats().steps - steps0;
         r.sleptSteps = cloth.sleptSteps() - slept0;
         r.capHits = cloth.limiterCapHits() - caps0;
+        r.relimitWalks = handle.totalStats().relimitWalks - relimits0;
         if (s.notes) r.notes = s.notes();
     } catch (const drape::Error& e) {
         r.error = std::string("drape::Error (") + toString(e.code()) + "): " + e.what();
@@ -200,13 +204,15 @@ std::string tables(const std::vector<Row>& rows) {
           << " |\n";
     }
     o << "\n| scene | cloth mass kg | mean k N/m | stable dt ms | cloth asleep (first / for good) "
-         "| steps taken asleep | scene-specific |\n"
-      << "|---|---:|---:|---:|---|---:|---|\n";
+         "| steps taken asleep | relimit walks/frame | scene-specific |\n"
+      << "|---|---:|---:|---:|---|---:|---:|---|\n";
     for (const Row& r : rows)
         o << "| " << r.scene << " | " << fmt("%.4f", r.mass) << " | " << fmt("%.4g", r.stiffness)
           << " | " << fmt("%.2f", 1e3 * r.stableDt) << " | " << timeOrNever(r.firstAsleep) << " / "
           << timeOrNever(r.asleepSince) << " | " << r.sleptSteps << " | "
-          << (r.notes.empty() ? "-" : cell(r.notes)) << " |\n";
+          << fmt("%.2f", static_cast<double>(r.relimitWalks) /
+                             static_cast<double>(std::max<std::size_t>(r.frames, 1)))
+          << " | " << (r.notes.empty() ? "-" : cell(r.notes)) << " |\n";
     return o.str();
 }
 

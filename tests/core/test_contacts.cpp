@@ -4,6 +4,7 @@
 #include "helpers.hpp"
 
 #include "drape/contacts.hpp"
+#include "drape/geometry.hpp"
 
 #include <memory>
 
@@ -190,4 +191,36 @@ TEST_CASE("Contact planes set before the limiter are kept by the step's one walk
     for (const Vec3& p : set->planes.push)
         pushed += p.y();
     CHECK(pushed > 0.0);
+}
+
+// The path test against a box (segmentEntersBox, the contact stage's continuous test for a box
+// that does not move): exact slabs, so an entry through a face gives the face's point and
+// normal, and a path that passes a corner outside the box (a particle sliding round it in the
+// contact thickness) does not enter it.
+TEST_CASE("a segment enters a box through the face it crosses, and never past a corner",
+          "[contacts][geometry]") {
+    const Vec3 half(0.15, 0.15, 0.15);
+    double t = -1.0;
+    Vec3 n = Vec3::Zero();
+    // Straight down onto the top face, from 0.1 above it to 0.1 inside: halfway.
+    REQUIRE(segmentEntersBox(Vec3(0.05, 0.25, -0.02), Vec3(0.05, 0.05, -0.02), half, t, n));
+    CHECK(t == Approx(0.5).margin(1e-15));
+    CHECK(n == Vec3(0.0, 1.0, 0.0));
+    // Slanted into the side face x = -0.15: where the line crosses it, x(t) = -0.15.
+    const Vec3 o(-0.35, 0.02, 0.04), e(-0.05, 0.12, 0.1);
+    REQUIRE(segmentEntersBox(o, e, half, t, n));
+    CHECK(t == Approx(0.2 / 0.3).epsilon(1e-14));
+    CHECK(n == Vec3(-1.0, 0.0, 0.0));
+    CHECK((o + t * (e - o)).x() == Approx(-0.15).epsilon(1e-14));
+    // Past a vertical edge, on the line x + z = 0.302 (1.4 mm from the edge at its closest):
+    // outside the box all the way. The same path 2 mm nearer (x + z = 0.298) cuts the edge and
+    // enters through the face it meets first.
+    CHECK_FALSE(segmentEntersBox(Vec3(0.161, 0.1, 0.141), Vec3(0.141, 0.1, 0.161), half, t, n));
+    REQUIRE(segmentEntersBox(Vec3(0.16, 0.1, 0.138), Vec3(0.14, 0.1, 0.158), half, t, n));
+    CHECK(n == Vec3(1.0, 0.0, 0.0));
+    CHECK(t == Approx(0.5).epsilon(1e-12)); // x = 0.15 at t = 1/2, where z = 0.148
+    // Starting inside, parallel outside, or stopping short: no entry.
+    CHECK_FALSE(segmentEntersBox(Vec3(0.0, 0.0, 0.0), Vec3(1.0, 0.0, 0.0), half, t, n));
+    CHECK_FALSE(segmentEntersBox(Vec3(-1.0, 0.2, 0.0), Vec3(1.0, 0.2, 0.0), half, t, n));
+    CHECK_FALSE(segmentEntersBox(Vec3(0.0, 0.5, 0.0), Vec3(0.0, 0.16, 0.0), half, t, n));
 }

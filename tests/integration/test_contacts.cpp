@@ -716,6 +716,7 @@ struct DrapeOverBox {
     double peakStrain = 0.0, deepest = 0.0;
     std::uint64_t capHits = 0;
     std::size_t planesLetGo = 0;
+    std::size_t relimitWalks = 0;
 };
 /// A 25 x 25 sheet (0.6 m) falls onto a 0.3 m box and hangs over its edges for 2 s, at 240 Hz
 /// with springs of 5 N/m (omega_max ~ 3 sqrt(k/m) = 240 rad/s: stable at 240 Hz) unless told
@@ -742,6 +743,7 @@ DrapeOverBox drapeOverBox(double tolerance, double hz = 240.0, double stiffness 
         w.world.stepSimulation(btScalar(1.0 / hz), 1, btScalar(1.0 / hz));
         r.peakStrain = std::max(r.peakStrain, cloth->maxStrain());
         r.planesLetGo += handle.lastStats().planesLetGo;
+        r.relimitWalks += handle.lastStats().relimitWalks;
         for (const Vec3& x : cloth->positions()) {
             // Distance to the box (half extents 0.15 around (0, 0.15, 0)).
             const Vec3 q = (x - Vec3(0, 0.15, 0)).cwiseAbs() - Vec3(0.15, 0.15, 0.15);
@@ -751,9 +753,11 @@ DrapeOverBox drapeOverBox(double tolerance, double hz = 240.0, double stiffness 
     }
     r.capHits = cloth->limiterCapHits();
     UNSCOPED_INFO(measured("sheet over a box at %g Hz, k %g N/m: peak strain %.6f, deepest "
-                           "%.3g m past the thickness, limiter cap hits %llu, planes let go %zu",
+                           "%.3g m past the thickness, limiter cap hits %llu, planes let go %zu, "
+                           "relimit walks %zu",
                            hz, stiffness, r.peakStrain, r.deepest,
-                           static_cast<unsigned long long>(r.capHits), r.planesLetGo));
+                           static_cast<unsigned long long>(r.capHits), r.planesLetGo,
+                           r.relimitWalks));
     return r;
 }
 } // namespace
