@@ -91,6 +91,9 @@ struct ScopedFlag {
 
 /// Follow-up walks and re-projections after the limiter's walk, at most.
 constexpr int kRelimitPasses = 8;
+/// A projection shorter than this share of the thickness is rounding, not a move: the
+/// particle stays where it is (nothing for the limiter to walk again from).
+constexpr double kNoMove = 1e-9;
 /// A triangle contact whose point lies within this share of its fixed corners (barycentric
 /// weight of the free ones below it) moves nothing: the fixed corners hold it.
 constexpr double kFreeShare = 0.25;

@@ -180,7 +180,10 @@ bool ContactSolver::collideParticle(Cloth& c, std::uint32_t bi, std::size_t i, d
             ++stats.projections;
             stats.maxDepth = std::max(stats.maxDepth, h - hit.distance);
             touching_[i] = 1;
-            x[i] = xi + room * hit.normal;
+            // Already at its reach (the walk left it on its attachment's sphere), the room is
+            // rounding, 1e-16 m: not a move (it made the walk run again, in every cloth step
+            // of a banner whose edge column lies along its posts' faces).
+            if (room > kNoMove * h) x[i] = xi + room * hit.normal;
             // It moves into the body no faster than its anchor (the lift stops the rest, as
             // the walk's long-range attachment would).
             const double vn = (v[i] - v[a]).dot(hit.normal);
