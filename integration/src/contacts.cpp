@@ -296,10 +296,10 @@ void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counter
                 if (!boxes_.mayTouch(b, i, x[i], stepStart()[i])) continue;
                 const Vec3 before = x[i];
                 collideParticle(c, bi, i, dt, counters);
-                // (A move of rounding size is none: nothing to walk again from.)
+                // Projected: the next bodies see where it is now. (A move of rounding size is
+                // none: nothing to walk again from.)
                 const double least = kNoMove * contact_.thickness;
-                if ((x[i] - before).squaredNorm() >
-                    least * least) { // projected: the next bodies see where it is now
+                if ((x[i] - before).squaredNorm() > least * least) {
                     projected_.push_back(static_cast<Index>(i));
                     boxes_.update(i, x[i], stepStart()[i], false);
                     bl.grow(boxes_[i]);

@@ -14,7 +14,8 @@ Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const V
 /// Where the segment from o to e first enters the box |x_k| <= half_k (centred at the origin,
 /// along the axes: a box's own frame): true when o is outside the box and the segment reaches
 /// it, with `t` in [0, 1] the entry's fraction of the way and `normal` the outward unit normal
-/// of the face it enters through (of the first axis, for an entry through an edge or corner).
+/// of the face it enters through (the lowest axis's, for an entry exactly through an edge or
+/// corner).
 /// Exact: a path that slides past a corner outside the box does not enter it.
 bool segmentEntersBox(const Vec3& o, const Vec3& e, const Vec3& half, double& t, Vec3& normal);
 
