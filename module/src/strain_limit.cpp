@@ -866,7 +866,10 @@ bool StrainLimiter::pinsApart(const ClothTopology& topology, const std::vector<d
     const std::size_t p = list.size();
     if (list != pinList_) {
         // Dijkstra through the springs' rest lengths from each held particle, until every
-        // other held particle is settled.
+        // other held particle is settled. A spring whose ends are both held is no link: the
+        // walk never corrects it (nothing of it can move), so it does not stop the walk from
+        // holding the others (a banner's spring between two posts pulled apart by a hit stopped
+        // every walk of the hit, which left the rest of the banner at 0.110-0.115).
         pinList_ = list;
         pinPath_.assign(p * p, std::numeric_limits<double>::infinity());
         const std::size_t n = topology.particleCount();
@@ -893,11 +896,13 @@ bool StrainLimiter::pinsApart(const ClothTopology& topology, const std::vector<d
                     pinPath_[k * p + std::size_t(slot[a])] = d;
                     ++settled;
                 }
-                for (Index e = off[a]; e < off[a + 1]; ++e)
+                for (Index e = off[a]; e < off[a + 1]; ++e) {
+                    if (invMass[a] == 0.0 && invMass[nbr[e]] == 0.0) continue;
                     if (const double de = d + springs[adjSpring[e]].restLength; de < dist[nbr[e]]) {
                         dist[nbr[e]] = de;
                         front.push({dist[nbr[e]], nbr[e]});
                     }
+                }
             }
             front = decltype(front)();
         }

@@ -539,6 +539,7 @@ inline GameScene makeBannerHitAt(double speed) {
         Vec3 home[2];
         btRigidBody* box = nullptr;
         double postMoved = 0.0, between = 0.0;
+        double others = 0.0; ///< every other spring's largest strain
     };
     auto st = std::make_shared<State>();
     for (int p = 0; p < 2; ++p) {
@@ -563,13 +564,24 @@ inline GameScene makeBannerHitAt(double speed) {
         st->between =
             std::max(st->between,
                      (cloth->positions()[right] - cloth->positions()[left]).norm() / rest - 1.0);
+        for (const Spring& sp : cloth->topology().springs()) {
+            if ((sp.a == left && sp.b == right) || (sp.a == right && sp.b == left)) continue;
+            const Vec3 d = cloth->positions()[sp.b] - cloth->positions()[sp.a];
+            st->others = std::max(st->others, d.norm() / sp.restLength - 1.0);
+        }
     };
-    s.notes = [st, speed]() {
-        char buf[256];
+    s.notes = [st, speed, cloth]() {
+        double farthest = 0.0;
+        for (const Vec3& x : cloth->positions())
+            farthest = std::min(farthest, x.z());
+        char buf[320];
         std::snprintf(buf, sizeof buf,
                       "posts 2 kg on joints, box %.0f kg at %.0f m/s: posts moved %.3f m at most; "
-                      "the spring between them peaked at strain %.4f",
-                      kBoxMass, speed, st->postMoved, st->between);
+                      "the spring between them peaked at strain %.4f, every other spring at "
+                      "%.4f; at the end the box's centre is at z %.2f m, the banner's farthest "
+                      "particle at z %.2f m",
+                      kBoxMass, speed, st->postMoved, st->between, st->others,
+                      st->box ? double(st->box->getCenterOfMassPosition().z()) : 1.0, farthest);
         return std::string(buf);
     };
     s.seconds = 4.0;

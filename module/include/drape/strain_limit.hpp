@@ -28,7 +28,8 @@ struct StrainLimitStats {
     bool capHit = false;         ///< stopped by LimiterSettings::maxRounds: bound not promised
     /// Stopped early (capHit is set too): two particles that never move in the limiter (pinned,
     /// kinematic, attached) are farther apart than (1 + maxStrain + tolerance) times the
-    /// shortest chain of springs between them at rest, so no walk can bring every spring
+    /// shortest chain at rest of springs the walk corrects (a spring between two such
+    /// particles is none: the walk leaves it as it is), so no walk can bring every spring
     /// within the bound (a pin or a body moved away from the rest: a teleport, a post pulled
     /// off). Looked for only in a walk that has run StrainLimiter::kApartCheck sweeps.
     bool pinsApart = false;
