@@ -296,10 +296,8 @@ void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counter
                 if (!boxes_.mayTouch(b, i, x[i], stepStart()[i])) continue;
                 const Vec3 before = x[i];
                 collideParticle(c, bi, i, dt, counters);
-                // Projected: the next bodies see where it is now. (A move of rounding size is
-                // none: nothing to walk again from.)
-                const double least = kNoMove * contact_.thickness;
-                if ((x[i] - before).squaredNorm() > least * least) {
+                // Projected: the next bodies see where it is now.
+                if (movedBy(before, x[i], contact_.thickness)) {
                     projected_.push_back(static_cast<Index>(i));
                     boxes_.update(i, x[i], stepStart()[i], false);
                     bl.grow(boxes_[i]);
@@ -343,9 +341,7 @@ void ContactSolver::collideMoved(Cloth& c, double dt, const std::vector<Index>& 
                 if (!boxes_.mayTouch(b, i, x[i], stepStart()[i])) continue;
                 const Vec3 before = x[i];
                 collideParticle(c, bi, i, dt, counters);
-                // (A move of rounding size is none: nothing to walk again from.)
-                const double least = kNoMove * contact_.thickness;
-                if ((x[i] - before).squaredNorm() > least * least) {
+                if (movedBy(before, x[i], contact_.thickness)) {
                     projected_.push_back(static_cast<Index>(i));
                     boxes_.update(i, x[i], stepStart()[i], false);
                     g.box.grow(boxes_[i]);

@@ -94,6 +94,12 @@ constexpr int kRelimitPasses = 8;
 /// A projection shorter than this share of the thickness is rounding, not a move: the
 /// particle stays where it is (nothing for the limiter to walk again from).
 constexpr double kNoMove = 1e-9;
+/// Whether a contact moved a particle from `before` to `after` by more than rounding (kNoMove
+/// of the thickness h).
+inline bool movedBy(const Vec3& before, const Vec3& after, double h) {
+    const double least = kNoMove * h;
+    return (after - before).squaredNorm() > least * least;
+}
 /// A triangle contact whose point lies within this share of its fixed corners (barycentric
 /// weight of the free ones below it) moves nothing: the fixed corners hold it.
 constexpr double kFreeShare = 0.25;

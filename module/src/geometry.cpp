@@ -71,7 +71,7 @@ bool segmentEntersBox(const Vec3& o, const Vec3& e, const Vec3& half, double& t,
         leave = std::min(leave, t1);
         if (enter > leave) return false;
     }
-    if (axis < 0) return false; // (o outside means some slab is entered after 0)
+    if (axis < 0) return false; // (only with a non-finite o or e: an outside o enters a slab)
     t = enter;
     normal = Vec3::Zero();
     normal[axis] = d[axis] > 0.0 ? -1.0 : 1.0;
