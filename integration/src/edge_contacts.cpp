@@ -16,130 +16,12 @@
 
 namespace drape::bullet::detail {
 
-namespace {
-
-/// Signed distance of local point p from a box of half extents `half` (negative inside) and
-/// its outward gradient (unit), in the box's frame.
-double boxSignedDistance(const Vec3& half, const Vec3& p, Vec3& gradient) {
-    const Vec3 q = p.cwiseAbs() - half;
-    const Vec3 outside = q.cwiseMax(0.0);
-    const double out = outside.norm();
-    if (out > 0.0) {
-        gradient = outside.cwiseProduct(p.cwiseSign()) / out;
-        return out;
-    }
-    int k = 0;
-    q.maxCoeff(&k);
-    gradient = Vec3::Zero();
-    gradient[k] = p[k] < 0.0 ? -1.0 : 1.0;
-    return q[k];
-}
-
-/// Set in a region code when exactly one axis is beyond the box: a face's prism.
-constexpr int kFaceRegion = 32;
-
-/// The region around a box a local point is in: per axis 0 (within the box's extent), 1 (beyond
-/// the + face) or 2 (beyond the - face), as base-3 digits (0 for a point inside), with
-/// kFaceRegion set for a face's prism. Two points are in one region when their codes are equal.
-int regionCode(const Vec3& half, const Vec3& p) {
-    int code = 0, beyond = 0;
-    for (int k = 2; k >= 0; --k) {
-        const int digit = p[k] > half[k] ? 1 : p[k] < -half[k] ? 2 : 0;
-        code = 3 * code + digit;
-        beyond += digit != 0;
-    }
-    return beyond == 1 ? code | kFaceRegion : code;
-}
-
-/// A face's prism: exactly one axis beyond the box.
-bool isFaceRegion(int code) {
-    return (code & kFaceRegion) != 0;
-}
-
-/// The deepest point of a segment: its parameter t, and the signed distance d and gradient g
-/// there (boxSignedDistance of pa + t (pb - pa)).
-struct Deepest {
-    double t = 0.0, d = 0.0;
-    Vec3 g = Vec3::Zero();
-};
-
-/// Where along the segment pa pb (box frame, ends' outward gradients ga and gb from
-/// boxSignedDistance) the box's signed distance is least: the point nearest to an edge shared
-/// by the faces the two ends see (one or a few edges, each a segment-segment closest point);
-/// for ends seeing opposite faces, or no common edge, a golden-section search of the
-/// (convex) signed distance.
-Deepest deepestAlong(const Vec3& half, const Vec3& pa, const Vec3& pb, const Vec3& ga,
-                     const Vec3& gb) {
-    // The faces either end sees: sign per axis (0: none; both signs: a spring through the box).
-    int sign[3] = {0, 0, 0};
-    bool opposite = false;
-    for (const Vec3* g : {&ga, &gb})
-        for (int k = 0; k < 3; ++k) {
-            if ((*g)[k] == 0.0) continue;
-            const int sk = (*g)[k] > 0.0 ? 1 : -1;
-            opposite = opposite || (sign[k] != 0 && sign[k] != sk);
-            sign[k] = sk;
-        }
-    Deepest best;
-    best.d = std::numeric_limits<double>::infinity();
-    Vec3 g;
-    auto consider = [&](double t) {
-        const double d = boxSignedDistance(half, pa + t * (pb - pa), g);
-        if (d < best.d) {
-            best.d = d;
-            best.t = t;
-            best.g = g;
-        }
-    };
-    bool edges = false;
-    if (!opposite)
-        for (int k = 0; k < 3; ++k) { // the edge along axis k between faces i and j
-            const int i = (k + 1) % 3, j = (k + 2) % 3;
-            if (sign[i] == 0 || sign[j] == 0) continue;
-            Vec3 e0, e1;
-            e0[i] = e1[i] = sign[i] * half[i];
-            e0[j] = e1[j] = sign[j] * half[j];
-            e0[k] = -half[k];
-            e1[k] = half[k];
-            double sp = 0.0, se = 0.0;
-            closestSegmentSegment(pa, pb, e0, e1, sp, se);
-            consider(sp);
-            edges = true;
-        }
-    if (edges) return best;
-    double lo = 0.0, hi = 1.0;
-    constexpr double kGolden = 0.6180339887498949;
-    double t1 = hi - kGolden * (hi - lo), t2 = lo + kGolden * (hi - lo);
-    double f1 = boxSignedDistance(half, pa + t1 * (pb - pa), g);
-    double f2 = boxSignedDistance(half, pa + t2 * (pb - pa), g);
-    for (int it = 0; it < 24; ++it) {
-        if (f1 < f2) {
-            hi = t2;
-            t2 = t1;
-            f2 = f1;
-            t1 = hi - kGolden * (hi - lo);
-            f1 = boxSignedDistance(half, pa + t1 * (pb - pa), g);
-        } else {
-            lo = t1;
-            t1 = t2;
-            f1 = f2;
-            t2 = lo + kGolden * (hi - lo);
-            f2 = boxSignedDistance(half, pa + t2 * (pb - pa), g);
-        }
-    }
-    best.t = 0.5 * (lo + hi);
-    best.d = boxSignedDistance(half, pa + best.t * (pb - pa), best.g);
-    return best;
-}
-
-} // namespace
-
 void ContactSolver::collideEdges(Cloth& c) {
     const auto& springs = c.topology().springs();
     const Vec3List& x = c.positions();
     const auto& w = c.inverseMasses();
     // Per particle with a contact on a box: the box and the region of space around it the
-    // particle is in (a face's prism, an edge's wedge, a corner; regionCode), once per pass.
+    // particle is in (a face's prism, an edge's wedge, a corner; boxRegion), once per pass.
     if (std::none_of(bodies.begin(), bodies.end(), [](const BodySnapshot& b) { return b.box; }))
         return;
     edgeBody_.assign(c.particleCount(), -1);
@@ -154,7 +36,7 @@ void ContactSolver::collideEdges(Cloth& c) {
         if (!b.box || edgeBody_[r.particle] >= 0) continue;
         edgeBody_[r.particle] = std::int32_t(r.body);
         onBox = true;
-        edgeRegion_[r.particle] = regionCode(b.boxHalf, b.pose.toLocal(x[r.particle]));
+        edgeRegion_[r.particle] = boxRegion(b.boxHalf, b.pose.toLocal(x[r.particle]));
     }
     // And the free particles within a spring's length of a box that have no contact yet:
     // the box can cut a spring between two of them before either touches it (a ridge landing
@@ -178,7 +60,7 @@ void ContactSolver::collideEdges(Cloth& c) {
                 if ((x[i].array() < lo.array()).any() || (x[i].array() > hi.array()).any())
                     continue;
                 edgeBody_[i] = std::int32_t(bi);
-                edgeRegion_[i] = regionCode(b.boxHalf, b.pose.toLocal(x[i]));
+                edgeRegion_[i] = boxRegion(b.boxHalf, b.pose.toLocal(x[i]));
                 onBox = true;
             }
         }
@@ -215,7 +97,8 @@ void ContactSolver::collideEdges(Cloth& c) {
         // Both ends in one face's prism of the same box: nothing to test (collideSpringWithBox
         // says why), decided here for the many springs lying on a face.
         if (ba >= 0 &&
-            !(bb == ba && edgeRegion_[s.a] == edgeRegion_[s.b] && isFaceRegion(edgeRegion_[s.a])) &&
+            !(bb == ba && edgeRegion_[s.a] == edgeRegion_[s.b] &&
+              isBoxFaceRegion(edgeRegion_[s.a])) &&
             !stillClear(si, s, ba))
             collideSpringWithBox(c, si, std::uint32_t(ba));
         if (bb >= 0 && bb != ba && !stillClear(si, s, bb))
@@ -246,10 +129,10 @@ void ContactSolver::collideSpringWithBox(Cloth& c, std::size_t si, std::uint32_t
     // ends, which their own contacts hold, are the nearest points.
     auto region = [&](Index i) {
         return edgeBody_[i] == std::int32_t(bi) ? edgeRegion_[i]
-                                                : regionCode(b.boxHalf, b.pose.toLocal(x[i]));
+                                                : boxRegion(b.boxHalf, b.pose.toLocal(x[i]));
     };
     const int ra = region(s.a);
-    if (ra == region(s.b) && isFaceRegion(ra)) return;
+    if (ra == region(s.b) && isBoxFaceRegion(ra)) return;
     // An end's place in the box's frame and its signed distance, once per particle and pass
     // for the particles near this box (a particle has about six springs), until it moves.
     auto endOf = [&](Index i, Vec3& p, Vec3& g) {
@@ -279,7 +162,7 @@ void ContactSolver::collideSpringWithBox(Cloth& c, std::size_t si, std::uint32_t
         keepClear(apart);
         return;
     }
-    const Deepest deepest = deepestAlong(b.boxHalf, pa, pb, ga, gb);
+    const SegmentDeepest deepest = deepestOnSegment(b.boxHalf, pa, pb, ga, gb);
     const double t = deepest.t, d = deepest.d;
     const Vec3& g = deepest.g;
     // The signed distance is convex: it lies above its tangent at the deepest point found,

@@ -56,77 +56,15 @@ SurfaceHit boxHit(const Pose& pose, double distance, const Vec3& localNormal,
     return makeHit(pose, distance, localNormal, localPoint);
 }
 
-// Box with half extents e centred at the origin. Outside: distance to the clamped point.
-// Inside: the nearest face (the smallest e_k - |p_k|) gives a negative distance.
+// The primitives' nearest surface points (drape/geometry.hpp), placed at the pose.
 SurfaceHit boxQuery(const Vec3& e, const Vec3& p, const Pose& pose,
                     const Vec3* faceNormal = nullptr) {
-    const Vec3 q = p.cwiseMax(-e).cwiseMin(e);
-    const Vec3 d = p - q;
-    const double dist = d.norm();
-    if (dist > 0.0) return boxHit(pose, dist, d / dist, q, faceNormal);
-    int axis = 0;
-    double best = std::numeric_limits<double>::infinity();
-    for (int k = 0; k < 3; ++k) {
-        const double depth = e[k] - std::abs(p[k]);
-        if (depth < best) {
-            best = depth;
-            axis = k;
-        }
-    }
-    Vec3 n = Vec3::Zero();
-    n[axis] = p[axis] >= 0.0 ? 1.0 : -1.0;
-    Vec3 s = p;
-    s[axis] = n[axis] * e[axis];
-    return boxHit(pose, -best, n, s, faceNormal);
+    const SurfacePoint q = closestOnBox(e, p);
+    return boxHit(pose, q.distance, q.normal, q.point, faceNormal);
 }
 
-SurfaceHit sphereQuery(double r, const Vec3& p, const Pose& pose) {
-    const double len = p.norm();
-    const Vec3 n = len > 0.0 ? Vec3(p / len) : Vec3(Vec3::UnitY());
-    return makeHit(pose, len - r, n, r * n);
-}
-
-// Capsule: a segment of half length hh along `axis`, radius r.
-SurfaceHit capsuleQuery(int axis, double hh, double r, const Vec3& p, const Pose& pose) {
-    Vec3 c = Vec3::Zero();
-    c[axis] = std::clamp(p[axis], -hh, hh);
-    const Vec3 d = p - c;
-    const double len = d.norm();
-    Vec3 n;
-    if (len > 0.0) {
-        n = d / len;
-    } else { // on the axis: any direction across it
-        n = Vec3::Zero();
-        n[(axis + 1) % 3] = 1.0;
-    }
-    return makeHit(pose, len - r, n, c + r * n);
-}
-
-// Cylinder of radius r and half height hh along `axis`.
-SurfaceHit cylinderQuery(int axis, double r, double hh, const Vec3& p, const Pose& pose) {
-    Vec3 radial = p;
-    radial[axis] = 0.0;
-    const double rho = radial.norm();
-    const Vec3 u = rho > 0.0 ? Vec3(radial / rho) : Vec3(Vec3::Unit((axis + 1) % 3));
-    Vec3 up = Vec3::Zero();
-    up[axis] = p[axis] >= 0.0 ? 1.0 : -1.0;
-    const double dr = rho - r;                // > 0 outside the side wall
-    const double da = std::abs(p[axis]) - hh; // > 0 beyond a cap
-    if (dr <= 0.0 && da <= 0.0) {             // inside: nearest of wall and cap
-        if (dr > da) {
-            Vec3 s = r * u;
-            s[axis] = p[axis];
-            return makeHit(pose, dr, u, s);
-        }
-        Vec3 s = p;
-        s[axis] = up[axis] * hh;
-        return makeHit(pose, da, up, s);
-    }
-    Vec3 q = std::min(rho, r) * u;
-    q[axis] = std::clamp(p[axis], -hh, hh);
-    const Vec3 d = p - q;
-    const double len = d.norm();
-    return makeHit(pose, len, d / len, q);
+SurfaceHit placed(const Pose& pose, const SurfacePoint& q) {
+    return makeHit(pose, q.distance, q.normal, q.point);
 }
 
 SurfaceHit planeQuery(const btStaticPlaneShape* plane, const Vec3& p, const Pose& pose) {
@@ -344,37 +282,6 @@ class NearestTriangle : public btTriangleCallback {
 
 } // namespace
 
-void closestSegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1,
-                           double& s, double& t) {
-    const Vec3 d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
-    const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
-    if (a <= 0.0 && e <= 0.0) {
-        s = t = 0.0;
-        return;
-    }
-    if (a <= 0.0) {
-        s = 0.0;
-        t = std::clamp(f / e, 0.0, 1.0);
-        return;
-    }
-    const double c = d1.dot(r);
-    if (e <= 0.0) {
-        t = 0.0;
-        s = std::clamp(-c / a, 0.0, 1.0);
-        return;
-    }
-    const double b = d1.dot(d2), denom = a * e - b * b;
-    s = denom > 0.0 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
-    t = (b * s + f) / e;
-    if (t < 0.0) {
-        t = 0.0;
-        s = std::clamp(-c / a, 0.0, 1.0);
-    } else if (t > 1.0) {
-        t = 1.0;
-        s = std::clamp((b - c) / a, 0.0, 1.0);
-    }
-}
-
 namespace {
 
 /// A capsule (core segment p0-p1, radius r) against triangle (a, b, c), in double precision:
@@ -541,19 +448,6 @@ SurfaceHit boxSurface(const Vec3& half, const Vec3* faceNormal, const Pose& pose
     return boxQuery(half, pose.toLocal(p), pose, faceNormal);
 }
 
-namespace {
-/// Smallest t in [0, 1] with |o + t d - c|^2 = R^2 entering the sphere (o outside it), or -1.
-double enterSphere(const Vec3& o, const Vec3& d, const Vec3& c, double R) {
-    const Vec3 oc = o - c;
-    const double a = d.squaredNorm(), b = oc.dot(d), cc = oc.squaredNorm() - R * R;
-    if (!(a > 0.0) || cc <= 0.0 || b >= 0.0) return -1.0;
-    const double disc = b * b - a * cc;
-    if (disc < 0.0) return -1.0;
-    const double t = (-b - std::sqrt(disc)) / a;
-    return t >= 0.0 && t <= 1.0 ? t : -1.0;
-}
-} // namespace
-
 bool inflatedPathHit(const btCollisionShape* shape, const Pose& pose, const Vec3& from,
                      const Vec3& to, double inflate, SurfaceHit& hit) {
     const int type = shape->getShapeType();
@@ -582,9 +476,9 @@ bool inflatedPathHit(const btCollisionShape* shape, const Pose& pose, const Vec3
     Vec3 cap0 = Vec3::Zero(), cap1 = Vec3::Zero();
     cap0[axis] = -hh;
     cap1[axis] = hh;
-    earliest(enterSphere(o, d, cap0, R));
+    earliest(sphereEntry(o, d, cap0, R));
     if (hh > 0.0) {
-        earliest(enterSphere(o, d, cap1, R));
+        earliest(sphereEntry(o, d, cap1, R));
         // The cylinder between the caps: the path across the axis.
         Vec3 op = o, dp = d;
         op[axis] = 0.0;
@@ -622,21 +516,22 @@ SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const
     }
     case SPHERE_SHAPE_PROXYTYPE: {
         ++counters.queries;
-        return sphereQuery(double(static_cast<const btSphereShape*>(shape)->getRadius()), local,
-                           pose);
+        return placed(
+            pose,
+            closestOnSphere(double(static_cast<const btSphereShape*>(shape)->getRadius()), local));
     }
     case CAPSULE_SHAPE_PROXYTYPE: {
         ++counters.queries;
         const auto* cap = static_cast<const btCapsuleShape*>(shape);
-        return capsuleQuery(cap->getUpAxis(), double(cap->getHalfHeight()),
-                            double(cap->getRadius()), local, pose);
+        return placed(pose, closestOnCapsule(cap->getUpAxis(), double(cap->getHalfHeight()),
+                                             double(cap->getRadius()), local));
     }
     case CYLINDER_SHAPE_PROXYTYPE: {
         ++counters.queries;
         const auto* cyl = static_cast<const btCylinderShape*>(shape);
         const int axis = cyl->getUpAxis();
         const Vec3 e = toVec(cyl->getHalfExtentsWithMargin());
-        return cylinderQuery(axis, e[(axis + 1) % 3], e[axis], local, pose);
+        return placed(pose, closestOnCylinder(axis, e[(axis + 1) % 3], e[axis], local));
     }
     case STATIC_PLANE_PROXYTYPE: {
         ++counters.queries;

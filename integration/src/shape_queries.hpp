@@ -45,11 +45,6 @@ SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const
 bool inflatedPathHit(const btCollisionShape* shape, const Pose& pose, const Vec3& from,
                      const Vec3& to, double inflate, SurfaceHit& hit);
 
-/// Closest points of segments p0-p1 and q0-q1: s, t in [0, 1] (the usual clamped solution of
-/// the 2 x 2 system, degenerate segments included).
-void closestSegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1,
-                           double& s, double& t);
-
 /// closestSurface for a box of half extents `half` (with its margin) at `pose`, whose world
 /// face normals (R n).normalized() for n = +e_k, -e_k are faceNormal[2k], faceNormal[2k + 1]:
 /// the same result, without the shape's virtual calls and, when the nearest feature is a face,

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 namespace drape {
@@ -76,6 +77,204 @@ bool segmentEntersBox(const Vec3& o, const Vec3& e, const Vec3& half, double& t,
     normal = Vec3::Zero();
     normal[axis] = d[axis] > 0.0 ? -1.0 : 1.0;
     return true;
+}
+
+void closestSegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1,
+                           double& s, double& t) {
+    const Vec3 d1 = p1 - p0, d2 = q1 - q0, r = p0 - q0;
+    const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
+    if (a <= 0.0 && e <= 0.0) {
+        s = t = 0.0;
+        return;
+    }
+    if (a <= 0.0) {
+        s = 0.0;
+        t = std::clamp(f / e, 0.0, 1.0);
+        return;
+    }
+    const double c = d1.dot(r);
+    if (e <= 0.0) {
+        t = 0.0;
+        s = std::clamp(-c / a, 0.0, 1.0);
+        return;
+    }
+    const double b = d1.dot(d2), denom = a * e - b * b;
+    s = denom > 0.0 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
+    t = (b * s + f) / e;
+    if (t < 0.0) {
+        t = 0.0;
+        s = std::clamp(-c / a, 0.0, 1.0);
+    } else if (t > 1.0) {
+        t = 1.0;
+        s = std::clamp((b - c) / a, 0.0, 1.0);
+    }
+}
+
+SurfacePoint closestOnBox(const Vec3& half, const Vec3& p) {
+    const Vec3 q = p.cwiseMax(-half).cwiseMin(half);
+    const Vec3 d = p - q;
+    const double dist = d.norm();
+    if (dist > 0.0) return {dist, d / dist, q};
+    int axis = 0;
+    double best = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < 3; ++k) {
+        const double depth = half[k] - std::abs(p[k]);
+        if (depth < best) {
+            best = depth;
+            axis = k;
+        }
+    }
+    Vec3 n = Vec3::Zero();
+    n[axis] = p[axis] >= 0.0 ? 1.0 : -1.0;
+    Vec3 s = p;
+    s[axis] = n[axis] * half[axis];
+    return {-best, n, s};
+}
+
+SurfacePoint closestOnSphere(double r, const Vec3& p) {
+    const double len = p.norm();
+    const Vec3 n = len > 0.0 ? Vec3(p / len) : Vec3(Vec3::UnitY());
+    return {len - r, n, r * n};
+}
+
+SurfacePoint closestOnCapsule(int axis, double halfHeight, double r, const Vec3& p) {
+    Vec3 c = Vec3::Zero();
+    c[axis] = std::clamp(p[axis], -halfHeight, halfHeight);
+    const Vec3 d = p - c;
+    const double len = d.norm();
+    Vec3 n;
+    if (len > 0.0) {
+        n = d / len;
+    } else { // on the axis: any direction across it
+        n = Vec3::Zero();
+        n[(axis + 1) % 3] = 1.0;
+    }
+    return {len - r, n, c + r * n};
+}
+
+SurfacePoint closestOnCylinder(int axis, double r, double halfHeight, const Vec3& p) {
+    Vec3 radial = p;
+    radial[axis] = 0.0;
+    const double rho = radial.norm();
+    const Vec3 u = rho > 0.0 ? Vec3(radial / rho) : Vec3(Vec3::Unit((axis + 1) % 3));
+    Vec3 up = Vec3::Zero();
+    up[axis] = p[axis] >= 0.0 ? 1.0 : -1.0;
+    const double dr = rho - r;                        // > 0 outside the side wall
+    const double da = std::abs(p[axis]) - halfHeight; // > 0 beyond a cap
+    if (dr <= 0.0 && da <= 0.0) {                     // inside: nearest of wall and cap
+        if (dr > da) {
+            Vec3 s = r * u;
+            s[axis] = p[axis];
+            return {dr, u, s};
+        }
+        Vec3 s = p;
+        s[axis] = up[axis] * halfHeight;
+        return {da, up, s};
+    }
+    Vec3 q = std::min(rho, r) * u;
+    q[axis] = std::clamp(p[axis], -halfHeight, halfHeight);
+    const Vec3 d = p - q;
+    const double len = d.norm();
+    return {len, d / len, q};
+}
+
+double boxSignedDistance(const Vec3& half, const Vec3& p, Vec3& gradient) {
+    const Vec3 q = p.cwiseAbs() - half;
+    const Vec3 outside = q.cwiseMax(0.0);
+    const double out = outside.norm();
+    if (out > 0.0) {
+        gradient = outside.cwiseProduct(p.cwiseSign()) / out;
+        return out;
+    }
+    int k = 0;
+    q.maxCoeff(&k);
+    gradient = Vec3::Zero();
+    gradient[k] = p[k] < 0.0 ? -1.0 : 1.0;
+    return q[k];
+}
+
+int boxRegion(const Vec3& half, const Vec3& p) {
+    int code = 0, beyond = 0;
+    for (int k = 2; k >= 0; --k) {
+        const int digit = p[k] > half[k] ? 1 : p[k] < -half[k] ? 2 : 0;
+        code = 3 * code + digit;
+        beyond += digit != 0;
+    }
+    return beyond == 1 ? code | kBoxFaceRegion : code;
+}
+
+SegmentDeepest deepestOnSegment(const Vec3& half, const Vec3& pa, const Vec3& pb, const Vec3& ga,
+                                const Vec3& gb) {
+    // The faces either end sees: sign per axis (0: none; both signs: a spring through the box).
+    int sign[3] = {0, 0, 0};
+    bool opposite = false;
+    for (const Vec3* g : {&ga, &gb})
+        for (int k = 0; k < 3; ++k) {
+            if ((*g)[k] == 0.0) continue;
+            const int sk = (*g)[k] > 0.0 ? 1 : -1;
+            opposite = opposite || (sign[k] != 0 && sign[k] != sk);
+            sign[k] = sk;
+        }
+    SegmentDeepest best;
+    best.d = std::numeric_limits<double>::infinity();
+    Vec3 g;
+    auto consider = [&](double t) {
+        const double d = boxSignedDistance(half, pa + t * (pb - pa), g);
+        if (d < best.d) {
+            best.d = d;
+            best.t = t;
+            best.g = g;
+        }
+    };
+    bool edges = false;
+    if (!opposite)
+        for (int k = 0; k < 3; ++k) { // the edge along axis k between faces i and j
+            const int i = (k + 1) % 3, j = (k + 2) % 3;
+            if (sign[i] == 0 || sign[j] == 0) continue;
+            Vec3 e0, e1;
+            e0[i] = e1[i] = sign[i] * half[i];
+            e0[j] = e1[j] = sign[j] * half[j];
+            e0[k] = -half[k];
+            e1[k] = half[k];
+            double sp = 0.0, se = 0.0;
+            closestSegmentSegment(pa, pb, e0, e1, sp, se);
+            consider(sp);
+            edges = true;
+        }
+    if (edges) return best;
+    double lo = 0.0, hi = 1.0;
+    constexpr double kGolden = 0.6180339887498949;
+    double t1 = hi - kGolden * (hi - lo), t2 = lo + kGolden * (hi - lo);
+    double f1 = boxSignedDistance(half, pa + t1 * (pb - pa), g);
+    double f2 = boxSignedDistance(half, pa + t2 * (pb - pa), g);
+    for (int it = 0; it < 24; ++it) {
+        if (f1 < f2) {
+            hi = t2;
+            t2 = t1;
+            f2 = f1;
+            t1 = hi - kGolden * (hi - lo);
+            f1 = boxSignedDistance(half, pa + t1 * (pb - pa), g);
+        } else {
+            lo = t1;
+            t1 = t2;
+            f1 = f2;
+            t2 = lo + kGolden * (hi - lo);
+            f2 = boxSignedDistance(half, pa + t2 * (pb - pa), g);
+        }
+    }
+    best.t = 0.5 * (lo + hi);
+    best.d = boxSignedDistance(half, pa + best.t * (pb - pa), best.g);
+    return best;
+}
+
+double sphereEntry(const Vec3& o, const Vec3& d, const Vec3& c, double R) {
+    const Vec3 oc = o - c;
+    const double a = d.squaredNorm(), b = oc.dot(d), cc = oc.squaredNorm() - R * R;
+    if (!(a > 0.0) || cc <= 0.0 || b >= 0.0) return -1.0;
+    const double disc = b * b - a * cc;
+    if (disc < 0.0) return -1.0;
+    const double t = (-b - std::sqrt(disc)) / a;
+    return t >= 0.0 && t <= 1.0 ? t : -1.0;
 }
 
 } // namespace drape

@@ -1,5 +1,7 @@
 // drape/geometry.hpp: closest-point geometry the cloth's contacts share (self-collision in the
-// core, triangle contacts in drape::bullet).
+// core; particle, spring and triangle contacts in drape::bullet). Engine-neutral: points and
+// shapes in their own frame, no collision library; drape::bullet places them with a body's
+// pose.
 #pragma once
 
 #include "drape/mesh.hpp"
@@ -18,5 +20,65 @@ Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const V
 /// corner).
 /// Exact: a path that slides past a corner outside the box does not enter it.
 bool segmentEntersBox(const Vec3& o, const Vec3& e, const Vec3& half, double& t, Vec3& normal);
+
+/// Closest points of segments p0-p1 and q0-q1: s, t in [0, 1] their fractions of the way (the
+/// usual clamped solution of the 2 x 2 system, degenerate segments included).
+void closestSegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1,
+                           double& s, double& t);
+
+/// The nearest point of a shape's surface to a point, in the shape's own frame.
+struct SurfacePoint {
+    double distance = 0.0;       ///< signed: negative inside the shape [m]
+    Vec3 normal = Vec3::UnitY(); ///< unit, outward, at `point`
+    Vec3 point = Vec3::Zero();   ///< on the surface [m]
+};
+
+/// Box |x_k| <= half_k. Outside: the nearest point is p clamped to the box and the normal
+/// points from it to p (a face's, an edge's or a corner's direction). Inside: the nearest face
+/// (least half_k - |p_k|, the lowest axis on a tie), a negative distance.
+SurfacePoint closestOnBox(const Vec3& half, const Vec3& p);
+/// Sphere of radius r about the origin (at its centre: the normal +y).
+SurfacePoint closestOnSphere(double r, const Vec3& p);
+/// Capsule: the segment from -halfHeight to +halfHeight along `axis` (0, 1, 2), grown by r
+/// (on its core segment: the normal along the next axis).
+SurfacePoint closestOnCapsule(int axis, double halfHeight, double r, const Vec3& p);
+/// Cylinder of radius r along `axis`, from -halfHeight to +halfHeight. Inside: the nearer of
+/// the side wall and the cap on p's side.
+SurfacePoint closestOnCylinder(int axis, double r, double halfHeight, const Vec3& p);
+
+/// Signed distance of p from the box |x_k| <= half_k (negative inside), and its outward unit
+/// gradient: from the nearest point outside, the nearest face's normal inside.
+double boxSignedDistance(const Vec3& half, const Vec3& p, Vec3& gradient);
+
+/// Set in a region code (boxRegion) when exactly one axis is beyond the box: a face's prism.
+inline constexpr int kBoxFaceRegion = 32;
+/// The region of space around the box |x_k| <= half_k that p is in: per axis 0 (within the
+/// box's extent), 1 (beyond the + face) or 2 (beyond the - face), as base-3 digits (0 inside),
+/// with kBoxFaceRegion set for a face's prism. Two points are in one region when their codes are
+/// equal; the box's signed distance is linear on a segment within one face's prism.
+int boxRegion(const Vec3& half, const Vec3& p);
+/// A face's prism: exactly one axis beyond the box.
+inline bool isBoxFaceRegion(int code) {
+    return (code & kBoxFaceRegion) != 0;
+}
+
+/// The point of a segment deepest in (or nearest to) a box: its fraction t of the way, and
+/// the box's signed distance d and gradient g there.
+struct SegmentDeepest {
+    double t = 0.0, d = 0.0;
+    Vec3 g = Vec3::Zero();
+};
+/// Where along the segment pa pb the signed distance of the box |x_k| <= half_k is least, given
+/// the ends' outward gradients ga and gb (boxSignedDistance): the point nearest to an edge
+/// shared by the faces the two ends see (one or a few edges, each a segment-segment closest
+/// point: exact where the segment passes the edge outside the box); for ends seeing opposite
+/// faces, or no common edge, a golden-section search of the signed distance (convex along the
+/// segment) to about 1e-5 of the segment.
+SegmentDeepest deepestOnSegment(const Vec3& half, const Vec3& pa, const Vec3& pb, const Vec3& ga,
+                                const Vec3& gb);
+
+/// The smallest t in [0, 1] at which o + t d enters the sphere of radius R about c, for an o
+/// outside it moving toward it; -1 if it does not.
+double sphereEntry(const Vec3& o, const Vec3& d, const Vec3& c, double R);
 
 } // namespace drape

@@ -1,0 +1,184 @@
+// Closest-point geometry of drape/geometry.hpp (engine-neutral: the contact stage places these
+// shapes with a body's pose). Each result is checked against what defines it: a brute-force
+// minimum over a fine sampling of the surface or segment, or a closed form.
+#include "drape/geometry.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+using namespace drape;
+
+namespace {
+
+/// Points in the cube [-a, a]^3, reproducibly.
+std::vector<Vec3> samplePoints(double a, int count, unsigned seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(-a, a);
+    std::vector<Vec3> out;
+    for (int k = 0; k < count; ++k)
+        out.emplace_back(u(rng), u(rng), u(rng));
+    return out;
+}
+
+/// Points on the surface of the box |x_k| <= half_k: a grid of `n` x `n` on each face.
+std::vector<Vec3> boxSurfaceGrid(const Vec3& half, int n) {
+    std::vector<Vec3> out;
+    for (int axis = 0; axis < 3; ++axis)
+        for (double side : {-1.0, 1.0})
+            for (int i = 0; i <= n; ++i)
+                for (int j = 0; j <= n; ++j) {
+                    Vec3 p;
+                    const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+                    p[axis] = side * half[axis];
+                    p[a1] = -half[a1] + 2.0 * half[a1] * i / n;
+                    p[a2] = -half[a2] + 2.0 * half[a2] * j / n;
+                    out.push_back(p);
+                }
+    return out;
+}
+
+double nearestOf(const std::vector<Vec3>& cloud, const Vec3& p) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const Vec3& q : cloud)
+        best = std::min(best, (q - p).norm());
+    return best;
+}
+
+bool insideBox(const Vec3& half, const Vec3& p) {
+    return (p.cwiseAbs().array() < half.array()).all();
+}
+
+} // namespace
+
+TEST_CASE("closest points of two segments: the least distance, against a fine sampling",
+          "[geometry]") {
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    auto rand3 = [&]() { return Vec3(u(rng), u(rng), u(rng)); };
+    for (int trial = 0; trial < 40; ++trial) {
+        Vec3 p0 = rand3(), p1 = rand3(), q0 = rand3(), q1 = rand3();
+        if (trial == 0) q1 = q0 + 0.7 * (p1 - p0); // parallel
+        if (trial == 1) p1 = p0;                   // a point against a segment
+        if (trial == 2) q1 = q0;                   // a segment against a point
+        if (trial == 3) p1 = p0, q1 = q0;          // two points
+        double s = -1.0, t = -1.0;
+        closestSegmentSegment(p0, p1, q0, q1, s, t);
+        REQUIRE(s >= 0.0);
+        REQUIRE(s <= 1.0);
+        REQUIRE(t >= 0.0);
+        REQUIRE(t <= 1.0);
+        const double found = ((p0 + s * (p1 - p0)) - (q0 + t * (q1 - q0))).norm();
+        constexpr int kN = 400;
+        double brute = std::numeric_limits<double>::infinity();
+        for (int i = 0; i <= kN; ++i)
+            for (int j = 0; j <= kN; ++j)
+                brute = std::min(brute, ((p0 + (double(i) / kN) * (p1 - p0)) -
+                                         (q0 + (double(j) / kN) * (q1 - q0)))
+                                            .norm());
+        // The sampling's grid is at most 2 * 2 sqrt(3) / kN from any pair of points.
+        CHECK(found <= brute + 1e-12);
+        CHECK(found >= brute - 4.0 * std::sqrt(3.0) / kN);
+    }
+}
+
+TEST_CASE("the nearest point of a box's surface, inside and out", "[geometry]") {
+    const Vec3 half(0.3, 0.1, 0.2);
+    const std::vector<Vec3> surface = boxSurfaceGrid(half, 120);
+    for (const Vec3& p : samplePoints(0.5, 300, 3)) {
+        const SurfacePoint q = closestOnBox(half, p);
+        INFO("p = " << p.transpose());
+        // On the surface, with p at the signed distance along the unit normal.
+        CHECK(q.normal.norm() == Approx(1.0).epsilon(1e-14));
+        CHECK((q.point + q.distance * q.normal - p).norm() < 1e-14);
+        const Vec3 rel = q.point.cwiseAbs() - half;
+        CHECK(std::abs(rel.maxCoeff()) < 1e-15);
+        // Negative exactly inside; its size the nearest surface point's distance.
+        CHECK((q.distance < 0.0) == insideBox(half, p));
+        CHECK(std::abs(q.distance) <= nearestOf(surface, p) + 1e-12);
+        CHECK(std::abs(q.distance) >= nearestOf(surface, p) - 0.6 / 120);
+        // The signed distance the spring-box test uses is the same function.
+        Vec3 g;
+        const double d = boxSignedDistance(half, p, g);
+        CHECK(d == Approx(q.distance).margin(1e-15));
+        CHECK(g.norm() == Approx(1.0).epsilon(1e-14));
+        if (q.distance > 0.0) CHECK((g - q.normal).norm() < 1e-14);
+    }
+}
+
+TEST_CASE("the nearest points of a sphere, a capsule and a cylinder", "[geometry]") {
+    const double r = 0.25, hh = 0.4;
+    for (const Vec3& p : samplePoints(0.8, 300, 5)) {
+        INFO("p = " << p.transpose());
+        const SurfacePoint s = closestOnSphere(r, p);
+        CHECK(s.distance == Approx(p.norm() - r).margin(1e-15));
+        CHECK((s.point.norm() - r) == Approx(0.0).margin(1e-15));
+        CHECK((s.point + s.distance * s.normal - p).norm() < 1e-14);
+        for (int axis = 0; axis < 3; ++axis) {
+            // Capsule: the distance to its core segment, less r (the segment sampled finely).
+            const SurfacePoint c = closestOnCapsule(axis, hh, r, p);
+            double core = std::numeric_limits<double>::infinity();
+            for (int i = 0; i <= 4000; ++i) {
+                Vec3 a = Vec3::Zero();
+                a[axis] = -hh + 2.0 * hh * i / 4000;
+                core = std::min(core, (p - a).norm());
+            }
+            CHECK(c.distance == Approx(core - r).margin(2.0 * hh / 4000));
+            CHECK((c.point + c.distance * c.normal - p).norm() < 1e-14);
+            // Cylinder: inside, the nearer of wall and cap; outside, the distance to the solid
+            // (the radial and axial excesses are orthogonal).
+            const SurfacePoint y = closestOnCylinder(axis, r, hh, p);
+            Vec3 radial = p;
+            radial[axis] = 0.0;
+            const double dr = radial.norm() - r, da = std::abs(p[axis]) - hh;
+            const double expect = dr <= 0.0 && da <= 0.0
+                                      ? std::max(dr, da)
+                                      : std::hypot(std::max(dr, 0.0), std::max(da, 0.0));
+            CHECK(y.distance == Approx(expect).margin(1e-14));
+            CHECK(y.normal.norm() == Approx(1.0).epsilon(1e-14));
+            CHECK((y.point + y.distance * y.normal - p).norm() < 1e-14);
+        }
+    }
+    // On a capsule's axis and at a sphere's centre the normal is still a unit vector.
+    CHECK(closestOnSphere(r, Vec3::Zero()).normal.norm() == 1.0);
+    CHECK(closestOnCapsule(1, hh, r, Vec3(0.0, 0.1, 0.0)).distance == -r);
+}
+
+TEST_CASE("a box's regions: one face's prism is where the distance is linear", "[geometry]") {
+    const Vec3 half(0.3, 0.1, 0.2);
+    CHECK(boxRegion(half, Vec3(0.0, 0.0, 0.0)) == 0);
+    const int top = boxRegion(half, Vec3(0.1, 0.5, -0.1));
+    CHECK(isBoxFaceRegion(top));
+    CHECK(boxRegion(half, Vec3(-0.2, 0.2, 0.15)) == top);
+    CHECK(boxRegion(half, Vec3(-0.2, -0.2, 0.15)) != top); // the bottom face's
+    const int edge = boxRegion(half, Vec3(0.4, 0.5, 0.0));
+    CHECK_FALSE(isBoxFaceRegion(edge));
+    CHECK(edge != top);
+    CHECK_FALSE(isBoxFaceRegion(boxRegion(half, Vec3(0.4, 0.5, 0.3)))); // a corner's
+    // Along a segment within the top face's prism the signed distance is its height above
+    // the face: linear.
+    const Vec3 a(-0.25, 0.3, 0.1), b(0.2, 0.15, -0.18);
+    REQUIRE(boxRegion(half, a) == top);
+    REQUIRE(boxRegion(half, b) == top);
+    Vec3 g;
+    for (double t : {0.0, 0.3, 0.77, 1.0})
+        CHECK(boxSignedDistance(half, a + t * (b - a), g) ==
+              Approx((1.0 - t) * (a.y() - half.y()) + t * (b.y() - half.y())).margin(1e-15));
+}
+
+TEST_CASE("where a path enters a sphere", "[geometry]") {
+    const Vec3 c(0.5, -0.2, 0.1);
+    // Head on from 2 away along x, radius 1: a quarter of the way along a path of 4.
+    CHECK(sphereEntry(c + Vec3(-2.0, 0.0, 0.0), Vec3(4.0, 0.0, 0.0), c, 1.0) ==
+          Approx(0.25).epsilon(1e-15));
+    // Off the centre by 0.6: it enters where x = -0.8, at (2 - 0.8) / 4 of the way.
+    CHECK(sphereEntry(c + Vec3(-2.0, 0.6, 0.0), Vec3(4.0, 0.0, 0.0), c, 1.0) ==
+          Approx(0.3).epsilon(1e-14));
+    // Missing it, moving away, starting inside, stopping short: none.
+    CHECK(sphereEntry(c + Vec3(-2.0, 1.01, 0.0), Vec3(4.0, 0.0, 0.0), c, 1.0) == -1.0);
+    CHECK(sphereEntry(c + Vec3(-2.0, 0.0, 0.0), Vec3(-4.0, 0.0, 0.0), c, 1.0) == -1.0);
+    CHECK(sphereEntry(c + Vec3(-0.5, 0.0, 0.0), Vec3(4.0, 0.0, 0.0), c, 1.0) == -1.0);
+    CHECK(sphereEntry(c + Vec3(-2.0, 0.0, 0.0), Vec3(0.9, 0.0, 0.0), c, 1.0) == -1.0);
+}
