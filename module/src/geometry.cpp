@@ -241,7 +241,21 @@ SegmentDeepest deepestOnSegment(const Vec3& half, const Vec3& pa, const Vec3& pb
             consider(sp);
             edges = true;
         }
-    if (edges) return best;
+    if (edges) {
+        // The point nearest to an edge is the deepest where the segment passes the edge
+        // outside the box (there the signed distance is the distance to the edge). Beside a
+        // face it need not be: the segment may come nearer the box, or enter it, elsewhere. The
+        // signed distance is convex along the segment, so a point no deeper than its
+        // neighbours on either side (1e-6 of the way) is the least; a point inside the box is
+        // kept as it is (the spring cuts the edge there: pushed out along the edge's normal,
+        // not a face's); any other is left to the search.
+        constexpr double kStep = 1e-6;
+        auto at = [&](double t) { return boxSignedDistance(half, pa + t * (pb - pa), g); };
+        const double inf = std::numeric_limits<double>::infinity();
+        const double before = best.t > 0.0 ? at(std::max(0.0, best.t - kStep)) : inf;
+        const double after = best.t < 1.0 ? at(std::min(1.0, best.t + kStep)) : inf;
+        if (best.d < 0.0 || (before >= best.d && after >= best.d)) return best;
+    }
     double lo = 0.0, hi = 1.0;
     constexpr double kGolden = 0.6180339887498949;
     double t1 = hi - kGolden * (hi - lo), t2 = lo + kGolden * (hi - lo);

@@ -168,6 +168,45 @@ TEST_CASE("a box's regions: one face's prism is where the distance is linear", "
               Approx((1.0 - t) * (a.y() - half.y()) + t * (b.y() - half.y())).margin(1e-15));
 }
 
+TEST_CASE("the deepest point of a segment against a box, against a fine sampling", "[geometry]") {
+    const Vec3 half(0.3, 0.1, 0.2);
+    auto check = [&](const Vec3& pa, const Vec3& pb) {
+        Vec3 ga, gb, g;
+        boxSignedDistance(half, pa, ga);
+        boxSignedDistance(half, pb, gb);
+        const SegmentDeepest deep = deepestOnSegment(half, pa, pb, ga, gb);
+        constexpr int kN = 20000;
+        double brute = std::numeric_limits<double>::infinity();
+        for (int i = 0; i <= kN; ++i)
+            brute = std::min(brute, boxSignedDistance(half, pa + (double(i) / kN) * (pb - pa), g));
+        INFO("pa = " << pa.transpose() << ", pb = " << pb.transpose());
+        CHECK(deep.t >= 0.0);
+        CHECK(deep.t <= 1.0);
+        CHECK(deep.d == Approx(boxSignedDistance(half, pa + deep.t * (pb - pa), g)).margin(0.0));
+        // Never deeper than the deepest sample, to the sampling's step.
+        CHECK(deep.d >= brute - 1e-9 - (pb - pa).norm() / kN);
+        // A segment that enters the box: a point inside it. One that stays outside: its least
+        // distance, beyond the search's tolerance (1e-5 of the way; the distance is
+        // 1-Lipschitz).
+        if (brute < 0.0) CHECK(deep.d < 0.0);
+        if (deep.d >= 0.0) CHECK(deep.d <= brute + 1e-5 * (pb - pa).norm());
+    };
+    // Over the top-right edge (ends above the top face and beside the right face): the point
+    // nearest to the edge.
+    check(Vec3(0.2, 0.12, 0.05), Vec3(0.33, -0.05, 0.08));
+    // Cutting the edge (the middle inside the box).
+    check(Vec3(0.25, 0.11, -0.1), Vec3(0.31, 0.05, 0.1));
+    // Over a corner, ends beside two faces that share an edge and a third.
+    check(Vec3(0.28, 0.13, 0.21), Vec3(0.35, 0.02, 0.19));
+    // Ends beside opposite faces (a spring across the box, its middle deepest): the search.
+    check(Vec3(-0.35, 0.0, 0.02), Vec3(0.36, 0.03, -0.05));
+    check(Vec3(-0.1, 0.15, 0.0), Vec3(0.1, -0.15, 0.01));
+    // Random pairs near the box.
+    const std::vector<Vec3> ends = samplePoints(0.45, 60, 9);
+    for (std::size_t k = 0; k + 1 < ends.size(); k += 2)
+        check(ends[k], ends[k + 1]);
+}
+
 TEST_CASE("where a path enters a sphere", "[geometry]") {
     const Vec3 c(0.5, -0.2, 0.1);
     // Head on from 2 away along x, radius 1: a quarter of the way along a path of 4.

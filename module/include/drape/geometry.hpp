@@ -69,11 +69,14 @@ struct SegmentDeepest {
     Vec3 g = Vec3::Zero();
 };
 /// Where along the segment pa pb the signed distance of the box |x_k| <= half_k is least, given
-/// the ends' outward gradients ga and gb (boxSignedDistance): the point nearest to an edge
-/// shared by the faces the two ends see (one or a few edges, each a segment-segment closest
-/// point: exact where the segment passes the edge outside the box); for ends seeing opposite
-/// faces, or no common edge, a golden-section search of the signed distance (convex along the
-/// segment) to about 1e-5 of the segment.
+/// the ends' outward gradients ga and gb (boxSignedDistance). First the point nearest to an
+/// edge shared by the faces the two ends see (one or a few edges, each a segment-segment
+/// closest point), kept when it is inside the box (the segment cuts that edge: a point inside,
+/// not necessarily the deepest) or when no point 1e-6 of the way to either side is deeper (the
+/// signed distance is convex along the segment: then it is the least). Otherwise, and for ends
+/// seeing opposite faces or no common edge, a golden-section search of the signed distance, to
+/// about 1e-5 of the segment. So a segment that enters the box gets a point inside it, and one
+/// that stays outside gets its least distance.
 SegmentDeepest deepestOnSegment(const Vec3& half, const Vec3& pa, const Vec3& pb, const Vec3& ga,
                                 const Vec3& gb);
 
