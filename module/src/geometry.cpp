@@ -110,27 +110,6 @@ void closestSegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const
     }
 }
 
-SurfacePoint closestOnBox(const Vec3& half, const Vec3& p) {
-    const Vec3 q = p.cwiseMax(-half).cwiseMin(half);
-    const Vec3 d = p - q;
-    const double dist = d.norm();
-    if (dist > 0.0) return {dist, d / dist, q};
-    int axis = 0;
-    double best = std::numeric_limits<double>::infinity();
-    for (int k = 0; k < 3; ++k) {
-        const double depth = half[k] - std::abs(p[k]);
-        if (depth < best) {
-            best = depth;
-            axis = k;
-        }
-    }
-    Vec3 n = Vec3::Zero();
-    n[axis] = p[axis] >= 0.0 ? 1.0 : -1.0;
-    Vec3 s = p;
-    s[axis] = n[axis] * half[axis];
-    return {-best, n, s};
-}
-
 SurfacePoint closestOnSphere(double r, const Vec3& p) {
     const double len = p.norm();
     const Vec3 n = len > 0.0 ? Vec3(p / len) : Vec3(Vec3::UnitY());
@@ -176,31 +155,6 @@ SurfacePoint closestOnCylinder(int axis, double r, double halfHeight, const Vec3
     const Vec3 d = p - q;
     const double len = d.norm();
     return {len, d / len, q};
-}
-
-double boxSignedDistance(const Vec3& half, const Vec3& p, Vec3& gradient) {
-    const Vec3 q = p.cwiseAbs() - half;
-    const Vec3 outside = q.cwiseMax(0.0);
-    const double out = outside.norm();
-    if (out > 0.0) {
-        gradient = outside.cwiseProduct(p.cwiseSign()) / out;
-        return out;
-    }
-    int k = 0;
-    q.maxCoeff(&k);
-    gradient = Vec3::Zero();
-    gradient[k] = p[k] < 0.0 ? -1.0 : 1.0;
-    return q[k];
-}
-
-int boxRegion(const Vec3& half, const Vec3& p) {
-    int code = 0, beyond = 0;
-    for (int k = 2; k >= 0; --k) {
-        const int digit = p[k] > half[k] ? 1 : p[k] < -half[k] ? 2 : 0;
-        code = 3 * code + digit;
-        beyond += digit != 0;
-    }
-    return beyond == 1 ? code | kBoxFaceRegion : code;
 }
 
 SegmentDeepest deepestOnSegment(const Vec3& half, const Vec3& pa, const Vec3& pb, const Vec3& ga,

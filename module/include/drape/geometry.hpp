@@ -6,6 +6,9 @@
 
 #include "drape/mesh.hpp"
 
+#include <cmath>
+#include <limits>
+
 namespace drape {
 
 /// Closest point to p on triangle (a, b, c) [m]; `barycentric` gets its weights on a, b, c
@@ -36,7 +39,26 @@ struct SurfacePoint {
 /// Box |x_k| <= half_k. Outside: the nearest point is p clamped to the box and the normal
 /// points from it to p (a face's, an edge's or a corner's direction). Inside: the nearest face
 /// (least half_k - |p_k|, the lowest axis on a tie), a negative distance.
-SurfacePoint closestOnBox(const Vec3& half, const Vec3& p);
+inline SurfacePoint closestOnBox(const Vec3& half, const Vec3& p) {
+    const Vec3 q = p.cwiseMax(-half).cwiseMin(half);
+    const Vec3 d = p - q;
+    const double dist = d.norm();
+    if (dist > 0.0) return {dist, d / dist, q};
+    int axis = 0;
+    double best = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < 3; ++k) {
+        const double depth = half[k] - std::abs(p[k]);
+        if (depth < best) {
+            best = depth;
+            axis = k;
+        }
+    }
+    Vec3 n = Vec3::Zero();
+    n[axis] = p[axis] >= 0.0 ? 1.0 : -1.0;
+    Vec3 s = p;
+    s[axis] = n[axis] * half[axis];
+    return {-best, n, s};
+}
 /// Sphere of radius r about the origin (at its centre: the normal +y).
 SurfacePoint closestOnSphere(double r, const Vec3& p);
 /// Capsule: the segment from -halfHeight to +halfHeight along `axis` (0, 1, 2), grown by r
@@ -48,7 +70,20 @@ SurfacePoint closestOnCylinder(int axis, double r, double halfHeight, const Vec3
 
 /// Signed distance of p from the box |x_k| <= half_k (negative inside), and its outward unit
 /// gradient: from the nearest point outside, the nearest face's normal inside.
-double boxSignedDistance(const Vec3& half, const Vec3& p, Vec3& gradient);
+inline double boxSignedDistance(const Vec3& half, const Vec3& p, Vec3& gradient) {
+    const Vec3 q = p.cwiseAbs() - half;
+    const Vec3 outside = q.cwiseMax(0.0);
+    const double out = outside.norm();
+    if (out > 0.0) {
+        gradient = outside.cwiseProduct(p.cwiseSign()) / out;
+        return out;
+    }
+    int k = 0;
+    q.maxCoeff(&k);
+    gradient = Vec3::Zero();
+    gradient[k] = p[k] < 0.0 ? -1.0 : 1.0;
+    return q[k];
+}
 
 /// Set in a region code (boxRegion) when exactly one axis is beyond the box: a face's prism.
 inline constexpr int kBoxFaceRegion = 32;
@@ -56,7 +91,15 @@ inline constexpr int kBoxFaceRegion = 32;
 /// box's extent), 1 (beyond the + face) or 2 (beyond the - face), as base-3 digits (0 inside),
 /// with kBoxFaceRegion set for a face's prism. Two points are in one region when their codes are
 /// equal; the box's signed distance is linear on a segment within one face's prism.
-int boxRegion(const Vec3& half, const Vec3& p);
+inline int boxRegion(const Vec3& half, const Vec3& p) {
+    int code = 0, beyond = 0;
+    for (int k = 2; k >= 0; --k) {
+        const int digit = p[k] > half[k] ? 1 : p[k] < -half[k] ? 2 : 0;
+        code = 3 * code + digit;
+        beyond += digit != 0;
+    }
+    return beyond == 1 ? code | kBoxFaceRegion : code;
+}
 /// A face's prism: exactly one axis beyond the box.
 inline bool isBoxFaceRegion(int code) {
     return (code & kBoxFaceRegion) != 0;
