@@ -52,15 +52,6 @@ bool inflatedPathHit(const btCollisionShape* shape, const Pose& pose, const Vec3
 SurfaceHit boxSurface(const Vec3& half, const Vec3* faceNormal, const Pose& pose, const Vec3& p,
                       QueryCounters& counters);
 
-/// Nearest points of a cloth triangle and a body's surface.
-struct TriangleHit {
-    bool valid = false;
-    double distance = 0.0;           ///< signed, negative when they overlap [m]
-    Vec3 normal = Vec3::UnitY();     ///< unit, from the body toward the triangle (world frame)
-    Vec3 bodyPoint = Vec3::Zero();   ///< on the body's surface (world frame) [m]
-    Vec3 barycentric = Vec3::Zero(); ///< the triangle's nearest point, in its weights
-};
-
 /// Nearest points between the triangle (a, b, c) (world frame) and a convex shape, or the
 /// convex children of a compound, placed at `transform` (Bullet's GJK and EPA, in single
 /// precision, relative to a). Invalid for other shapes (planes, concave meshes), and when

@@ -245,4 +245,58 @@ double sphereEntry(const Vec3& o, const Vec3& d, const Vec3& c, double R) {
     return t >= 0.0 && t <= 1.0 ? t : -1.0;
 }
 
+TriangleHit capsuleTriangle(const Vec3& p0, const Vec3& p1, double r, const Vec3& a, const Vec3& b,
+                            const Vec3& c, double reach) {
+    Vec3 bestSeg = p0, bestTri = a;
+    double best = std::numeric_limits<double>::infinity();
+    auto consider = [&](const Vec3& onSeg, const Vec3& onTri) {
+        const double d2 = (onTri - onSeg).squaredNorm();
+        if (d2 < best) {
+            best = d2;
+            bestSeg = onSeg;
+            bestTri = onTri;
+        }
+    };
+    Vec3 bary;
+    consider(p0, closestPointOnTriangle(p0, a, b, c, bary));
+    consider(p1, closestPointOnTriangle(p1, a, b, c, bary));
+    const Vec3 corners[3] = {a, b, c};
+    for (int k = 0; k < 3; ++k) {
+        const Vec3& e0 = corners[k];
+        const Vec3& e1 = corners[(k + 1) % 3];
+        double s = 0.0, t = 0.0;
+        closestSegmentSegment(p0, p1, e0, e1, s, t);
+        consider(p0 + s * (p1 - p0), e0 + t * (e1 - e0));
+    }
+    TriangleHit h;
+    Vec3 normal = (b - a).cross(c - a);
+    const double area = normal.norm();
+    if (!(area > 0.0)) return h;
+    normal /= area;
+    double dist = std::sqrt(best);
+    // Does the segment pierce the triangle? (Its ends on both sides, the crossing inside.)
+    const double s0 = normal.dot(p0 - a), s1 = normal.dot(p1 - a);
+    if ((s0 < 0.0) != (s1 < 0.0)) {
+        const Vec3 x = p0 + (s0 / (s0 - s1)) * (p1 - p0);
+        const Vec3 onTri = closestPointOnTriangle(x, a, b, c, bary);
+        if ((onTri - x).squaredNorm() <= 1e-24 * (1.0 + x.squaredNorm())) {
+            if (normal.dot((a + b + c) / 3.0 - 0.5 * (p0 + p1)) < 0.0) normal = -normal;
+            h.valid = -r < reach;
+            h.distance = -r;
+            h.normal = normal;
+            h.bodyPoint = x - r * normal;
+            closestPointOnTriangle(x, a, b, c, h.barycentric);
+            return h;
+        }
+    }
+    if (!(dist - r < reach)) return h;
+    Vec3 n = dist > 0.0 ? Vec3((bestTri - bestSeg) / dist) : normal;
+    h.valid = true;
+    h.distance = dist - r;
+    h.normal = n;
+    h.bodyPoint = bestSeg + r * n;
+    closestPointOnTriangle(bestTri, a, b, c, h.barycentric);
+    return h;
+}
+
 } // namespace drape

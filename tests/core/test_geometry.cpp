@@ -221,3 +221,49 @@ TEST_CASE("where a path enters a sphere", "[geometry]") {
     CHECK(sphereEntry(c + Vec3(-0.5, 0.0, 0.0), Vec3(4.0, 0.0, 0.0), c, 1.0) == -1.0);
     CHECK(sphereEntry(c + Vec3(-2.0, 0.0, 0.0), Vec3(0.9, 0.0, 0.0), c, 1.0) == -1.0);
 }
+
+TEST_CASE("a capsule against a triangle: the nearest points, against a fine sampling",
+          "[geometry]") {
+    std::mt19937 rng(21);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    auto rand3 = [&]() { return Vec3(u(rng), u(rng), u(rng)); };
+    const Vec3 a(0.0, 0.0, 0.0), b(1.0, 0.1, 0.0), c(0.2, 0.9, 0.1);
+    const double r = 0.05;
+    Vec3 bary;
+    for (int trial = 0; trial < 60; ++trial) {
+        Vec3 p0 = rand3(), p1 = rand3();
+        if (trial % 5 == 0) p1 = p0; // a sphere
+        const TriangleHit h = capsuleTriangle(p0, p1, r, a, b, c, 10.0);
+        REQUIRE(h.valid);
+        // The distance from the core segment to the triangle, sampled along the segment (each
+        // sample's nearest triangle point exact), less r. Where the segment pierces the
+        // triangle the distance is 0 and the hit reports the depth -r.
+        constexpr int kN = 4000;
+        double core = std::numeric_limits<double>::infinity();
+        for (int i = 0; i <= kN; ++i) {
+            const Vec3 q = p0 + (double(i) / kN) * (p1 - p0);
+            core = std::min(core, (closestPointOnTriangle(q, a, b, c, bary) - q).norm());
+        }
+        INFO("p0 = " << p0.transpose() << ", p1 = " << p1.transpose());
+        CHECK(h.distance == Approx(core - r).margin((p1 - p0).norm() / kN + 1e-12));
+        CHECK(h.normal.norm() == Approx(1.0).epsilon(1e-12));
+        CHECK(h.barycentric.minCoeff() >= -1e-12);
+        CHECK(h.barycentric.sum() == Approx(1.0).epsilon(1e-12));
+        // Not piercing: the body's point is on the capsule, r from its core segment.
+        // (Piercing: r from the crossing along the triangle's normal, the depth r.)
+        if (h.distance > -r) {
+            double s = 0.0, t = 0.0;
+            closestSegmentSegment(p0, p1, h.bodyPoint, h.bodyPoint, s, t);
+            CHECK((p0 + s * (p1 - p0) - h.bodyPoint).norm() == Approx(r).margin(1e-9));
+        }
+        // Apart: the triangle's nearest point is the body's point moved out by the distance.
+        if (h.distance > 0.0) {
+            const Vec3 tri = h.barycentric.x() * a + h.barycentric.y() * b + h.barycentric.z() * c;
+            CHECK((tri - (h.bodyPoint + h.distance * h.normal)).norm() < 1e-9);
+        }
+    }
+    // Out of reach, or a triangle without area: no hit.
+    CHECK_FALSE(capsuleTriangle(Vec3(0.3, 0.3, 2.0), Vec3(0.4, 0.3, 2.0), r, a, b, c, 1.0).valid);
+    CHECK_FALSE(
+        capsuleTriangle(Vec3(0.3, 0.3, 0.2), Vec3(0.4, 0.3, 0.2), r, a, b, 2.0 * b, 1.0).valid);
+}

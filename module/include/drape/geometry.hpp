@@ -127,4 +127,20 @@ SegmentDeepest deepestOnSegment(const Vec3& half, const Vec3& pa, const Vec3& pb
 /// outside it moving toward it; -1 if it does not.
 double sphereEntry(const Vec3& o, const Vec3& d, const Vec3& c, double R);
 
+/// Nearest points of a cloth triangle and a body's surface.
+struct TriangleHit {
+    bool valid = false;
+    double distance = 0.0;           ///< signed, negative when they overlap [m]
+    Vec3 normal = Vec3::UnitY();     ///< unit, from the body toward the triangle
+    Vec3 bodyPoint = Vec3::Zero();   ///< on the body's surface [m]
+    Vec3 barycentric = Vec3::Zero(); ///< the triangle's nearest point, in its weights
+};
+/// A capsule (core segment p0-p1, radius r; a sphere when p0 = p1) against triangle (a, b, c):
+/// the nearest pair among the segment's ends against the triangle and the triangle's edges
+/// against the segment (exact unless the segment pierces the triangle; then the triangle's
+/// normal, facing away from the segment's middle, and the depth r). Invalid when nothing is
+/// nearer than `reach` [m], or the triangle has no area.
+TriangleHit capsuleTriangle(const Vec3& p0, const Vec3& p1, double r, const Vec3& a, const Vec3& b,
+                            const Vec3& c, double reach);
+
 } // namespace drape
