@@ -401,34 +401,8 @@ bool inflatedPathHit(const btCollisionShape* shape, const Pose& pose, const Vec3
         hh = double(cap->getHalfHeight());
         axis = cap->getUpAxis();
     }
-    const double R = r + inflate;
-    // The core (a point, or the capsule's axis segment) within R of the path's start: not a
-    // path entering it.
-    Vec3 c0 = Vec3::Zero();
-    c0[axis] = std::clamp(o[axis], -hh, hh);
-    if ((o - c0).squaredNorm() <= R * R) return false;
-    double t = -1.0;
-    auto earliest = [&t](double s) {
-        if (s >= 0.0 && (t < 0.0 || s < t)) t = s;
-    };
-    Vec3 cap0 = Vec3::Zero(), cap1 = Vec3::Zero();
-    cap0[axis] = -hh;
-    cap1[axis] = hh;
-    earliest(sphereEntry(o, d, cap0, R));
-    if (hh > 0.0) {
-        earliest(sphereEntry(o, d, cap1, R));
-        // The cylinder between the caps: the path across the axis.
-        Vec3 op = o, dp = d;
-        op[axis] = 0.0;
-        dp[axis] = 0.0;
-        const double a = dp.squaredNorm(), b = op.dot(dp), cc = op.squaredNorm() - R * R;
-        if (a > 0.0 && cc > 0.0 && b < 0.0 && b * b - a * cc >= 0.0) {
-            const double s = (-b - std::sqrt(b * b - a * cc)) / a;
-            const double along = o[axis] + s * d[axis];
-            if (s >= 0.0 && s <= 1.0 && along >= -hh && along <= hh) earliest(s);
-        }
-    }
-    if (t < 0.0) return false;
+    double t = 0.0;
+    if (!segmentEntersCapsule(o, e, axis, hh, r + inflate, t)) return false;
     const Vec3 p = o + t * d;
     Vec3 c = Vec3::Zero();
     c[axis] = std::clamp(p[axis], -hh, hh);

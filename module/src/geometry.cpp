@@ -299,4 +299,37 @@ TriangleHit capsuleTriangle(const Vec3& p0, const Vec3& p1, double r, const Vec3
     return h;
 }
 
+bool segmentEntersCapsule(const Vec3& o, const Vec3& e, int axis, double halfHeight, double R,
+                          double& t) {
+    const Vec3 d = e - o;
+    const double hh = halfHeight;
+    // The core (a point, or the axis segment) within R of the path's start: not a path entering
+    // it.
+    Vec3 c0 = Vec3::Zero();
+    c0[axis] = std::clamp(o[axis], -hh, hh);
+    if ((o - c0).squaredNorm() <= R * R) return false;
+    t = -1.0;
+    auto earliest = [&t](double s) {
+        if (s >= 0.0 && (t < 0.0 || s < t)) t = s;
+    };
+    Vec3 cap0 = Vec3::Zero(), cap1 = Vec3::Zero();
+    cap0[axis] = -hh;
+    cap1[axis] = hh;
+    earliest(sphereEntry(o, d, cap0, R));
+    if (hh > 0.0) {
+        earliest(sphereEntry(o, d, cap1, R));
+        // The cylinder between the caps: the path across the axis.
+        Vec3 op = o, dp = d;
+        op[axis] = 0.0;
+        dp[axis] = 0.0;
+        const double a = dp.squaredNorm(), b = op.dot(dp), cc = op.squaredNorm() - R * R;
+        if (a > 0.0 && cc > 0.0 && b < 0.0 && b * b - a * cc >= 0.0) {
+            const double s = (-b - std::sqrt(b * b - a * cc)) / a;
+            const double along = o[axis] + s * d[axis];
+            if (s >= 0.0 && s <= 1.0 && along >= -hh && along <= hh) earliest(s);
+        }
+    }
+    return t >= 0.0;
+}
+
 } // namespace drape

@@ -267,3 +267,49 @@ TEST_CASE("a capsule against a triangle: the nearest points, against a fine samp
     CHECK_FALSE(
         capsuleTriangle(Vec3(0.3, 0.3, 0.2), Vec3(0.4, 0.3, 0.2), r, a, b, 2.0 * b, 1.0).valid);
 }
+
+TEST_CASE("where a path first comes within reach of a capsule's core, against a fine sampling",
+          "[geometry]") {
+    std::mt19937 rng(31);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    auto rand3 = [&]() { return Vec3(u(rng), u(rng), u(rng)); };
+    const double R = 0.3;
+    int entered = 0, missed = 0;
+    for (int trial = 0; trial < 200; ++trial) {
+        const int axis = trial % 3;
+        const double hh = trial % 4 == 0 ? 0.0 : 0.4; // every fourth a sphere
+        const Vec3 o = 1.5 * rand3(), e = 1.5 * rand3();
+        auto toCore = [&](const Vec3& p) {
+            Vec3 c = Vec3::Zero();
+            c[axis] = std::clamp(p[axis], -hh, hh);
+            return (p - c).norm();
+        };
+        // The first sample of the path within R of the core.
+        constexpr int kN = 20000;
+        double first = -1.0;
+        for (int i = 0; i <= kN && first < 0.0; ++i)
+            if (toCore(o + (double(i) / kN) * (e - o)) <= R) first = double(i) / kN;
+        double t = -1.0;
+        const bool hit = segmentEntersCapsule(o, e, axis, hh, R, t);
+        INFO("o = " << o.transpose() << ", e = " << e.transpose() << ", axis " << axis);
+        if (toCore(o) <= R) {
+            CHECK_FALSE(hit); // starts within reach: not an entry
+            continue;
+        }
+        // Where the sampling finds the path within reach, the test does, at most a step
+        // earlier (a path that only grazes the reach between two samples may be found alone).
+        if (first >= 0.0) {
+            REQUIRE(hit);
+            CHECK(t <= first + 1e-12);
+            CHECK(t >= first - 1.0 / kN);
+            CHECK(toCore(o + t * (e - o)) == Approx(R).epsilon(1e-9));
+            ++entered;
+        } else if (hit) {
+            CHECK(toCore(o + t * (e - o)) == Approx(R).epsilon(1e-9));
+        } else {
+            ++missed;
+        }
+    }
+    CHECK(entered > 20); // the trials cover both outcomes
+    CHECK(missed > 20);
+}

@@ -143,4 +143,11 @@ struct TriangleHit {
 TriangleHit capsuleTriangle(const Vec3& p0, const Vec3& p1, double r, const Vec3& a, const Vec3& b,
                             const Vec3& c, double reach);
 
+/// Where the segment from o to e first comes within R of a capsule's core: the segment from
+/// -halfHeight to +halfHeight along `axis` (0, 1, 2; a point when halfHeight is 0). True when
+/// o is farther than R from the core and the segment comes that near, with `t` in [0, 1] the
+/// fraction of the way there.
+bool segmentEntersCapsule(const Vec3& o, const Vec3& e, int axis, double halfHeight, double R,
+                          double& t);
+
 } // namespace drape
