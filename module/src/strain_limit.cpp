@@ -312,11 +312,26 @@ void heldParticles(const std::vector<double>& invMass, std::vector<Index>& out) 
 }
 
 /// Whether `list` (ascending, as heldParticles makes it) holds exactly the particles of zero
-/// inverse mass: one count without branches, then a look at the listed ones.
-bool heldAre(const std::vector<double>& invMass, const std::vector<Index>& list) {
+/// inverse mass: one count without branches (by blocks of `block` particles on the
+/// executor's threads, each into its own entry of `counts`), then a look at the listed ones.
+bool heldAre(const std::vector<double>& invMass, const std::vector<Index>& list, Executor* executor,
+             std::size_t block, std::vector<std::size_t>& counts) {
+    const std::size_t n = invMass.size(), blocks = (n + block - 1) / block;
+    counts.resize(blocks);
+    detail::forChunks(
+        executor, blocks,
+        [&](std::size_t b0, std::size_t b1) {
+            for (std::size_t bl = b0; bl < b1; ++bl) {
+                std::size_t held = 0;
+                for (std::size_t i = bl * block, end = std::min(n, i + block); i < end; ++i)
+                    held += invMass[i] == 0.0;
+                counts[bl] = held;
+            }
+        },
+        2);
     std::size_t held = 0;
-    for (double w : invMass)
-        held += w == 0.0;
+    for (std::size_t c : counts)
+        held += c;
     if (held != list.size()) return false;
     return std::all_of(list.begin(), list.end(),
                        [&](Index i) { return i < invMass.size() && invMass[i] == 0.0; });
@@ -348,7 +363,7 @@ void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<dou
     anchorsHold_ = false;
     if (!s.longRangeAttachments) return;
     // The anchors are the particles that never move in the limiter.
-    if (!anchorsValid_ || !heldAre(invMass, anchorList_)) {
+    if (!anchorsValid_ || !heldAre(invMass, anchorList_, executor_, kScanSegment, blockHeld_)) {
         heldParticles(invMass, anchorList_);
         anchors_ = geodesicAnchors(topology, anchorList_, s.longRangeSlack);
         anchorsValid_ = true;
@@ -427,23 +442,41 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
         } else {
             // A move moves its own particle only (an anchor never moves), so every particle
             // beyond its reach is known before the first move: they are listed without
-            // branches (which particles sit at their reach follows no pattern), then moved in
-            // index order, as one pass would.
-            beyondReach_.resize(x.size());
-            Index* beyond = beyondReach_.data();
+            // branches (which particles sit at their reach follows no pattern), by blocks of
+            // kScanSegment particles on any thread, each into its own part of the list, then
+            // moved in index order, as one pass would (the same moves for any thread count).
+            const std::size_t n = x.size();
+            const std::size_t blocks = (n + kScanSegment - 1) / kScanSegment;
+            beyondReach_.resize(n);
+            blockBeyond_.resize(blocks);
+            blockFree_.resize(blocks);
             const Vec3* xp = x.data();
-            std::size_t count = 0;
-            for (std::size_t i = 0; i < x.size(); ++i) {
-                const Index a = anchor[i];
-                const bool free = (a != kNoParticle) & (w[i] != 0.0);
-                const Vec3 d = xp[i] - xp[free ? a : Index(i)];
-                const double r = f * restDistance[i];
-                beyond[count] = static_cast<Index>(i);
-                count += free & (d.squaredNorm() > r * r);
-                evaluated += free;
+            auto list = [&](std::size_t b0, std::size_t b1) {
+                for (std::size_t bl = b0; bl < b1; ++bl) {
+                    const std::size_t first = bl * kScanSegment,
+                                      end = std::min(n, first + kScanSegment);
+                    Index* beyond = beyondReach_.data() + first;
+                    std::size_t count = 0, free = 0;
+                    for (std::size_t i = first; i < end; ++i) {
+                        const Index a = anchor[i];
+                        const bool held = (a != kNoParticle) & (w[i] != 0.0);
+                        const Vec3 d = xp[i] - xp[held ? a : Index(i)];
+                        const double r = f * restDistance[i];
+                        beyond[count] = static_cast<Index>(i);
+                        count += held & (d.squaredNorm() > r * r);
+                        free += held;
+                    }
+                    blockBeyond_[bl] = count;
+                    blockFree_[bl] = free;
+                }
+            };
+            detail::forChunks(executor_, blocks, list, 2);
+            for (std::size_t bl = 0; bl < blocks; ++bl) {
+                evaluated += blockFree_[bl];
+                const Index* beyond = beyondReach_.data() + bl * kScanSegment;
+                for (std::size_t k = 0; k < blockBeyond_[bl]; ++k)
+                    pullIn(beyond[k]);
             }
-            for (std::size_t k = 0; k < count; ++k)
-                pullIn(beyond[k]);
         }
         st.work += evaluated;
     }
