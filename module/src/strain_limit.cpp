@@ -449,30 +449,30 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
             const std::size_t blocks = (n + kScanSegment - 1) / kScanSegment;
             beyondReach_.resize(n);
             blockBeyond_.resize(blocks);
-            blockFree_.resize(blocks);
+            blockAnchored_.resize(blocks);
             const Vec3* xp = x.data();
             auto list = [&](std::size_t b0, std::size_t b1) {
                 for (std::size_t bl = b0; bl < b1; ++bl) {
                     const std::size_t first = bl * kScanSegment,
                                       end = std::min(n, first + kScanSegment);
                     Index* beyond = beyondReach_.data() + first;
-                    std::size_t count = 0, free = 0;
+                    std::size_t count = 0, anchoredCount = 0;
                     for (std::size_t i = first; i < end; ++i) {
                         const Index a = anchor[i];
-                        const bool held = (a != kNoParticle) & (w[i] != 0.0);
-                        const Vec3 d = xp[i] - xp[held ? a : Index(i)];
+                        const bool anchored = (a != kNoParticle) & (w[i] != 0.0); // and free
+                        const Vec3 d = xp[i] - xp[anchored ? a : Index(i)];
                         const double r = f * restDistance[i];
                         beyond[count] = static_cast<Index>(i);
-                        count += held & (d.squaredNorm() > r * r);
-                        free += held;
+                        count += anchored & (d.squaredNorm() > r * r);
+                        anchoredCount += anchored;
                     }
                     blockBeyond_[bl] = count;
-                    blockFree_[bl] = free;
+                    blockAnchored_[bl] = anchoredCount;
                 }
             };
             detail::forChunks(executor_, blocks, list, 2);
             for (std::size_t bl = 0; bl < blocks; ++bl) {
-                evaluated += blockFree_[bl];
+                evaluated += blockAnchored_[bl];
                 const Index* beyond = beyondReach_.data() + bl * kScanSegment;
                 for (std::size_t k = 0; k < blockBeyond_[bl]; ++k)
                     pullIn(beyond[k]);

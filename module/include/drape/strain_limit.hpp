@@ -656,8 +656,8 @@ class StrainLimiter {
     std::vector<Index> anchorList_;
     std::vector<Index> beyondReach_; ///< scratch: the particles beyond their anchors' reach
     /// scratch, per block of kScanSegment particles: how many are beyond reach, and how many
-    /// have an anchor (evaluated)
-    std::vector<std::size_t> blockBeyond_, blockFree_;
+    /// free ones have an anchor (evaluated)
+    std::vector<std::size_t> blockBeyond_, blockAnchored_;
     std::vector<std::size_t> blockHeld_; ///< scratch: held particles per block (prepare)
     bool anchorsValid_ = false;
     /// The particles with zero inverse mass of the last pinsApart check, and the shortest
