@@ -71,6 +71,16 @@ void Attachments::advance(Cloth& c, double dt) const {
         c.setKinematicTarget(a.particle, attachmentPoint(a), arrival);
 }
 
+void Attachments::followBodies(Cloth& c, const std::vector<BodySnapshot>& bodies,
+                               double arrival) const {
+    for (const auto& a : list_) {
+        const auto it = std::find_if(bodies.begin(), bodies.end(),
+                                     [&](const BodySnapshot& b) { return b.object == a.body; });
+        if (it == bodies.end() || !it->carrier) continue;
+        c.setKinematicTarget(a.particle, it->pose.toWorld(a.localPoint), arrival);
+    }
+}
+
 bool Attachments::carryTeleported(Cloth& c, double dt, double speed) {
     // The bodies' poses now, and the one rigid motion they all made since the last call.
     std::vector<std::pair<const btCollisionObject*, Pose>> now;

@@ -21,6 +21,10 @@ namespace drape::bullet::detail {
 class Attachments {
   public:
     const std::vector<Attachment>& list() const { return list_; }
+    /// Within a Bullet sub-step: each particle attached to a carrier (BodySnapshot::carrier,
+    /// one of `bodies`) gets its point on the body's snapshot as its kinematic target
+    /// at `arrival` [s] (the snapshot moves with what the cloth gave the body).
+    void followBodies(Cloth& c, const std::vector<BodySnapshot>& bodies, double arrival) const;
     /// Attaches a.particle to a.body (replacing an attachment it had); the arguments are checked.
     void attach(Cloth& c, const Attachment& a);
     /// Returns the particle to free motion (nothing if it is not attached).

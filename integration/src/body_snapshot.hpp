@@ -64,10 +64,14 @@ struct BodySnapshot {
     /// kept from one cloth sub-step's walks to the next through the world step (a snapshot
     /// starts every world step at 1).
     double lighten = 1.0;
-    /// Particles of the cloth are attached to it: it moves them as kinematic targets set
-    /// before the cloth's steps, so it does not give way in the limiter's walk (a mover whose
-    /// attached particles stay put while its planes recede fights them without end).
+    /// Particles of the cloth are attached to it: it moves them as kinematic targets.
     bool attached = false;
+    /// Attached, dynamic, not supported and in no joint (btTypedConstraint): it carries its
+    /// attached particles in the limiter's walk (ContactPlanes::carry), and they follow its
+    /// snapshot through the Bullet sub-step. Any other attachment body moves them along
+    /// Bullet's path only and does not give way in the walk (a joint the walk does not know
+    /// would hold it back against what the walk moved).
+    bool carrier = false;
     /// The pose at the end of the Bullet sub-step (Bullet's answer, at the velocities it had).
     Pose end;
     /// Where the body was at the start of the current cloth step (pose: at its end).

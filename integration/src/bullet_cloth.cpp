@@ -205,6 +205,8 @@ struct BulletCloth::Impl {
     std::vector<const btCollisionObject*> candidates;
     /// Scratch of checkAttachmentBodies (kept: it runs every sub-step with attachments).
     std::vector<const btCollisionObject*> attachedBodies;
+    /// The bodies in an enabled joint of the world, sorted (gatherBodies, scratch).
+    std::vector<const btCollisionObject*> jointed;
     std::vector<unsigned char> bodyFound;
     /// The action that steps the world's cloths (shared by every cloth of the world).
     std::shared_ptr<Stepper> stepper;
@@ -566,6 +568,9 @@ void BulletCloth::Impl::advance() {
         // The bodies move through the Bullet sub-step with the cloth (BodySnapshot::advance).
         for (auto& b : contacts.bodies)
             b.advance(stepH);
+        // Particles attached to a free body follow it through the sub-step as the cloth moves
+        // it (its snapshot: the walk's share, the impulses), not Bullet's pose alone.
+        attachments.followBodies(c, contacts.bodies, c.time() + stepH);
         c.stepPart(stepH, stepSubsteps); // the contact stage runs inside it, the contact
                                          // force is one of its terms
         if (!inWorld) return; // removed during the step (by a stage): nothing more to give
@@ -628,9 +633,22 @@ void BulletCloth::Impl::gatherBodies(double dt) {
     }
     detail::markSupported(*world->getDispatcher(), bodies);
     // (attachedBodies: the attachment bodies, sorted, from checkAttachmentBodies this sub-step.)
-    if (!attachments.list().empty())
-        for (auto& b : bodies)
+    if (!attachments.list().empty()) {
+        // The bodies in a joint of the world (btRigidBody's constraint references are kept only
+        // for joints added with their bodies' collisions disabled: the world's list is asked).
+        jointed.clear();
+        for (int k = 0; k < world->getNumConstraints(); ++k)
+            if (const btTypedConstraint* tc = world->getConstraint(k); tc && tc->isEnabled()) {
+                jointed.push_back(&tc->getRigidBodyA());
+                jointed.push_back(&tc->getRigidBodyB());
+            }
+        std::sort(jointed.begin(), jointed.end());
+        for (auto& b : bodies) {
             b.attached = std::binary_search(attachedBodies.begin(), attachedBodies.end(), b.object);
+            b.carrier = b.attached && b.dynamicBody && !b.supported && b.invMass > 0.0 &&
+                        !std::binary_search(jointed.begin(), jointed.end(), b.object);
+        }
+    }
     last.candidateBodies = bodies.size();
 }
 
@@ -800,6 +818,7 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
     }
 
     m.contacts.limiterSlot = m.cloth->timers().slot("bullet_contacts/limiter");
+    m.contacts.attached = &m.attachments.list();
     m.slotBodies = m.cloth->timers().slot("bullet_bodies");
     // The cloth's contact force term reads the records the contact stage makes (removed with
     // this handle).

@@ -43,12 +43,13 @@ void ContactSolver::detect(Cloth& c, double dt) {
     if (bodies.empty()) return; // no rigid collider near the cloth: no work at all
     // A free dynamic body (in no Bullet contact: a projectile, a thrown rod) gives way in the
     // walk with its mass; a supported one is held by Bullet's contacts, and Bullet moves it;
-    // one the cloth is attached to moves the attached particles before the walk.
+    // one the cloth is attached to moves the attached particles (below: a carrier).
     // It gives way by shifting only: it turns through the impulses its planes hand it after the
     // walk (flushPlane, at their points). Turning in the walk too, a box resting on a net on
     // many planes rocked from corner to corner within every walk (Gauss-Seidel between opposite
     // sides) until the walk's cap (integration/README.md: "a box rocked within every walk").
     moverOf_.assign(bodies.size(), -1);
+    carrierOf_.assign(bodies.size(), -1);
     for (std::size_t bi = 0; bi < bodies.size(); ++bi) {
         const BodySnapshot& b = bodies[bi];
         if (!b.dynamicBody || b.supported || b.attached || !(b.invMass > 0.0)) continue;
@@ -57,6 +58,20 @@ void ContactSolver::detect(Cloth& c, double dt) {
             ContactPlanes::Mover{b.invMass, Eigen::Matrix3d::Zero(), b.com});
         records->planes.movers.back().lighten = b.lighten;
     }
+    // A carrier (a free body the cloth hangs from) gives way to its attached particles'
+    // springs, turning too: its inertia through their levers is what the cloth pulls on (a
+    // light sphere turns under a sheet hanging off its centre).
+    if (attached)
+        for (std::size_t bi = 0; bi < bodies.size(); ++bi) {
+            const BodySnapshot& b = bodies[bi];
+            if (!b.carrier) continue;
+            const auto m = static_cast<std::int32_t>(records->planes.movers.size());
+            carrierOf_[bi] = m;
+            records->planes.movers.push_back(ContactPlanes::Mover{b.invMass, b.invInertia, b.com});
+            for (const Attachment& a : *attached)
+                if (a.body == b.object && c.inverseMasses()[a.particle] == 0.0)
+                    records->planes.carry(m, a.particle, c.positions()[a.particle]);
+        }
     // A body thinner across than the longest spring (its second-smallest half extent plus the
     // thickness below that length: a rod, a small ball) fits between two particles.
     // Small: its largest half extent too (a small ball, a short stub), so that it fits inside
@@ -228,9 +243,9 @@ void ContactSolver::settleMovers(Cloth& c, double dt) {
     for (std::size_t t = 0; t < pl.triangles.size(); ++t)
         if (pl.triangles[t].mover >= 0) flushTriangle(t, dt);
     for (std::size_t bi = 0; bi < bodies.size(); ++bi)
-        if (const std::int32_t m = moverOf_[bi]; m >= 0) {
+        if (const std::int32_t m = moverOf_[bi] >= 0 ? moverOf_[bi] : carrierOf_[bi]; m >= 0) {
             const ContactPlanes::Mover& mv = pl.movers[std::size_t(m)];
-            bodies[bi].lighten = mv.lighten;
+            if (moverOf_[bi] >= 0) bodies[bi].lighten = mv.lighten;
             if (mv.applied())
                 bodies[bi].displace(mv.shift, mv.turn);
             else

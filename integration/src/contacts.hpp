@@ -157,6 +157,9 @@ class ContactSolver {
     ContactStats stats;
     /// The contact records: the cloth's contact force term reads them (Cloth::setContacts).
     std::shared_ptr<ContactSet> records;
+    /// The cloth's attachments (the handle's): a carrier body (BodySnapshot::carrier) carries
+    /// its attached particles in the walk (ContactPlanes::carry).
+    const std::vector<Attachment>* attached = nullptr;
     /// Inside a Bullet sub-step: the bodies are a fresh snapshot. Outside (the cloth stepped
     /// on its own) the stage collides with nothing.
     bool inStep = false;
@@ -319,6 +322,10 @@ class ContactSolver {
     std::vector<std::uint32_t> planeBody_;
     /// Per body: its ContactPlanes::Mover this step (a free dynamic body), or -1.
     std::vector<std::int32_t> moverOf_;
+    /// Per body: the ContactPlanes::Mover that carries its attached particles (a carrier), or
+    /// -1. Its planes do not give way with it: pressed on particles whose neighbours hang from
+    /// it (a bar landing on the curtain it carries), it would push itself, walk after walk.
+    std::vector<std::int32_t> carrierOf_;
     /// Per body: thinner across than the longest spring, so that it fits between two
     /// particles (detect): swept against the triangles at any speed (sweepBodies), and the
     /// springs across it pass it on one side (straddledSprings).

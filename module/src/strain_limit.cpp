@@ -426,7 +426,10 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
             const Vec3 d = x[i] - x[a];
             const double l2 = d.squaredNorm(), r = f * restDistance[i];
             if (l2 > r * r) {
-                const Vec3 dx = (r / std::sqrt(l2) - 1.0) * d;
+                Vec3 dx = (r / std::sqrt(l2) - 1.0) * d;
+                if (planes_) // a light body carrying the anchor comes along
+                    if (const std::int32_t c = carriedEntry(a); c >= 0)
+                        dx = shareWithCarrier(c, dx, w[i], x, moveTo);
                 move(static_cast<Index>(i), abovePlanes(Index(i), dx, x), x);
                 if (planes_) holdTriangles(Index(i), x, moveTo);
                 if (record) pullHeld(a, -dx / w[i]);
@@ -721,11 +724,21 @@ std::size_t StrainLimiter::correctWave(const std::vector<Spring>& springs,
         // A contact plane the particle lies on takes the normal part of its move: it counts
         // with w (1 - (u . n)^2) (first order). Shortening moves a along +u.
         double wsum = wa + wb;
+        // A held end a free body carries (ContactPlanes::Carried) moves with the body.
+        std::int32_t ca = -1, cb = -1;
         if constexpr (kPlanes) {
             const Vec3 u = d / l;
             const double eps = 1e-6 * spring[si].restLength;
             const double sgn = excess > 0.0 ? 1.0 : -1.0;
             wsum = slidingWeight(a, wa, sgn * u, x, eps) + slidingWeight(b, wb, -sgn * u, x, eps);
+            if (wa == 0.0) ca = carriedEntry(a);
+            if (wb == 0.0) cb = carriedEntry(b);
+            for (const std::int32_t c : {ca, cb}) {
+                if (c < 0) continue;
+                const ContactPlanes::Carried& e = planes_->carried[std::size_t(c)];
+                wsum +=
+                    planes_->movers[std::size_t(e.mover)].giveAlong(u, planes_->carriedLever(e));
+            }
             if (!(wsum > 0.0)) continue; // both ends held by their planes
             // One end pinned, the other on the plane of a body that does not give way (one
             // that does takes its share): a slide along the plane shortens a spring that meets
@@ -734,7 +747,8 @@ std::size_t StrainLimiter::correctWave(const std::vector<Spring>& springs,
             // plane pushes back what the jump put into it, again in every wave (a neighbour
             // attached across the plane, which no slide brings within the bound): the spring is
             // left as it is, the plane wins (the strain the step ends with counts it).
-            if (((wa == 0.0 && onStillPlane(b)) || (wb == 0.0 && onStillPlane(a))) &&
+            if (((wa == 0.0 && ca < 0 && onStillPlane(b)) ||
+                 (wb == 0.0 && cb < 0 && onStillPlane(a))) &&
                 !(wsum > (wa + wb) * std::min(1.0, std::abs(excess) / l)))
                 continue;
         }
@@ -758,6 +772,18 @@ std::size_t StrainLimiter::correctWave(const std::vector<Spring>& springs,
         if constexpr (kPlanes) {
             if (wa > 0.0) shift(a, keepAbove(a, wa * c, x));
             if (wb > 0.0) shift(b, keepAbove(b, -wb * c, x));
+            // A carried end's body moves its point by its share along the spring (a by +c,
+            // b by -c), and every particle it carries with it.
+            const ContactPlanes::Carried* carriedEnd[2] = {
+                ca >= 0 ? &planes_->carried[std::size_t(ca)] : nullptr,
+                cb >= 0 ? &planes_->carried[std::size_t(cb)] : nullptr};
+            for (int end = 0; end < 2; ++end) {
+                const ContactPlanes::Carried* e = carriedEnd[end];
+                if (!e) continue;
+                const Vec3 n = (end == 0 ? -dl / l : dl / l) * d; // take(1, n) moves it by -n
+                if (planes_->movers[std::size_t(e->mover)].take(1.0, n, planes_->carriedLever(*e)))
+                    moveCarried(e->mover, x, shift);
+            }
             holdTriangles(a, x, shift);
             holdTriangles(b, x, shift);
         } else {

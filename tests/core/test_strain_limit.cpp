@@ -643,6 +643,94 @@ TEST_CASE("a body that gives way in the walk takes what its planes push, momentu
     CHECK(shiftOf[0] > 100.0 * shiftOf[1]);
 }
 
+TEST_CASE("a free body carrying particles gives way in the walk, rigidly, momentum conserved",
+          "[limiter][carrier]") {
+    // The irregular sheet of the tests above, its left-most particles attached to a free body
+    // (zero inverse mass in the cloth, carried by a ContactPlanes::Mover), the rest pulled far
+    // down and sideways. The walk (long-range attachments from the carried particles, then the
+    // waves) must reach the bound; the carried particles move as one rigid body with it (their
+    // distances kept, each where the body's shift and turn put it); the body's momentum
+    // change M shift is the opposite of the free particles' sum m dx, and it is what the
+    // held particles took (heldPull, the impulse the glue hands the body). A light body gives
+    // way more than a heavy one.
+    const PlaneSheet sheet = planeSheet();
+    const auto& topo = sheet.topo;
+    const std::size_t n = topo->particleCount();
+    double xMin = 1e9;
+    for (const Vec3& p : topo->restPositions())
+        xMin = std::min(xMin, p.x());
+    std::vector<double> invMass = sheet.invMass;
+    std::vector<Index> carried;
+    double clothMass = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+        clothMass += sheet.mass[i];
+        if (topo->restPositions()[i].x() < xMin + 0.15) {
+            carried.push_back(static_cast<Index>(i));
+            invMass[i] = 0.0;
+        }
+    }
+    REQUIRE(carried.size() >= 3);
+    const LimiterSettings s = limiterSettings();
+    const std::vector<double> k(topo->springCount(), 1.0);
+    double shiftOf[2] = {0.0, 0.0};
+    for (int heavy = 0; heavy < 2; ++heavy) {
+        const double bodyMass = heavy ? 100.0 * clothMass : 0.5 * clothMass;
+        std::vector<Vec3> x = topo->restPositions();
+        for (std::size_t i = 0; i < n; ++i)
+            if (invMass[i] > 0.0) x[i] += Vec3(0.1, -0.5, 0.1) * (x[i].x() - xMin - 0.15);
+        Vec3 centre = Vec3::Zero();
+        for (Index i : carried)
+            centre += x[i] / double(carried.size());
+        centre += Vec3(-0.05, 0.1, 0.0);
+        ContactPlanes planes;
+        planes.reset(n);
+        const Eigen::Matrix3d invInertia =
+            Eigen::Matrix3d::Identity() / (bodyMass * (0.04 + 0.04) / 12.0);
+        planes.movers.push_back(ContactPlanes::Mover{1.0 / bodyMass, invInertia, centre});
+        for (Index i : carried)
+            planes.carry(0, i, x[i]);
+        const std::vector<Vec3> before = x;
+        StrainLimiter limiter;
+        limiter.setRecordHeld(true);
+        limiter.clearMoved();
+        const StrainLimitStats st = limiter.limit(*topo, invMass, k, s, x, &planes);
+        const ContactPlanes::Mover& body = planes.movers[0];
+        INFO("body mass " << bodyMass << " kg, waves " << st.rounds << ", shift "
+                          << body.shift.transpose() << ", turn " << body.turn.transpose());
+        CHECK(maxSpringStrain(*topo, before) > 0.3);
+        CHECK_FALSE(st.capHit);
+        CHECK(body.applied());
+        CHECK(maxSpringStrain(*topo, x) <= s.maxStrain + s.tolerance + 1e-12);
+        // Rigid: where the body put them, their distances kept.
+        for (Index i : carried) {
+            const ContactPlanes::Carried& c =
+                planes.carried[std::size_t(planes.carriedOf[std::size_t(i)])];
+            CHECK((x[i] - planes.carriedNow(c)).norm() <= 1e-12);
+            for (Index j : carried)
+                CHECK((x[i] - x[j]).norm() == Approx((before[i] - before[j]).norm()).margin(1e-12));
+        }
+        Vec3 dp = Vec3::Zero(), held = Vec3::Zero();
+        for (std::size_t i = 0; i < n; ++i)
+            if (invMass[i] > 0.0) dp += sheet.mass[i] * (x[i] - before[i]);
+        for (Index i : limiter.heldIndex())
+            held += limiter.heldPull()[i];
+        CHECK(dp.norm() > 1e-3);
+        CHECK((dp + bodyMass * body.shift).norm() <= 1e-10 * (1.0 + dp.norm()));
+        CHECK((held - bodyMass * body.shift).norm() <= 1e-10 * (1.0 + dp.norm()));
+        shiftOf[heavy] = body.shift.norm();
+        // settleMovers carries them on: each where the body now is, lever turned with it.
+        const Vec3 moved = centre + body.shift;
+        planes.settleMovers();
+        for (Index i : carried) {
+            const ContactPlanes::Carried& c =
+                planes.carried[std::size_t(planes.carriedOf[std::size_t(i)])];
+            CHECK((c.at - x[i]).norm() <= 1e-12);
+            CHECK((moved + c.lever - x[i]).norm() <= 1e-12);
+        }
+    }
+    CHECK(shiftOf[0] > 50.0 * shiftOf[1]);
+}
+
 namespace {
 /// A triangle plane's state in the tests below: the plane's triangle (the one around the
 /// sheet's middle), its point's weights, and the point where `x` has it.

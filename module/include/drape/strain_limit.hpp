@@ -127,6 +127,8 @@ struct ContactPlanes {
             shift -= (invMass * lambda) * n;
             return true;
         }
+        /// Its carried particles: entries [carriedBegin, carriedEnd) of ContactPlanes::carried.
+        std::size_t carriedBegin = 0, carriedEnd = 0;
         /// Its inverse mass along n at `lever` from its centre of mass [1/kg].
         double giveAlong(const Vec3& n, const Vec3& lever) const {
             const Vec3 rxn = lever.cross(n);
@@ -144,6 +146,46 @@ struct ContactPlanes {
     /// mover's inverse mass along the normal there, 1/M + (r x n) . I^-1 (r x n) [1/kg].
     std::vector<Vec3> lever;
     std::vector<double> give;
+
+    /// A particle a mover carries: attached to the body (zero inverse mass in the cloth), it
+    /// moves with it. In the walk a spring or long-range attachment that pulls it pulls the
+    /// body (Gauss-Seidel with the body's inverse mass along the pull at the particle, as at a
+    /// plane of a mover), and every particle the body carries moves with it: a cloth hanging
+    /// from a light free body moves it by its share instead of being held by it as by a pin
+    /// (whose reaction, handed to the body after the walk, threw a body lighter than the cloth
+    /// about). `at` is where it was when the mover started from rest (settleMovers), `lever`
+    /// the same point from the mover's centre of mass [m].
+    struct Carried {
+        Index particle = 0;
+        std::int32_t mover = -1;
+        Vec3 at = Vec3::Zero();
+        Vec3 lever = Vec3::Zero();
+    };
+    std::vector<Carried> carried;
+    /// Per particle: its entry in `carried`, or -1 (empty while nothing is carried).
+    std::vector<std::int32_t> carriedOf;
+    /// Mover m carries particle i (zero inverse mass), now at x; a mover's particles are added
+    /// one after another, before the next mover's.
+    void carry(std::int32_t m, Index i, const Vec3& x) {
+        if (carriedOf.size() != of.size()) carriedOf.assign(of.size(), -1);
+        Mover& b = movers[std::size_t(m)];
+        if (b.carriedEnd == b.carriedBegin) b.carriedBegin = b.carriedEnd = carried.size();
+        carriedOf[i] = static_cast<std::int32_t>(carried.size());
+        carried.push_back(Carried{i, m, x, x - b.centre});
+        b.carriedEnd = carried.size();
+    }
+    /// Carried entry c's lever now: turned with its mover (exactly: a light body can turn
+    /// far in one walk, and first order would stretch what it carries) [m].
+    Vec3 carriedLever(const Carried& c) const {
+        const Vec3& turn = movers[std::size_t(c.mover)].turn;
+        const double angle = turn.norm();
+        return angle > 0.0 ? Vec3(Eigen::AngleAxisd(angle, turn / angle) * c.lever) : c.lever;
+    }
+    /// Where carried entry c is now: moved and turned with its mover [m].
+    Vec3 carriedNow(const Carried& c) const {
+        const Mover& b = movers[std::size_t(c.mover)];
+        return b.centre + b.shift + carriedLever(c);
+    }
 
     /// A triangle's plane: the point sum_k beta_k x_k of the triangle (corners `corner`) stays
     /// where n . x >= offset -- a body thinner than the triangle, which touches no corner,
@@ -193,8 +235,8 @@ struct ContactPlanes {
         return t.mover < 0 ? t.offset
                            : t.offset + movers[std::size_t(t.mover)].moved(t.normal, t.lever);
     }
-    /// Whether there is any plane, of a particle or a triangle.
-    bool any() const { return !normal.empty() || !triangles.empty(); }
+    /// Whether there is any plane, of a particle or a triangle, or a carried particle.
+    bool any() const { return !normal.empty() || !triangles.empty() || !carried.empty(); }
 
     /// Forgets every plane and mover; `of` gets one entry per particle.
     void reset(std::size_t particles) {
@@ -204,6 +246,10 @@ struct ContactPlanes {
                 triangleHead[i] = -1;
         triangles.clear();
         triangleNext.clear();
+        for (const Carried& c : carried)
+            carriedOf[c.particle] = -1;
+        carried.clear();
+        if (!carriedOf.empty() && carriedOf.size() != particles) carriedOf.clear();
         if (!triangleHead.empty() && triangleHead.size() != particles) triangleHead.clear();
         for (std::size_t k = 0; k < normal.size(); ++k)
             of[particle_[k]] = -1;
@@ -272,7 +318,7 @@ struct ContactPlanes {
                               : Eigen::Matrix3d::Identity();
         }
         // offset = n . (centre + lever) + h, h the plane's distance from the surface.
-        auto carry = [&](std::int32_t m, Vec3& n, Vec3& r, double& off) {
+        auto follow = [&](std::int32_t m, Vec3& n, Vec3& r, double& off) {
             if (m < 0) return;
             const Mover& b = movers[std::size_t(m)];
             const Eigen::Matrix3d& R = rotation[std::size_t(m)];
@@ -282,9 +328,16 @@ struct ContactPlanes {
             off = n.dot(b.centre + b.shift + r) + h;
         };
         for (std::size_t k = 0; k < normal.size(); ++k)
-            carry(mover[k], normal[k], lever[k], offset[k]);
+            follow(mover[k], normal[k], lever[k], offset[k]);
         for (TrianglePlane& t : triangles)
-            carry(t.mover, t.normal, t.lever, t.offset);
+            follow(t.mover, t.normal, t.lever, t.offset);
+        for (Carried& c : carried) {
+            const Mover& b = movers[std::size_t(c.mover)];
+            c.lever = rotation[std::size_t(c.mover)] * c.lever;
+            c.at = b.centre + b.shift + c.lever;
+        }
+        // (carriedNow reads centre + shift + lever: the same point once the movers start
+        // again from rest below.)
         for (Mover& b : movers) {
             b.centre += b.shift;
             b.shift = Vec3::Zero();
@@ -553,6 +606,43 @@ class StrainLimiter {
             if (w[c] > 0.0 && t.beta[k] != 0.0) moveBy(c, (t.beta[k] * w[c] * lambda) * dir[k]);
         }
         t.push += lambda * t.normal;
+    }
+    /// Particle i's entry in planes_->carried (a particle a mover carries), or -1.
+    std::int32_t carriedEntry(Index i) const {
+        return planes_->carriedOf.empty() ? -1 : planes_->carriedOf[i];
+    }
+    /// Mover m's carried particles follow it: each moved by moveBy(particle, dx).
+    template <class MoveBy>
+    void moveCarried(std::int32_t m, const std::vector<Vec3>& x, MoveBy&& moveBy) {
+        const ContactPlanes::Mover& b = planes_->movers[std::size_t(m)];
+        const double angle = b.turn.norm();
+        const Eigen::Matrix3d R = angle > 0.0
+                                      ? Eigen::AngleAxisd(angle, b.turn / angle).toRotationMatrix()
+                                      : Eigen::Matrix3d::Identity();
+        const Vec3 centre = b.centre + b.shift;
+        for (std::size_t k = b.carriedBegin; k < b.carriedEnd; ++k) {
+            const ContactPlanes::Carried& c = planes_->carried[k];
+            const Vec3 dx = centre + R * c.lever - x[c.particle];
+            if (dx != Vec3::Zero()) moveBy(c.particle, dx);
+        }
+    }
+    /// A correction that would move free particle i (inverse mass wi) by dx toward the
+    /// particle of carried entry c: its body takes its share (Gauss-Seidel with the body's
+    /// inverse mass along dx there) and moves its carried particles by moveBy. Returns i's
+    /// share of dx (dx itself when the body cannot take it: ContactPlanes::Mover::take).
+    template <class MoveBy>
+    Vec3 shareWithCarrier(std::int32_t c, const Vec3& dx, double wi, const std::vector<Vec3>& x,
+                          MoveBy&& moveBy) {
+        const double len = dx.norm();
+        if (!(len > 0.0)) return dx;
+        const Vec3 u = dx / len;
+        const ContactPlanes::Carried& e = planes_->carried[std::size_t(c)];
+        ContactPlanes::Mover& b = planes_->movers[std::size_t(e.mover)];
+        const Vec3 lever = planes_->carriedLever(e);
+        const double lambda = len / (wi + b.giveAlong(u, lever)); // [kg m]
+        if (!b.take(lambda, u, lever)) return dx;                 // the body's point moves along -u
+        moveCarried(e.mover, x, moveBy);
+        return (wi * lambda / len) * dx;
     }
     /// The walk keeps `planes` when there are any, one entry of `of` per particle (n).
     void usePlanes(ContactPlanes* planes, const std::vector<double>& invMass) {
