@@ -71,14 +71,18 @@ void Attachments::advance(Cloth& c, double dt) const {
         c.setKinematicTarget(a.particle, attachmentPoint(a), arrival);
 }
 
-void Attachments::followBodies(Cloth& c, const std::vector<BodySnapshot>& bodies,
-                               double arrival) const {
-    for (const auto& a : list_) {
-        const auto it = std::find_if(bodies.begin(), bodies.end(),
-                                     [&](const BodySnapshot& b) { return b.object == a.body; });
-        if (it == bodies.end() || !it->carrier) continue;
-        c.setKinematicTarget(a.particle, it->pose.toWorld(a.localPoint), arrival);
-    }
+void Attachments::followBodies(Cloth& c, const std::vector<BodySnapshot>& bodies, double arrival) {
+    // The carriers among the bodies (a few at most: the loop below is attachments times them).
+    carriers_.clear();
+    for (const BodySnapshot& b : bodies)
+        if (b.carrier) carriers_.push_back(&b);
+    if (carriers_.empty()) return;
+    for (const auto& a : list_)
+        for (const BodySnapshot* b : carriers_)
+            if (b->object == a.body) {
+                c.setKinematicTarget(a.particle, b->pose.toWorld(a.localPoint), arrival);
+                break;
+            }
 }
 
 bool Attachments::carryTeleported(Cloth& c, double dt, double speed) {

@@ -24,7 +24,7 @@ class Attachments {
     /// Within a Bullet sub-step: each particle attached to a carrier (BodySnapshot::carrier,
     /// one of `bodies`) gets its point on the body's snapshot as its kinematic target
     /// at `arrival` [s] (the snapshot moves with what the cloth gave the body).
-    void followBodies(Cloth& c, const std::vector<BodySnapshot>& bodies, double arrival) const;
+    void followBodies(Cloth& c, const std::vector<BodySnapshot>& bodies, double arrival);
     /// Attaches a.particle to a.body (replacing an attachment it had); the arguments are checked.
     void attach(Cloth& c, const Attachment& a);
     /// Returns the particle to free motion (nothing if it is not attached).
@@ -89,6 +89,7 @@ class Attachments {
 
   private:
     std::vector<Attachment> list_;
+    std::vector<const BodySnapshot*> carriers_; ///< followBodies' scratch
     /// Each attachment body's pose at the last carryTeleported.
     std::vector<std::pair<const btCollisionObject*, Pose>> seen_;
     /// The springs between particles attached to two different bodies and their two
