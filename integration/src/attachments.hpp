@@ -51,7 +51,7 @@ class Attachments {
     /// steps touch no Bullet body, so cloths can step in parallel), counted in
     /// stats.impulseOnBodies.
     void pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>& bodies,
-                    ContactStats& stats, std::vector<OutsideImpulse>& outside) const;
+                    ContactStats& stats, std::vector<OutsideImpulse>& outside);
     /// After the cloth's steps of a Bullet sub-step of dt [s]: a spring whose two ends are
     /// attached to two different bodies, one of them dynamic, has no free end, so no
     /// strain-limiter walk can hold it; it holds the bodies instead, as a rope: beyond
@@ -90,6 +90,8 @@ class Attachments {
   private:
     std::vector<Attachment> list_;
     std::vector<const BodySnapshot*> carriers_; ///< followBodies' scratch
+    std::vector<Vec3> levers_;                  ///< pushBodies' scratch: a carrier's levers
+    std::vector<double> masses_;                ///< and its particles' masses
     /// Each attachment body's pose at the last carryTeleported.
     std::vector<std::pair<const btCollisionObject*, Pose>> seen_;
     /// The springs between particles attached to two different bodies and their two

@@ -98,6 +98,16 @@ struct BodySnapshot {
         const Vec3 rxd = (p - com).cross(d);
         return invMass + rxd.dot(invInertia * rxd);
     }
+    /// A linear impulse [N s] and an angular one about its centre of mass [N m s].
+    void applyImpulseAboutCentre(const Vec3& linear, const Vec3& angular) {
+        if (!dynamicBody) return;
+        linearImpulse += linear;
+        angularImpulse += angular;
+        v += invMass * linear;
+        w += invInertia * angular;
+        still = false;
+        moved_ = true;
+    }
     void applyImpulse(const Vec3& j, const Vec3& p) {
         if (!dynamicBody) return;
         const Vec3 torque = (p - com).cross(j);

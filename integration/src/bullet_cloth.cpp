@@ -622,6 +622,16 @@ void BulletCloth::Impl::gatherBodies(double dt) {
     if (!cloth->isAsleep()) detail::sweptBounds(*cloth, dt, reach, lo, hi);
     if (proxy.candidates(lo, hi, candidates)) ++last.proxyRefreshes;
     addFastBodies(lo, hi, dt);
+    // Every dynamic body the cloth is attached to is snapshotted, near the cloth or not (a long
+    // attachment): its particles move with it and it takes their load in the cloth's steps.
+    // (An attachment body that came and went with the proxy's box was one step a carrier, the
+    // next handed the load outside: a sheet hanging 0.4 m below a small ball was thrown about.)
+    if (!attachments.list().empty())
+        for (const btCollisionObject* obj : attachedBodies)
+            if (const btRigidBody* rb = btRigidBody::upcast(obj);
+                rb && !rb->isStaticOrKinematicObject() &&
+                std::find(candidates.begin(), candidates.end(), obj) == candidates.end())
+                candidates.push_back(obj);
     for (const btCollisionObject* obj : candidates) {
         if (!obj || obj == proxy.object()) continue;
         detail::BodySnapshot b;

@@ -68,9 +68,19 @@ void ContactSolver::detect(Cloth& c, double dt) {
             const auto m = static_cast<std::int32_t>(records->planes.movers.size());
             carrierOf_[bi] = m;
             records->planes.movers.push_back(ContactPlanes::Mover{b.invMass, b.invInertia, b.com});
+            carriedLevers_.clear();
+            carriedMasses_.clear();
             for (const Attachment& a : *attached)
-                if (a.body == b.object && c.inverseMasses()[a.particle] == 0.0)
+                if (a.body == b.object && c.inverseMasses()[a.particle] == 0.0) {
                     records->planes.carry(m, a.particle, c.positions()[a.particle]);
+                    carriedLevers_.push_back(c.positions()[a.particle] - b.com);
+                    carriedMasses_.push_back(c.masses()[a.particle]);
+                }
+            // Its particles are part of it (their masses move and turn with it).
+            ContactPlanes::Mover& mover = records->planes.movers[std::size_t(m)];
+            mover.composite = true;
+            mover.mobility =
+                carrierMatrices(b.invMass, b.invInertia, carriedLevers_, carriedMasses_).mobility;
         }
     // A body thinner across than the longest spring (its second-smallest half extent plus the
     // thickness below that length: a rod, a small ball) fits between two particles.

@@ -70,6 +70,32 @@ std::size_t nextAbove(const double* r, std::size_t from, std::size_t end, double
 }
 } // namespace
 
+CarrierMatrices carrierMatrices(double invMass, const Eigen::Matrix3d& invInertia,
+                                const std::vector<Vec3>& levers,
+                                const std::vector<double>& masses) {
+    using Matrix6 = Eigen::Matrix<double, 6, 6>;
+    Matrix6 W = Matrix6::Zero();
+    W.topLeftCorner<3, 3>() = invMass * Eigen::Matrix3d::Identity();
+    W.bottomRightCorner<3, 3>() = invInertia;
+    Matrix6 A = Matrix6::Zero();
+    for (std::size_t k = 0; k < levers.size() && k < masses.size(); ++k) {
+        Eigen::Matrix3d r;
+        r << 0.0, -levers[k].z(), levers[k].y(), levers[k].z(), 0.0, -levers[k].x(), -levers[k].y(),
+            levers[k].x(), 0.0; // [r]x: r x v = [r]x v
+        const double m = masses[k];
+        A.topLeftCorner<3, 3>() += m * Eigen::Matrix3d::Identity();
+        A.topRightCorner<3, 3>() -= m * r;
+        A.bottomLeftCorner<3, 3>() += m * r;
+        A.bottomRightCorner<3, 3>() -= m * r * r;
+    }
+    // 1 + A W has eigenvalues >= 1 (A and W are positive semi-definite): always invertible.
+    CarrierMatrices out;
+    out.share = (Matrix6::Identity() + A * W).inverse();
+    out.mobility = W * out.share;
+    out.mobility = 0.5 * (out.mobility + out.mobility.transpose()); // symmetric, to rounding
+    return out;
+}
+
 double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x) {
     if (topology.springCount() == 0) return -std::numeric_limits<double>::infinity();
     // The largest squared length ratio, one square root at the end: the family slots from

@@ -731,6 +731,55 @@ TEST_CASE("a free body carrying particles gives way in the walk, rigidly, moment
     CHECK(shiftOf[0] > 50.0 * shiftOf[1]);
 }
 
+TEST_CASE("a body and the point masses it carries answer an impulse as one rigid body",
+          "[limiter][carrier]") {
+    // carrierMatrices: a 0.3 kg body (an anisotropic, turned inertia) carrying five point
+    // masses at random levers. An impulse (linear J, angular L about the centre) on the whole
+    // moves it by mobility (J, L); the body takes share (J, L) itself and moves by W times
+    // that, the same motion, and the rest moves the point masses with it: the linear momentum
+    // of body and masses changes by J, their angular momentum about the centre by L.
+    Rng rng(11);
+    const double invMass = 1.0 / 0.3;
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+    const Eigen::Matrix3d inertia = R * Vec3(2e-3, 5e-3, 8e-3).asDiagonal() * R.transpose();
+    const Eigen::Matrix3d invInertia = inertia.inverse();
+    std::vector<Vec3> levers;
+    std::vector<double> masses;
+    for (int k = 0; k < 5; ++k) {
+        levers.push_back(
+            Vec3(rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5)));
+        masses.push_back(rng.uniform(0.01, 0.2));
+    }
+    const CarrierMatrices whole = carrierMatrices(invMass, invInertia, levers, masses);
+    CHECK((whole.mobility - whole.mobility.transpose()).norm() <= 1e-12 * whole.mobility.norm());
+    for (int trial = 0; trial < 4; ++trial) {
+        Eigen::Matrix<double, 6, 1> impulse;
+        for (int k = 0; k < 6; ++k)
+            impulse[k] = rng.uniform(-1.0, 1.0);
+        const Eigen::Matrix<double, 6, 1> motion = whole.mobility * impulse;
+        const Eigen::Matrix<double, 6, 1> own = whole.share * impulse;
+        const Vec3 dv = motion.head<3>(), dw = motion.tail<3>();
+        // The body's own answer to its share is the whole's motion.
+        CHECK((invMass * own.head<3>() - dv).norm() <= 1e-10 * (1.0 + dv.norm()));
+        CHECK((invInertia * own.tail<3>() - dw).norm() <= 1e-10 * (1.0 + dw.norm()));
+        // Momentum and angular momentum (about the centre) of body and masses.
+        Vec3 p = dv / invMass, l = inertia * dw;
+        for (std::size_t k = 0; k < levers.size(); ++k) {
+            const Vec3 u = dv + dw.cross(levers[k]);
+            p += masses[k] * u;
+            l += levers[k].cross(masses[k] * u);
+        }
+        CHECK((p - impulse.head<3>()).norm() <= 1e-10);
+        CHECK((l - impulse.tail<3>()).norm() <= 1e-10);
+    }
+    // Carrying nothing it is the body alone.
+    const CarrierMatrices alone = carrierMatrices(invMass, invInertia, {}, {});
+    CHECK((alone.share - Eigen::Matrix<double, 6, 6>::Identity()).norm() <= 1e-15);
+    CHECK((alone.mobility.topLeftCorner<3, 3>() - invMass * Eigen::Matrix3d::Identity()).norm() <=
+          1e-12);
+    CHECK((alone.mobility.bottomRightCorner<3, 3>() - invInertia).norm() <= 1e-9);
+}
+
 namespace {
 /// A triangle plane's state in the tests below: the plane's triangle (the one around the
 /// sheet's middle), its point's weights, and the point where `x` has it.

@@ -118,20 +118,42 @@ struct ContactPlanes {
         /// take returns false, as it does for a broken mover.
         bool take(double lambda, const Vec3& n, const Vec3& lever) {
             if (broken) return false;
-            const Vec3 t = turn - invInertia * (lever.cross(n) * lambda);
+            Vec3 t, linear;
+            if (composite) {
+                const Vec3 rxn = lever.cross(n);
+                t = turn - (mobility.bottomLeftCorner<3, 3>() * n +
+                            mobility.bottomRightCorner<3, 3>() * rxn) *
+                               lambda;
+                linear =
+                    (mobility.topLeftCorner<3, 3>() * n + mobility.topRightCorner<3, 3>() * rxn) *
+                    lambda;
+            } else { // (the same operations as before composite movers: the same bits)
+                t = turn - invInertia * (lever.cross(n) * lambda);
+                linear = (invMass * lambda) * n;
+            }
             if (!(t.squaredNorm() <= kBrokenTurn * kBrokenTurn) || !shift.allFinite()) {
                 broken = true;
                 return false;
             }
             turn = t;
-            shift -= (invMass * lambda) * n;
+            shift -= linear;
             return true;
         }
         /// Its carried particles: entries [carriedBegin, carriedEnd) of ContactPlanes::carried.
         std::size_t carriedBegin = 0, carriedEnd = 0;
-        /// Its inverse mass along n at `lever` from its centre of mass [1/kg].
+        /// A body with the particles it carries as one rigid body (their masses are part of it,
+        /// as their motion is): `mobility` is its inverse mass over (linear, angular about
+        /// `centre`), CarrierMatrices::mobility; invMass and invInertia are then not used.
+        bool composite = false;
+        Eigen::Matrix<double, 6, 6> mobility = Eigen::Matrix<double, 6, 6>::Zero();
+        /// Its inverse mass along unit n at `lever` from its centre of mass [1/kg].
         double giveAlong(const Vec3& n, const Vec3& lever) const {
             const Vec3 rxn = lever.cross(n);
+            if (composite) {
+                Eigen::Matrix<double, 6, 1> g;
+                g << n, rxn;
+                return g.dot(mobility * g);
+            }
             return invMass + rxn.dot(invInertia * rxn);
         }
         /// How far a point at `lever` has moved along n in the walk (first order) [m].
@@ -374,6 +396,21 @@ struct ContactPlanes {
   private:
     std::vector<Index> particle_;
 };
+
+/// A rigid body (inverse mass and world inverse inertia about its centre of mass) carrying
+/// point masses fixed to it (attached particles) at levers from its centre of mass: W =
+/// diag(invMass, invInertia) the body's own 6 x 6 inverse mass, A the point masses' mass matrix
+/// about the centre (sum m [1, -[r]x; [r]x, -[r]x [r]x]).
+struct CarrierMatrices {
+    /// The whole's inverse mass, (W^-1 + A)^-1 = W (1 + A W)^-1: what a push on the body or on
+    /// the particles moves and turns.
+    Eigen::Matrix<double, 6, 6> mobility;
+    /// (1 + A W)^-1: of an impulse (linear, angular about the centre) on the whole, the part
+    /// the body itself takes (the rest moves the point masses with it).
+    Eigen::Matrix<double, 6, 6> share;
+};
+CarrierMatrices carrierMatrices(double invMass, const Eigen::Matrix3d& invInertia,
+                                const std::vector<Vec3>& levers, const std::vector<double>& masses);
 
 /// Where each particle's long-range attachment goes: its nearest anchor over the cloth
 /// (kNoParticle if no anchor reaches it) and the rest distance of the attachment [m].
