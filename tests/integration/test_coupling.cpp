@@ -591,6 +591,71 @@ TEST_CASE("a sheet hanging from a light free body falls with it", "[coupling][at
     CHECK(strain <= 0.1 + cloth->settings().limiter.tolerance + 1e-9);
 }
 
+TEST_CASE("two sheets tied to one light thrown box fly with it, momentum exact",
+          "[coupling][attach][carrier]") {
+    // A 0.1 kg box (1.2 x 0.1 x 0.1 m) thrown at (3, 2, 0) m/s with two 10 x 10 sheets
+    // (0.16 kg each, twice and a half its mass together) attached along its length, each at
+    // the box's velocity; or one sheet on a box that cannot turn (angular factor 0). Gravity
+    // and the sheets' air drag are the only outside forces: over 2 s the momentum of box and
+    // sheets must be (m + M)(v0 + g t) less the drag's impulse. Each cloth carries the box as
+    // one rigid body with its own particles (the other cloth's are not part of it), and the
+    // box takes each cloth's share.
+    const bool turns = GENERATE(true, false);
+    const double boxMass = 0.1, dt = 1.0 / 60.0;
+    const Vec3 v0(3.0, 2.0, 0.0), g(0.0, -9.81, 0.0);
+    TestWorld w;
+    btRigidBody* box =
+        w.body(w.shape<btBoxShape>(btVector3(0.6f, 0.05f, 0.05f)), boxMass, Vec3(0.45, 2.06, 0.0));
+    box->setActivationState(DISABLE_DEACTIVATION);
+    if (!turns) box->setAngularFactor(btVector3(0, 0, 0));
+    box->setLinearVelocity(bullet::toBt(v0));
+    std::vector<std::shared_ptr<Cloth>> cloths;
+    for (int k = 0; k < (turns ? 2 : 1); ++k) {
+        SheetSpec spec;
+        spec.rows = spec.cols = 10;
+        spec.spacing = 0.1;
+        spec.origin = Vec3(0.0, 2.0, 0.04 * k);
+        auto cloth = makeCloth(makeSheet(spec), ClothSettings{});
+        auto& handle = w.add(cloth);
+        for (Index c = 0; c < spec.cols; ++c)
+            handle.attachHere(c, box);
+        for (Vec3& v : cloth->mutableVelocities())
+            v = v0;
+        cloths.push_back(cloth);
+    }
+    double clothMass = 0.0, strain = 0.0;
+    for (const auto& c : cloths)
+        clothMass += c->totalMass();
+    Vec3 drag = Vec3::Zero(); // the damping force's impulse, trapezoidal over the frames
+    auto dragForce = [&]() {
+        Vec3 f = Vec3::Zero();
+        for (const auto& c : cloths)
+            for (const Vec3& v : c->velocities())
+                f -= c->settings().damping * v;
+        return f;
+    };
+    Vec3 before = dragForce();
+    const int frames = 120;
+    for (int k = 0; k < frames; ++k) {
+        REQUIRE_NOTHROW(w.world.stepSimulation(btScalar(dt), 1, btScalar(dt)));
+        const Vec3 after = dragForce();
+        drag += 0.5 * dt * (before + after);
+        before = after;
+        for (const auto& c : cloths)
+            strain = std::max(strain, c->maxStrain());
+    }
+    Vec3 p = boxMass * eig(box->getLinearVelocity());
+    for (const auto& c : cloths)
+        p += clothMomentum(*c);
+    const Vec3 expected = (boxMass + clothMass) * (v0 + g * (frames * dt)) + drag;
+    INFO(measured("%s: box %.2f kg, sheets %.3f kg: momentum (%.4f, %.4f, %.4f) N s against "
+                  "(%.4f, %.4f, %.4f), peak strain %.4f",
+                  turns ? "two sheets" : "one sheet, the box cannot turn", boxMass, clothMass,
+                  p.x(), p.y(), p.z(), expected.x(), expected.y(), expected.z(), strain));
+    CHECK((p - expected).norm() <= 0.01 * expected.norm());
+    CHECK(strain <= 0.1 + cloths[0]->settings().limiter.tolerance + 1e-9);
+}
+
 namespace {
 /// A 1 m banner of the default cloth hanging from its top row: the left half attached to one
 /// 2 kg post, the right half to another, each post hanging from two ball joints on its top
