@@ -41,6 +41,20 @@ Vec3 attachmentPoint(const Attachment& a) {
     return toPose(a.body->getWorldTransform()).toWorld(a.localPoint);
 }
 
+void carriedParticles(const std::vector<Attachment>& attached, const Cloth& c,
+                      const BodySnapshot& b, std::vector<Index>& particles,
+                      std::vector<Vec3>& levers, std::vector<double>& masses) {
+    particles.clear();
+    levers.clear();
+    masses.clear();
+    for (const Attachment& a : attached)
+        if (a.body == b.object && c.inverseMasses()[a.particle] == 0.0) {
+            particles.push_back(a.particle);
+            levers.push_back(c.positions()[a.particle] - b.com);
+            masses.push_back(c.masses()[a.particle]);
+        }
+}
+
 void Attachments::attach(Cloth& c, const Attachment& a) {
     detach(c, a.particle);
     list_.push_back(a);
@@ -171,18 +185,14 @@ void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>
     // from a small ball's centre, it spun up).
     for (BodySnapshot& b : bodies) {
         if (!b.carrier) continue;
+        carriedParticles(list_, c, b, carried_, levers_, masses_);
+        if (carried_.empty()) continue;
         Vec3 linear = Vec3::Zero(), angular = Vec3::Zero();
-        levers_.clear();
-        masses_.clear();
-        for (const auto& a : list_) {
-            if (a.body != b.object) continue;
-            const Vec3 j = impulseOn(a.particle), r = c.positions()[a.particle] - b.com;
+        for (std::size_t k = 0; k < carried_.size(); ++k) {
+            const Vec3 j = impulseOn(carried_[k]);
             linear += j;
-            angular += r.cross(j);
-            levers_.push_back(r);
-            masses_.push_back(c.masses()[a.particle]);
+            angular += levers_[k].cross(j);
         }
-        if (levers_.empty()) continue;
         const CarrierMatrices whole = carrierMatrices(b.invMass, b.invInertia, levers_, masses_);
         const Vec3 weight = (h / b.invMass) * toVec(b.dynamicBody->getGravity()); // Bullet's
         Eigen::Matrix<double, 6, 1> load;

@@ -90,8 +90,9 @@ class Attachments {
   private:
     std::vector<Attachment> list_;
     std::vector<const BodySnapshot*> carriers_; ///< followBodies' scratch
-    std::vector<Vec3> levers_;                  ///< pushBodies' scratch: a carrier's levers
-    std::vector<double> masses_;                ///< and its particles' masses
+    std::vector<Index> carried_;                ///< pushBodies' scratch: a carrier's particles,
+    std::vector<Vec3> levers_;                  ///< their levers
+    std::vector<double> masses_;                ///< and masses
     /// Each attachment body's pose at the last carryTeleported.
     std::vector<std::pair<const btCollisionObject*, Pose>> seen_;
     /// The springs between particles attached to two different bodies and their two
@@ -144,5 +145,12 @@ class Attachments {
 
 /// Where attachment a's point on its body is now [m].
 Vec3 attachmentPoint(const Attachment& a);
+
+/// The particles of `attached` that body b carries (BodySnapshot::carrier; kinematic: zero
+/// inverse mass in c), with their levers from its centre of mass where they are now and their
+/// masses (what carrierMatrices reads).
+void carriedParticles(const std::vector<Attachment>& attached, const Cloth& c,
+                      const BodySnapshot& b, std::vector<Index>& particles,
+                      std::vector<Vec3>& levers, std::vector<double>& masses);
 
 } // namespace drape::bullet::detail

@@ -108,15 +108,9 @@ struct BodySnapshot {
         still = false;
         moved_ = true;
     }
+    /// An impulse j [N s] at point p.
     void applyImpulse(const Vec3& j, const Vec3& p) {
-        if (!dynamicBody) return;
-        const Vec3 torque = (p - com).cross(j);
-        linearImpulse += j;
-        angularImpulse += torque;
-        v += invMass * j;
-        w += invInertia * torque;
-        still = false;
-        moved_ = true;
+        applyImpulseAboutCentre(j, (p - com).cross(j));
     }
     /// Gives the Bullet body the impulses accumulated on it. A sleeping body is woken only by
     /// an impulse that changes its velocity by its linear sleeping threshold, or by a cloth

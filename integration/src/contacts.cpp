@@ -1,6 +1,7 @@
 // The contact stage's pass over bodies and particles, and the re-limiting (see contacts.hpp).
 #include "contacts.hpp"
 
+#include "attachments.hpp"
 #include "validate.hpp"
 
 #include <btBulletCollisionCommon.h>
@@ -68,14 +69,9 @@ void ContactSolver::detect(Cloth& c, double dt) {
             const auto m = static_cast<std::int32_t>(records->planes.movers.size());
             carrierOf_[bi] = m;
             records->planes.movers.push_back(ContactPlanes::Mover{b.invMass, b.invInertia, b.com});
-            carriedLevers_.clear();
-            carriedMasses_.clear();
-            for (const Attachment& a : *attached)
-                if (a.body == b.object && c.inverseMasses()[a.particle] == 0.0) {
-                    records->planes.carry(m, a.particle, c.positions()[a.particle]);
-                    carriedLevers_.push_back(c.positions()[a.particle] - b.com);
-                    carriedMasses_.push_back(c.masses()[a.particle]);
-                }
+            carriedParticles(*attached, c, b, carried_, carriedLevers_, carriedMasses_);
+            for (Index i : carried_)
+                records->planes.carry(m, i, c.positions()[i]);
             // Its particles are part of it (their masses move and turn with it).
             ContactPlanes::Mover& mover = records->planes.movers[std::size_t(m)];
             mover.composite = true;

@@ -326,7 +326,8 @@ class ContactSolver {
     /// -1. Its planes do not give way with it: pressed on particles whose neighbours hang from
     /// it (a bar landing on the curtain it carries), it would push itself, walk after walk.
     std::vector<std::int32_t> carrierOf_;
-    std::vector<Vec3> carriedLevers_;   ///< detect's scratch: a carrier's particles' levers
+    std::vector<Index> carried_;        ///< detect's scratch: a carrier's particles,
+    std::vector<Vec3> carriedLevers_;   ///< their levers
     std::vector<double> carriedMasses_; ///< and masses
     /// Per body: thinner across than the longest spring, so that it fits between two
     /// particles (detect): swept against the triangles at any speed (sweepBodies), and the

@@ -751,19 +751,21 @@ std::size_t StrainLimiter::correctWave(const std::vector<Spring>& springs,
         // with w (1 - (u . n)^2) (first order). Shortening moves a along +u.
         double wsum = wa + wb;
         // A held end a free body carries (ContactPlanes::Carried) moves with the body.
-        std::int32_t ca = -1, cb = -1;
+        // carriedAt[end]: that end's carried entry (end 0: a, 1: b) or -1, and its lever now.
+        std::int32_t carriedAt[2] = {-1, -1};
+        Vec3 carriedLever[2];
         if constexpr (kPlanes) {
             const Vec3 u = d / l;
             const double eps = 1e-6 * spring[si].restLength;
             const double sgn = excess > 0.0 ? 1.0 : -1.0;
             wsum = slidingWeight(a, wa, sgn * u, x, eps) + slidingWeight(b, wb, -sgn * u, x, eps);
-            if (wa == 0.0) ca = carriedEntry(a);
-            if (wb == 0.0) cb = carriedEntry(b);
-            for (const std::int32_t c : {ca, cb}) {
-                if (c < 0) continue;
-                const ContactPlanes::Carried& e = planes_->carried[std::size_t(c)];
-                wsum +=
-                    planes_->movers[std::size_t(e.mover)].giveAlong(u, planes_->carriedLever(e));
+            if (wa == 0.0) carriedAt[0] = carriedEntry(a);
+            if (wb == 0.0) carriedAt[1] = carriedEntry(b);
+            for (int end = 0; end < 2; ++end) {
+                if (carriedAt[end] < 0) continue;
+                const ContactPlanes::Carried& e = planes_->carried[std::size_t(carriedAt[end])];
+                carriedLever[end] = planes_->carriedLever(e);
+                wsum += planes_->movers[std::size_t(e.mover)].giveAlong(u, carriedLever[end]);
             }
             if (!(wsum > 0.0)) continue; // both ends held by their planes
             // One end pinned, the other on the plane of a body that does not give way (one
@@ -773,8 +775,8 @@ std::size_t StrainLimiter::correctWave(const std::vector<Spring>& springs,
             // plane pushes back what the jump put into it, again in every wave (a neighbour
             // attached across the plane, which no slide brings within the bound): the spring is
             // left as it is, the plane wins (the strain the step ends with counts it).
-            if (((wa == 0.0 && ca < 0 && onStillPlane(b)) ||
-                 (wb == 0.0 && cb < 0 && onStillPlane(a))) &&
+            if (((wa == 0.0 && carriedAt[0] < 0 && onStillPlane(b)) ||
+                 (wb == 0.0 && carriedAt[1] < 0 && onStillPlane(a))) &&
                 !(wsum > (wa + wb) * std::min(1.0, std::abs(excess) / l)))
                 continue;
         }
@@ -800,15 +802,12 @@ std::size_t StrainLimiter::correctWave(const std::vector<Spring>& springs,
             if (wb > 0.0) shift(b, keepAbove(b, -wb * c, x));
             // A carried end's body moves its point by its share along the spring (a by +c,
             // b by -c), and every particle it carries with it.
-            const ContactPlanes::Carried* carriedEnd[2] = {
-                ca >= 0 ? &planes_->carried[std::size_t(ca)] : nullptr,
-                cb >= 0 ? &planes_->carried[std::size_t(cb)] : nullptr};
             for (int end = 0; end < 2; ++end) {
-                const ContactPlanes::Carried* e = carriedEnd[end];
-                if (!e) continue;
+                if (carriedAt[end] < 0) continue;
+                const std::int32_t m = planes_->carried[std::size_t(carriedAt[end])].mover;
                 const Vec3 n = (end == 0 ? -dl / l : dl / l) * d; // take(1, n) moves it by -n
-                if (planes_->movers[std::size_t(e->mover)].take(1.0, n, planes_->carriedLever(*e)))
-                    moveCarried(e->mover, x, shift);
+                if (planes_->movers[std::size_t(m)].take(1.0, n, carriedLever[end]))
+                    moveCarried(m, x, shift);
             }
             holdTriangles(a, x, shift);
             holdTriangles(b, x, shift);
