@@ -193,12 +193,21 @@ void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>
             linear += j;
             angular += levers_[k].cross(j);
         }
-        const CarrierMatrices whole = carrierMatrices(b.invMass, b.invInertia, levers_, masses_);
+        CarrierMatrices whole = carrierMatrices(b.invMass, b.invInertia, levers_, masses_);
         const Vec3 weight = (h / b.invMass) * toVec(b.dynamicBody->getGravity()); // Bullet's
         Eigen::Matrix<double, 6, 1> load;
         load << linear + weight, angular;
-        Eigen::Matrix<double, 6, 1> own = whole.share * load;
-        own.head<3>() -= weight;
+        Eigen::Matrix<double, 6, 1> gravity;
+        gravity << weight, Vec3::Zero();
+        if (!b.joints.empty()) {
+            // In joints: Bullet gave the body its weight as the joints let it (the body alone,
+            // share 1 - J^T (J W J^T)^+ J W), and the whole moves as they let it.
+            constrainToJoints(whole, b.joints);
+            CarrierMatrices alone = carrierMatrices(b.invMass, b.invInertia, {}, {});
+            constrainToJoints(alone, b.joints);
+            gravity = alone.share * gravity;
+        }
+        Eigen::Matrix<double, 6, 1> own = whole.share * load - gravity;
         b.applyImpulseAboutCentre(own.head<3>(), own.tail<3>());
         stats.impulseOnBodies += own.head<3>();
     }

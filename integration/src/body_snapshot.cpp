@@ -287,4 +287,52 @@ void BodyPoses::record(const std::vector<BodySnapshot>& bodies) {
                     bodies[k].aabbMax - bodies[k].aabbMin};
 }
 
+bool appendJointRows(btTypedConstraint& c, const btRigidBody& body, double dt, JointRows& rows) {
+    const bool isA = &c.getRigidBodyA() == &body, isB = &c.getRigidBodyB() == &body;
+    if (isA == isB || !(dt > 0.0)) return false; // in neither end, or a joint to itself
+    btTypedConstraint::btConstraintInfo1 info1;
+    info1.m_numConstraintRows = 0;
+    info1.nub = 0;
+    c.getInfo1(&info1);
+    const int n = info1.m_numConstraintRows;
+    if (n <= 0) return false;
+    // One row of Bullet's solver: the four Jacobian blocks, then the right-hand side, the
+    // constraint force mixing and the impulse's bounds (getInfo2 strides every array by
+    // rowskip, as the solver's own rows do).
+    constexpr int kJ1Linear = 0, kJ1Angular = 4, kJ2Linear = 8, kJ2Angular = 12, kError = 16,
+                  kCfm = 17, kLower = 18, kUpper = 19, kSkip = 20;
+    std::vector<btScalar> buf(std::size_t(n) * kSkip, btScalar(0));
+    for (int r = 0; r < n; ++r) {
+        buf[std::size_t(r * kSkip + kLower)] = -SIMD_INFINITY;
+        buf[std::size_t(r * kSkip + kUpper)] = SIMD_INFINITY;
+    }
+    btTypedConstraint::btConstraintInfo2 info2;
+    info2.fps = btScalar(1.0 / dt);
+    info2.erp = btScalar(0.2);
+    info2.m_J1linearAxis = buf.data() + kJ1Linear;
+    info2.m_J1angularAxis = buf.data() + kJ1Angular;
+    info2.m_J2linearAxis = buf.data() + kJ2Linear;
+    info2.m_J2angularAxis = buf.data() + kJ2Angular;
+    info2.rowskip = kSkip;
+    info2.m_constraintError = buf.data() + kError;
+    info2.cfm = buf.data() + kCfm;
+    info2.m_lowerLimit = buf.data() + kLower;
+    info2.m_upperLimit = buf.data() + kUpper;
+    info2.m_numIterations = 10;
+    info2.m_damping = btScalar(1);
+    c.getInfo2(&info2);
+    const int linear = isA ? kJ1Linear : kJ2Linear, angular = isA ? kJ1Angular : kJ2Angular;
+    for (int r = 0; r < n; ++r) {
+        const btScalar* row = buf.data() + std::size_t(r * kSkip);
+        const bool bounded = row[kLower] > -SIMD_INFINITY && row[kUpper] < SIMD_INFINITY;
+        if (bounded) continue; // a motor or friction: gives way beyond its impulse
+        Eigen::Matrix<double, 6, 1> J;
+        J << double(row[linear]), double(row[linear + 1]), double(row[linear + 2]),
+            double(row[angular]), double(row[angular + 1]), double(row[angular + 2]);
+        if (!J.allFinite()) return false;
+        if (J.squaredNorm() > 0.0) rows.push_back(J);
+    }
+    return true;
+}
+
 } // namespace drape::bullet::detail

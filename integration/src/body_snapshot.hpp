@@ -5,6 +5,8 @@
 
 #include "pose.hpp"
 
+#include "drape/strain_limit.hpp"
+
 #include <utility>
 #include <vector>
 
@@ -12,6 +14,7 @@ class btCollisionObject;
 class btCollisionShape;
 class btRigidBody;
 class btDispatcher;
+class btTypedConstraint;
 
 namespace drape::bullet::detail {
 
@@ -72,6 +75,10 @@ struct BodySnapshot {
     /// Bullet's path only and does not give way in the walk (a joint the walk does not know
     /// would hold it back against what the walk moved).
     bool carrier = false;
+    /// A carrier in joints: the rows its joints keep (drape::JointRows, each joint's other
+    /// body held still), which restrict how it gives way in the walk and what it takes after
+    /// it (constrainToJoints). Empty for a free one.
+    JointRows joints;
     /// The pose at the end of the Bullet sub-step (Bullet's answer, at the velocities it had).
     Pose end;
     /// Where the body was at the start of the current cloth step (pose: at its end).
@@ -156,6 +163,12 @@ void limitSpin(BodySnapshot& b, double gyration);
 /// by a chain of the dispatcher's contact manifolds with points, through dynamic bodies, all
 /// with contact response.
 void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies);
+
+/// Appends to `rows` what joint c keeps of `body`'s motion (Bullet's own Jacobian rows, from
+/// getInfo1 and getInfo2, at the step dt [s]), with the joint's other body held still. Rows a
+/// bounded impulse drives (a motor, friction) are left out: they give way. Returns false when
+/// the joint gives no rows this way (an old-style constraint, or `body` is in none of its ends).
+bool appendJointRows(btTypedConstraint& c, const btRigidBody& body, double dt, JointRows& rows);
 
 /// The candidate bodies and their poses at the previous sub-step, for waking a sleeping cloth.
 class BodyPoses {

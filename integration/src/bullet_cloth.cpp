@@ -206,7 +206,6 @@ struct BulletCloth::Impl {
     /// Scratch of checkAttachmentBodies (kept: it runs every sub-step with attachments).
     std::vector<const btCollisionObject*> attachedBodies;
     /// The bodies in an enabled joint of the world, sorted (gatherBodies, scratch).
-    std::vector<const btCollisionObject*> jointed;
     std::vector<unsigned char> bodyFound;
     /// The action that steps the world's cloths (shared by every cloth of the world).
     std::shared_ptr<Stepper> stepper;
@@ -644,19 +643,23 @@ void BulletCloth::Impl::gatherBodies(double dt) {
     detail::markSupported(*world->getDispatcher(), bodies);
     // (attachedBodies: the attachment bodies, sorted, from checkAttachmentBodies this sub-step.)
     if (!attachments.list().empty()) {
-        // The bodies in a joint of the world (btRigidBody's constraint references are kept only
-        // for joints added with their bodies' collisions disabled: the world's list is asked).
-        jointed.clear();
-        for (int k = 0; k < world->getNumConstraints(); ++k)
-            if (const btTypedConstraint* tc = world->getConstraint(k); tc && tc->isEnabled()) {
-                jointed.push_back(&tc->getRigidBodyA());
-                jointed.push_back(&tc->getRigidBodyB());
-            }
-        std::sort(jointed.begin(), jointed.end());
+        // A carrier is an attached dynamic body that rests on nothing. In joints of the world
+        // (btRigidBody's constraint references are kept only for joints added with their bodies'
+        // collisions disabled: the world's list is asked), it gives way only as they let it
+        // (BodySnapshot::joints); a joint that gives no rows makes it an attachment body that
+        // takes the reaction after the cloth's steps.
         for (auto& b : bodies) {
             b.attached = std::binary_search(attachedBodies.begin(), attachedBodies.end(), b.object);
-            b.carrier = b.attached && b.dynamicBody && !b.supported && b.invMass > 0.0 &&
-                        !std::binary_search(jointed.begin(), jointed.end(), b.object);
+            b.joints.clear();
+            b.carrier = b.attached && b.dynamicBody && !b.supported && b.invMass > 0.0;
+            if (!b.carrier) continue;
+            for (int k = 0; k < world->getNumConstraints() && b.carrier; ++k) {
+                btTypedConstraint* tc = world->getConstraint(k);
+                if (!tc || !tc->isEnabled()) continue;
+                if (&tc->getRigidBodyA() != b.object && &tc->getRigidBodyB() != b.object) continue;
+                b.carrier = detail::appendJointRows(*tc, *b.dynamicBody, dt, b.joints);
+            }
+            if (!b.carrier) b.joints.clear();
         }
     }
     last.candidateBodies = bodies.size();

@@ -75,8 +75,10 @@ void ContactSolver::detect(Cloth& c, double dt) {
             // Its particles are part of it (their masses move and turn with it).
             ContactPlanes::Mover& mover = records->planes.movers[std::size_t(m)];
             mover.composite = true;
-            mover.mobility =
-                carrierMatrices(b.invMass, b.invInertia, carriedLevers_, carriedMasses_).mobility;
+            CarrierMatrices whole =
+                carrierMatrices(b.invMass, b.invInertia, carriedLevers_, carriedMasses_);
+            constrainToJoints(whole, b.joints); // only as its joints let it
+            mover.mobility = whole.mobility;
         }
     // A body thinner across than the longest spring (its second-smallest half extent plus the
     // thickness below that length: a rod, a small ball) fits between two particles.

@@ -2,6 +2,8 @@
 // one-sided walk (both for comparison), and the geodesic anchors of long-range attachments.
 #include "drape/strain_limit.hpp"
 
+#include <Eigen/Eigenvalues>
+
 #include "drape/settings.hpp"
 
 #include "parallel.hpp"
@@ -94,6 +96,31 @@ CarrierMatrices carrierMatrices(double invMass, const Eigen::Matrix3d& invInerti
     out.mobility = W * out.share;
     out.mobility = 0.5 * (out.mobility + out.mobility.transpose()); // symmetric, to rounding
     return out;
+}
+
+void constrainToJoints(CarrierMatrices& m, const JointRows& rows) {
+    if (rows.empty()) return;
+    Eigen::MatrixXd J(Eigen::Index(rows.size()), 6);
+    for (std::size_t k = 0; k < rows.size(); ++k)
+        J.row(Eigen::Index(k)) = rows[k].transpose();
+    const Eigen::MatrixXd MJt = m.mobility * J.transpose(); // 6 x k
+    const Eigen::MatrixXd K = J * MJt;                      // k x k, symmetric semi-definite
+    // The pseudo-inverse through K's eigenvalues: directions the rows repeat (eigenvalues below
+    // 1e-9 of the largest, rounding) carry no impulse.
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(K);
+    if (eig.info() != Eigen::Success) return;
+    const Eigen::VectorXd& ev = eig.eigenvalues();
+    const double largest = ev.size() ? ev.maxCoeff() : 0.0;
+    if (!(largest > 0.0)) return; // the rows ask nothing of this body
+    Eigen::VectorXd inv = Eigen::VectorXd::Zero(ev.size());
+    for (Eigen::Index k = 0; k < ev.size(); ++k)
+        if (ev[k] > 1e-9 * largest) inv[k] = 1.0 / ev[k];
+    const Eigen::MatrixXd Kplus =
+        eig.eigenvectors() * inv.asDiagonal() * eig.eigenvectors().transpose();
+    const Eigen::Matrix<double, 6, 6> JtKJM = J.transpose() * Kplus * MJt.transpose();
+    m.share -= m.share * JtKJM;
+    m.mobility -= m.mobility * JtKJM;
+    m.mobility = 0.5 * (m.mobility + m.mobility.transpose()); // symmetric, to rounding
 }
 
 double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x) {
@@ -421,7 +448,7 @@ double StrainLimiter::check(std::size_t si, const ClothTopology& topology,
     ++st.work;
     const double ratio2 =
         (x[sp.b] - x[sp.a]).squaredNorm() * topology.springLayout().inverseSquaredRest[si];
-    if (needs(si, ratio2) && invMass[sp.a] + invMass[sp.b] != 0.0)
+    if (needs(si, ratio2) && linked(sp.a, sp.b, invMass[sp.a], invMass[sp.b]))
         queue(si, ratio2, sp.restLength, stiffness);
     return ratio2;
 }
@@ -585,7 +612,7 @@ StrainLimitStats StrainLimiter::limit(const ClothTopology& topology,
         const std::size_t slot = slotOf[si];
         if (slot == detail::kNoSlot || queued_[si] || !(ratio2_[slot] < lower2_)) continue;
         const Spring& sp = springs[si];
-        if (invMass[sp.a] + invMass[sp.b] != 0.0)
+        if (linked(sp.a, sp.b, invMass[sp.a], invMass[sp.b]))
             queue(si, ratio2_[slot], sp.restLength, stiffness);
     }
     for (Index si : topology.springLayout().looseSprings) {
@@ -656,7 +683,8 @@ double StrainLimiter::scanFamilies(const ClothTopology& topology,
             if (j == e) break;
             const Index si = slotSpring[j];
             const Spring& sp = springs[si];
-            if (invMass[sp.a] + invMass[sp.b] != 0.0) queue(si, r2[j], sp.restLength, stiffness);
+            if (linked(sp.a, sp.b, invMass[sp.a], invMass[sp.b]))
+                queue(si, r2[j], sp.restLength, stiffness);
             ++j;
         }
     }
@@ -745,7 +773,13 @@ std::size_t StrainLimiter::correctWave(const std::vector<Spring>& springs,
         const Vec3 d = xp[b] - xp[a];
         const double l = d.norm();
         const double wa = w[a], wb = w[b];
-        if (!(l > 0.0) || wa + wb == 0.0) continue;
+        if (!(l > 0.0)) continue;
+        if (wa + wb == 0.0) {
+            if constexpr (!kPlanes)
+                continue;
+            else if (!carriedApart(a, b))
+                continue;
+        }
         const double excess = l - limit * spring[si].restLength;
         // A contact plane the particle lies on takes the normal part of its move: it counts
         // with w (1 - (u . n)^2) (first order). Shortening moves a along +u.
@@ -874,7 +908,7 @@ void StrainLimiter::checkMoved(const ClothTopology& topology, const std::vector<
     for (std::size_t c = 0; c < found; ++c) {
         const Index k = cand[c];
         const Spring& sp = spring[sprp[k]];
-        if (w[sp.a] + w[sp.b] == 0.0) continue;
+        if (!linked(sp.a, sp.b, w[sp.a], w[sp.b])) continue;
         const double* xa = xp + 3 * std::size_t(sp.a);
         const double* xb = xp + 3 * std::size_t(sp.b);
         const double dx = xa[0] - xb[0], dy = xa[1] - xb[1], dz = xa[2] - xb[2];

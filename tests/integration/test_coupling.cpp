@@ -763,34 +763,40 @@ TEST_CASE("a box thrown through a banner on two light posts leaves the posts han
         auto* boxShape = b.w.shape<btBoxShape>(btVector3(0.15f, 0.15f, 0.15f));
         btRigidBody* box = b.w.body(boxShape, 20.0, Vec3(0.0, 1.0, 1.0));
         box->setLinearVelocity(btVector3(0.0f, 2.0f, btScalar(-speed)));
-        double worstPost = 0.0, between = 0.0, others = 0.0;
+        double worstPost = 0.0, between = 0.0, others = 0.0, through = 0.0;
         const std::uint64_t caps0 = b.cloth->limiterCapHits();
         for (int k = 0; k < 240; ++k) {
             b.step();
             worstPost = std::max({worstPost, b.postMoved(0), b.postMoved(1)});
             b.strains(between, others);
+            // Its speed on through the banner once the hit is over (0.25 s on).
+            if (k >= 15) through = std::max(through, -double(box->getLinearVelocity().z()));
         }
         const std::uint64_t caps = b.cloth->limiterCapHits() - caps0;
         bool finite = true;
         for (const Vec3& x : b.cloth->positions())
             finite = finite && x.allFinite();
-        INFO(measured("box at %.0f m/s: posts moved %.4f m at most; box at z %.3f; capped walks "
+        INFO(measured("box at %.0f m/s: posts moved %.4f m at most; box at z %.3f, on through "
+                      "the banner at %.3f m/s at most; capped walks "
                       "%llu; every spring but the one between the posts at most %.4f (that "
                       "one %.4f); the cloth's lowest point %.3f",
-                      speed, worstPost, eig(box->getCenterOfMassPosition()).z(),
+                      speed, worstPost, eig(box->getCenterOfMassPosition()).z(), through,
                       static_cast<unsigned long long>(caps), others, between,
                       std::min_element(b.cloth->positions().begin(), b.cloth->positions().end(),
                                        [](const Vec3& p, const Vec3& q) { return p.y() < q.y(); })
                           ->y()));
         CHECK(finite);
         CHECK(worstPost < 0.25); // they swing on their joints; they stay on them
-        // The spring between the posts' attached particles has no free end: no walk moves it,
-        // and it does not stop the walks holding every other spring (it did, as "pins apart",
-        // in every walk of the hit: the banner's other springs reached 0.110-0.115, the posts
-        // got no pull, and the box at 8 m/s went through).
+        // The spring between the posts' attached particles has no free end: the walk holds it
+        // by turning the posts as their joints let them (BodySnapshot::joints; before, no walk
+        // moved it and it peaked at 0.18-0.19), and it does not stop the walks holding every
+        // other spring (it did, as "pins apart", in every walk of the hit: the banner's other
+        // springs reached 0.110-0.115, the posts got no pull, and the box at 8 m/s went
+        // through).
         CHECK(caps == 0);
         CHECK(others <= 0.1 + b.cloth->settings().limiter.tolerance + 1e-9);
-        if (speed == 8.0) CHECK(eig(box->getCenterOfMassPosition()).z() > -1.0); // caught
+        CHECK(between <= 0.1 + b.cloth->settings().limiter.tolerance + 1e-9);
+        if (speed == 8.0) CHECK(through < 0.2 * speed); // stopped
     }
 }
 

@@ -411,6 +411,16 @@ struct CarrierMatrices {
 };
 CarrierMatrices carrierMatrices(double invMass, const Eigen::Matrix3d& invInertia,
                                 const std::vector<Vec3>& levers, const std::vector<double>& masses);
+/// A body's joint rows: each a 6-vector J over its twist (linear velocity, then angular velocity
+/// about its centre of mass, world frame) that a joint keeps at J u = 0 (the other body of the
+/// joint held still).
+using JointRows = std::vector<Eigen::Matrix<double, 6, 1>>;
+/// Restricts a carrier (or a body alone: carrierMatrices with no levers) to the motions its
+/// joints allow. An impulse f on the whole then moves it by u = M f + M J^T lambda with J u = 0:
+/// mobility M -> M - M J^T K^+ J M, K = J M J^T (its pseudo-inverse: two ball joints on one
+/// axis give six rows of rank five), and the body's own part of f, share S -> S - S J^T K^+ J M
+/// (still W S = M). No rows: unchanged.
+void constrainToJoints(CarrierMatrices& m, const JointRows& rows);
 
 /// Where each particle's long-range attachment goes: its nearest anchor over the cloth
 /// (kNoParticle if no anchor reaches it) and the rest distance of the attachment [m].
@@ -647,6 +657,19 @@ class StrainLimiter {
     /// Particle i's entry in planes_->carried (a particle a mover carries), or -1.
     std::int32_t carriedEntry(Index i) const {
         return planes_->carriedOf.empty() ? -1 : planes_->carriedOf[i];
+    }
+    /// Whether a spring between particles a and b, both held, links something the walk can
+    /// move: an end a body carries, the other held elsewhere (posts a banner hangs between, a
+    /// post and a pin). A spring whose ends one body carries moves rigidly with it: no link.
+    bool carriedApart(Index a, Index b) const {
+        if (!planes_ || planes_->carriedOf.empty()) return false;
+        const std::int32_t ca = planes_->carriedOf[a], cb = planes_->carriedOf[b];
+        if (ca < 0 || cb < 0) return ca >= 0 || cb >= 0;
+        return planes_->carried[std::size_t(ca)].mover != planes_->carried[std::size_t(cb)].mover;
+    }
+    /// Whether the walk can correct the spring between a and b (inverse masses wa, wb).
+    bool linked(Index a, Index b, double wa, double wb) const {
+        return wa + wb != 0.0 || carriedApart(a, b);
     }
     /// Mover m's carried particles follow it: each moved by moveBy(particle, dx).
     template <class MoveBy>
