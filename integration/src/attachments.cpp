@@ -200,12 +200,10 @@ void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>
         Eigen::Matrix<double, 6, 1> gravity;
         gravity << weight, Vec3::Zero();
         if (!b.joints.empty()) {
-            // In joints: Bullet gave the body its weight as the joints let it (the body alone,
-            // share 1 - J^T (J W J^T)^+ J W), and the whole moves as they let it.
+            // In joints: Bullet gave the body its weight as the joints let it
+            // (BodySnapshot::jointedWeight), and the whole moves as they let it.
             constrainToJoints(whole, b.joints);
-            CarrierMatrices alone = carrierMatrices(b.invMass, b.invInertia, {}, {});
-            constrainToJoints(alone, b.joints);
-            gravity = alone.share * gravity;
+            gravity = b.jointedWeight * gravity;
         }
         Eigen::Matrix<double, 6, 1> own = whole.share * load - gravity;
         b.applyImpulseAboutCentre(own.head<3>(), own.tail<3>());

@@ -6,6 +6,7 @@
 #include "drape/error.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
 #include <btBulletDynamicsCommon.h>
 
 #include <algorithm>
@@ -287,7 +288,15 @@ void BodyPoses::record(const std::vector<BodySnapshot>& bodies) {
                     bodies[k].aabbMax - bodies[k].aabbMin};
 }
 
-bool appendJointRows(btTypedConstraint& c, const btRigidBody& body, double dt, JointRows& rows) {
+namespace {
+using Row6 = Eigen::Matrix<double, 6, 1>;
+
+/// Bullet's rows of joint c (getInfo1 and getInfo2 at the step dt [s]) over `body`'s twist
+/// (mine) and over the other end's (other), leaving out rows a bounded impulse drives (a motor,
+/// friction: they give way). False when the joint gives no rows this way (an old-style
+/// constraint) or `body` is in neither end.
+bool jointRowsOf(btTypedConstraint& c, const btRigidBody& body, double dt, std::vector<Row6>& mine,
+                 std::vector<Row6>& other) {
     const bool isA = &c.getRigidBodyA() == &body, isB = &c.getRigidBodyB() == &body;
     if (isA == isB || !(dt > 0.0)) return false; // in neither end, or a joint to itself
     btTypedConstraint::btConstraintInfo1 info1;
@@ -321,16 +330,104 @@ bool appendJointRows(btTypedConstraint& c, const btRigidBody& body, double dt, J
     info2.m_numIterations = 10;
     info2.m_damping = btScalar(1);
     c.getInfo2(&info2);
-    const int linear = isA ? kJ1Linear : kJ2Linear, angular = isA ? kJ1Angular : kJ2Angular;
+    const int myLinear = isA ? kJ1Linear : kJ2Linear, myAngular = isA ? kJ1Angular : kJ2Angular;
+    const int itsLinear = isA ? kJ2Linear : kJ1Linear, itsAngular = isA ? kJ2Angular : kJ1Angular;
+    const auto rowAt = [](const btScalar* row, int linear, int angular) {
+        Row6 J;
+        J << double(row[linear]), double(row[linear + 1]), double(row[linear + 2]),
+            double(row[angular]), double(row[angular + 1]), double(row[angular + 2]);
+        return J;
+    };
     for (int r = 0; r < n; ++r) {
         const btScalar* row = buf.data() + std::size_t(r * kSkip);
         const bool bounded = row[kLower] > -SIMD_INFINITY && row[kUpper] < SIMD_INFINITY;
         if (bounded) continue; // a motor or friction: gives way beyond its impulse
-        Eigen::Matrix<double, 6, 1> J;
-        J << double(row[linear]), double(row[linear + 1]), double(row[linear + 2]),
-            double(row[angular]), double(row[angular + 1]), double(row[angular + 2]);
-        if (!J.allFinite()) return false;
-        if (J.squaredNorm() > 0.0) rows.push_back(J);
+        const Row6 J = rowAt(row, myLinear, myAngular), Jo = rowAt(row, itsLinear, itsAngular);
+        if (!J.allFinite() || !Jo.allFinite()) return false;
+        if (J.squaredNorm() == 0.0) continue;
+        mine.push_back(J);
+        other.push_back(Jo);
+    }
+    return true;
+}
+
+/// A dynamic body's own 6 x 6 inverse mass (world frame, with its linear and angular factors).
+Eigen::Matrix<double, 6, 6> inverseMassOf(const btRigidBody& rb) {
+    Eigen::Matrix<double, 6, 6> W = Eigen::Matrix<double, 6, 6>::Zero();
+    const Vec3 lf = toVec(rb.getLinearFactor()), af = toVec(rb.getAngularFactor());
+    W.topLeftCorner<3, 3>() = (double(rb.getInvMass()) * lf).asDiagonal();
+    Eigen::Matrix3d I;
+    const btMatrix3x3& b = rb.getInvInertiaTensorWorld();
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            I(i, j) = double(b[i][j]);
+    W.bottomRightCorner<3, 3>() = af.asDiagonal() * I * af.asDiagonal();
+    return W;
+}
+} // namespace
+
+bool jointRows(btDynamicsWorld& world, const btRigidBody& body, double dt, JointRows& out) {
+    out.clear();
+    // Per row: the joint's other body (null: static, kinematic or the world) and its row there.
+    std::vector<const btRigidBody*> otherOf;
+    std::vector<Row6> mine, other, scratchMine, scratchOther;
+    for (int k = 0; k < world.getNumConstraints(); ++k) {
+        btTypedConstraint* c = world.getConstraint(k);
+        if (!c || !c->isEnabled()) continue;
+        if (&c->getRigidBodyA() != &body && &c->getRigidBodyB() != &body) continue;
+        if (!jointRowsOf(*c, body, dt, mine, other)) return false;
+        const btRigidBody* o =
+            &c->getRigidBodyA() == &body ? &c->getRigidBodyB() : &c->getRigidBodyA();
+        if (o->isStaticOrKinematicObject() || !(o->getInvMass() > 0.0f)) o = nullptr;
+        otherOf.resize(mine.size(), o);
+    }
+    if (mine.empty()) return true;
+    if (std::none_of(otherOf.begin(), otherOf.end(), [](const btRigidBody* o) { return o; })) {
+        // Every other end held still: the rows' span is what counts. Rows that repeat one
+        // another (two ball joints on one axis: six rows of rank five) are reduced to an
+        // orthonormal basis of it, so that constrainToJoints solves a regular system.
+        Eigen::Matrix<double, Eigen::Dynamic, 6> J(Eigen::Index(mine.size()), 6);
+        for (std::size_t r = 0; r < mine.size(); ++r)
+            J.row(Eigen::Index(r)) = mine[r].transpose();
+        const Eigen::JacobiSVD<Eigen::Matrix<double, Eigen::Dynamic, 6>> svd(J,
+                                                                             Eigen::ComputeFullV);
+        const auto& sv = svd.singularValues();
+        for (Eigen::Index r = 0; r < sv.size(); ++r)
+            if (sv[r] > 1e-9 * sv[0]) out.rows.push_back(svd.matrixV().col(r));
+        return true;
+    }
+    out.rows = mine;
+    const auto k = Eigen::Index(mine.size());
+    out.give = Eigen::MatrixXd::Zero(k, k);
+    // Each dynamic other body gives way as its own other joints let it (those held still: one
+    // level, exact for a chain of two): G = J_o W_o' J_o^T over the rows it shares.
+    std::vector<const btRigidBody*> done;
+    for (Eigen::Index r = 0; r < k; ++r) {
+        const btRigidBody* o = otherOf[std::size_t(r)];
+        if (!o || std::find(done.begin(), done.end(), o) != done.end()) continue;
+        done.push_back(o);
+        CarrierMatrices its;
+        its.mobility = inverseMassOf(*o);
+        its.share.setIdentity();
+        JointRows held;
+        for (int j = 0; j < world.getNumConstraints(); ++j) {
+            btTypedConstraint* c = world.getConstraint(j);
+            if (!c || !c->isEnabled()) continue;
+            if (&c->getRigidBodyA() != o && &c->getRigidBodyB() != o) continue;
+            if (&c->getRigidBodyA() == &body || &c->getRigidBodyB() == &body) continue;
+            scratchMine.clear();
+            scratchOther.clear();
+            if (jointRowsOf(*c, *o, dt, scratchMine, scratchOther))
+                held.rows.insert(held.rows.end(), scratchMine.begin(), scratchMine.end());
+        }
+        constrainToJoints(its, held);
+        for (Eigen::Index p = 0; p < k; ++p) {
+            if (otherOf[std::size_t(p)] != o) continue;
+            for (Eigen::Index q = 0; q < k; ++q)
+                if (otherOf[std::size_t(q)] == o)
+                    out.give(p, q) =
+                        other[std::size_t(p)].dot(its.mobility * other[std::size_t(q)]);
+        }
     }
     return true;
 }

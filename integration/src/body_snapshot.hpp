@@ -14,7 +14,7 @@ class btCollisionObject;
 class btCollisionShape;
 class btRigidBody;
 class btDispatcher;
-class btTypedConstraint;
+class btDynamicsWorld;
 
 namespace drape::bullet::detail {
 
@@ -79,6 +79,9 @@ struct BodySnapshot {
     /// body held still), which restrict how it gives way in the walk and what it takes after
     /// it (constrainToJoints). Empty for a free one.
     JointRows joints;
+    /// Of its weight, what Bullet gives the body alone as its joints let it (the share of
+    /// constrainToJoints for the body without its particles: 1 - J^T (J W J^T)^+ J W).
+    Eigen::Matrix<double, 6, 6> jointedWeight = Eigen::Matrix<double, 6, 6>::Identity();
     /// The pose at the end of the Bullet sub-step (Bullet's answer, at the velocities it had).
     Pose end;
     /// Where the body was at the start of the current cloth step (pose: at its end).
@@ -164,11 +167,12 @@ void limitSpin(BodySnapshot& b, double gyration);
 /// with contact response.
 void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies);
 
-/// Appends to `rows` what joint c keeps of `body`'s motion (Bullet's own Jacobian rows, from
-/// getInfo1 and getInfo2, at the step dt [s]), with the joint's other body held still. Rows a
-/// bounded impulse drives (a motor, friction) are left out: they give way. Returns false when
-/// the joint gives no rows this way (an old-style constraint, or `body` is in none of its ends).
-bool appendJointRows(btTypedConstraint& c, const btRigidBody& body, double dt, JointRows& rows);
+/// What the enabled joints of `world` keep of `body`'s motion (Bullet's own Jacobian rows, from
+/// getInfo1 and getInfo2 at the step dt [s]), and how far their other bodies give way along
+/// them: a dynamic one as its own other joints let it, those held still. Rows a bounded impulse
+/// drives (a motor, friction) are left out: they give way. Returns false when a joint of the
+/// body gives no rows this way (an old-style constraint).
+bool jointRows(btDynamicsWorld& world, const btRigidBody& body, double dt, JointRows& out);
 
 /// The candidate bodies and their poses at the previous sub-step, for waking a sleeping cloth.
 class BodyPoses {

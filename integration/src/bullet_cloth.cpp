@@ -653,13 +653,12 @@ void BulletCloth::Impl::gatherBodies(double dt) {
             b.joints.clear();
             b.carrier = b.attached && b.dynamicBody && !b.supported && b.invMass > 0.0;
             if (!b.carrier) continue;
-            for (int k = 0; k < world->getNumConstraints() && b.carrier; ++k) {
-                btTypedConstraint* tc = world->getConstraint(k);
-                if (!tc || !tc->isEnabled()) continue;
-                if (&tc->getRigidBodyA() != b.object && &tc->getRigidBodyB() != b.object) continue;
-                b.carrier = detail::appendJointRows(*tc, *b.dynamicBody, dt, b.joints);
-            }
+            b.carrier = detail::jointRows(*world, *b.dynamicBody, dt, b.joints);
             if (!b.carrier) b.joints.clear();
+            if (b.joints.empty()) continue;
+            CarrierMatrices alone = carrierMatrices(b.invMass, b.invInertia, {}, {});
+            constrainToJoints(alone, b.joints);
+            b.jointedWeight = alone.share;
         }
     }
     last.candidateBodies = bodies.size();

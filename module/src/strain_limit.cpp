@@ -2,7 +2,7 @@
 // one-sided walk (both for comparison), and the geodesic anchors of long-range attachments.
 #include "drape/strain_limit.hpp"
 
-#include <Eigen/Eigenvalues>
+#include <Eigen/Cholesky>
 
 #include "drape/settings.hpp"
 
@@ -98,29 +98,41 @@ CarrierMatrices carrierMatrices(double invMass, const Eigen::Matrix3d& invInerti
     return out;
 }
 
-void constrainToJoints(CarrierMatrices& m, const JointRows& rows) {
-    if (rows.empty()) return;
-    Eigen::MatrixXd J(Eigen::Index(rows.size()), 6);
-    for (std::size_t k = 0; k < rows.size(); ++k)
-        J.row(Eigen::Index(k)) = rows[k].transpose();
-    const Eigen::MatrixXd MJt = m.mobility * J.transpose(); // 6 x k
-    const Eigen::MatrixXd K = J * MJt;                      // k x k, symmetric semi-definite
-    // The pseudo-inverse through K's eigenvalues: directions the rows repeat (eigenvalues below
-    // 1e-9 of the largest, rounding) carry no impulse.
-    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(K);
-    if (eig.info() != Eigen::Success) return;
-    const Eigen::VectorXd& ev = eig.eigenvalues();
-    const double largest = ev.size() ? ev.maxCoeff() : 0.0;
-    if (!(largest > 0.0)) return; // the rows ask nothing of this body
-    Eigen::VectorXd inv = Eigen::VectorXd::Zero(ev.size());
-    for (Eigen::Index k = 0; k < ev.size(); ++k)
-        if (ev[k] > 1e-9 * largest) inv[k] = 1.0 / ev[k];
-    const Eigen::MatrixXd Kplus =
-        eig.eigenvectors() * inv.asDiagonal() * eig.eigenvectors().transpose();
-    const Eigen::Matrix<double, 6, 6> JtKJM = J.transpose() * Kplus * MJt.transpose();
+namespace {
+/// constrainToJoints with up to MaxRows rows on the stack (Eigen::Dynamic: any number).
+template <int MaxRows> void constrainRows(CarrierMatrices& m, const JointRows& joints) {
+    using Rows = Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor, MaxRows, 6>;
+    using Square = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, MaxRows, MaxRows>;
+    const auto k = Eigen::Index(joints.rows.size());
+    Rows J(k, 6);
+    for (Eigen::Index r = 0; r < k; ++r)
+        J.row(r) = joints.rows[std::size_t(r)].transpose();
+    const Rows JM = J * m.mobility; // k x 6 (M is symmetric: (M J^T)^T)
+    Square K = JM * J.transpose();  // k x k, symmetric semi-definite
+    if (joints.give.rows() == k && joints.give.cols() == k) K += joints.give;
+    // Rows that repeat one another (two ball joints on one axis: six rows of rank five) make K
+    // singular: K + eps I, eps 1e-10 of its mean diagonal, solves it as its pseudo-inverse
+    // would (J M f has no part along K's null directions, beyond rounding).
+    const double scale = K.trace() / double(k);
+    if (!(scale > 0.0) || !std::isfinite(scale)) return; // the rows ask nothing of this body
+    K.diagonal().array() += 1e-10 * scale;
+    const Eigen::LDLT<Square> ldlt(K);
+    if (ldlt.info() != Eigen::Success) return;
+    const Rows KJM = ldlt.solve(JM); // K^+ J M, k x 6
+    const Eigen::Matrix<double, 6, 6> JtKJM = J.transpose() * KJM;
     m.share -= m.share * JtKJM;
     m.mobility -= m.mobility * JtKJM;
     m.mobility = 0.5 * (m.mobility + m.mobility.transpose()); // symmetric, to rounding
+}
+} // namespace
+
+void constrainToJoints(CarrierMatrices& m, const JointRows& joints) {
+    if (joints.rows.empty()) return;
+    if (joints.rows.size() <= 12) {
+        constrainRows<12>(m, joints);
+    } else {
+        constrainRows<Eigen::Dynamic>(m, joints);
+    }
 }
 
 double maxSpringStrain(const ClothTopology& topology, const std::vector<Vec3>& x) {

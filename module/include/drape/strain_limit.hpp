@@ -411,16 +411,27 @@ struct CarrierMatrices {
 };
 CarrierMatrices carrierMatrices(double invMass, const Eigen::Matrix3d& invInertia,
                                 const std::vector<Vec3>& levers, const std::vector<double>& masses);
-/// A body's joint rows: each a 6-vector J over its twist (linear velocity, then angular velocity
-/// about its centre of mass, world frame) that a joint keeps at J u = 0 (the other body of the
-/// joint held still).
-using JointRows = std::vector<Eigen::Matrix<double, 6, 1>>;
+/// What a body's joints keep of its motion: rows J, each a 6-vector over its twist (linear
+/// velocity, then angular velocity about its centre of mass, world frame), and how far the
+/// joints' other bodies give way along them.
+struct JointRows {
+    std::vector<Eigen::Matrix<double, 6, 1>> rows;
+    /// rows x rows: J_o W_o J_o^T, the other bodies' own inverse mass seen through the rows
+    /// (a joint to a light body gives way as that body moves). Empty: they are held still.
+    Eigen::MatrixXd give;
+    bool empty() const { return rows.empty(); }
+    void clear() {
+        rows.clear();
+        give.resize(0, 0);
+    }
+};
 /// Restricts a carrier (or a body alone: carrierMatrices with no levers) to the motions its
-/// joints allow. An impulse f on the whole then moves it by u = M f + M J^T lambda with J u = 0:
-/// mobility M -> M - M J^T K^+ J M, K = J M J^T (its pseudo-inverse: two ball joints on one
-/// axis give six rows of rank five), and the body's own part of f, share S -> S - S J^T K^+ J M
-/// (still W S = M). No rows: unchanged.
-void constrainToJoints(CarrierMatrices& m, const JointRows& rows);
+/// joints allow. An impulse f on the whole then moves it by u = M f + M J^T lambda, the joints
+/// keeping J u + G lambda = 0 (G = joints.give, the other bodies' part): mobility M -> M -
+/// M J^T K^+ J M, K = J M J^T + G (its pseudo-inverse: two ball joints on one axis give six rows
+/// of rank five), and the body's own part of f, share S -> S - S J^T K^+ J M (still W S = M).
+/// No rows: unchanged.
+void constrainToJoints(CarrierMatrices& m, const JointRows& joints);
 
 /// Where each particle's long-range attachment goes: its nearest anchor over the cloth
 /// (kNoParticle if no anchor reaches it) and the rest distance of the attachment [m].
