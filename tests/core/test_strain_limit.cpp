@@ -780,6 +780,91 @@ TEST_CASE("a body and the point masses it carries answer an impulse as one rigid
     CHECK((alone.mobility.bottomRightCorner<3, 3>() - invInertia).norm() <= 1e-9);
 }
 
+TEST_CASE("a body in joints answers an impulse only as its joints let it", "[limiter][carrier]") {
+    // constrainToJoints, against rigid-body mechanics. The carrier of the test above (a 0.3 kg
+    // body and five point masses) on a hinge: a ball joint at p (three rows: the velocity of p
+    // is zero) and two rows that stop its turn about the axes across a. Given an impulse
+    // (J, L about the centre), the whole turns about the hinge at s = a . (L - p x J) / I_a
+    // (I_a: the inertia about the hinge line, parallel axes: the body's a . I a, its mass and
+    // every point mass at their distance from the line) and moves its centre at s (p x a).
+    // A repeated row (two joints that say the same) changes nothing.
+    Rng rng(12);
+    const double invMass = 1.0 / 0.3;
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+    const Eigen::Matrix3d inertia = R * Vec3(2e-3, 5e-3, 8e-3).asDiagonal() * R.transpose();
+    const Eigen::Matrix3d invInertia = inertia.inverse();
+    std::vector<Vec3> levers;
+    std::vector<double> masses;
+    for (int k = 0; k < 5; ++k) {
+        levers.push_back(
+            Vec3(rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5)));
+        masses.push_back(rng.uniform(0.01, 0.2));
+    }
+    const Vec3 p(0.3, -0.1, 0.2), a = Vec3(0.2, 1.0, -0.4).normalized();
+    const Vec3 b1 = a.unitOrthogonal(), b2 = a.cross(b1);
+    using Row = Eigen::Matrix<double, 6, 1>;
+    JointRows hinge;
+    for (int k = 0; k < 3; ++k) {
+        const Vec3 e = Vec3::Unit(k);
+        Row r;
+        r << e, p.cross(e); // e . (v + w x p)
+        hinge.rows.push_back(r);
+    }
+    for (const Vec3& b : {b1, b2}) {
+        Row r;
+        r << Vec3::Zero(), b; // b . w
+        hinge.rows.push_back(r);
+    }
+    JointRows repeated = hinge;
+    repeated.rows.push_back(hinge.rows[0] + 2.0 * hinge.rows[3]);
+    double Ia = a.dot(inertia * a);
+    const auto across = [&](const Vec3& r) { // distance^2 of a point from the hinge line
+        const Vec3 d = r - p;
+        return (d - d.dot(a) * a).squaredNorm();
+    };
+    Ia += across(Vec3::Zero()) / invMass;
+    for (std::size_t k = 0; k < levers.size(); ++k)
+        Ia += masses[k] * across(levers[k]);
+    for (const JointRows* joints : {&hinge, &repeated}) {
+        CarrierMatrices whole = carrierMatrices(invMass, invInertia, levers, masses);
+        constrainToJoints(whole, *joints);
+        for (int trial = 0; trial < 4; ++trial) {
+            Row f;
+            for (int k = 0; k < 6; ++k)
+                f[k] = rng.uniform(-1.0, 1.0);
+            const Row u = whole.mobility * f;
+            const double s = a.dot(f.tail<3>() - p.cross(f.head<3>())) / Ia;
+            INFO(measured("turn rate %.9f against %.9f", a.dot(u.tail<3>()), s));
+            CHECK((u.tail<3>() - s * a).norm() <= 1e-9 * (1.0 + std::abs(s)));
+            CHECK((u.head<3>() - s * p.cross(a)).norm() <= 1e-9 * (1.0 + std::abs(s)));
+            // The body's own share moves it the same way.
+            const Row own = whole.share * f;
+            CHECK((invMass * own.head<3>() - u.head<3>()).norm() <= 1e-9 * (1.0 + u.norm()));
+            CHECK((invInertia * own.tail<3>() - u.tail<3>()).norm() <= 1e-9 * (1.0 + u.norm()));
+        }
+    }
+    // A ball joint at p to a free body at its centre of mass (0.25 kg): the joint passes it
+    // whatever it is pushed with, so the whole answers as if that mass were carried at p.
+    JointRows ball;
+    for (int k = 0; k < 3; ++k)
+        ball.rows.push_back(hinge.rows[std::size_t(k)]);
+    ball.give = Eigen::MatrixXd::Identity(3, 3) / 0.25; // J_o W_o J_o^T, J_o = -1 at its centre
+    CarrierMatrices joined = carrierMatrices(invMass, invInertia, levers, masses);
+    constrainToJoints(joined, ball);
+    std::vector<Vec3> leversWith = levers;
+    std::vector<double> massesWith = masses;
+    leversWith.push_back(p);
+    massesWith.push_back(0.25);
+    const CarrierMatrices carried = carrierMatrices(invMass, invInertia, leversWith, massesWith);
+    CHECK((joined.mobility - carried.mobility).norm() <= 1e-9 * carried.mobility.norm());
+    // No rows: unchanged.
+    CarrierMatrices free = carrierMatrices(invMass, invInertia, levers, masses);
+    const CarrierMatrices before = free;
+    constrainToJoints(free, JointRows{});
+    CHECK(free.mobility == before.mobility);
+    CHECK(free.share == before.share);
+}
+
 namespace {
 /// A triangle plane's state in the tests below: the plane's triangle (the one around the
 /// sheet's middle), its point's weights, and the point where `x` has it.
