@@ -69,14 +69,15 @@ struct BodySnapshot {
     double lighten = 1.0;
     /// Particles of the cloth are attached to it: it moves them as kinematic targets.
     bool attached = false;
-    /// Attached, dynamic, not supported and in no joint (btTypedConstraint): it carries its
-    /// attached particles in the limiter's walk (ContactPlanes::carry), and they follow its
-    /// snapshot through the Bullet sub-step. Any other attachment body moves them along
-    /// Bullet's path only and does not give way in the walk (a joint the walk does not know
-    /// would hold it back against what the walk moved).
+    /// Attached, dynamic and not supported, with every joint it is in giving its rows
+    /// (jointRows): it carries its attached particles in the limiter's walk
+    /// (ContactPlanes::carry), moving only as its joints let it, and they follow its snapshot
+    /// through the Bullet sub-step. Any other attachment body moves them along Bullet's path
+    /// only and does not give way in the walk (a joint the walk did not know held the banner's
+    /// posts back against what the walk moved).
     bool carrier = false;
-    /// A carrier in joints: the rows its joints keep (drape::JointRows, each joint's other
-    /// body held still), which restrict how it gives way in the walk and what it takes after
+    /// A carrier in joints: the rows its joints keep and how far their other bodies give
+    /// (drape::JointRows), which restrict how it gives way in the walk and what it takes after
     /// it (constrainToJoints). Empty for a free one.
     JointRows joints;
     /// Of its weight, what Bullet gives the body alone as its joints let it (the share of

@@ -517,8 +517,9 @@ inline GameScene makeNetBall() {
 /// post hanging from two ball joints on its top face; at t = 1 s a 20 kg box (0.3 m) is thrown
 /// at it at `speed` (8 m/s: `banner`, 12 m/s: `banner_fast`), 0.4 m below its top row (it goes
 /// through under the free hem). Notes: how far the posts moved from where they hang (they
-/// swing on their joints) and the peak strain of the spring between them (held as a rope, one
-/// Bullet step late: Attachments::holdTethers). The frame columns' max is the hit.
+/// swing on their joints) and the peak strain of the spring between them (held by the walk,
+/// which moves the posts as their joints let them, and as a rope one Bullet step late:
+/// Attachments::holdTethers). The frame columns' max is the hit.
 inline GameScene makeBannerHitAt(double speed) {
     GameScene s;
     s.world = std::make_unique<GameWorld>();
