@@ -731,6 +731,80 @@ TEST_CASE("a free body carrying particles gives way in the walk, rigidly, moment
     CHECK(shiftOf[0] > 50.0 * shiftOf[1]);
 }
 
+TEST_CASE("the walk holds a spring whose ends two bodies carry by moving both bodies",
+          "[limiter][carrier]") {
+    // The irregular sheet, every particle held (zero inverse mass): its left half carried by
+    // body A, its right half by body B (the posts a banner hangs between). B's half is moved
+    // away along x, so the springs across the middle have both ends held by different bodies:
+    // no particle can move, the bodies must. The walk brings them to the bound by shifting A
+    // and B towards each other (turning them a little: the springs cross at different
+    // heights), the halves rigid; the momentum M_A shift_A + M_B shift_B stays zero, and what
+    // each body's particles took (heldPull) is its own M shift. Before, the walk skipped every
+    // spring with both ends held and left these at their stretch.
+    const PlaneSheet sheet = planeSheet();
+    const auto& topo = sheet.topo;
+    const std::size_t n = topo->particleCount();
+    const std::vector<double> invMass(n, 0.0);
+    std::vector<Vec3> x = topo->restPositions();
+    std::vector<int> side(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        side[i] = x[i].x() < sheet.xMid ? 0 : 1;
+        if (side[i] == 1) x[i].x() += 0.3;
+    }
+    const double mass[2] = {0.3, 0.1};
+    ContactPlanes planes;
+    planes.reset(n);
+    for (int b = 0; b < 2; ++b) {
+        Vec3 centre = Vec3::Zero();
+        double count = 0.0;
+        for (std::size_t i = 0; i < n; ++i)
+            if (side[i] == b) {
+                centre += x[i];
+                count += 1.0;
+            }
+        planes.movers.push_back(ContactPlanes::Mover{
+            1.0 / mass[b], Eigen::Matrix3d::Identity() / mass[b], centre / count}); // gyration 1 m
+    }
+    // (One body's particles after the other's; interleaved, carry refuses them.)
+    REQUIRE_THROWS_AS(
+        [&] {
+            ContactPlanes wrong = planes;
+            for (std::size_t i = 0; i < n; ++i)
+                wrong.carry(side[i], static_cast<Index>(i), x[i]);
+        }(),
+        Error);
+    for (int b = 0; b < 2; ++b)
+        for (std::size_t i = 0; i < n; ++i)
+            if (side[i] == b) planes.carry(b, static_cast<Index>(i), x[i]);
+    const LimiterSettings s = limiterSettings();
+    const std::vector<double> k(topo->springCount(), 1.0);
+    const std::vector<Vec3> before = x;
+    StrainLimiter limiter;
+    limiter.setRecordHeld(true);
+    limiter.clearMoved();
+    const StrainLimitStats st = limiter.limit(*topo, invMass, k, s, x, &planes);
+    const Vec3 shiftA = planes.movers[0].shift, shiftB = planes.movers[1].shift;
+    INFO("waves " << st.rounds << ", shift A " << shiftA.transpose() << ", B " << shiftB.transpose()
+                  << ", strain before " << maxSpringStrain(*topo, before) << " after "
+                  << maxSpringStrain(*topo, x));
+    CHECK(maxSpringStrain(*topo, before) > 0.3);
+    CHECK_FALSE(st.capHit);
+    CHECK(maxSpringStrain(*topo, x) <= s.maxStrain + s.tolerance + 1e-12);
+    CHECK(shiftA.x() > 0.0);
+    CHECK(shiftB.x() < 0.0);
+    CHECK((mass[0] * shiftA + mass[1] * shiftB).norm() <= 1e-10);
+    Vec3 held[2] = {Vec3::Zero(), Vec3::Zero()};
+    for (Index i : limiter.heldIndex())
+        held[side[i]] += limiter.heldPull()[i];
+    CHECK((held[0] - mass[0] * shiftA).norm() <= 1e-10);
+    CHECK((held[1] - mass[1] * shiftB).norm() <= 1e-10);
+    // Each half rigid: where its body put it.
+    for (std::size_t i = 0; i < n; ++i) {
+        const ContactPlanes::Carried& c = planes.carried[std::size_t(planes.carriedOf[i])];
+        CHECK((x[i] - planes.carriedNow(c)).norm() <= 1e-12);
+    }
+}
+
 TEST_CASE("a body and the point masses it carries answer an impulse as one rigid body",
           "[limiter][carrier]") {
     // carrierMatrices: a 0.3 kg body (an anisotropic, turned inertia) carrying five point

@@ -6,6 +6,7 @@
 // velocities stay consistent with the corrected positions.
 #pragma once
 
+#include "drape/error.hpp"
 #include "drape/topology.hpp"
 
 #include <Eigen/Geometry>
@@ -13,6 +14,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <string>
 #include <vector>
 
 namespace drape {
@@ -187,10 +189,25 @@ struct ContactPlanes {
     /// Per particle: its entry in `carried`, or -1 (empty while nothing is carried).
     std::vector<std::int32_t> carriedOf;
     /// Mover m carries particle i (zero inverse mass), now at x; a mover's particles are added
-    /// one after another, before the next mover's.
+    /// one after another, before the next mover's. Throws drape::Error (InvalidArgument) for a
+    /// mover or particle out of range, a particle carried already, or a mover's particles
+    /// interleaved with another's.
     void carry(std::int32_t m, Index i, const Vec3& x) {
+        if (m < 0 || std::size_t(m) >= movers.size() || std::size_t(i) >= of.size())
+            throw Error(ErrorCode::InvalidArgument,
+                        "ContactPlanes::carry: mover or particle out of range (reset(n) and "
+                        "movers first)");
         if (carriedOf.size() != of.size()) carriedOf.assign(of.size(), -1);
         Mover& b = movers[std::size_t(m)];
+        if (carriedOf[i] >= 0)
+            throw Error(ErrorCode::InvalidArgument,
+                        "ContactPlanes::carry: particle " + std::to_string(i) +
+                            " is carried already (one body carries a particle)");
+        if (b.carriedEnd != b.carriedBegin && b.carriedEnd != carried.size())
+            throw Error(ErrorCode::InvalidArgument,
+                        "ContactPlanes::carry: mover " + std::to_string(m) +
+                            "'s particles must be added one after another, before the next "
+                            "mover's");
         if (b.carriedEnd == b.carriedBegin) b.carriedBegin = b.carriedEnd = carried.size();
         carriedOf[i] = static_cast<std::int32_t>(carried.size());
         carried.push_back(Carried{i, m, x, x - b.centre});
