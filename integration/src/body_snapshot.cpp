@@ -366,7 +366,8 @@ Eigen::Matrix<double, 6, 6> inverseMassOf(const btRigidBody& rb) {
 }
 } // namespace
 
-bool jointRows(btDynamicsWorld& world, const btRigidBody& body, double dt, JointRows& out) {
+bool jointRows(btDynamicsWorld& world, const btRigidBody& body, double dt,
+               const std::vector<const btCollisionObject*>& inWalk, JointRows& out) {
     out.clear();
     // Per row: the joint's other body (null: static, kinematic or the world) and its row there.
     std::vector<const btRigidBody*> otherOf;
@@ -379,6 +380,9 @@ bool jointRows(btDynamicsWorld& world, const btRigidBody& body, double dt, Joint
         const btRigidBody* o =
             &c->getRigidBodyA() == &body ? &c->getRigidBodyB() : &c->getRigidBodyA();
         if (o->isStaticOrKinematicObject() || !(o->getInvMass() > 0.0f)) o = nullptr;
+        if (o && std::binary_search(inWalk.begin(), inWalk.end(),
+                                    static_cast<const btCollisionObject*>(o)))
+            return false;
         otherOf.resize(mine.size(), o);
     }
     if (mine.empty()) return true;

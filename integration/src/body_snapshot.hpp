@@ -172,8 +172,10 @@ void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies);
 /// getInfo1 and getInfo2 at the step dt [s]), and how far their other bodies give way along
 /// them: a dynamic one as its own other joints let it, those held still. Rows a bounded impulse
 /// drives (a motor, friction) are left out: they give way. Returns false when a joint of the
-/// body gives no rows this way (an old-style constraint).
-bool jointRows(btDynamicsWorld& world, const btRigidBody& body, double dt, JointRows& out);
+/// body gives no rows this way (an old-style constraint) or joins it to a body of `inWalk`
+/// (sorted: the other bodies the cloth's walk moves, whose joint the walk would not keep).
+bool jointRows(btDynamicsWorld& world, const btRigidBody& body, double dt,
+               const std::vector<const btCollisionObject*>& inWalk, JointRows& out);
 
 /// The candidate bodies and their poses at the previous sub-step, for waking a sleeping cloth.
 class BodyPoses {

@@ -240,6 +240,7 @@ struct BulletCloth::Impl {
     /// Snapshots the bodies among the proxy's overlaps (and the broadphase's answer for a
     /// larger box when the cloth would sweep out of the proxy in this step).
     void gatherBodies(double dt);
+    std::vector<const btCollisionObject*> inWalk; ///< gatherBodies' scratch, sorted
     /// Adds to the candidates the moving bodies that swept through the box lo..hi in the
     /// sub-step of dt [s] although the broadphase did not pair them with the proxy.
     void addFastBodies(const Vec3& lo, const Vec3& hi, double dt);
@@ -648,12 +649,20 @@ void BulletCloth::Impl::gatherBodies(double dt) {
         // collisions disabled: the world's list is asked), it gives way only as they let it
         // (BodySnapshot::joints); a joint that gives no rows makes it an attachment body that
         // takes the reaction after the cloth's steps.
+        // A joint to another body that moves in the walk (a free body near the cloth, or
+        // another carrier) is one the walk cannot keep: those two would be moved apart walk
+        // after walk (a cape between a ragdoll's torso and its head pushed them apart with
+        // 60 N s on a 5 kg head). Such a body stays an attachment body.
+        inWalk.clear();
+        for (const auto& b : bodies)
+            if (b.dynamicBody && !b.supported && b.invMass > 0.0) inWalk.push_back(b.object);
+        std::sort(inWalk.begin(), inWalk.end());
         for (auto& b : bodies) {
             b.attached = std::binary_search(attachedBodies.begin(), attachedBodies.end(), b.object);
             b.joints.clear();
             b.carrier = b.attached && b.dynamicBody && !b.supported && b.invMass > 0.0;
             if (!b.carrier) continue;
-            b.carrier = detail::jointRows(*world, *b.dynamicBody, dt, b.joints);
+            b.carrier = detail::jointRows(*world, *b.dynamicBody, dt, inWalk, b.joints);
             if (!b.carrier) b.joints.clear();
             if (b.joints.empty()) continue;
             CarrierMatrices alone = carrierMatrices(b.invMass, b.invInertia, {}, {});
