@@ -197,15 +197,11 @@ void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>
         const Vec3 weight = (h / b.invMass) * toVec(b.dynamicBody->getGravity()); // Bullet's
         Eigen::Matrix<double, 6, 1> load;
         load << linear + weight, angular;
-        Eigen::Matrix<double, 6, 1> gravity;
-        gravity << weight, Vec3::Zero();
-        if (!b.joints.empty()) {
-            // In joints: Bullet gave the body its weight as the joints let it
-            // (BodySnapshot::jointedWeight), and the whole moves as they let it.
-            constrainToJoints(whole, b.joints);
-            gravity = b.jointedWeight * gravity;
-        }
-        Eigen::Matrix<double, 6, 1> own = whole.share * load - gravity;
+        // In joints the whole moves as they let it, and Bullet gave the body its weight as
+        // they let it (BodySnapshot::jointedWeight; free: no rows, the identity).
+        constrainToJoints(whole, b.joints);
+        const Eigen::Matrix<double, 6, 1> own =
+            whole.share * load - b.jointedWeight.leftCols<3>() * weight;
         b.applyImpulseAboutCentre(own.head<3>(), own.tail<3>());
         stats.impulseOnBodies += own.head<3>();
     }

@@ -805,6 +805,29 @@ TEST_CASE("the walk holds a spring whose ends two bodies carry by moving both bo
     }
 }
 
+namespace {
+/// The carrier tests' body: 0.3 kg with an anisotropic, turned inertia, carrying five point
+/// masses (0.01-0.2 kg) at levers drawn from rng within 0.5 m of its centre.
+struct TestCarrier {
+    double invMass = 1.0 / 0.3;
+    Eigen::Matrix3d inertia, invInertia;
+    std::vector<Vec3> levers;
+    std::vector<double> masses;
+};
+TestCarrier testCarrier(Rng& rng) {
+    TestCarrier c;
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+    c.inertia = R * Vec3(2e-3, 5e-3, 8e-3).asDiagonal() * R.transpose();
+    c.invInertia = c.inertia.inverse();
+    for (int k = 0; k < 5; ++k) {
+        c.levers.push_back(
+            Vec3(rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5)));
+        c.masses.push_back(rng.uniform(0.01, 0.2));
+    }
+    return c;
+}
+} // namespace
+
 TEST_CASE("a body and the point masses it carries answer an impulse as one rigid body",
           "[limiter][carrier]") {
     // carrierMatrices: a 0.3 kg body (an anisotropic, turned inertia) carrying five point
@@ -813,17 +836,11 @@ TEST_CASE("a body and the point masses it carries answer an impulse as one rigid
     // that, the same motion, and the rest moves the point masses with it: the linear momentum
     // of body and masses changes by J, their angular momentum about the centre by L.
     Rng rng(11);
-    const double invMass = 1.0 / 0.3;
-    const Eigen::Matrix3d R = Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()).toRotationMatrix();
-    const Eigen::Matrix3d inertia = R * Vec3(2e-3, 5e-3, 8e-3).asDiagonal() * R.transpose();
-    const Eigen::Matrix3d invInertia = inertia.inverse();
-    std::vector<Vec3> levers;
-    std::vector<double> masses;
-    for (int k = 0; k < 5; ++k) {
-        levers.push_back(
-            Vec3(rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5)));
-        masses.push_back(rng.uniform(0.01, 0.2));
-    }
+    const TestCarrier body = testCarrier(rng);
+    const double invMass = body.invMass;
+    const Eigen::Matrix3d &inertia = body.inertia, &invInertia = body.invInertia;
+    const std::vector<Vec3>& levers = body.levers;
+    const std::vector<double>& masses = body.masses;
     const CarrierMatrices whole = carrierMatrices(invMass, invInertia, levers, masses);
     CHECK((whole.mobility - whole.mobility.transpose()).norm() <= 1e-12 * whole.mobility.norm());
     for (int trial = 0; trial < 4; ++trial) {
@@ -863,17 +880,11 @@ TEST_CASE("a body in joints answers an impulse only as its joints let it", "[lim
     // every point mass at their distance from the line) and moves its centre at s (p x a).
     // A repeated row (two joints that say the same) changes nothing.
     Rng rng(12);
-    const double invMass = 1.0 / 0.3;
-    const Eigen::Matrix3d R = Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()).toRotationMatrix();
-    const Eigen::Matrix3d inertia = R * Vec3(2e-3, 5e-3, 8e-3).asDiagonal() * R.transpose();
-    const Eigen::Matrix3d invInertia = inertia.inverse();
-    std::vector<Vec3> levers;
-    std::vector<double> masses;
-    for (int k = 0; k < 5; ++k) {
-        levers.push_back(
-            Vec3(rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5)));
-        masses.push_back(rng.uniform(0.01, 0.2));
-    }
+    const TestCarrier body = testCarrier(rng);
+    const double invMass = body.invMass;
+    const Eigen::Matrix3d &inertia = body.inertia, &invInertia = body.invInertia;
+    const std::vector<Vec3>& levers = body.levers;
+    const std::vector<double>& masses = body.masses;
     const Vec3 p(0.3, -0.1, 0.2), a = Vec3(0.2, 1.0, -0.4).normalized();
     const Vec3 b1 = a.unitOrthogonal(), b2 = a.cross(b1);
     using Row = Eigen::Matrix<double, 6, 1>;

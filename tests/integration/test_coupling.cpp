@@ -671,6 +671,19 @@ double clothEnergy(const Cloth& c) {
         e += c.masses()[i] * (0.5 * c.velocities()[i].squaredNorm() + 9.81 * c.positions()[i].y());
     return e;
 }
+/// The jointed-bar tests' sheet: 10 x 10 of the default cloth at 5 cm (0.041 kg), hanging from
+/// (0, 2, 0) in the plane z = 0, its top row attached to `bar`.
+std::pair<std::shared_ptr<Cloth>, bullet::BulletCloth*> sheetOnBar(TestWorld& w, btRigidBody* bar) {
+    SheetSpec spec;
+    spec.rows = spec.cols = 10;
+    spec.spacing = 0.05;
+    spec.origin = Vec3(0.0, 2.0, 0.0);
+    auto cloth = makeCloth(makeSheet(spec), ClothSettings{});
+    bullet::BulletCloth& handle = w.add(cloth);
+    for (Index c = 0; c < spec.cols; ++c)
+        handle.attachHere(c, bar);
+    return {cloth, &handle};
+}
 } // namespace
 
 TEST_CASE("a sheet on a light body sliding on a rail: the rail holds its weight, body and sheet "
@@ -699,14 +712,8 @@ TEST_CASE("a sheet on a light body sliding on a rail: the rail holds its weight,
     rail.setAngularLowerLimit(btVector3(0, 0, 0));
     rail.setAngularUpperLimit(btVector3(0, 0, 0));
     w.world.addConstraint(&rail, true);
-    SheetSpec spec;
-    spec.rows = spec.cols = 10;
-    spec.spacing = 0.05;
-    spec.origin = Vec3(0.0, 2.0, 0.0);
-    auto cloth = makeCloth(makeSheet(spec), ClothSettings{});
-    auto& handle = w.add(cloth);
-    for (Index c = 0; c < spec.cols; ++c)
-        handle.attachHere(c, bar);
+    const auto sheet = sheetOnBar(w, bar);
+    const std::shared_ptr<Cloth>& cloth = sheet.first;
     const double dt = 1.0 / 60.0;
     double strain = 0.0, sag = 0.0, pLow = 1e9, pHigh = -1e9, pStart = 0.0;
     for (int k = 0; k < 180; ++k) {
@@ -761,14 +768,8 @@ TEST_CASE("a sheet on a light body hung from another light body: kicked, the cha
     btPoint2PointConstraint bWorld(*b, btVector3(0, 0.05f, 0));
     w.world.addConstraint(&ab, true);
     w.world.addConstraint(&bWorld, true);
-    SheetSpec spec;
-    spec.rows = spec.cols = 10;
-    spec.spacing = 0.05;
-    spec.origin = Vec3(0.0, 2.0, 0.0);
-    auto cloth = makeCloth(makeSheet(spec), ClothSettings{});
-    auto& handle = w.add(cloth);
-    for (Index c = 0; c < spec.cols; ++c)
-        handle.attachHere(c, a);
+    const auto sheet = sheetOnBar(w, a);
+    const std::shared_ptr<Cloth>& cloth = sheet.first;
     const double dt = 1.0 / 60.0;
     const auto energy = [&] {
         double e = clothEnergy(*cloth);
@@ -1214,14 +1215,8 @@ TEST_CASE("a sheet on a light bar held by each kind of Bullet joint keeps its bo
     if (kind != 4) box->setGravity(btVector3(0, 0, 0)); // (only the chain hangs it)
     for (auto& j : joints)
         w.world.addConstraint(j.get(), true);
-    SheetSpec spec;
-    spec.rows = spec.cols = 10;
-    spec.spacing = 0.05;
-    spec.origin = Vec3(0.0, 2.0, 0.0);
-    auto cloth = makeCloth(makeSheet(spec), ClothSettings{});
-    auto& handle = w.add(cloth);
-    for (Index c = 0; c < spec.cols; ++c)
-        handle.attachHere(c, bar);
+    const auto sheet = sheetOnBar(w, bar);
+    const std::shared_ptr<Cloth>& cloth = sheet.first;
     double strain = 0.0;
     bool finite = true;
     for (int k = 0; k < 300; ++k) {
