@@ -1,32 +1,50 @@
 // Stability limits of the explicit integrators (derivation in stability.hpp).
 #include "drape/stability.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
 namespace drape {
 
-double estimateMaxAngularFrequency(const ClothTopology& topology,
-                                   const std::vector<double>& stiffness,
-                                   const std::vector<double>& invMass, int iterations) {
-    const std::size_t n = topology.particleCount();
-    // B = M^-1/2 L M^-1/2 restricted to free particles; w_i = sqrt(1/m_i) (0 when fixed).
-    std::vector<double> w(n);
+namespace {
+/// w_i = sqrt(1/m_i) (0 when fixed); returns whether any particle is free.
+bool rootInverseMasses(const std::vector<double>& invMass, std::vector<double>& w) {
+    w.resize(invMass.size());
     bool anyFree = false;
-    for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t i = 0; i < invMass.size(); ++i) {
         w[i] = std::sqrt(invMass[i]);
         anyFree = anyFree || invMass[i] > 0.0;
     }
-    if (!anyFree || topology.springCount() == 0) return 0.0;
-    // Gershgorin bound as the safe fallback and the start of the iteration: lambda <= max_i
-    // sum_j k_ij (w_i^2 + w_i w_j).
-    std::vector<double> rowBound(n, 0.0);
+    return anyFree;
+}
+
+/// The rows of the Gershgorin bound on lambda_max(M^-1/2 L M^-1/2): sum_j k_ij (w_i^2 + w_i w_j).
+std::vector<double> gershgorinRows(const ClothTopology& topology,
+                                   const std::vector<double>& stiffness,
+                                   const std::vector<double>& w) {
+    std::vector<double> rowBound(topology.particleCount(), 0.0);
     for (std::size_t s = 0; s < topology.springCount(); ++s) {
         const Spring& sp = topology.springs()[s];
         const double k = stiffness[s];
         rowBound[sp.a] += k * (w[sp.a] * w[sp.a] + w[sp.a] * w[sp.b]);
         rowBound[sp.b] += k * (w[sp.b] * w[sp.b] + w[sp.a] * w[sp.b]);
     }
+    return rowBound;
+}
+} // namespace
+
+double estimateMaxAngularFrequency(const ClothTopology& topology,
+                                   const std::vector<double>& stiffness,
+                                   const std::vector<double>& invMass, int iterations) {
+    const std::size_t n = topology.particleCount();
+    // B = M^-1/2 L M^-1/2 restricted to free particles; w_i = sqrt(1/m_i) (0 when fixed).
+    std::vector<double> w;
+    const bool anyFree = rootInverseMasses(invMass, w);
+    if (!anyFree || topology.springCount() == 0) return 0.0;
+    // Gershgorin bound as the safe fallback and the start of the iteration: lambda <= max_i
+    // sum_j k_ij (w_i^2 + w_i w_j).
+    const std::vector<double> rowBound = gershgorinRows(topology, stiffness, w);
     double gershgorin = 0.0;
     for (double r : rowBound)
         gershgorin = std::max(gershgorin, r);
@@ -70,6 +88,28 @@ double estimateMaxAngularFrequency(const ClothTopology& topology,
     const double pad = change <= 1e-13 ? 0.0 : std::max(10.0 * change, 1e-3);
     const double padded = std::min(gershgorin, lambda * (1.0 + pad));
     return std::sqrt(std::max(padded, 0.0));
+}
+
+LocalFrequency highestLocalFrequency(const ClothTopology& topology,
+                                     const std::vector<double>& stiffness,
+                                     const std::vector<double>& invMass) {
+    LocalFrequency out;
+    std::vector<double> w;
+    if (!rootInverseMasses(invMass, w) || topology.springCount() == 0) return out;
+    const std::vector<double> rows = gershgorinRows(topology, stiffness, w);
+    std::vector<double> free;
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        if (invMass[i] == 0.0) continue;
+        free.push_back(rows[i]);
+        if (rows[i] > out.omega * out.omega) {
+            out.particle = static_cast<Index>(i);
+            out.omega = std::sqrt(rows[i]);
+        }
+    }
+    auto middle = free.begin() + static_cast<std::ptrdiff_t>(free.size() / 2);
+    std::nth_element(free.begin(), middle, free.end());
+    out.medianOmega = std::sqrt(*middle);
+    return out;
 }
 
 double stableTimeStep(IntegratorKind kind, double omegaMax) {

@@ -204,3 +204,61 @@ TEST_CASE("Explicit integrators blow up just above the limit and not just below"
         CHECK(aboveGrowth > 1e3);
     }
 }
+
+TEST_CASE("A sliver that sets the stable step is named when the step is refused",
+          "[stability][errors]") {
+    using Catch::Matchers::Contains;
+    // A 21 x 21 sheet at 2.5 cm with the default settings, and the same sheet with one vertex
+    // more, eps from its corner particle 0 in the sheet's plane: a sliver triangle (0, the new
+    // vertex, particle 1) whose short spring is much stiffer than the others.
+    SheetSpec spec;
+    spec.rows = 21;
+    spec.cols = 21;
+    spec.spacing = 0.025;
+    auto withSliver = [&](double eps) {
+        TriangleMesh m = makeSheet(spec);
+        const Index extra = static_cast<Index>(m.vertices.size());
+        m.vertices.push_back(m.vertices[0] + eps * Vec3(0.6, -0.8, 0.0));
+        m.triangles.push_back({0, extra, 1});
+        return m;
+    };
+    // Each particle's own bound is its row of the Gershgorin bound, so the highest is at least
+    // the network's omega_max; on the even sheet no particle stands out (corners and edges have
+    // fewer springs and less mass: within a factor of 4 of the median).
+    const Cloth plain(ClothTopology::build(makeSheet(spec)), ClothSettings{});
+    const LocalFrequency even =
+        highestLocalFrequency(plain.topology(), plain.stiffness(), plain.inverseMasses());
+    INFO(measured("even sheet: highest local bound %.1f rad/s (particle %u), median %.1f, "
+                  "omega_max %.1f",
+                  even.omega, unsigned(even.particle), even.medianOmega,
+                  plain.maxAngularFrequency()));
+    CHECK(even.omega >= plain.maxAngularFrequency() * (1.0 - 1e-12));
+    CHECK(even.omega < 4.0 * even.medianOmega);
+    CHECK_NOTHROW(plain.substepsFor(1.0 / 60.0));
+
+    // A sliver 0.1 mm wide: the short spring's ends stand out, and the cloth needs more
+    // sub-steps.
+    const Cloth thin(ClothTopology::build(withSliver(1e-4)), ClothSettings{});
+    const LocalFrequency f =
+        highestLocalFrequency(thin.topology(), thin.stiffness(), thin.inverseMasses());
+    INFO(measured("sliver 1e-4 m: highest local bound %.1f rad/s (particle %u), median %.1f; "
+                  "sub-steps for 1/60 s %d (even sheet %d)",
+                  f.omega, unsigned(f.particle), f.medianOmega, thin.substepsFor(1.0 / 60.0),
+                  plain.substepsFor(1.0 / 60.0)));
+    CHECK((f.particle == 0 || f.particle == thin.particleCount() - 1));
+    CHECK(f.omega >= 4.0 * f.medianOmega);
+    CHECK(thin.substepsFor(1.0 / 60.0) > plain.substepsFor(1.0 / 60.0));
+
+    // A hair's width: more sub-steps than allowed, and the refusal names the particle, its
+    // shortest spring and what to do.
+    const Cloth hair(ClothTopology::build(withSliver(1e-7)), ClothSettings{});
+    const std::string last = std::to_string(hair.particleCount() - 1);
+    CHECK_THROWS_WITH(hair.substepsFor(1.0 / 60.0), Contains("particle 0 sets that limit") &&
+                                                        Contains("to particle " + last) &&
+                                                        Contains("weld them"));
+    // The same for a fixed step beyond the limit (ClothSettings::rejectUnstableTimeStep).
+    ClothSettings fixed;
+    fixed.substeps.automatic = false;
+    Cloth hairFixed(ClothTopology::build(withSliver(1e-7)), fixed);
+    CHECK_THROWS_WITH(hairFixed.step(1.0 / 60.0), Contains("particle 0 sets that limit"));
+}

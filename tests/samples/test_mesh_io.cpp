@@ -591,6 +591,33 @@ TEST_CASE("degenerate and duplicate triangles are dropped with a warning saying 
     CHECK_THAT(blob.warnings[0], Contains("1 degenerate triangle") && Contains("mesh \"blob\""));
 }
 
+TEST_CASE("an edge far shorter than the mesh's others is named in a warning",
+          "[mesh][degenerate]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "sliver";
+    fs::create_directories(dir);
+    // The 1 m grid with vertex 10 placed 10 um from vertex 1 (beyond the automatic weld
+    // tolerance) and a sliver face (1, 10, 2): its edges 1-10 (1e-5 m) and 10-2 are springs
+    // of the cloth, the first far shorter than every other edge (median 1 m).
+    writeText(dir / "sliver.obj", gridObj("v 0.000006 -0.000008 0\n", "f 1 10 2\n"));
+    const ImportedMesh m = importMesh(dir / "sliver.obj");
+    CHECK(m.mesh.vertices.size() == 10);
+    CHECK(m.mesh.triangles.size() == 9);
+    REQUIRE(m.warnings.size() == 1);
+    INFO(m.warnings[0]);
+    CHECK_THAT(m.warnings[0], Contains("sliver.obj: 1 edge shorter than 1 % of the median edge "
+                                       "(1 m): vertices 0 and 9, 1e-05 m apart") &&
+                                  Contains("weld such vertices (a weld tolerance above 1e-05 m)"));
+    // Welded as the warning says, the sliver is gone and so is the warning.
+    MeshImportOptions weld;
+    weld.weldTolerance = 2e-5;
+    const ImportedMesh welded = importMesh(dir / "sliver.obj", weld);
+    CHECK(welded.mesh.vertices.size() == 9);
+    for (const std::string& w : welded.warnings)
+        CHECK_THAT(w, !Contains("shorter than"));
+}
+
 TEST_CASE("a binary STL with a few collapsed facets loads, as assimp's spider does",
           "[mesh][degenerate]") {
     if (!meshIoAvailable()) return;

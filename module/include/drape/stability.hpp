@@ -31,4 +31,20 @@ double estimateMaxAngularFrequency(const ClothTopology& topology,
 /// omega_max = 0.
 double stableTimeStep(IntegratorKind kind, double omegaMax);
 
+/// Where the network is stiffest for its mass: each free particle's own bound on the
+/// frequencies it takes part in, sqrt(sum_j k_ij (1/m_i + 1/sqrt(m_i m_j))) over its springs
+/// (its row of the Gershgorin bound above). A particle far above the median is what sets the
+/// stable step: a vertex only sliver triangles touch (it gets almost no mass) or two vertices
+/// a hair apart that should be one (a very short, stiff spring).
+struct LocalFrequency {
+    Index particle = 0;       ///< the free particle with the highest bound
+    double omega = 0.0;       ///< its bound [rad/s]
+    double medianOmega = 0.0; ///< the median of the free particles' bounds [rad/s]
+};
+
+/// The particle with the highest local bound (LocalFrequency); all zero when nothing can move.
+LocalFrequency highestLocalFrequency(const ClothTopology& topology,
+                                     const std::vector<double>& stiffness,
+                                     const std::vector<double>& invMass);
+
 } // namespace drape
