@@ -72,6 +72,16 @@ bool ContactSolver::pushTriangle(Cloth& c, std::uint32_t bi, const Triangle& tri
         free += w[tri[k]] > 0.0 ? beta[k] : 0.0;
     }
     if (!(weight > 0.0) || free < kFreeShare) return false;
+    // A dynamic body pressing the triangle into a static or kinematic body that holds one of
+    // its corners (a cup rolling over a cloth on the floor) moves nothing, as for a spring
+    // (collideSpringWithBox) and a particle (collideParticle): moved, the corner went into the
+    // floor, where it came out only at contact.depenetrationSpeed and stayed 1 cm inside.
+    if (b.dynamicBody)
+        for (int k = 0; k < 3; ++k)
+            if (const std::int64_t held = heldBehind(x, tri[k]);
+                beta[k] != 0.0 && held >= 0 &&
+                records->planes.normal[std::size_t(held)].dot(n) < 0.0)
+                return false;
     stats.maxDepth = std::max(stats.maxDepth, depth);
     // A body smaller than the triangle that swept into it (small_: it fits between the
     // corners, which its own tangent plane through each of them would let slide around it)
