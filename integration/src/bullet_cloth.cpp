@@ -317,8 +317,14 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
         const Stepping during(*this, list);
         const std::size_t n = list.size();
         errors_.assign(n, nullptr);
+        // A cloth whose proxy the program took out of the world said so in one step
+        // (prepare) and is out of the world since (inWorld() false): not stepped again, so the
+        // rest of the world steps on until the program removes the handle.
+        skip_.assign(n, 0);
+        for (std::size_t k = 0; k < n; ++k)
+            skip_[k] = !list[k]->inWorld || list[k]->proxyLost;
         for (std::size_t k = 0; k < n; ++k) {
-            if (!list[k]->inWorld) continue;
+            if (skip_[k]) continue;
             const std::optional<double>& exact = list[k]->settings.timeStep;
             try {
                 list[k]->prepare(exact && btScalar(*exact) == dt ? *exact : double(dt));
@@ -327,7 +333,7 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
             }
         }
         auto advance = [this, &list](std::size_t k) {
-            if (errors_[k] || !list[k]->inWorld) return;
+            if (errors_[k] || skip_[k] || !list[k]->inWorld) return;
             try {
                 list[k]->advance();
             } catch (...) {
@@ -368,7 +374,7 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
                 advance(k);
         }
         for (std::size_t k = 0; k < n; ++k) {
-            if (errors_[k] || !list[k]->inWorld) continue;
+            if (errors_[k] || skip_[k] || !list[k]->inWorld) continue;
             try {
                 list[k]->finish();
             } catch (...) {
@@ -408,6 +414,7 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
 
   private:
     std::vector<std::exception_ptr> errors_;
+    std::vector<unsigned char> skip_; ///< per cloth of the step: not stepped (out of the world)
     std::shared_ptr<ArenaExecutor> executor_; ///< the world's threads (more than one)
 };
 

@@ -65,9 +65,10 @@ namespace drape::bullet {
 ///   the sub-step it was in); when it was the world's last cloth, the world's next action
 ///   misses that one sub-step;
 /// - the proxy (proxyObject()) taken out of the world by the program: the next world step
-///   throws drape::Error saying so, inWorld() turns false, and remove() (with the world
-///   alive) takes the cloth out; removing the handle before such a step, or after the world
-///   is destroyed, is not safe.
+///   throws drape::Error saying so, inWorld() turns false, later world steps pass over the
+///   cloth (the rest of the world steps on), and remove() (with the world alive) takes the
+///   cloth out; removing the handle before such a step, or after the world is destroyed, is
+///   not safe.
 class BulletCloth {
   public:
     /// Prefer addCloth(). Throws drape::Error on a null world or cloth or bad settings.
