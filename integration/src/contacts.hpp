@@ -195,6 +195,13 @@ class ContactSolver {
     /// The limiter plane of a static or kinematic body that particle i lies on (at most
     /// kHeldGap thicknesses above it), or -1.
     std::int64_t heldBehind(const Vec3List& x, std::size_t i) const;
+    /// Whether particle i is held from behind (heldBehind) against a push along n: the plane
+    /// holding it faces the push. A dynamic body's push of a spring or triangle with such a
+    /// corner (a crate on a rug on the floor, a cup on a cloth on the floor) moves nothing.
+    bool heldAgainst(const Vec3List& x, std::size_t i, const Vec3& n) const {
+        const std::int64_t k = heldBehind(x, i);
+        return k >= 0 && records->planes.normal[std::size_t(k)].dot(n) < 0.0;
+    }
     /// A dynamic body pressing a particle into a static or kinematic body that holds it
     /// (heldBehind): the body's approach to the one behind, at the contact, is stopped as if
     /// it touched it; the particle is not moved (moved out of the body it would be moved into

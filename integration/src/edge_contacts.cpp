@@ -180,11 +180,7 @@ void ContactSolver::collideSpringWithBox(Cloth& c, std::size_t si, std::uint32_t
     const Vec3 n = b.pose.R * g;
     // A dynamic box pressing the spring into a static or kinematic body that holds an end
     // (a crate on a rug on the floor) moves nothing: see collideParticle.
-    if (b.dynamicBody)
-        for (const Index e : {s.a, s.b})
-            if (const std::int64_t k = heldBehind(x, e);
-                k >= 0 && records->planes.normal[std::size_t(k)].dot(n) < 0.0)
-                return;
+    if (b.dynamicBody && (heldAgainst(x, s.a, n) || heldAgainst(x, s.b, n))) return;
     const double depth = h - d;
     const Vec3 point = b.pose.toWorld(local - d * g); // on the surface
     stats.maxDepth = std::max(stats.maxDepth, depth);

@@ -78,10 +78,7 @@ bool ContactSolver::pushTriangle(Cloth& c, std::uint32_t bi, const Triangle& tri
     // floor, where it came out only at contact.depenetrationSpeed and stayed 1 cm inside.
     if (b.dynamicBody)
         for (int k = 0; k < 3; ++k)
-            if (const std::int64_t held = heldBehind(x, tri[k]);
-                beta[k] != 0.0 && held >= 0 &&
-                records->planes.normal[std::size_t(held)].dot(n) < 0.0)
-                return false;
+            if (beta[k] != 0.0 && heldAgainst(x, tri[k], n)) return false;
     stats.maxDepth = std::max(stats.maxDepth, depth);
     // A body smaller than the triangle that swept into it (small_: it fits between the
     // corners, which its own tangent plane through each of them would let slide around it)

@@ -29,7 +29,7 @@ std::string num(double v) {
 /// springs reach at least four times the median particle's frequency, highestLocalFrequency):
 /// which particle, and what usually makes one. Empty otherwise.
 std::string stiffestSpot(const ClothTopology& topology, const std::vector<double>& stiffness,
-                         const std::vector<double>& invMass, const std::vector<double>& mass) {
+                         const std::vector<double>& invMass) {
     const LocalFrequency f = highestLocalFrequency(topology, stiffness, invMass);
     if (!(f.medianOmega > 0.0) || !(f.omega >= 4.0 * f.medianOmega)) return {};
     const Index p = f.particle;
@@ -42,15 +42,10 @@ std::string stiffestSpot(const ClothTopology& topology, const std::vector<double
             shortest = l;
             other = topology.adjacentParticles()[e];
         }
-    std::vector<double> free;
-    for (std::size_t i = 0; i < mass.size(); ++i)
-        if (invMass[i] != 0.0) free.push_back(mass[i]);
-    auto middle = free.begin() + static_cast<std::ptrdiff_t>(free.size() / 2);
-    std::nth_element(free.begin(), middle, free.end());
     return "; particle " + std::to_string(p) + " sets that limit: its own springs reach " +
            num(f.omega) + " rad/s, " + num(f.omega / f.medianOmega) +
-           " times the median particle's (its mass " + num(mass[p]) + " kg against a median " +
-           num(*middle) + " kg, its shortest spring " + num(shortest) + " m, to particle " +
+           " times the median particle's (its mass " + num(f.mass) + " kg against a median " +
+           num(f.medianMass) + " kg, its shortest spring " + num(shortest) + " m, to particle " +
            std::to_string(other) +
            "): a vertex that only sliver triangles touch, or two vertices a hair apart that "
            "should be one, does this; weld them (a mesh importer's weld tolerance) or "
@@ -330,7 +325,7 @@ int Cloth::substepsFor(double dt) const {
                 " s (the stability limit of " + toString(settings_.integrator) +
                 " for this cloth, omega_max = " + num(maxAngularFrequency()) +
                 " rad/s), more than substeps.maxSubsteps = " + std::to_string(sub.maxSubsteps) +
-                stiffestSpot(*topology_, forceModel_->stiffness(), invMass_, masses()) +
+                stiffestSpot(*topology_, forceModel_->stiffness(), invMass_) +
                 "; use a smaller dt, softer springs, heavier particles or implicit_euler");
     }
     return static_cast<int>(needed);
@@ -534,7 +529,7 @@ void Cloth::checkTimeStep(double dt) const {
                             num(limit) + " s of " + toString(settings_.integrator) +
                             " for this cloth (omega_max = " + num(maxAngularFrequency()) +
                             " rad/s)" +
-                            stiffestSpot(*topology_, forceModel_->stiffness(), invMass_, masses()) +
+                            stiffestSpot(*topology_, forceModel_->stiffness(), invMass_) +
                             "; use dt <= " + num(limit) + " s, " +
                             std::to_string(static_cast<long long>(std::ceil(dt / limit))) +
                             " sub-steps, or implicit_euler");

@@ -97,18 +97,24 @@ LocalFrequency highestLocalFrequency(const ClothTopology& topology,
     std::vector<double> w;
     if (!rootInverseMasses(invMass, w) || topology.springCount() == 0) return out;
     const std::vector<double> rows = gershgorinRows(topology, stiffness, w);
-    std::vector<double> free;
+    std::vector<double> freeRows, freeMasses;
     for (std::size_t i = 0; i < rows.size(); ++i) {
         if (invMass[i] == 0.0) continue;
-        free.push_back(rows[i]);
+        freeRows.push_back(rows[i]);
+        freeMasses.push_back(1.0 / invMass[i]);
         if (rows[i] > out.omega * out.omega) {
             out.particle = static_cast<Index>(i);
             out.omega = std::sqrt(rows[i]);
         }
     }
-    auto middle = free.begin() + static_cast<std::ptrdiff_t>(free.size() / 2);
-    std::nth_element(free.begin(), middle, free.end());
-    out.medianOmega = std::sqrt(*middle);
+    auto median = [](std::vector<double>& v) {
+        auto middle = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+        std::nth_element(v.begin(), middle, v.end());
+        return *middle;
+    };
+    out.medianOmega = std::sqrt(median(freeRows));
+    out.mass = 1.0 / invMass[out.particle];
+    out.medianMass = median(freeMasses);
     return out;
 }
 

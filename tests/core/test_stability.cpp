@@ -247,6 +247,11 @@ TEST_CASE("A sliver that sets the stable step is named when the step is refused"
                   plain.substepsFor(1.0 / 60.0)));
     CHECK((f.particle == 0 || f.particle == thin.particleCount() - 1));
     CHECK(f.omega >= 4.0 * f.medianOmega);
+    CHECK(f.mass == Approx(thin.masses()[f.particle]).epsilon(1e-12));
+    const auto [lightest, heaviest] =
+        std::minmax_element(thin.masses().begin(), thin.masses().end());
+    CHECK(f.medianMass >= *lightest);
+    CHECK(f.medianMass <= *heaviest);
     CHECK(thin.substepsFor(1.0 / 60.0) > plain.substepsFor(1.0 / 60.0));
 
     // A hair's width: more sub-steps than allowed, and the refusal names the particle, its

@@ -40,6 +40,8 @@ struct LocalFrequency {
     Index particle = 0;       ///< the free particle with the highest bound
     double omega = 0.0;       ///< its bound [rad/s]
     double medianOmega = 0.0; ///< the median of the free particles' bounds [rad/s]
+    double mass = 0.0;        ///< the particle's mass, 1 / its inverse mass [kg]
+    double medianMass = 0.0;  ///< the median of the free particles' masses [kg]
 };
 
 /// The particle with the highest local bound (LocalFrequency); all zero when nothing can move.
