@@ -400,15 +400,15 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
     /// cloths share one set of threads; takes it back when the world has none (any more).
     /// Runs on the world's thread before the cloths step.
     void lendExecutor(Impl& c) const {
-        Cloth& cloth = *c.cloth;
-        if (cloth.hasCallerExecutor() && !isWorldLoan(cloth.executor())) {
+        Cloth& borrower = *c.cloth;
+        if (borrower.hasCallerExecutor() && !isWorldLoan(borrower.executor())) {
             c.lent.reset(); // the program's own choice
             return;
         }
         const std::shared_ptr<Executor> want =
-            borrows(cloth) && executor_ ? std::shared_ptr<Executor>(executor_) : nullptr;
-        if (want ? cloth.executor() != want.get() : cloth.hasCallerExecutor())
-            cloth.setExecutor(want);
+            borrows(borrower) && executor_ ? std::shared_ptr<Executor>(executor_) : nullptr;
+        if (want ? borrower.executor() != want.get() : borrower.hasCallerExecutor())
+            borrower.setExecutor(want);
         c.lent = want;
     }
 

@@ -99,8 +99,10 @@ inline bool ParticleBoxes::mayTouch(const BodySnapshot& b, std::size_t i, const 
     // The particle's box against the body's AABB grown by the reach: the comparisons
     // the contact query would make first.
     const Box& box = boxes_[i];
-    if ((box.hi[0] < b.aabbMin[0]) | (box.hi[1] < b.aabbMin[1]) | (box.hi[2] < b.aabbMin[2]) |
-        (box.lo[0] > b.aabbMax[0]) | (box.lo[1] > b.aabbMax[1]) | (box.lo[2] > b.aabbMax[2])) {
+    // (Bitwise on integers: no branch per comparison.)
+    if ((int(box.hi[0] < b.aabbMin[0]) | int(box.hi[1] < b.aabbMin[1]) |
+         int(box.hi[2] < b.aabbMin[2]) | int(box.lo[0] > b.aabbMax[0]) |
+         int(box.lo[1] > b.aabbMax[1]) | int(box.lo[2] > b.aabbMax[2])) != 0) {
         return false;
     }
     if (!b.plane) return true;

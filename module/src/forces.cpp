@@ -395,9 +395,11 @@ void addFamilyTerms(const detail::SpringFamily& fam, const double* in, double* o
 
 /// out[j] += sum over the G families of (start[j] - end[j]), for m particles; run holds each
 /// family's start and end pointers.
+/// (A template cannot be multi-versioned under Clang: the loop is inlined into one kernel per
+/// group size below.)
 template <int G>
-DRAPE_WIDE_KERNEL void fusedTerms(std::size_t m, const double* const* run,
-                                  double* DRAPE_RESTRICT out) {
+[[gnu::always_inline]] inline void fusedTermsLoop(std::size_t m, const double* const* run,
+                                                  double* DRAPE_RESTRICT out) {
     const double* DRAPE_RESTRICT s0 = run[0];
     const double* DRAPE_RESTRICT e0 = run[1];
     const double* DRAPE_RESTRICT s1 = G > 1 ? run[2] : run[0];
@@ -415,19 +417,32 @@ DRAPE_WIDE_KERNEL void fusedTerms(std::size_t m, const double* const* run,
     }
 }
 
+DRAPE_WIDE_KERNEL void fusedTerms1(std::size_t m, const double* const* run, double* out) {
+    fusedTermsLoop<1>(m, run, out);
+}
+DRAPE_WIDE_KERNEL void fusedTerms2(std::size_t m, const double* const* run, double* out) {
+    fusedTermsLoop<2>(m, run, out);
+}
+DRAPE_WIDE_KERNEL void fusedTerms3(std::size_t m, const double* const* run, double* out) {
+    fusedTermsLoop<3>(m, run, out);
+}
+DRAPE_WIDE_KERNEL void fusedTerms4(std::size_t m, const double* const* run, double* out) {
+    fusedTermsLoop<4>(m, run, out);
+}
+
 void addFusedTerms(std::size_t groupSize, std::size_t m, const double* const* run, double* out) {
     switch (groupSize) {
     case 1:
-        fusedTerms<1>(m, run, out);
+        fusedTerms1(m, run, out);
         break;
     case 2:
-        fusedTerms<2>(m, run, out);
+        fusedTerms2(m, run, out);
         break;
     case 3:
-        fusedTerms<3>(m, run, out);
+        fusedTerms3(m, run, out);
         break;
     default:
-        fusedTerms<4>(m, run, out);
+        fusedTerms4(m, run, out);
         break;
     }
 }

@@ -24,6 +24,7 @@
 using namespace drape;
 using namespace drape::samples;
 
+#if defined(DRAPE_GOLDEN_TOOLCHAIN)
 namespace {
 constexpr int kGoldenSteps = 200;
 constexpr std::uint64_t kGoldenHash = 0x1e5b9b61a4be87c3ULL;
@@ -34,6 +35,7 @@ std::string hex(std::uint64_t h) {
     return buf;
 }
 } // namespace
+#endif
 
 TEST_CASE("golden: Experiment II's state hash after 200 steps is pinned", "[scenes][golden]") {
 #if !defined(DRAPE_GOLDEN_TOOLCHAIN)

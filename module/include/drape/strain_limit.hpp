@@ -113,16 +113,16 @@ struct ContactPlanes {
         bool applied() const {
             return !broken && shift.allFinite() && turn.allFinite() && turn.norm() <= kBrokenTurn;
         }
-        /// Takes -lambda n [kg m] at `lever` from its centre of mass: it shifts and turns.
+        /// Takes -lambda n [kg m] at `arm` from its centre of mass: it shifts and turns.
         /// Past half a turn in one walk the first-order planes describe nothing (a thin bar
         /// wedged between particles, light about its axis): it is then left out of the rest of
         /// the walk (broken: its planes hold, and the caller does not apply what it took), and
         /// take returns false, as it does for a broken mover.
-        bool take(double lambda, const Vec3& n, const Vec3& lever) {
+        bool take(double lambda, const Vec3& n, const Vec3& arm) {
             if (broken) return false;
             Vec3 t, linear;
             if (composite) {
-                const Vec3 rxn = lever.cross(n);
+                const Vec3 rxn = arm.cross(n);
                 t = turn - (mobility.bottomLeftCorner<3, 3>() * n +
                             mobility.bottomRightCorner<3, 3>() * rxn) *
                                lambda;
@@ -130,7 +130,7 @@ struct ContactPlanes {
                     (mobility.topLeftCorner<3, 3>() * n + mobility.topRightCorner<3, 3>() * rxn) *
                     lambda;
             } else { // (the same operations as before composite movers: the same bits)
-                t = turn - invInertia * (lever.cross(n) * lambda);
+                t = turn - invInertia * (arm.cross(n) * lambda);
                 linear = (invMass * lambda) * n;
             }
             if (!(t.squaredNorm() <= kBrokenTurn * kBrokenTurn) || !shift.allFinite()) {
@@ -148,9 +148,9 @@ struct ContactPlanes {
         /// `centre`), CarrierMatrices::mobility; invMass and invInertia are then not used.
         bool composite = false;
         Eigen::Matrix<double, 6, 6> mobility = Eigen::Matrix<double, 6, 6>::Zero();
-        /// Its inverse mass along unit n at `lever` from its centre of mass [1/kg].
-        double giveAlong(const Vec3& n, const Vec3& lever) const {
-            const Vec3 rxn = lever.cross(n);
+        /// Its inverse mass along unit n at `arm` from its centre of mass [1/kg].
+        double giveAlong(const Vec3& n, const Vec3& arm) const {
+            const Vec3 rxn = arm.cross(n);
             if (composite) {
                 Eigen::Matrix<double, 6, 1> g;
                 g << n, rxn;
@@ -158,9 +158,10 @@ struct ContactPlanes {
             }
             return invMass + rxn.dot(invInertia * rxn);
         }
-        /// How far a point at `lever` has moved along n in the walk (first order) [m].
-        double moved(const Vec3& n, const Vec3& lever) const {
-            return n.dot(shift + turn.cross(lever));
+        /// How far a point at `arm` from its centre of mass has moved along n in the walk (first
+        /// order) [m].
+        double moved(const Vec3& n, const Vec3& arm) const {
+            return n.dot(shift + turn.cross(arm));
         }
     };
     std::vector<Mover> movers;
