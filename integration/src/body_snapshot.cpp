@@ -1,6 +1,7 @@
 // Body snapshots (see body_snapshot.hpp).
 #include "body_snapshot.hpp"
 
+#include "shape_queries.hpp"
 #include "validate.hpp"
 
 #include "drape/error.hpp"
@@ -178,7 +179,7 @@ bool snapshotBody(const btCollisionObject* obj, double reach, double frictionSca
                         "from before the step)");
     }
     btVector3 mn, mx;
-    obj->getCollisionShape()->getAabb(obj->getWorldTransform(), mn, mx);
+    shapeAabb(obj->getCollisionShape(), obj->getWorldTransform(), mn, mx);
     b.aabbMin = toVec(mn).array() - reach;
     b.aabbMax = toVec(mx).array() + reach;
     b.plane = obj->getCollisionShape()->getShapeType() == STATIC_PLANE_PROXYTYPE;

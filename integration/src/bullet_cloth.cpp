@@ -48,6 +48,7 @@
 #include "body_snapshot.hpp"
 #include "contacts.hpp"
 #include "proxy.hpp"
+#include "shape_queries.hpp"
 #include "validate.hpp"
 
 #include "drape/bullet/convert.hpp"
@@ -704,9 +705,10 @@ void BulletCloth::Impl::addFastBodies(const Vec3& lo, const Vec3& hi, double dt)
         const btRigidBody* rb = btRigidBody::upcast(obj);
         if (!rb) continue;
         const Vec3 step = dt * toVec(rb->getLinearVelocity());
-        if (!(step.norm() > margin)) continue; // the proxy's margin covers it
+        if (!(step.norm() > margin)) continue;  // the proxy's margin covers it
+        if (!proxy.collidesWith(obj)) continue; // filtered out as the broadphase would
         btVector3 mn, mx;
-        rb->getCollisionShape()->getAabb(rb->getWorldTransform(), mn, mx);
+        detail::shapeAabb(rb->getCollisionShape(), rb->getWorldTransform(), mn, mx);
         const Vec3 bodyLo = toVec(mn).cwiseMin(toVec(mn) - step);
         const Vec3 bodyHi = toVec(mx).cwiseMax(toVec(mx) - step);
         if ((bodyHi.array() < lo.array()).any() || (bodyLo.array() > hi.array()).any()) continue;

@@ -91,7 +91,7 @@ void ContactSolver::detect(Cloth& c, double dt) {
         btTransform identity;
         identity.setIdentity();
         btVector3 lo, hi;
-        bodies[bi].object->getCollisionShape()->getAabb(identity, lo, hi);
+        shapeAabb(bodies[bi].object->getCollisionShape(), identity, lo, hi);
         Vec3 half = 0.5 * toVec(hi - lo);
         std::sort(half.data(), half.data() + 3);
         thin_[bi] = half[1] + contact_.thickness < longestSpring(c);

@@ -54,8 +54,10 @@ btGhostPairCallback& ghostPairCallback() {
 /// Collects the objects of the broadphase proxies overlapping a box.
 struct CollectObjects final : btBroadphaseAabbCallback {
     std::vector<const btCollisionObject*>* out = nullptr;
-    bool process(const btBroadphaseProxy* proxy) override {
-        out->push_back(static_cast<const btCollisionObject*>(proxy->m_clientObject));
+    const ClothProxy* proxy = nullptr;
+    bool process(const btBroadphaseProxy* found) override {
+        const auto* object = static_cast<const btCollisionObject*>(found->m_clientObject);
+        if (proxy->collidesWith(object)) out->push_back(object);
         return true;
     }
 };
@@ -81,6 +83,18 @@ void ClothProxy::addTo(btDynamicsWorld* world, int group, int mask) {
     world->getPairCache()->setInternalGhostPairCallback(&ghostPairCallback());
     world->addCollisionObject(ghost_.get(), group, mask);
     world_ = world;
+}
+
+bool ClothProxy::collidesWith(const btCollisionObject* object) const {
+    btBroadphaseProxy* mine = ghost_->getBroadphaseHandle();
+    // (Bullet's filter callback takes non-const proxies; it only reads them.)
+    btBroadphaseProxy* theirs =
+        object ? const_cast<btCollisionObject*>(object)->getBroadphaseHandle() : nullptr;
+    if (!world_ || !mine || !theirs || object == ghost_.get()) return false;
+    if (const btOverlapFilterCallback* filter = world_->getPairCache()->getOverlapFilterCallback())
+        return filter->needBroadphaseCollision(mine, theirs);
+    return (mine->m_collisionFilterGroup & theirs->m_collisionFilterMask) != 0 &&
+           (theirs->m_collisionFilterGroup & mine->m_collisionFilterMask) != 0;
 }
 
 bool ClothProxy::inLiveWorld() const {
@@ -110,6 +124,7 @@ bool ClothProxy::candidates(const Vec3& lo, const Vec3& hi,
     setBounds(lo, hi);
     CollectObjects collect;
     collect.out = &out;
+    collect.proxy = this;
     world_->getBroadphase()->aabbTest(toBt(min_), toBt(max_), collect);
     std::sort(out.begin(), out.end());
     out.erase(std::unique(out.begin(), out.end()), out.end());

@@ -46,6 +46,12 @@ class ClothProxy {
     /// to cover it and the broadphase asked directly (a tree query) for what the larger box
     /// overlaps; returns whether it did.
     bool candidates(const Vec3& lo, const Vec3& hi, std::vector<const btCollisionObject*>& out);
+    /// Whether the world's broadphase would pair `object` with the ghost: the world's overlap
+    /// filter callback if it has one, else Bullet's default test of the collision filter
+    /// groups and masks both ways (btOverlappingPairCache::needsBroadphaseCollision). False
+    /// for an object without a broadphase handle. The ghost's overlap list is filtered so by
+    /// Bullet; the direct queries (candidates' tree query, the fast bodies) ask this.
+    bool collidesWith(const btCollisionObject* object) const;
 
   private:
     btDynamicsWorld* world_ = nullptr; ///< while the ghost is in it

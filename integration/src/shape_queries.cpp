@@ -18,6 +18,30 @@
 #include <vector>
 
 namespace drape::bullet::detail {
+
+namespace {
+/// The half extent Bullet takes as a cylinder's radius (btCylinderShape::getRadius, its support
+/// functions): the y half extent of an x cylinder, the x half extent of a y or z one; the third
+/// is not used.
+int cylinderRadiusAxis(int upAxis) {
+    return upAxis == 0 ? 1 : 0;
+}
+} // namespace
+
+void shapeAabb(const btCollisionShape* shape, const btTransform& transform, btVector3& lo,
+               btVector3& hi) {
+    if (shape->getShapeType() != CYLINDER_SHAPE_PROXYTYPE) {
+        shape->getAabb(transform, lo, hi);
+        return;
+    }
+    const auto* cyl = static_cast<const btCylinderShape*>(shape);
+    const int axis = cyl->getUpAxis();
+    btVector3 half = cyl->getHalfExtentsWithMargin();
+    const btScalar radius = half[cylinderRadiusAxis(axis)];
+    for (int k = 0; k < 3; ++k)
+        if (k != axis) half[k] = radius;
+    btTransformAabb(half, btScalar(0), transform, lo, hi);
+}
 namespace {
 
 /// Fills a hit from a local-frame result.
@@ -313,7 +337,7 @@ TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& 
         for (int k = 0; k < compound->getNumChildShapes(); ++k) {
             const btTransform t = transform * compound->getChildTransform(k);
             btVector3 mn, mx;
-            compound->getChildShape(k)->getAabb(t, mn, mx);
+            shapeAabb(compound->getChildShape(k), t, mn, mx);
             if ((toVec(mx).array() < lo.array()).any() || (toVec(mn).array() > hi.array()).any())
                 continue;
             const TriangleHit h =
@@ -443,7 +467,7 @@ SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const
         const auto* cyl = static_cast<const btCylinderShape*>(shape);
         const int axis = cyl->getUpAxis();
         const Vec3 e = toVec(cyl->getHalfExtentsWithMargin());
-        return placed(pose, closestOnCylinder(axis, e[(axis + 1) % 3], e[axis], local));
+        return placed(pose, closestOnCylinder(axis, e[cylinderRadiusAxis(axis)], e[axis], local));
     }
     case STATIC_PLANE_PROXYTYPE: {
         ++counters.queries;
@@ -456,7 +480,7 @@ SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const
             const btCollisionShape* child = compound->getChildShape(c);
             const btTransform& ct = compound->getChildTransform(c);
             btVector3 mn, mx;
-            child->getAabb(ct, mn, mx);
+            shapeAabb(child, ct, mn, mx);
             const btVector3 lp = toBt(local);
             const auto r = btScalar(reach);
             if (lp.x() < mn.x() - r || lp.y() < mn.y() - r || lp.z() < mn.z() - r ||

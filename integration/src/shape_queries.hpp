@@ -30,6 +30,13 @@ struct QueryCounters {
     std::size_t triangleQueries = 0; ///< triangle-shape queries made (each compound child counts)
 };
 
+/// The world AABB of `shape` at `transform`, as its surface queries see it: Bullet's getAabb,
+/// except for a cylinder whose circle's two half extents differ. Bullet's own AABB of such a
+/// cylinder is the box of its half extents, but its collisions (support functions, getRadius)
+/// use one of them as the radius of a round cylinder that reaches beyond that box.
+void shapeAabb(const btCollisionShape* shape, const btTransform& transform, btVector3& lo,
+               btVector3& hi);
+
 /// Signed distance of `p` to `shape` placed at `pose`. Only surfaces nearer than `reach` [m]
 /// need to be found (concave shapes search triangles within it; the result is invalid if none
 /// is). `prev` is where the point was at the previous step: for two-sided surfaces (triangle

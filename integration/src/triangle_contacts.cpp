@@ -161,8 +161,8 @@ void ContactSolver::sweepBodies(Cloth& c, double dt, QueryCounters& counters) {
         // particles' own queries (closest points, swept rays) meet it.
         if (!thin_[bi] && path.shift.norm() + path.turn.angle() * radius <= h) continue;
         btVector3 mn0, mx0, mn1, mx1;
-        shape->getAabb(toBtTransform(from), mn0, mx0);
-        shape->getAabb(toBtTransform(to), mn1, mx1);
+        shapeAabb(shape, toBtTransform(from), mn0, mx0);
+        shapeAabb(shape, toBtTransform(to), mn1, mx1);
         // A small body (small_) that does not stay put keeps the planes of the triangles
         // within a spring's length of where it ends (addTrianglePlane), not only of those it
         // reached: the walk after this stage can pull a triangle its springs hold back onto

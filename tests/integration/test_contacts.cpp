@@ -603,6 +603,63 @@ TEST_CASE("a cloth drapes over a convex hull rock at the thickness from its surf
     CHECK(farthestResting <= 2.0 * kThickness);
 }
 
+TEST_CASE("a cloth drapes over cylinders of each axis with unequal half extents at the "
+          "thickness from their surface, as Bullet's GJK measures it",
+          "[contacts][drape][cylinder]") {
+    // Bullet's cylinder is round: its radius is the y half extent of an x cylinder and the x
+    // half extent of a y or z one; the third half extent is not used (btCylinderShape::
+    // getRadius, its support functions). A query that took the z half extent of a y cylinder
+    // as its radius let a cloth sink 0.14 m into one made with a local scaling.
+    struct Case {
+        const char* name;
+        std::function<btCylinderShape*(TestWorld&)> make;
+    };
+    const std::vector<Case> cases = {
+        {"y axis, half extents (0.3, 0.1, 0.15)",
+         [](TestWorld& w) { return w.shape<btCylinderShape>(btVector3(0.3f, 0.1f, 0.15f)); }},
+        {"y axis scaled (1.5, 0.5, 0.75)",
+         [](TestWorld& w) {
+             auto* c = w.shape<btCylinderShape>(btVector3(0.2f, 0.2f, 0.2f));
+             c->setLocalScaling(btVector3(1.5f, 0.5f, 0.75f));
+             return c;
+         }},
+        {"x axis, half extents (0.3, 0.2, 0.1)",
+         [](TestWorld& w) { return w.shape<btCylinderShapeX>(btVector3(0.3f, 0.2f, 0.1f)); }},
+        {"z axis, half extents (0.2, 0.1, 0.3)",
+         [](TestWorld& w) { return w.shape<btCylinderShapeZ>(btVector3(0.2f, 0.1f, 0.3f)); }},
+    };
+    for (const auto& c : cases) {
+        DYNAMIC_SECTION(c.name) {
+            TestWorld w;
+            btCylinderShape* cylinder = c.make(w);
+            const btTransform pose(btQuaternion::getIdentity(), btVector3(0, 0.3f, 0));
+            w.body(cylinder, 0.0, eig(pose.getOrigin()));
+            // Above each of them (their tops are at most 0.2 m above the centre: Bullet's own
+            // AABB of the z cylinder is lower than its round surface, 0.1 m).
+            auto cloth = makeCloth(horizontalSheet(21, 21, 0.05, 0.3 + 0.25), ClothSettings{});
+            bullet::BulletClothSettings bs;
+            bs.contact.thickness = kThickness;
+            w.add(cloth, bs);
+            auto signedDistance = [&](const Vec3& x) {
+                btGjkEpaSolver2::sResults res;
+                return double(btGjkEpaSolver2::SignedDistance(bt(x), 0, cylinder, pose, res));
+            };
+            double closest = std::numeric_limits<double>::infinity();
+            for (int f = 0; f < 180; ++f) {
+                w.world.stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
+                for (const Vec3& x : cloth->positions())
+                    closest = std::min(closest, signedDistance(x));
+            }
+            std::size_t resting = 0;
+            for (const Vec3& x : cloth->positions())
+                resting += signedDistance(x) <= 2.0 * kThickness;
+            INFO("closest approach " << closest << " m, " << resting << " particles resting");
+            CHECK(closest >= kThickness - 1e-3); // as for the hull above
+            CHECK(resting >= 20);
+        }
+    }
+}
+
 TEST_CASE("a cloth drapes over a static triangle mesh (a roof ridge)", "[contacts][drape][mesh]") {
     // Two roof planes y = 0.5 - 0.5 |x| for |x| <= 1, z in [-1, 1], as a btBvhTriangleMeshShape.
     TestWorld w;

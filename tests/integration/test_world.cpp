@@ -10,7 +10,9 @@
 
 #include <oneapi/tbb/info.h>
 
+#include <algorithm>
 #include <atomic>
+#include <limits>
 
 using namespace drape;
 using namespace drape::testing;
@@ -142,6 +144,84 @@ TEST_CASE("the cloth's candidates come from the broadphase: far bodies cost noth
     CHECK(crowdedTriangles.triangleQueries == 0);
     CHECK(near.triangleQueries == 0);
     CHECK(run(0, true, true).triangleQueries > 0);
+}
+
+TEST_CASE("collision filter groups and masks keep a body and the cloth apart, however fast they "
+          "move",
+          "[world][broadphase][filter]") {
+    // The cloth's proxy is in group 1 with a mask without group 2 (BulletClothSettings::
+    // collisionGroup, collisionMask): a body of group 2 is never touched, whether the
+    // broadphase pairs it with the proxy (slow), the proxy's direct query finds it (a cloth
+    // moving past its box) or the fast-body search does (a body crossing the box between two
+    // sub-steps). Each case runs unfiltered too: the same motion is then stopped, so the
+    // checks can fail.
+    constexpr int kBodyGroup = 2;
+    auto inGroup = [](TestWorld& w, btRigidBody* b) {
+        w.world.removeRigidBody(b);
+        w.world.addRigidBody(b, kBodyGroup, -1);
+    };
+    bullet::BulletClothSettings filtered;
+    filtered.collisionMask = ~kBodyGroup;
+    const bullet::BulletClothSettings unfiltered;
+
+    SECTION("a ball thrown through a pinned net") {
+        for (double speed : {1.0, 20.0}) {
+            auto run = [&](const bullet::BulletClothSettings& bs) {
+                TestWorld w(Vec3::Zero());
+                auto cloth = makeCloth(horizontalSheet(21, 21, 0.05, 1.0), ClothSettings{});
+                pinBorder(*cloth, 21);
+                auto& h = w.add(cloth, bs);
+                btRigidBody* ball = w.body(w.shape<btSphereShape>(btScalar(0.05)), 0.5,
+                                           Vec3(0.0, 1.0 + 0.02 + 0.05 + speed / 60.0, 0.0));
+                inGroup(w, ball);
+                ball->setLinearVelocity(btVector3(0, btScalar(-speed), 0));
+                std::size_t contacts = 0;
+                for (int f = 0; f < 30; ++f) {
+                    w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+                    contacts += h.lastStats().contacts;
+                }
+                return std::make_pair(double(ball->getLinearVelocity().y()), contacts);
+            };
+            const auto [free, freeContacts] = run(filtered);
+            const auto [caught, caughtContacts] = run(unfiltered);
+            INFO(speed << " m/s: filtered, leaves at " << free << " m/s after " << freeContacts
+                       << " contacts; unfiltered " << caught << " m/s, " << caughtContacts);
+            CHECK(freeContacts == 0);
+            CHECK(free == Approx(-speed).epsilon(1e-6));
+            CHECK(caughtContacts > 0);
+            CHECK(caught > -0.9 * speed);
+        }
+    }
+    SECTION("a cloth thrown onto a floor") {
+        auto run = [&](const bullet::BulletClothSettings& bs) {
+            TestWorld w;
+            btRigidBody* floor =
+                w.body(w.shape<btBoxShape>(btVector3(2, 0.1f, 2)), 0.0, Vec3(0.0, -0.1, 0.0));
+            inGroup(w, floor);
+            auto cloth = makeCloth(horizontalSheet(11, 11, 0.05, 0.5), ClothSettings{});
+            for (Vec3& v : cloth->mutableVelocities())
+                v = Vec3(0.0, -30.0, 0.0); // past the proxy's box in one sub-step
+            auto& h = w.add(cloth, bs);
+            std::size_t contacts = 0;
+            for (int f = 0; f < 6; ++f) {
+                w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+                contacts += h.lastStats().contacts;
+            }
+            double highest = -std::numeric_limits<double>::infinity();
+            for (const Vec3& x : cloth->positions())
+                highest = std::max(highest, x.y());
+            return std::make_pair(highest, contacts);
+        };
+        const auto [through, throughContacts] = run(filtered);
+        const auto [held, heldContacts] = run(unfiltered);
+        INFO("filtered: highest particle " << through << " m after " << throughContacts
+                                           << " contacts; unfiltered " << held << " m, "
+                                           << heldContacts);
+        CHECK(throughContacts == 0);
+        CHECK(through < -0.2); // through the floor's 0.2 m
+        CHECK(heldContacts > 0);
+        CHECK(held > -0.01);
+    }
 }
 
 TEST_CASE("the README example runs as written", "[world][readme]") {
