@@ -247,8 +247,10 @@ struct BulletCloth::Impl {
     void addFastBodies(const Vec3& lo, const Vec3& hi, double dt);
     double lastStrain = 0.0;     ///< Cloth::maxStrain() at the end of the last sub-step
     bool strainMeasured = false; ///< lastStrain holds a measurement
-    /// Follows the world's gravity if the user changes it (that wakes the cloth).
+    /// Follows the world's gravity when the program changes it (that wakes the cloth); a
+    /// gravity set on the cloth itself stays until then.
     void followWorldGravity();
+    Vec3 worldGravity = Vec3::Zero(); ///< the world's gravity the cloth last followed
     /// Wakes a sleeping cloth when a candidate body is new, gone or moving; records the poses.
     void wakeForBodies(double dt);
     /// After a cloth step of h [s] taken awake: the bodies get the contact forces' and the
@@ -757,7 +759,9 @@ void BulletCloth::Impl::checkAttachmentBodies() {
 void BulletCloth::Impl::followWorldGravity() {
     if (!settings.useWorldGravity) return;
     const Vec3 g = toVec(world->getGravity());
-    if (g != cloth->settings().gravity) cloth->setGravity(g); // wakes the cloth
+    if (g == worldGravity) return;
+    worldGravity = g;
+    cloth->setGravity(g); // wakes the cloth
 }
 
 void BulletCloth::Impl::wakeForBodies(double dt) {
@@ -849,7 +853,10 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
         const auto count = double(std::max<std::size_t>(1, m.cloth->topology().springCount()));
         m.margin = sum / count + 4.0 * h;
     }
-    if (settings.useWorldGravity) m.cloth->setGravity(toVec(world->getGravity()));
+    if (settings.useWorldGravity) {
+        m.worldGravity = toVec(world->getGravity());
+        m.cloth->setGravity(m.worldGravity);
+    }
     if (settings.sleep && !m.cloth->settings().sleep.enabled) {
         SleepSettings sleep = m.cloth->settings().sleep;
         sleep.enabled = true;

@@ -172,6 +172,15 @@ TEST_CASE("a hanging cloth sleeps and wakes when its body moves or gravity chang
     const Vec3List before = cloth->positions();
     run(w, 120);
     CHECK(cloth->positions()[48].x() - before[48].x() > 0.005);
+
+    // A gravity set on the cloth itself holds until the world's changes again (before, the
+    // world's overwrote it in the next step).
+    cloth->setGravity(Vec3(-2.0, -9.81, 0.0));
+    run(w, 10);
+    CHECK(cloth->settings().gravity == Vec3(-2.0, -9.81, 0.0));
+    w.world.setGravity(btVector3(0.0f, -5.0f, 0.0f));
+    run(w, 1);
+    CHECK(cloth->settings().gravity == Vec3(0.0, double(-5.0f), 0.0));
 }
 
 TEST_CASE("a sleeping cloth wakes when the shape under it is scaled or replaced",

@@ -101,8 +101,10 @@ struct BulletClothSettings {
     /// cloth in a world stepped by stepSimulation follows the same path as one stepped alone
     /// with this dt. Not given (or another sub-step): the btScalar step, widened to double.
     std::optional<double> timeStep;
-    /// Use the world's gravity for the cloth (copied when it is added and whenever the world's
-    /// changes). drape's default gravity is -9.81 m/s^2 along y, Bullet's is -10.
+    /// Use the world's gravity for the cloth: copied when it is added and whenever the world's
+    /// changes (btDynamicsWorld::setGravity to another value), so a gravity the program sets on
+    /// the cloth itself (Cloth::setGravity) holds until the world's next change. drape's
+    /// default gravity is -9.81 m/s^2 along y, Bullet's is -10.
     bool useWorldGravity = true;
     /// Broadphase filter group and mask of the cloth's proxy (Bullet's collision filtering).
     int collisionGroup = 1; ///< btBroadphaseProxy::DefaultFilter
