@@ -618,6 +618,38 @@ TEST_CASE("an edge far shorter than the mesh's others is named in a warning",
         CHECK_THAT(w, !Contains("shorter than"));
 }
 
+TEST_CASE("edges that no cloth surface has are named in a warning: fins and flipped windings",
+          "[mesh][degenerate]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "surface";
+    fs::create_directories(dir);
+    // A fin: a third triangle on the grid's diagonal 1-5 (OBJ numbering; the importer numbers
+    // vertices in the order the faces first use them: 0 and 2).
+    writeText(dir / "fin.obj", gridObj("v 0.5 0.5 1\n", "f 1 5 10\n"));
+    const ImportedMesh fin = importMesh(dir / "fin.obj");
+    REQUIRE(fin.warnings.size() == 1);
+    INFO(fin.warnings[0]);
+    CHECK_THAT(fin.warnings[0],
+               Contains("fin.obj: 1 edge is shared by more than two triangles (vertices 0 and 2)"));
+    // The grid's first triangle wound the other way (1 5 2: vertices 0, 1, 2): its two inner
+    // edges join triangles wound against it.
+    std::string flippedText = gridObj("", "");
+    const std::string first = "f 1 2 5\n";
+    REQUIRE(flippedText.find(first) != std::string::npos);
+    flippedText.replace(flippedText.find(first), first.size(), "f 1 5 2\n");
+    writeText(dir / "flipped.obj", flippedText);
+    const ImportedMesh flipped = importMesh(dir / "flipped.obj");
+    REQUIRE(flipped.warnings.size() == 1);
+    INFO(flipped.warnings[0]);
+    CHECK_THAT(flipped.warnings[0],
+               Contains("flipped.obj: 2 edges join two triangles wound against each other "
+                        "(vertices 0 and 1; vertices 1 and 2)"));
+    // The grid as it is: no warning.
+    writeText(dir / "grid.obj", gridObj("", ""));
+    CHECK(importMesh(dir / "grid.obj").warnings.empty());
+}
+
 TEST_CASE("a binary STL with a few collapsed facets loads, as assimp's spider does",
           "[mesh][degenerate]") {
     if (!meshIoAvailable()) return;

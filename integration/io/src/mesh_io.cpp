@@ -602,6 +602,64 @@ constexpr std::size_t kImportStackBytes = std::size_t(256) << 20;
 
 ImportedMesh importOnThisStack(const std::filesystem::path& file, const MeshImportOptions& options);
 
+/// A warning for edges no cloth surface has (empty when there are none): edges shared by more
+/// than two triangles (a fin or a pinch: the cloth simulates them, one spring per edge, but
+/// its two sides, the aerodynamics and the self-collision assume a surface), and edges whose
+/// two triangles are wound against each other (the normals flip across them: the lift and the
+/// shading follow the winding). Names up to three of each.
+std::string surfaceWarning(const TriangleMesh& mesh) {
+    struct Use {
+        Index lo, hi;
+        bool forward; ///< the triangle runs lo -> hi
+        bool operator<(const Use& o) const {
+            return lo != o.lo ? lo < o.lo : hi != o.hi ? hi < o.hi : forward < o.forward;
+        }
+    };
+    std::vector<Use> uses;
+    uses.reserve(3 * mesh.triangles.size());
+    for (const Triangle& t : mesh.triangles)
+        for (int k = 0; k < 3; ++k) {
+            const Index a = t[k], b = t[(k + 1) % 3];
+            uses.push_back({std::min(a, b), std::max(a, b), a < b});
+        }
+    std::sort(uses.begin(), uses.end());
+    std::size_t fins = 0, flips = 0;
+    std::string finExamples, flipExamples;
+    auto name = [](std::string& list, const Use& u, std::size_t n) {
+        char buf[96];
+        std::snprintf(buf, sizeof buf, "%svertices %u and %u", list.empty() ? "" : "; ",
+                      unsigned(u.lo), unsigned(u.hi));
+        if (n <= 3) list += buf;
+    };
+    for (std::size_t b = 0; b < uses.size();) {
+        std::size_t e = b, forward = 0;
+        while (e < uses.size() && uses[e].lo == uses[b].lo && uses[e].hi == uses[b].hi)
+            forward += uses[e++].forward;
+        const std::size_t count = e - b;
+        if (count > 2) {
+            name(finExamples, uses[b], ++fins);
+        } else if (count == 2 && forward != 1) {
+            name(flipExamples, uses[b], ++flips);
+        }
+        b = e;
+    }
+    std::string w;
+    if (fins > 0)
+        w += std::to_string(fins) + (fins == 1 ? " edge is" : " edges are") +
+             " shared by more than two triangles (" + finExamples + (fins > 3 ? "; ..." : "") +
+             "): the cloth simulates each edge as one spring, but a cloth is a surface with two "
+             "sides (aerodynamics, self-collision); split the mesh there";
+    if (flips > 0)
+        w += std::string(w.empty() ? "" : "; ") + std::to_string(flips) +
+             (flips == 1 ? " edge joins" : " edges join") +
+             " two triangles wound against each other (" + flipExamples +
+             (flips > 3 ? "; ..." : "") + "): the triangle normals flip across " +
+             (flips == 1 ? "it" : "them") +
+             " (the aerodynamic lift and the shading follow the normals); wind the triangles "
+             "consistently";
+    return w;
+}
+
 /// A warning for edges shorter than kShortEdge of the mesh's median edge (empty when none):
 /// an edge is a spring, and the cloth's stable time step shrinks with its shortest, stiffest
 /// spring (a 41 x 41 sheet with one sliver vertex 0.1 mm from a corner needs 77 sub-steps a
@@ -922,6 +980,8 @@ ImportedMesh importOnThisStack(const std::filesystem::path& file,
         if (!g.empty()) out.groups[name] = std::move(g);
     }
     if (const std::string w = shortEdgeWarning(out.mesh); !w.empty())
+        out.warnings.push_back(file.string() + ": " + w);
+    if (const std::string w = surfaceWarning(out.mesh); !w.empty())
         out.warnings.push_back(file.string() + ": " + w);
     out.rawVertexCount = raw.mesh.vertices.size();
     out.skippedPrimitives = raw.skipped;
