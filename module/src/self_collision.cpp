@@ -3,8 +3,11 @@
 // Broadphase: every triangle's bounding box, grown by the thickness, is entered into the
 // cells of a uniform grid it covers (cell size = the largest current triangle edge or twice the
 // thickness, whichever is larger, so a triangle covers at most 3 x 3 x 3 cells). A particle is
-// tested only against the triangles listed in its own cell. The grid is a sorted vector of
-// (cell key, triangle) pairs: deterministic and free of per-step allocations once warm.
+// tested only against the triangles listed in its own cell, in ascending order. The grid is a
+// hash table from cell key to its triangles, built in time linear in the entries (buildTable;
+// it replaced a sort of every (cell key, triangle) pair, which was most of the pass's cost):
+// deterministic and free of per-step allocations once warm. A candidate outside the triangle's
+// box grown by the thickness is rejected before its closest point is computed.
 //
 // Response for particle p and triangle (a, b, c) with closest point q = sum b_k x_k and unit
 // normal n pointing to the side p was on at the previous step:
@@ -35,6 +38,47 @@ std::uint64_t cellKey(std::int64_t i, std::int64_t j, std::int64_t k) {
 
 } // namespace
 
+// The grid's table: each distinct key of cells_ gets a slot of an open-addressing hash table
+// (linear probing, at least twice as many slots as entries), and the triangles of a key are
+// listed contiguously in listed_, in the order cells_ has them (ascending triangle index): what
+// sorting cells_ by (key, triangle) and searching it gave, in time linear in the entries.
+void SelfCollider::buildTable() {
+    std::size_t size = 16;
+    while (size < 2 * cells_.size())
+        size *= 2;
+    const std::size_t mask = size - 1;
+    slotKey_.assign(size, 0);
+    slotUsed_.assign(size, 0);
+    slotBegin_.assign(size + 1, 0);
+    entrySlot_.resize(cells_.size());
+    for (std::size_t e = 0; e < cells_.size(); ++e) {
+        const std::uint64_t key = cells_[e].first;
+        std::size_t slot = static_cast<std::size_t>(mix(key)) & mask;
+        while (slotUsed_[slot] && slotKey_[slot] != key)
+            slot = (slot + 1) & mask;
+        slotUsed_[slot] = 1;
+        slotKey_[slot] = key;
+        ++slotBegin_[slot + 1];
+        entrySlot_[e] = static_cast<std::uint32_t>(slot);
+    }
+    for (std::size_t k = 0; k < size; ++k)
+        slotBegin_[k + 1] += slotBegin_[k];
+    fill_.assign(slotBegin_.begin(), slotBegin_.end() - 1);
+    listed_.resize(cells_.size());
+    for (std::size_t e = 0; e < cells_.size(); ++e)
+        listed_[fill_[entrySlot_[e]]++] = cells_[e].second;
+    tableMask_ = mask;
+}
+
+std::pair<std::size_t, std::size_t> SelfCollider::trianglesAt(std::uint64_t key) const {
+    std::size_t slot = static_cast<std::size_t>(mix(key)) & tableMask_;
+    while (slotUsed_[slot]) {
+        if (slotKey_[slot] == key) return {slotBegin_[slot], slotBegin_[slot + 1]};
+        slot = (slot + 1) & tableMask_;
+    }
+    return {0, 0};
+}
+
 SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,
                                       const std::vector<double>& invMass, const Vec3List& xPrev,
                                       Vec3List& x, Vec3List& v, double thickness, double friction,
@@ -60,22 +104,28 @@ SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,
                     for (auto k = cellCoord(lo.z(), invCell); k <= cellCoord(hi.z(), invCell); ++k)
                         cells_.emplace_back(cellKey(i, j, k), static_cast<Index>(ti));
         }
-        std::sort(cells_.begin(), cells_.end());
+        buildTable();
 
         std::size_t contactsThisPass = 0;
         for (std::size_t p = 0; p < n; ++p) {
             const Vec3 xp = x[p];
             const std::uint64_t key = cellKey(
                 cellCoord(xp.x(), invCell), cellCoord(xp.y(), invCell), cellCoord(xp.z(), invCell));
-            auto it = std::lower_bound(cells_.begin(), cells_.end(), std::make_pair(key, Index(0)));
-            for (; it != cells_.end() && it->first == key; ++it) {
-                const auto& t = tris[it->second];
+            const auto [first, last] = trianglesAt(key);
+            for (std::size_t e = first; e < last; ++e) {
+                const auto& t = tris[listed_[e]];
                 if (t[0] == p || t[1] == p || t[2] == p) continue;
                 const double wp = invMass[p];
                 const double w0 = invMass[t[0]], w1 = invMass[t[1]], w2 = invMass[t[2]];
                 if (wp == 0.0 && w0 == 0.0 && w1 == 0.0 && w2 == 0.0) continue;
                 ++counts.pairTests;
                 const Vec3 &a = x[t[0]], &b = x[t[1]], &c = x[t[2]];
+                // Beyond the triangle's box grown by the thickness: farther than the thickness
+                // (the exact test below would say so too, at the cost of a closest point).
+                const Vec3& xp0 = x[p];
+                if ((xp0.array() > a.array().max(b.array()).max(c.array()) + thickness).any() ||
+                    (xp0.array() < a.array().min(b.array()).min(c.array()) - thickness).any())
+                    continue;
                 Vec3 bary;
                 const Vec3 q = closestPointOnTriangle(x[p], a, b, c, bary);
                 if ((x[p] - q).squaredNorm() >= thickness * thickness) continue;

@@ -29,7 +29,23 @@ class SelfCollider {
                             double friction, int iterations);
 
   private:
-    std::vector<std::pair<std::uint64_t, Index>> cells_; ///< (cell key, triangle), sorted
+    /// Lists the triangles of each key of cells_ by key (see self_collision.cpp).
+    void buildTable();
+    /// The range of listed_ holding the triangles of cell key `key` (empty if none).
+    std::pair<std::size_t, std::size_t> trianglesAt(std::uint64_t key) const;
+    /// A key's slot hash (the keys themselves are a multiplicative hash of the cell).
+    static std::uint64_t mix(std::uint64_t key) {
+        key ^= key >> 33;
+        key *= 0xff51afd7ed558ccdull;
+        return key ^ (key >> 33);
+    }
+    std::vector<std::pair<std::uint64_t, Index>> cells_; ///< (cell key, triangle), by triangle
+    std::vector<std::uint64_t> slotKey_;
+    std::vector<unsigned char> slotUsed_;
+    std::vector<std::size_t> slotBegin_, fill_; ///< per slot: its first entry in listed_
+    std::vector<std::uint32_t> entrySlot_;      ///< per entry of cells_: its key's slot
+    std::vector<Index> listed_;                 ///< triangles by slot
+    std::size_t tableMask_ = 0;
 };
 
 } // namespace drape::detail
