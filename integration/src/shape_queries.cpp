@@ -42,6 +42,7 @@ void shapeAabb(const btCollisionShape* shape, const btTransform& transform, btVe
         if (k != axis) half[k] = radius;
     btTransformAabb(half, btScalar(0), transform, lo, hi);
 }
+
 namespace {
 
 /// Fills a hit from a local-frame result.
