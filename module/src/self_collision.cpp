@@ -47,7 +47,7 @@ void SelfCollider::buildTable() {
     while (size < 2 * cells_.size())
         size *= 2;
     const std::size_t mask = size - 1;
-    slotKey_.assign(size, 0);
+    slotKey_.resize(size); // read only where slotUsed_ is set
     slotUsed_.assign(size, 0);
     slotBegin_.assign(size + 1, 0);
     entrySlot_.resize(cells_.size());

@@ -552,6 +552,43 @@ TEST_CASE("a cloth drapes over a static sphere", "[contacts][drape]") {
     CHECK(cloth->maxStrain() <= cloth->settings().limiter.maxStrain + 0.005);
 }
 
+namespace {
+
+/// What a 21 x 21 default cloth (5 cm spacing) dropped from height `y` onto the static convex
+/// `shape` at `pose` does over 3 s, measured with Bullet's own signed distance of the shape
+/// (btGjkEpaSolver2, margin included), the reference of the tests below.
+struct DrapeOnShape {
+    double closest = std::numeric_limits<double>::infinity(); ///< over the run [m]
+    std::size_t resting = 0;      ///< particles within twice the thickness at the end
+    double farthestResting = 0.0; ///< the farthest of those [m]
+};
+DrapeOnShape drapeOnShape(TestWorld& w, btConvexShape* shape, const btTransform& pose, double y) {
+    w.body(shape, 0.0, eig(pose.getOrigin()), pose.getRotation());
+    auto cloth = makeCloth(horizontalSheet(21, 21, 0.05, y), ClothSettings{});
+    bullet::BulletClothSettings bs;
+    bs.contact.thickness = kThickness;
+    w.add(cloth, bs);
+    auto signedDistance = [&](const Vec3& x) {
+        btGjkEpaSolver2::sResults res;
+        return double(btGjkEpaSolver2::SignedDistance(bt(x), 0, shape, pose, res));
+    };
+    DrapeOnShape out;
+    for (int f = 0; f < 180; ++f) {
+        w.world.stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
+        for (const Vec3& x : cloth->positions())
+            out.closest = std::min(out.closest, signedDistance(x));
+    }
+    for (const Vec3& x : cloth->positions()) {
+        const double d = signedDistance(x);
+        if (d > 2.0 * kThickness) continue;
+        ++out.resting;
+        out.farthestResting = std::max(out.farthestResting, d);
+    }
+    return out;
+}
+
+} // namespace
+
 TEST_CASE("a cloth drapes over a convex hull rock at the thickness from its surface, as Bullet's "
           "GJK measures it",
           "[contacts][drape][hull]") {
@@ -570,37 +607,14 @@ TEST_CASE("a cloth drapes over a convex hull rock at the thickness from its surf
     }
     rock->recalcLocalAabb();
     const btTransform pose(btQuaternion(btVector3(0, 1, 0), btScalar(0.4)), btVector3(0, 0.3f, 0));
-    w.body(rock, 0.0, eig(pose.getOrigin()), pose.getRotation());
-    auto cloth = makeCloth(horizontalSheet(21, 21, 0.05, 0.75), ClothSettings{});
-    bullet::BulletClothSettings bs;
-    bs.contact.thickness = kThickness;
-    w.add(cloth, bs);
-    auto signedDistance = [&](const Vec3& x) {
-        btGjkEpaSolver2::sResults res;
-        return double(btGjkEpaSolver2::SignedDistance(bt(x), 0, rock, pose, res));
-    };
-    double closest = std::numeric_limits<double>::infinity();
-    for (int f = 0; f < 180; ++f) {
-        w.world.stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
-        for (const Vec3& x : cloth->positions())
-            closest = std::min(closest, signedDistance(x));
-    }
-    // At rest: how many particles rest on it, and how far from its surface.
-    std::size_t resting = 0;
-    double farthestResting = 0.0;
-    for (const Vec3& x : cloth->positions()) {
-        const double d = signedDistance(x);
-        if (d > 2.0 * kThickness) continue;
-        ++resting;
-        farthestResting = std::max(farthestResting, d);
-    }
-    INFO("closest approach " << closest << " m, " << resting << " particles resting, farthest "
-                             << farthestResting << " m");
+    const DrapeOnShape r = drapeOnShape(w, rock, pose, 0.75);
+    INFO("closest approach " << r.closest << " m, " << r.resting << " particles resting, farthest "
+                             << r.farthestResting << " m");
     // Never nearer than the thickness by more than Bullet's single-precision GJK (its
     // tolerance is about 1e-4 at this scale) plus the force term's one-step sag.
-    CHECK(closest >= kThickness - 1e-3);
-    CHECK(resting >= 40);
-    CHECK(farthestResting <= 2.0 * kThickness);
+    CHECK(r.closest >= kThickness - 1e-3);
+    CHECK(r.resting >= 40);
+    CHECK(r.farthestResting <= 2.0 * kThickness);
 }
 
 TEST_CASE("a cloth drapes over cylinders of each axis with unequal half extents at the "
@@ -631,31 +645,14 @@ TEST_CASE("a cloth drapes over cylinders of each axis with unequal half extents 
     for (const auto& c : cases) {
         DYNAMIC_SECTION(c.name) {
             TestWorld w;
-            btCylinderShape* cylinder = c.make(w);
-            const btTransform pose(btQuaternion::getIdentity(), btVector3(0, 0.3f, 0));
-            w.body(cylinder, 0.0, eig(pose.getOrigin()));
             // Above each of them (their tops are at most 0.2 m above the centre: Bullet's own
             // AABB of the z cylinder is lower than its round surface, 0.1 m).
-            auto cloth = makeCloth(horizontalSheet(21, 21, 0.05, 0.3 + 0.25), ClothSettings{});
-            bullet::BulletClothSettings bs;
-            bs.contact.thickness = kThickness;
-            w.add(cloth, bs);
-            auto signedDistance = [&](const Vec3& x) {
-                btGjkEpaSolver2::sResults res;
-                return double(btGjkEpaSolver2::SignedDistance(bt(x), 0, cylinder, pose, res));
-            };
-            double closest = std::numeric_limits<double>::infinity();
-            for (int f = 0; f < 180; ++f) {
-                w.world.stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
-                for (const Vec3& x : cloth->positions())
-                    closest = std::min(closest, signedDistance(x));
-            }
-            std::size_t resting = 0;
-            for (const Vec3& x : cloth->positions())
-                resting += signedDistance(x) <= 2.0 * kThickness;
-            INFO("closest approach " << closest << " m, " << resting << " particles resting");
-            CHECK(closest >= kThickness - 1e-3); // as for the hull above
-            CHECK(resting >= 20);
+            const DrapeOnShape r = drapeOnShape(
+                w, c.make(w), btTransform(btQuaternion::getIdentity(), btVector3(0, 0.3f, 0)),
+                0.3 + 0.25);
+            INFO("closest approach " << r.closest << " m, " << r.resting << " particles resting");
+            CHECK(r.closest >= kThickness - 1e-3); // as for the hull above
+            CHECK(r.resting >= 20);
         }
     }
 }
