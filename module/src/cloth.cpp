@@ -137,6 +137,13 @@ std::vector<double> buildStiffness(const ClothTopology& topo, const ClothSetting
     return springStiffnessFromMaterial(topo, eh, 1.0);
 }
 
+void validateAero(const AeroSettings& a) {
+    requireNonNegative(a.airDensity, "aero.airDensity");
+    requireFinite(a.dragCoefficient, "aero.dragCoefficient");
+    requireFinite(a.liftCoefficient, "aero.liftCoefficient");
+    requireFinite(a.wind, "aero.wind");
+}
+
 void validateSelfCollision(const SelfCollisionSettings& sc) {
     if (!sc.enabled) return; // the values matter only when it runs
     requirePositive(sc.thickness, "selfCollision.thickness");
@@ -169,10 +176,7 @@ void validateSettings(const ClothSettings& s) {
     requireNonNegative(s.damping, "damping");
     requireNonNegative(s.relativeDamping, "relativeDamping");
     requireNonNegative(s.springDamping, "springDamping");
-    requireNonNegative(s.aero.airDensity, "aero.airDensity");
-    requireFinite(s.aero.dragCoefficient, "aero.dragCoefficient");
-    requireFinite(s.aero.liftCoefficient, "aero.liftCoefficient");
-    requireFinite(s.aero.wind, "aero.wind");
+    validateAero(s.aero);
     requirePositive(s.limiter.maxStrain, "limiter.maxStrain");
     requireNonNegative(s.limiter.tolerance, "limiter.tolerance");
     requirePositive(s.limiter.toleranceStep, "limiter.toleranceStep");
@@ -1103,6 +1107,13 @@ void Cloth::clearUserForces() {
 void Cloth::setWind(const Vec3& wind) {
     forceModel_->setWind(wind);
     settings_.aero.wind = wind;
+    state_.forcesValid = false;
+    edited();
+}
+void Cloth::setAero(const AeroSettings& aero) {
+    validateAero(aero);
+    forceModel_->setAero(aero);
+    settings_.aero = aero;
     state_.forcesValid = false;
     edited();
 }

@@ -845,6 +845,11 @@ void ForceModel::setWind(const Vec3& wind) {
     settings_.aero.wind = wind;
 }
 
+void ForceModel::setAero(const AeroSettings& aero) {
+    settings_.aero = aero;
+    rebuildPipeline();
+}
+
 void ForceModel::setGravity(const Vec3& g) {
     if (!g.allFinite()) throw Error(ErrorCode::NonFinite, "gravity is not finite");
     settings_.gravity = g;

@@ -328,6 +328,45 @@ TEST_CASE("A falling plate reaches the terminal velocity of its drag", "[aero]")
     CHECK(-again.velocities()[0].y() == Approx(vt * std::tanh(steps * 1e-3 / tau)).epsilon(1e-6));
 }
 
+TEST_CASE("Aerodynamics turned on and off after construction (Cloth::setAero)", "[aero]") {
+    // The falling plate built without air: it falls freely (v = -g t), reaches the terminal
+    // speed of its drag once setAero gives it air, and falls freely again when the air goes.
+    const TriangleMesh m = fallingPlateMesh();
+    ClothSettings s = fallingPlateSettings();
+    const AeroSettings air = s.aero;
+    s.aero.airDensity = 0.0;
+    Cloth cloth(ClothTopology::build(m), s);
+    for (int n = 0; n < 100; ++n)
+        cloth.step(1e-3);
+    CHECK(cloth.velocities()[0].y() == Approx(-9.81 * 0.1).epsilon(1e-12));
+
+    cloth.setAero(air);
+    for (int n = 0; n < 2000; ++n)
+        cloth.step(1e-3);
+    const double vt = std::sqrt(2.0 * 0.03 * 9.81 / (1.2 * 1.0 * 0.5));
+    for (Index i = 0; i < 3; ++i)
+        CHECK(cloth.velocities()[i].y() == Approx(-vt).epsilon(1e-6));
+
+    // Refused settings leave the cloth as it was: still at its terminal speed.
+    AeroSettings bad = air;
+    bad.airDensity = -1.0;
+    CHECK_THROWS_AS(cloth.setAero(bad), Error);
+    bad = air;
+    bad.wind = Vec3(std::nan(""), 0, 0);
+    CHECK_THROWS_AS(cloth.setAero(bad), Error);
+    cloth.step(1e-3);
+    CHECK(cloth.velocities()[0].y() == Approx(-vt).epsilon(1e-6));
+    CHECK(cloth.settings().aero.airDensity == 1.2);
+
+    AeroSettings still = air;
+    still.airDensity = 0.0;
+    cloth.setAero(still);
+    const double v0 = cloth.velocities()[0].y();
+    for (int n = 0; n < 100; ++n)
+        cloth.step(1e-3);
+    CHECK(cloth.velocities()[0].y() - v0 == Approx(-9.81 * 0.1).epsilon(1e-9));
+}
+
 TEST_CASE("Velocity-Verlet stays second order with aerodynamic drag", "[aero][convergence]") {
     // The falling plate of the test above through its transient: v(t) = vt tanh(t / tau) and
     // the drop y(t) = vt tau ln cosh(t / tau), released from rest. Velocity-Verlet takes the

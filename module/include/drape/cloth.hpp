@@ -180,7 +180,11 @@ class Cloth {
     // --- forces ---------------------------------------------------------------------------
     void setUserForce(Index i, const Vec3& force); ///< persistent until cleared [N]
     void clearUserForces();
-    void setWind(const Vec3& wind); ///< [m/s]; needs aero.airDensity > 0 to have effect
+    void setWind(const Vec3& wind); ///< [m/s]; needs aero.airDensity > 0 (setAero) to act
+    /// Replaces ClothSettings::aero (air density, drag and lift coefficients, wind): turns
+    /// aerodynamics on or off after construction. Throws drape::Error (InvalidArgument or
+    /// NonFinite) for a negative density or a non-finite value, leaving the cloth unchanged.
+    void setAero(const AeroSettings& aero);
     void setGravity(const Vec3& g); ///< [m/s^2]
     /// Sets ClothSettings::relativeDamping [1/s] (>= 0; throws drape::Error otherwise).
     void setRelativeDamping(double rate);

@@ -116,6 +116,9 @@ class ForceModel {
     void setUserForce(Index i, const Vec3& force);
     void clearUserForces();
     void setWind(const Vec3& wind);
+    /// Replaces the aerodynamic settings (the wind with them); the term is on while
+    /// airDensity > 0 and a coefficient is non-zero.
+    void setAero(const AeroSettings& aero);
     void setGravity(const Vec3& g);
     void addExternalForce(std::string name, ExternalForce force);
     /// The contact force term ("contact_force", after every other term) reads `contacts` and
