@@ -382,6 +382,7 @@ void Cloth::stepPart(double dt, int parts) {
     // step taken asleep reports nothing.
     limiterStats_ = StrainLimitStats{};
     selfStats_ = SelfCollisionStats{};
+    if (selfCollider_) selfCollider_->invalidate(); // a step depends on its start state only
     heldImpulse_.resize(state_.x.size(), Vec3::Zero());
     for (Index i : heldImpulsed_)
         heldImpulse_[i].setZero();

@@ -1,13 +1,17 @@
 // Particle-triangle self-collision with a spatial hash (see self_collision.hpp).
 //
-// Broadphase: every triangle's bounding box, grown by the thickness, is entered into the
-// cells of a uniform grid it covers (cell size = the largest current triangle edge or twice the
-// thickness, whichever is larger, so a triangle covers at most 3 x 3 x 3 cells). A particle is
-// tested only against the triangles listed in its own cell, in ascending order. The grid is a
-// hash table from cell key to its triangles, built in time linear in the entries (buildTable;
-// it replaced a sort of every (cell key, triangle) pair, which was most of the pass's cost):
-// deterministic and free of per-step allocations once warm. A candidate outside the triangle's
-// box grown by the thickness is rejected before its closest point is computed.
+// Broadphase: a pair list, kept while it holds (pairsHold). It lists, for each particle, the
+// triangles within reach = kReach x the thickness of it (exactly measured), found through a
+// uniform grid of the particles (one entry each; cell size = the largest current triangle edge
+// or twice the reach, whichever is larger, so a triangle's box grown by the reach covers at
+// most 3 x 3 x 3 cells) that each triangle looks into. The grid is a hash table from cell key
+// to its particles, built in time linear in the entries (buildTable). A pass reuses the list
+// until a particle has moved half the reach beyond the thickness away from the cloth's mean
+// move since it was built: no two particles then came nearer by more than that margin, so
+// every pair within the thickness is listed. Cloth builds it afresh at the start of each step.
+// Pairs are tested in the order of particles, then triangles, ascending; deterministic and free
+// of per-step allocations once warm (samples/benchmarks/PERF.md: a still 41 x 41 curtain
+// 13.0 -> 2.7 ms a frame against the grid of triangles rebuilt in every pass).
 //
 // Response for particle p and triangle (a, b, c) with closest point q = sum b_k x_k and unit
 // normal n pointing to the side p was on at the previous step:
@@ -20,6 +24,7 @@
 #include "drape/geometry.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace drape::detail {
@@ -36,12 +41,28 @@ std::uint64_t cellKey(std::int64_t i, std::int64_t j, std::int64_t k) {
     return (ui * 73856093ull) ^ (uj * 19349663ull) ^ (uk * 83492791ull);
 }
 
+// A particle and a triangle that lie within the thickness of each other in the rest shape are
+// neighbours, not a collision (on a mesh finer than the thickness, the triangles next to a
+// particle's own): pushing them the thickness apart threw a flat sheet at rest apart (a 1.2 cm
+// mesh with the default 1 cm: 59 J from nothing). (Neighbours in one surface: apart along it,
+// not across. Two layers of the rest shape closer than the thickness still collide.)
+bool restNeighbours(const Vec3List& rest, Index p, const Triangle& t, double thickness) {
+    Vec3 restBary;
+    const Vec3 restQ =
+        closestPointOnTriangle(rest[p], rest[t[0]], rest[t[1]], rest[t[2]], restBary);
+    const Vec3 restOffset = rest[p] - restQ;
+    if (restOffset.squaredNorm() >= thickness * thickness) return false;
+    const Vec3 restFace = (rest[t[1]] - rest[t[0]]).cross(rest[t[2]] - rest[t[0]]);
+    const double across = std::abs(restOffset.dot(restFace));
+    return across <= 0.5 * restOffset.norm() * restFace.norm();
+}
+
 } // namespace
 
 // The grid's table: each distinct key of cells_ gets a slot of an open-addressing hash table
-// (linear probing, at least twice as many slots as entries), and the triangles of a key are
-// listed contiguously in listed_, in the order cells_ has them (ascending triangle index): what
-// sorting cells_ by (key, triangle) and searching it gave, in time linear in the entries.
+// (linear probing, at least twice as many slots as entries), and the particles of a key are
+// listed contiguously in listed_, in the order cells_ has them (ascending), in time linear in
+// the entries.
 void SelfCollider::buildTable() {
     std::size_t size = 16;
     while (size < 2 * cells_.size())
@@ -70,7 +91,7 @@ void SelfCollider::buildTable() {
     tableMask_ = mask;
 }
 
-std::pair<std::size_t, std::size_t> SelfCollider::trianglesAt(std::uint64_t key) const {
+std::pair<std::size_t, std::size_t> SelfCollider::entriesAt(std::uint64_t key) const {
     std::size_t slot = static_cast<std::size_t>(mix(key)) & tableMask_;
     while (slotUsed_[slot]) {
         if (slotKey_[slot] == key) return {slotBegin_[slot], slotBegin_[slot + 1]};
@@ -79,42 +100,108 @@ std::pair<std::size_t, std::size_t> SelfCollider::trianglesAt(std::uint64_t key)
     return {0, 0};
 }
 
+// The pair list: for each particle, the triangles (ascending) within `reach` of it at x; its
+// own triangles and its rest-shape neighbours are left out here once instead of every pass.
+void SelfCollider::buildPairs(const ClothTopology& topology, const Vec3List& x, double thickness,
+                              double reach) {
+    const auto& tris = topology.triangles();
+    const auto& rest = topology.restPositions();
+    const std::size_t n = x.size();
+    double cell = 2.0 * reach;
+    for (const auto& t : tris) {
+        cell = std::max({cell, (x[t[0]] - x[t[1]]).norm(), (x[t[1]] - x[t[2]]).norm(),
+                         (x[t[2]] - x[t[0]]).norm()});
+    }
+    const double invCell = 1.0 / cell;
+    // The particles by cell (one entry each), then each triangle looks in the cells its box
+    // grown by the reach covers.
+    cells_.clear();
+    particleCell_.resize(n);
+    for (std::size_t p = 0; p < n; ++p) {
+        const std::array<std::int64_t, 3> c = {cellCoord(x[p].x(), invCell),
+                                               cellCoord(x[p].y(), invCell),
+                                               cellCoord(x[p].z(), invCell)};
+        particleCell_[p] = c;
+        cells_.emplace_back(cellKey(c[0], c[1], c[2]), static_cast<Index>(p));
+    }
+    buildTable();
+
+    found_.clear();
+    for (std::size_t ti = 0; ti < tris.size(); ++ti) {
+        const auto& t = tris[ti];
+        const Vec3 &a = x[t[0]], &b = x[t[1]], &c = x[t[2]];
+        const Vec3 lo = a.cwiseMin(b).cwiseMin(c).array() - reach;
+        const Vec3 hi = a.cwiseMax(b).cwiseMax(c).array() + reach;
+        for (auto i = cellCoord(lo.x(), invCell); i <= cellCoord(hi.x(), invCell); ++i)
+            for (auto j = cellCoord(lo.y(), invCell); j <= cellCoord(hi.y(), invCell); ++j)
+                for (auto k = cellCoord(lo.z(), invCell); k <= cellCoord(hi.z(), invCell); ++k) {
+                    const auto [first, last] = entriesAt(cellKey(i, j, k));
+                    for (std::size_t e = first; e < last; ++e) {
+                        const Index p = listed_[e];
+                        // Another cell with the same key: p is looked at from its own only.
+                        const auto& pc = particleCell_[p];
+                        if (pc[0] != i || pc[1] != j || pc[2] != k) continue;
+                        if (t[0] == p || t[1] == p || t[2] == p) continue;
+                        const Vec3& xp = x[p];
+                        if ((xp.array() > hi.array()).any() || (xp.array() < lo.array()).any())
+                            continue;
+                        Vec3 bary;
+                        if ((xp - closestPointOnTriangle(xp, a, b, c, bary)).squaredNorm() >=
+                            reach * reach)
+                            continue;
+                        if (restNeighbours(rest, p, t, thickness)) continue;
+                        found_.emplace_back(p, static_cast<Index>(ti));
+                    }
+                }
+    }
+    // By particle, each particle's triangles ascending (the triangles were visited so).
+    pairStart_.assign(n + 1, 0);
+    for (const auto& f : found_)
+        ++pairStart_[f.first + 1];
+    for (std::size_t p = 0; p < n; ++p)
+        pairStart_[p + 1] += pairStart_[p];
+    fill_.assign(pairStart_.begin(), pairStart_.end() - 1);
+    pairTriangle_.resize(found_.size());
+    for (const auto& f : found_)
+        pairTriangle_[fill_[f.first]++] = f.second;
+    built_.assign(x.begin(), x.end());
+    builtThickness_ = thickness;
+    builtReach_ = reach;
+    valid_ = true;
+}
+
+bool SelfCollider::pairsHold(const Vec3List& x, double thickness) const {
+    if (!valid_ || builtThickness_ != thickness || built_.size() != x.size()) return false;
+    // A pair's distance changes by at most twice the largest move of a particle since the
+    // list was built: while that stays within the reach beyond the thickness, every pair
+    // nearer than the thickness is listed. Moves are measured from the cloth's mean move (a
+    // pair's distance does not see a common translation), so a falling cloth keeps its list.
+    const double slack = 0.5 * (builtReach_ - thickness);
+    const double slack2 = slack * slack;
+    Vec3 mean = Vec3::Zero();
+    for (std::size_t i = 0; i < x.size(); ++i)
+        mean += x[i] - built_[i];
+    mean /= static_cast<double>(x.size());
+    for (std::size_t i = 0; i < x.size(); ++i) {
+        if ((x[i] - built_[i] - mean).squaredNorm() >= slack2) return false;
+    }
+    return true;
+}
+
 SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,
                                       const std::vector<double>& invMass, const Vec3List& xPrev,
                                       Vec3List& x, Vec3List& v, double thickness, double friction,
                                       int iterations) {
     SelfCollisionCounts counts;
     const auto& tris = topology.triangles();
-    const auto& rest = topology.restPositions();
     const std::size_t n = x.size();
     for (int iter = 0; iter < iterations; ++iter) {
-        double cell = 2.0 * thickness;
-        for (const auto& t : tris) {
-            cell = std::max({cell, (x[t[0]] - x[t[1]]).norm(), (x[t[1]] - x[t[2]]).norm(),
-                             (x[t[2]] - x[t[0]]).norm()});
-        }
-        const double invCell = 1.0 / cell;
-        cells_.clear();
-        for (std::size_t ti = 0; ti < tris.size(); ++ti) {
-            const auto& t = tris[ti];
-            const Vec3 lo = x[t[0]].cwiseMin(x[t[1]]).cwiseMin(x[t[2]]).array() - thickness;
-            const Vec3 hi = x[t[0]].cwiseMax(x[t[1]]).cwiseMax(x[t[2]]).array() + thickness;
-            for (auto i = cellCoord(lo.x(), invCell); i <= cellCoord(hi.x(), invCell); ++i)
-                for (auto j = cellCoord(lo.y(), invCell); j <= cellCoord(hi.y(), invCell); ++j)
-                    for (auto k = cellCoord(lo.z(), invCell); k <= cellCoord(hi.z(), invCell); ++k)
-                        cells_.emplace_back(cellKey(i, j, k), static_cast<Index>(ti));
-        }
-        buildTable();
+        if (!pairsHold(x, thickness)) buildPairs(topology, x, thickness, kReach * thickness);
 
         std::size_t contactsThisPass = 0;
         for (std::size_t p = 0; p < n; ++p) {
-            const Vec3 xp = x[p];
-            const std::uint64_t key = cellKey(
-                cellCoord(xp.x(), invCell), cellCoord(xp.y(), invCell), cellCoord(xp.z(), invCell));
-            const auto [first, last] = trianglesAt(key);
-            for (std::size_t e = first; e < last; ++e) {
-                const auto& t = tris[listed_[e]];
-                if (t[0] == p || t[1] == p || t[2] == p) continue;
+            for (std::size_t e = pairStart_[p]; e < pairStart_[p + 1]; ++e) {
+                const auto& t = tris[pairTriangle_[e]];
                 const double wp = invMass[p];
                 const double w0 = invMass[t[0]], w1 = invMass[t[1]], w2 = invMass[t[2]];
                 if (wp == 0.0 && w0 == 0.0 && w1 == 0.0 && w2 == 0.0) continue;
@@ -129,22 +216,6 @@ SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,
                 Vec3 bary;
                 const Vec3 q = closestPointOnTriangle(x[p], a, b, c, bary);
                 if ((x[p] - q).squaredNorm() >= thickness * thickness) continue;
-                // A particle and a triangle that lie within the thickness of each other in the
-                // rest shape are neighbours, not a collision (on a mesh finer than the thickness,
-                // the triangles next to a particle's own): pushing them the thickness apart
-                // threw a flat sheet at rest apart (a 1.2 cm mesh with the default 1 cm: 59 J
-                // from nothing).
-                // (Neighbours in one surface: apart along it, not across. Two layers of the
-                // rest shape closer than the thickness still collide.)
-                Vec3 restBary;
-                const Vec3 restQ =
-                    closestPointOnTriangle(rest[p], rest[t[0]], rest[t[1]], rest[t[2]], restBary);
-                const Vec3 restOffset = rest[p] - restQ;
-                if (restOffset.squaredNorm() < thickness * thickness) {
-                    const Vec3 restFace = (rest[t[1]] - rest[t[0]]).cross(rest[t[2]] - rest[t[0]]);
-                    const double across = std::abs(restOffset.dot(restFace));
-                    if (across <= 0.5 * restOffset.norm() * restFace.norm()) continue;
-                }
                 Vec3 face = (b - a).cross(c - a);
                 const double len = face.norm();
                 if (!(len > 0.0)) continue;
