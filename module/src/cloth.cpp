@@ -790,6 +790,7 @@ LimiterSettings Cloth::limiterAt(double dt) const {
 void Cloth::stageLimit(StepContext& ctx) {
     const LimiterSettings lim = limiterAt(ctx.dt);
     if (lim.kind == LimiterKind::StressOrdered) {
+        if (state_.overBound) repairStart(lim);
         limiter_.clearMoved();
         // The walk keeps the planes of the ContactSet (setContacts) a stage filled before it.
         ContactSet* contacts = forceModel_->contacts();
@@ -798,6 +799,7 @@ void Cloth::stageLimit(StepContext& ctx) {
                            contacts ? &contacts->planes : nullptr);
         addLimiterStats(walk);
         applyLimiterMoves(ctx.dt, walk);
+        state_.overBound = walk.capHit;
         return;
     }
     // The comparison limiters: displacements from a copy.
@@ -811,6 +813,32 @@ void Cloth::stageLimit(StepContext& ctx) {
     const double invDt = 1.0 / ctx.dt;
     for (std::size_t i = 0; i < state_.x.size(); ++i)
         state_.v[i] += (state_.x[i] - step_.beforeLimit[i]) * invDt;
+}
+
+// The step started beyond the bound (ClothState::overBound): a walk on the step's starting
+// positions brings them within it, and the drifted positions move with them. Only the rest
+// of the correction, what this step's drift stretched, becomes velocity in the walk after.
+// Particles with a contact plane in this step are held where they are (the walk after keeps
+// their planes; this one, on other positions, has none): a net that caught a rod is not
+// pulled back through it.
+void Cloth::repairStart(const LimiterSettings& lim) {
+    limiter_.clearMoved();
+    step_.repaired.assign(step_.x0.begin(), step_.x0.end());
+    const ContactSet* contacts = forceModel_->contacts();
+    const std::vector<double>* invMass = &invMass_;
+    if (contacts && !contacts->planes.of.empty()) {
+        step_.repairInvMass.assign(invMass_.begin(), invMass_.end());
+        for (std::size_t i = 0; i < contacts->planes.of.size(); ++i)
+            if (contacts->planes.of[i] >= 0) step_.repairInvMass[i] = 0.0;
+        invMass = &step_.repairInvMass;
+    }
+    const StrainLimitStats repair =
+        limiter_.limit(*topology_, *invMass, forceModel_->stiffness(), lim, step_.repaired);
+    limiterStats_.rounds += repair.rounds;
+    limiterStats_.corrections += repair.corrections;
+    limiterStats_.work += repair.work;
+    for (Index i : limiter_.movedIndex())
+        state_.x[i] += step_.repaired[i] - step_.x0[i];
 }
 
 void Cloth::stageCallerStagesBefore(StepContext& ctx) {
@@ -953,6 +981,7 @@ StrainLimitStats Cloth::relimit(const std::vector<Index>& touched, double dt,
         st = limiter_.relimit(*topology_, invMass_, forceModel_->stiffness(), lim, touched,
                               state_.x, planes);
         applyLimiterMoves(dt, st);
+        if (st.capHit) state_.overBound = true; // as the step's walk (repairStart)
     } else {
         // The comparison limiters have no worklist: they run whole, and report what moved.
         step_.beforeLimit = state_.x;

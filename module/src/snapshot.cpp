@@ -20,8 +20,9 @@ namespace drape {
 namespace {
 
 constexpr char kMagic[8] = {'D', 'R', 'A', 'P', 'E', 'S', 'N', 'P'};
-// 2: the limiter's warm start per spring; 3: sleep state and the caller stages' states.
-constexpr std::uint32_t kVersion = 4;
+// 2: the limiter's warm start per spring; 3: sleep state and the caller stages' states;
+// 4: the carried aerodynamics; 5: the over-bound flag (ClothState::overBound).
+constexpr std::uint32_t kVersion = 5;
 constexpr std::uint32_t kOldestVersion = 2;
 /// Caps on the variable part, so a corrupt length fails cleanly instead of allocating.
 constexpr std::uint32_t kMaxStages = 1024;
@@ -223,6 +224,8 @@ std::vector<unsigned char> saveSnapshot(const Cloth& cloth) {
     w.optionalList(st.anchor, cloth.particleCount());
     // Version 4: the aerodynamic forces the next opening kick takes (ClothState::aero).
     w.optionalList(st.aero, cloth.particleCount());
+    // Version 5: the last step's limiter left springs beyond the bound (ClothState::overBound).
+    w.pod(static_cast<std::uint8_t>(st.overBound ? 1 : 0));
     // The caller stages' states, by name (ClothStage::saveState).
     w.pod(static_cast<std::uint32_t>(cloth.stages().size()));
     for (const auto& stage : cloth.stages()) {
@@ -277,7 +280,8 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
     // The fixed part (version 2 is only that); version 3 has a variable part after it.
     const std::size_t fixed = sizeof(kMagic) + 4 + 8 + 8 + 8 + 8 + 1 + n * (9 * 8 + 1) + ns * 8 + 8;
     const std::size_t expected =
-        version == 2 ? fixed : fixed + 1 + 8 + 1 + 4 + (version >= 4 ? 1 : 0);
+        version == 2 ? fixed
+                     : fixed + 1 + 8 + 1 + 4 + (version >= 4 ? 1 : 0) + (version >= 5 ? 1 : 0);
     if (version == 2 ? bytes.size() != expected : bytes.size() < expected) {
         throw Error(ErrorCode::InvalidArgument,
                     "snapshot is " + std::to_string(bytes.size()) + " bytes, expected " +
@@ -306,6 +310,7 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
         lambda[s] = r.pod<double>("the limiter's warm start");
     bool asleep = false;
     double quietTime = 0.0;
+    bool overBound = false;
     Vec3List anchor, aero;
     std::vector<std::pair<std::string, std::vector<unsigned char>>> stageStates;
     if (version >= 3) {
@@ -313,6 +318,14 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
         quietTime = r.pod<double>("the quiet time");
         anchor = r.optionalList(n, "the anchor flag", "the sleep anchors");
         if (version >= 4) aero = r.optionalList(n, "the aerodynamics flag", "the aerodynamics");
+        if (version >= 5) {
+            const auto flag = r.pod<std::uint8_t>("the over-bound flag");
+            if (flag > 1)
+                throw Error(ErrorCode::InvalidArgument, "snapshot's over-bound flag is " +
+                                                            std::to_string(flag) +
+                                                            " (expected 0 or 1)");
+            overBound = flag != 0;
+        }
         const auto count = r.pod<std::uint32_t>("the stage count");
         if (count > kMaxStages)
             throw Error(ErrorCode::InvalidArgument,
@@ -346,6 +359,7 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
         st.quietTime = quietTime;
         st.anchor = std::move(anchor);
         st.aero = std::move(aero);
+        st.overBound = overBound;
     }
     cloth.checkState(st, lambda);
     // The stages take their states first: a stage that refuses its bytes throws before the

@@ -125,6 +125,45 @@ TEST_CASE("a run restored from a snapshot at step k continues bit-identically", 
     }
 }
 
+TEST_CASE("a snapshot taken while the cloth is held beyond its bound continues bit-identically",
+          "[snapshot][limiter]") {
+    // The sheet of makeCloth with its two pins moved 1.5 times the sheet's width apart: the
+    // limiter stops at its cap in every step (ClothState::overBound), which the next step's
+    // repair walk reads. The snapshot carries the flag; taken there and restored, the run
+    // continues with the same bits, and one of the pins let go is repaired the same way.
+    auto full = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+    auto resumed = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+    full->pin(7, full->positions()[7] + Vec3(0.75, 0.0, 0.0));
+    std::vector<unsigned char> snap;
+    for (int i = 0; i < 40; ++i) {
+        if (i == 30) full->unpin(7);
+        full->step(0.01);
+        if (i == 19) {
+            REQUIRE(full->state().overBound);
+            snap = saveSnapshot(*full);
+        }
+    }
+    loadSnapshot(*resumed, snap);
+    CHECK(resumed->state().overBound);
+    for (int i = 20; i < 40; ++i) {
+        if (i == 30) resumed->unpin(7);
+        resumed->step(0.01);
+    }
+    CHECK(stateHash(*resumed) == stateHash(*full));
+    CHECK(!resumed->state().overBound); // let go and repaired
+    // The flag matters: the same state with it cleared continues differently.
+    auto cleared = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+    loadSnapshot(*cleared, snap);
+    ClothState st = cleared->state();
+    st.overBound = false;
+    cleared->restoreState(st, cleared->limiter().warmStartState());
+    for (int i = 20; i < 40; ++i) {
+        if (i == 30) cleared->unpin(7);
+        cleared->step(0.01);
+    }
+    CHECK(stateHash(*cleared) != stateHash(*full));
+}
+
 TEST_CASE("a state read with Cloth::state() and put back with restoreState continues "
           "bit-identically, and a state of the wrong size is refused",
           "[snapshot]") {
@@ -454,13 +493,15 @@ TEST_CASE("a version 3 snapshot still loads (its next step evaluates the aerodyn
     const auto good = saveSnapshot(*cloth);
     // Layout (snapshot.hpp): magic 8, version 4, fingerprint 8, count 8, time 8, steps 8,
     // forces flag 1, per particle 9 f64 and a pin byte, per spring a f64, asleep 1, quiet time
-    // 8, anchor flag 1 and the anchors, then version 4's aerodynamics flag and forces.
+    // 8, anchor flag 1 and the anchors, then version 4's aerodynamics flag and forces, then
+    // version 5's over-bound flag.
     const std::size_t flag =
         8 + 4 + 8 + 8 + 8 + 8 + 1 + n * (9 * 8 + 1) + ns * 8 + 1 + 8 + 1 + anchors;
     REQUIRE(good[flag] == 1);
-    // Version 3: the same without the aerodynamics.
+    // Version 3: the same without the aerodynamics and the over-bound flag.
+    REQUIRE(good[flag + 1 + n * 3 * 8] == 0); // not over the bound
     std::vector<unsigned char> old(good.begin(), good.begin() + std::ptrdiff_t(flag));
-    old.insert(old.end(), good.begin() + std::ptrdiff_t(flag + 1 + n * 3 * 8), good.end());
+    old.insert(old.end(), good.begin() + std::ptrdiff_t(flag + 1 + n * 3 * 8 + 1), good.end());
     const std::uint32_t three = 3;
     std::memcpy(old.data() + 8, &three, 4);
     auto resumed = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered, 0.0);

@@ -96,6 +96,12 @@ struct ClothState {
     /// takes instead of evaluating them again when forcesValid (integrators.cpp). Empty: none.
     /// (Last, so that a ClothState built field by field in order stays as it was.)
     Vec3List aero;
+    /// The last step's strain limiter left springs beyond its bound (it stopped at its cap,
+    /// or held particles were too far apart): the next step first brings its starting
+    /// positions within the bound as positions only, so that repairing stretch left from
+    /// before does not become speed (dragging a cloth past its reach and letting go threw
+    /// it apart at 114 m/s).
+    bool overBound = false;
 };
 
 /// A prescribed path for a kinematic particle: position [m] at simulated time t [s].
@@ -332,11 +338,13 @@ class Cloth {
     /// step fills and reads, kept between steps only so that no step allocates. None of it is
     /// state (snapshots do not need it); x0 is the step's start (stepStartPositions()).
     struct StepBuffers {
-        Vec3List x0, v0;                  ///< positions and velocities at the step's start
-        Vec3List beforeLimit;             ///< positions before a comparison limiter or relimit
-        std::vector<Vec3> kinematicStart; ///< kinematic particles at the step's start
-        std::vector<double> lambdaBefore; ///< the limiter's warm start (restored on failure)
-        std::vector<Index> relimitMoved;  ///< particles the last relimit() moved
+        Vec3List x0, v0;                   ///< positions and velocities at the step's start
+        Vec3List repaired;                 ///< x0 brought within the bound (overBound)
+        std::vector<double> repairInvMass; ///< its inverse masses, contacts held
+        Vec3List beforeLimit;              ///< positions before a comparison limiter or relimit
+        std::vector<Vec3> kinematicStart;  ///< kinematic particles at the step's start
+        std::vector<double> lambdaBefore;  ///< the limiter's warm start (restored on failure)
+        std::vector<Index> relimitMoved;   ///< particles the last relimit() moved
     };
     /// The state a step with sub-steps (or a retry) puts back when one of them fails.
     struct Saved {
@@ -348,6 +356,8 @@ class Cloth {
     /// Copies the state into `s` (reusing its storage) / puts it back.
     void save(Saved& s) const;
     void restore(const Saved& s);
+    /// Brings the step's starting positions within the bound, positions only (overBound).
+    void repairStart(const LimiterSettings& lim);
     Saved wholeStepStart_; ///< stepPart's, kept between steps so that no step allocates
     /// One entry of the step table (see cloth.cpp): name, whether this cloth runs it,
     /// whether the driver times it (stages timed inside have their own timers), the stage.

@@ -11,14 +11,15 @@
 // a cloth built from the same topology and settings (and, in a world, the same bodies in the
 // same states) and then stepping gives bit-identical results to the uninterrupted run.
 //
-// File layout (little-endian): "DRAPESNP", u32 version (4; 2 and 3 are still read), u64 topology
+// File layout (little-endian): "DRAPESNP", u32 version (5; 2 to 4 are still read), u64 topology
 // fingerprint, u64 particle count, f64 time, u64 steps, u8 forces-valid, then per particle
 // x, v, f (9 f64) and u8 pinned, then per spring the limiter's warm start (f64). Version 3
 // goes on with u8 asleep, f64 quiet time, u8 has-anchors and then per particle its sleep
 // anchor (3 f64); version 4 then has u8 has-aerodynamics and per particle its carried
-// aerodynamic force (3 f64); from version 3 on, u32 stage count and per stage u32 name length,
-// the name, u64 state length and the state. Last, a u64 FNV-1a checksum of everything before
-// it. An older snapshot carries no aerodynamics: the next step evaluates them.
+// aerodynamic force (3 f64); version 5 then has u8 over-bound (ClothState::overBound); from
+// version 3 on, u32 stage count and per stage u32 name length, the name, u64 state length and
+// the state. Last, a u64 FNV-1a checksum of everything before it. An older snapshot carries no
+// aerodynamics (the next step evaluates them) and no over-bound flag (false).
 #pragma once
 
 #include "drape/cloth.hpp"
