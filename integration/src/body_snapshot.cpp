@@ -265,7 +265,7 @@ bool BodyPoses::changed(const std::vector<BodySnapshot>& bodies, double tol, dou
         const auto was = std::find_if(last_.begin(), last_.end(),
                                       [&](const Last& p) { return p.object == b.object; });
         if (was == last_.end()) return true; // a new candidate
-        if (was->shape != b.object->getCollisionShape()) return true;
+        if (was->shape != b.object->getCollisionShape() || was->friction != b.friction) return true;
         // A shape grown or shrunk in place (a static box's setLocalScaling under a sleeping
         // cloth) moves its surface as motion would.
         const Vec3 grown = b.aabbMax - b.aabbMin - was->extent; // (a plane's: 0)
@@ -286,7 +286,7 @@ void BodyPoses::record(const std::vector<BodySnapshot>& bodies) {
     last_.resize(bodies.size());
     for (std::size_t k = 0; k < bodies.size(); ++k)
         last_[k] = {bodies[k].object, bodies[k].object->getCollisionShape(), bodies[k].pose,
-                    bodies[k].aabbMax - bodies[k].aabbMin};
+                    bodies[k].aabbMax - bodies[k].aabbMin, bodies[k].friction};
 }
 
 namespace {

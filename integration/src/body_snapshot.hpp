@@ -182,7 +182,8 @@ class BodyPoses {
   public:
     /// Whether a body is new or gone since the last record, or moves: farther or faster than
     /// the speed `tol` [m/s] carries a point within dt (turning measured at its extent); or its
-    /// shape changed (another shape, or its extent grew or shrank that much: setLocalScaling).
+    /// shape changed (another shape, or its extent grew or shrank that much: setLocalScaling),
+    /// or its friction did (setFriction: a cloth at rest on a slope may slide).
     bool changed(const std::vector<BodySnapshot>& bodies, double tol, double dt) const;
     void record(const std::vector<BodySnapshot>& bodies);
 
@@ -191,7 +192,8 @@ class BodyPoses {
         const btCollisionObject* object;
         const btCollisionShape* shape;
         Pose pose;
-        Vec3 extent; ///< the world AABB's size
+        Vec3 extent;     ///< the world AABB's size
+        double friction; ///< BodySnapshot::friction
     };
     std::vector<Last> last_;
 };

@@ -47,7 +47,7 @@ struct Slope {
     Vec3 normal = Vec3::UnitY();    ///< the top face's outward normal
     Vec3 downhill = -Vec3::UnitX(); ///< unit vector down the slope, in the face
 
-    Slope(double degrees, double mu, double penaltyForce) {
+    Slope(double degrees, double mu, double penaltyForce, bool sleep = false) {
         const double a = degrees * kPi / 180.0;
         box = w.body(w.shape<btBoxShape>(btVector3(2.0f, 0.1f, 1.0f)), 0.0, Vec3::Zero(),
                      btQuaternion(btVector3(0, 0, 1), btScalar(a)));
@@ -67,7 +67,7 @@ struct Slope {
         bullet::BulletClothSettings bs;
         bs.contact.thickness = kThickness;
         bs.contact.penaltyForce = penaltyOrAutomatic(penaltyForce);
-        bs.sleep = false; // measure the motion itself, not a frozen state
+        bs.sleep = sleep; // off: measure the motion itself, not a frozen state
         handle = &w.add(cloth, bs);
     }
     /// Mean position of the particles.
@@ -110,6 +110,30 @@ TEST_CASE("kinetic friction: a sheet slides g (sin - mu cos) t^2 / 2 down a slop
             CHECK(s.handle->lastStats().contacts == s.cloth->particleCount());
         }
     }
+}
+
+TEST_CASE("a sheet asleep on a slope wakes and slides as Coulomb says when the slope's friction "
+          "is lowered",
+          "[contacts][friction][sleep]") {
+    // 30 degrees with mu 0.8 (> tan 30 = 0.58): the sheet sticks and falls asleep. Then the
+    // slope's friction is set to 0.2 (btCollisionObject::setFriction, nothing else): the
+    // sleeping cloth must see the change and slide g (sin - mu cos) t^2 / 2. (Before, a body's
+    // friction was not among what wakes a cloth: it stayed put, 0 m instead of 0.51.)
+    const double degrees = 30.0, dt = 1.0 / 240.0;
+    Slope s(degrees, 0.8, -1.0, true);
+    for (int k = 0; k < 2400 && !s.cloth->isAsleep(); ++k)
+        s.step(dt, 1);
+    REQUIRE(s.cloth->isAsleep());
+    const Vec3 c0 = s.centre();
+    s.box->setFriction(btScalar(0.2));
+    const int steps = 120; // 0.5 s
+    s.step(dt, steps);
+    const double g = s.cloth->settings().gravity.norm();
+    const double a = degrees * kPi / 180.0, t = steps * dt;
+    const double expected = g * (std::sin(a) - 0.2 * std::cos(a)) * t * t / 2.0;
+    const double slid = (s.centre() - c0).dot(s.downhill);
+    INFO(measured("woke and slid %.5f m in %.2f s, Coulomb %.5f m", slid, t, expected));
+    CHECK(slid == Approx(expected).epsilon(0.03));
 }
 
 TEST_CASE("static friction: a sheet on a slope below tan(theta) = mu does not creep, at any dt",
