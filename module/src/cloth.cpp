@@ -4,6 +4,7 @@
 #include "self_collision.hpp"
 
 #include "drape/error.hpp"
+#include "drape/geometry.hpp"
 #include "drape/stability.hpp"
 
 #include "parallel.hpp"
@@ -1245,6 +1246,37 @@ void Cloth::setVelocity(Index i, const Vec3& v) {
     state_.v[i] = v;
     state_.forcesValid = false;
     edited();
+}
+
+// --- queries -------------------------------------------------------------------------------
+
+std::optional<ClothHit> Cloth::rayCast(const Vec3& from, const Vec3& to) const {
+    requireFinite(from, "rayCast: from");
+    requireFinite(to, "rayCast: to");
+    checkDiagnosticSizes("Cloth::rayCast");
+    const auto& x = state_.x;
+    const auto& tris = topology_->triangles();
+    std::optional<ClothHit> best;
+    for (std::size_t k = 0; k < tris.size(); ++k) {
+        const Triangle& t = tris[k];
+        double along = 0.0;
+        Vec3 bary;
+        if (!segmentCrossesTriangle(from, to, x[t[0]], x[t[1]], x[t[2]], along, bary)) continue;
+        if (best && along >= best->fraction) continue;
+        ClothHit hit;
+        hit.fraction = along;
+        hit.point = bary[0] * x[t[0]] + bary[1] * x[t[1]] + bary[2] * x[t[2]];
+        hit.triangle = static_cast<Index>(k);
+        hit.barycentric = bary;
+        int corner = 0;
+        for (int c = 1; c < 3; ++c)
+            if (bary[c] > bary[corner]) corner = c;
+        hit.particle = t[corner];
+        const Vec3 face = (x[t[1]] - x[t[0]]).cross(x[t[2]] - x[t[0]]).normalized();
+        hit.normal = face.dot(from - to) >= 0.0 ? face : Vec3(-face);
+        best = hit;
+    }
+    return best;
 }
 
 // --- diagnostics ----------------------------------------------------------------------------

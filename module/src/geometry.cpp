@@ -53,6 +53,28 @@ Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const V
     return a + v * ab + w * ac;
 }
 
+// Moller and Trumbore's test: o + t d = a + u (b - a) + v (c - a), solved by Cramer's rule.
+bool segmentCrossesTriangle(const Vec3& o, const Vec3& e, const Vec3& a, const Vec3& b,
+                            const Vec3& c, double& t, Vec3& barycentric) {
+    const Vec3 d = e - o, ab = b - a, ac = c - a;
+    const Vec3 p = d.cross(ac);
+    const double det = ab.dot(p);
+    // In the plane (or degenerate): relative to the sizes involved, not to an absolute scale.
+    if (!(std::abs(det) > 1e-14 * d.norm() * ab.norm() * ac.norm())) return false;
+    const double inv = 1.0 / det;
+    const Vec3 s = o - a;
+    const double u = s.dot(p) * inv;
+    if (u < 0.0 || u > 1.0) return false;
+    const Vec3 q = s.cross(ab);
+    const double v = d.dot(q) * inv;
+    if (v < 0.0 || u + v > 1.0) return false;
+    const double along = ac.dot(q) * inv;
+    if (along < 0.0 || along > 1.0) return false;
+    t = along;
+    barycentric = Vec3(1.0 - u - v, u, v);
+    return true;
+}
+
 bool segmentEntersBox(const Vec3& o, const Vec3& e, const Vec3& half, double& t, Vec3& normal) {
     if ((o.cwiseAbs().array() <= half.array()).all()) return false; // starts inside
     const Vec3 d = e - o;

@@ -1,6 +1,9 @@
 // Closest-point geometry of drape/geometry.hpp (engine-neutral: the contact stage places these
 // shapes with a body's pose). Each result is checked against what defines it: a brute-force
 // minimum over a fine sampling of the surface or segment, or a closed form.
+#include "helpers.hpp"
+
+#include "drape/cloth.hpp"
 #include "drape/geometry.hpp"
 
 #include <catch2/catch.hpp>
@@ -314,4 +317,53 @@ TEST_CASE("where a path first comes within reach of a capsule's core, against a 
     }
     CHECK(entered > 20); // the trials cover both outcomes
     CHECK(missed > 20);
+}
+
+TEST_CASE("Cloth::rayCast finds where a segment first crosses the cloth", "[geometry][query]") {
+    // An 11 x 11 sheet in the x-z plane (y = 0, spacing 0.1 m from the origin along +x and
+    // +z): a vertical segment through (0.23, 0.37) crosses it halfway, at that point, in a
+    // triangle whose corners' weights give the point back; the nearest corner is (0.2, 0.4).
+    SheetSpec spec;
+    spec.rows = 11;
+    spec.cols = 11;
+    spec.spacing = 0.1;
+    spec.uAxis = Vec3::UnitX();
+    spec.vAxis = Vec3::UnitZ();
+    const TriangleMesh mesh = makeSheet(spec);
+    Cloth cloth(ClothTopology::build(mesh), ClothSettings{});
+    const auto hit = cloth.rayCast(Vec3(0.23, 1.0, 0.37), Vec3(0.23, -1.0, 0.37));
+    REQUIRE(hit);
+    CHECK(hit->fraction == Approx(0.5).epsilon(1e-12));
+    CHECK((hit->point - Vec3(0.23, 0.0, 0.37)).norm() < 1e-12);
+    const Triangle& t = cloth.topology().triangles()[hit->triangle];
+    const Vec3 back = hit->barycentric[0] * cloth.positions()[t[0]] +
+                      hit->barycentric[1] * cloth.positions()[t[1]] +
+                      hit->barycentric[2] * cloth.positions()[t[2]];
+    CHECK((back - hit->point).norm() < 1e-12);
+    CHECK(hit->barycentric.minCoeff() >= 0.0);
+    CHECK(hit->barycentric.sum() == Approx(1.0).epsilon(1e-12));
+    CHECK((cloth.positions()[hit->particle] - Vec3(0.2, 0.0, 0.4)).norm() < 1e-12);
+    CHECK((hit->normal - Vec3::UnitY()).norm() < 1e-12); // facing the segment's start
+    // From below: the same point, the normal facing down.
+    const auto below = cloth.rayCast(Vec3(0.23, -1.0, 0.37), Vec3(0.23, 3.0, 0.37));
+    REQUIRE(below);
+    CHECK(below->fraction == Approx(0.25).epsilon(1e-12));
+    CHECK((below->normal + Vec3::UnitY()).norm() < 1e-12);
+    // Segments that stop short, pass beside the sheet or run in its plane cross nothing.
+    CHECK(!cloth.rayCast(Vec3(0.23, 1.0, 0.37), Vec3(0.23, 0.01, 0.37)));
+    CHECK(!cloth.rayCast(Vec3(1.5, 1.0, 0.37), Vec3(1.5, -1.0, 0.37)));
+    CHECK(!cloth.rayCast(Vec3(-1.0, 0.0, 0.37), Vec3(2.0, 0.0, 0.37)));
+    // The first layer along the way: with the sheet's left part moved down by 0.5 m, a slanted
+    // segment from above the right part crosses it first (at x = 0.6), the left part after.
+    for (Index i = 0; i < cloth.particleCount(); ++i) {
+        Vec3 p = cloth.positions()[i];
+        if (p.x() < 0.45) cloth.setPosition(i, p - Vec3(0, 0.5, 0));
+    }
+    const auto first = cloth.rayCast(Vec3(1.0, 1.0, 0.55), Vec3(0.2, -1.0, 0.55));
+    REQUIRE(first);
+    CHECK(first->fraction == Approx(0.5).epsilon(1e-12));
+    CHECK(first->point.x() == Approx(0.6).epsilon(1e-12));
+    // A non-finite end is refused by name.
+    REQUIRE_DRAPE_ERROR(cloth.rayCast(Vec3(std::nan(""), 0, 0), Vec3::Zero()), ErrorCode::NonFinite,
+                        "rayCast");
 }

@@ -24,6 +24,12 @@ Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const V
 /// Exact: a path that slides past a corner outside the box does not enter it.
 bool segmentEntersBox(const Vec3& o, const Vec3& e, const Vec3& half, double& t, Vec3& normal);
 
+/// Where the segment from o to e crosses triangle (a, b, c), from either side: true with `t`
+/// in [0, 1] its fraction of the way and `barycentric` the crossing's weights on a, b, c. A
+/// segment in the triangle's plane, or a degenerate triangle, crosses nothing.
+bool segmentCrossesTriangle(const Vec3& o, const Vec3& e, const Vec3& a, const Vec3& b,
+                            const Vec3& c, double& t, Vec3& barycentric);
+
 /// Closest points of segments p0-p1 and q0-q1: s, t in [0, 1] their fractions of the way (the
 /// usual clamped solution of the 2 x 2 system, degenerate segments included).
 void closestSegmentSegment(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1,
