@@ -1462,3 +1462,52 @@ TEST_CASE("a cloth held far beyond its reach and let go gains no energy (ClothSt
         CHECK(cloth.maxStrain() <= 0.101);
     }
 }
+
+TEST_CASE("pins teleported with pin(i, position) give the cloth no speed of the jump",
+          "[limiter][energy]") {
+    // A 21 x 21 curtain (1 m) hung from its top row at rest; every pin is put 0.5 m (and 1 m)
+    // to the side in one call each. A teleport is not a motion: the cloth is brought within
+    // its bound as positions, from rest. What moves it then is its own elasticity (particle
+    // speeds up to the stretch wave speed c times the strain, below c) and its weight (at
+    // most sqrt(2 g H) falling its height H = 1 m), and from the end of the teleport's frame
+    // on nothing adds energy. (Before, the jump became velocity: 133 m/s and 186 J.)
+    for (const double jump : {0.5, 1.0}) {
+        SheetSpec sheet;
+        sheet.rows = 21;
+        sheet.cols = 21;
+        sheet.spacing = 0.05;
+        sheet.origin = {-0.5, 2.0, 0.0};
+        Cloth cloth(ClothTopology::build(makeSheet(sheet)), ClothSettings{});
+        for (Index c = 0; c < 21; ++c)
+            cloth.pin(c);
+        for (int f = 0; f < 120; ++f)
+            cloth.step(1.0 / 60.0);
+        for (Index c = 0; c < 21; ++c)
+            cloth.pin(c, cloth.positions()[c] + Vec3(jump, 0, 0));
+        CHECK(cloth.state().overBound);
+        auto energy = [&] {
+            return cloth.kineticEnergy() + cloth.gravityEnergy() + cloth.springEnergy();
+        };
+        const double g = cloth.settings().gravity.norm();
+        const double speedBound = cloth.settings().stretchWaveSpeed + std::sqrt(2.0 * g * 1.0);
+        double fastest = 0.0, previous = 0.0, rise = 0.0;
+        for (int f = 0; f < 60; ++f) {
+            cloth.step(1.0 / 60.0);
+            for (const Vec3& v : cloth.velocities())
+                fastest = std::max(fastest, v.norm());
+            const double e = energy();
+            if (f > 0) rise = std::max(rise, e - previous);
+            previous = e;
+        }
+        INFO(measured("pins moved %.1f m: fastest particle %.2f m/s (bound %.2f), largest "
+                      "energy rise in a frame after the first %.3g J, cap hits %llu",
+                      jump, fastest, speedBound, rise,
+                      static_cast<unsigned long long>(cloth.limiterCapHits())));
+        CHECK(fastest <= speedBound);
+        CHECK(rise <= 1e-9);
+        CHECK(cloth.limiterCapHits() == 0);
+        CHECK(cloth.maxStrain() <= 0.101);
+        // The curtain came along: the middle of its lowest row is past half the jump.
+        CHECK(cloth.positions()[20 * 21 + 10].x() > 0.5 * jump);
+    }
+}

@@ -180,6 +180,9 @@ class Cloth {
 
     // --- pins -----------------------------------------------------------------------------
     /// Fixes particle i where it is now (or at `position`); it never moves until unpinned.
+    /// Moving a held particle with pin(i, position) or setPosition is a teleport: the next
+    /// step brings the cloth within its strain bound as positions, and the jump gives it no
+    /// speed. To move pins as motion (a curtain rod carried along), use setKinematicTarget.
     void pin(Index i);
     void pin(Index i, const Vec3& position);
     /// Drives particle i along a path: x(t) = path(t); its velocity follows the path.
@@ -376,6 +379,11 @@ class Cloth {
     /// Copies the state into `s` (reusing its storage) / puts it back.
     void save(Saved& s) const;
     void restore(const Saved& s);
+    /// Puts held particle i at `position`; a move sets overBound (a teleport).
+    void movedHeld(Index i, const Vec3& position);
+    /// Brings the step's starting positions within the bound, positions only (overBound), in
+    /// at most this many walks.
+    static constexpr int kRepairWalks = 4;
     /// Brings the step's starting positions within the bound, positions only (overBound).
     void repairStart(const LimiterSettings& lim);
     Saved wholeStepStart_; ///< stepPart's, kept between steps so that no step allocates
