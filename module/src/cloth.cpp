@@ -803,7 +803,9 @@ void Cloth::stageLimit(StepContext& ctx) {
         state_.overBound = walk.capHit;
         return;
     }
-    // The comparison limiters: displacements from a copy.
+    // The comparison limiters: displacements from a copy (no repair: overBound is for the
+    // stress-ordered walk).
+    state_.overBound = false;
     step_.beforeLimit = state_.x;
     const StrainLimitStats st =
         lim.kind == LimiterKind::Provot
@@ -1065,7 +1067,8 @@ void Cloth::pin(Index i, const Vec3& position) {
 // bound as positions (ClothState::overBound), so the jump does not become speed (21 pins moved
 // 0.5 m at once threw a curtain at 133 m/s, 186 J).
 void Cloth::movedHeld(Index i, const Vec3& position) {
-    if (state_.x[i] != position) state_.overBound = true;
+    if (state_.x[i] != position && settings_.limiter.kind == LimiterKind::StressOrdered)
+        state_.overBound = true;
     state_.x[i] = position;
 }
 
