@@ -453,6 +453,7 @@ void Cloth::save(Saved& s) const {
     s.lambda.assign(lambda.begin(), lambda.end());
     s.time = state_.time;
     s.steps = state_.steps;
+    s.overBound = state_.overBound;
 }
 
 void Cloth::restore(const Saved& s) {
@@ -461,6 +462,7 @@ void Cloth::restore(const Saved& s) {
     if (settings_.limiter.kind == LimiterKind::StressOrdered) limiter_.setWarmStartState(s.lambda);
     state_.time = s.time;
     state_.steps = s.steps;
+    state_.overBound = s.overBound;
     state_.forcesValid = false;
 }
 

@@ -375,6 +375,7 @@ class Cloth {
         std::vector<double> lambda; ///< the limiter's warm start
         double time = 0.0;
         std::uint64_t steps = 0;
+        bool overBound = false;
     };
     /// Copies the state into `s` (reusing its storage) / puts it back.
     void save(Saved& s) const;
