@@ -140,7 +140,8 @@ std::vector<double> buildStiffness(const ClothTopology& topo, const ClothSetting
 
 void validateAero(const AeroSettings& a) {
     requireNonNegative(a.airDensity, "aero.airDensity");
-    requireFinite(a.dragCoefficient, "aero.dragCoefficient");
+    // Drag takes energy out: a negative coefficient would feed the flow's energy in.
+    requireNonNegative(a.dragCoefficient, "aero.dragCoefficient");
     requireFinite(a.liftCoefficient, "aero.liftCoefficient");
     requireFinite(a.wind, "aero.wind");
 }
@@ -1290,9 +1291,10 @@ std::optional<ClothHit> Cloth::rayCast(const Vec3& from, const Vec3& to) const {
         hit.point = bary[0] * x[t[0]] + bary[1] * x[t[1]] + bary[2] * x[t[2]];
         hit.triangle = static_cast<Index>(k);
         hit.barycentric = bary;
-        int corner = 0;
+        int corner = 0; // nearest by distance (the largest weight is not, in a right triangle)
         for (int c = 1; c < 3; ++c)
-            if (bary[c] > bary[corner]) corner = c;
+            if ((x[t[c]] - hit.point).squaredNorm() < (x[t[corner]] - hit.point).squaredNorm())
+                corner = c;
         hit.particle = t[corner];
         const Vec3 face = (x[t[1]] - x[t[0]]).cross(x[t[2]] - x[t[0]]).normalized();
         hit.normal = face.dot(from - to) >= 0.0 ? face : Vec3(-face);

@@ -354,6 +354,13 @@ TEST_CASE("Aerodynamics turned on and off after construction (Cloth::setAero)", 
     bad = air;
     bad.wind = Vec3(std::nan(""), 0, 0);
     CHECK_THROWS_AS(cloth.setAero(bad), Error);
+    bad = air; // drag takes energy out of the motion: a negative coefficient is refused
+    bad.dragCoefficient = -1.0;
+    CHECK_THROWS_WITH(cloth.setAero(bad), Catch::Contains("aero.dragCoefficient"));
+    ClothSettings negative = fallingPlateSettings();
+    negative.aero.dragCoefficient = -0.5;
+    CHECK_THROWS_WITH(Cloth(ClothTopology::build(m), negative),
+                      Catch::Contains("aero.dragCoefficient"));
     cloth.step(1e-3);
     CHECK(cloth.velocities()[0].y() == Approx(-vt).epsilon(1e-6));
     CHECK(cloth.settings().aero.airDensity == 1.2);

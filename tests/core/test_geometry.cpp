@@ -363,6 +363,16 @@ TEST_CASE("Cloth::rayCast finds where a segment first crosses the cloth", "[geom
     REQUIRE(first);
     CHECK(first->fraction == Approx(0.5).epsilon(1e-12));
     CHECK(first->point.x() == Approx(0.6).epsilon(1e-12));
+    // The nearest corner by distance, not by weight: in the unit right triangle (0,0), (1,0),
+    // (0,1), the point (0.35, 0.35) weighs the right-angle corner least (0.3 against 0.35 each)
+    // but lies nearest to it (0.495 against 0.738).
+    TriangleMesh one;
+    one.vertices = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 0, 1)};
+    one.triangles = {{0, 1, 2}};
+    Cloth single(ClothTopology::build(one), ClothSettings{});
+    const auto corner = single.rayCast(Vec3(0.35, 1.0, 0.35), Vec3(0.35, -1.0, 0.35));
+    REQUIRE(corner);
+    CHECK(corner->particle == 0);
     // A non-finite end is refused by name.
     REQUIRE_DRAPE_ERROR(cloth.rayCast(Vec3(std::nan(""), 0, 0), Vec3::Zero()), ErrorCode::NonFinite,
                         "rayCast");
