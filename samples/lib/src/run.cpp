@@ -181,7 +181,7 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
     if (sim.substeps() > 1 || scene.autoSubsteps)
         log << ", " << sim.substeps() << " cloth sub-step" << (sim.substeps() == 1 ? "" : "s")
             << " per step" << (scene.autoSubsteps ? " (auto)" : "");
-    log << "\n";
+    log << std::endl; // what the run will do, shown before it starts even when redirected
 
     std::unique_ptr<OffscreenRenderer> renderer;
     if (render)
