@@ -306,8 +306,13 @@ class Cloth {
     double gravityEnergy() const; ///< -sum m g . x [J]
     /// Upper bound on the largest angular frequency of the spring network [rad/s].
     double maxAngularFrequency() const;
-    /// Largest stable time step of the cloth's integrator [s].
+    /// Largest stable time step of the cloth's integrator [s] (its springs).
     double stableTimeStep() const;
+    /// Largest stable time step of the explicit aerodynamic drag and lift for a step of dt
+    /// [s]: 2 / the fastest rate at which a particle's velocity relaxes toward the air's, at
+    /// the wind plus the fastest particle's speed (plus g dt). Infinite without aerodynamics.
+    /// Automatic sub-steps keep within both (a cloth in water, or in a gale).
+    double aeroTimeStep(double dt) const;
     /// What the limiter did in the last step (its sub-steps and relimit() calls summed; the
     /// strains are the largest of them).
     const StrainLimitStats& lastLimiterStats() const { return limiterStats_; }
@@ -382,6 +387,9 @@ class Cloth {
     void restore(const Saved& s);
     /// Puts held particle i at `position`; a move sets overBound (a teleport).
     void movedHeld(Index i, const Vec3& position);
+    /// The fastest relative speed of the air a step of dt can see (aeroTimeStep) [m/s].
+    double aeroSpeedBound(double dt) const;
+    mutable std::vector<double> aeroArea_; ///< aeroTimeStep's scratch: area per particle
     /// Brings the step's starting positions within the bound, positions only (overBound), in
     /// at most this many walks.
     static constexpr int kRepairWalks = 4;

@@ -157,8 +157,15 @@ void Simulation::chooseSubsteps() {
     if (!scene_.autoSubsteps) return; // scene_.substeps as the file gave it
     // The stability estimate with the pins in place (attachments, added with the world,
     // only remove free particles, which never lowers the limit).
-    const double limit = cloth_->stableTimeStep();
+    // The explicit aerodynamics' limit too, at the strongest wind of the gusts (a cloth in
+    // water, or in a gale); applyWind sets the wind of the moment after.
+    if (scene_.wind) {
+        const WindDesc& w = *scene_.wind;
+        const Vec3 up = w.velocity + w.gustAmplitude, down = w.velocity - w.gustAmplitude;
+        cloth_->setWind(up.norm() >= down.norm() ? up : down);
+    }
     const double dt = scene_.timeStep;
+    const double limit = std::min(cloth_->stableTimeStep(), cloth_->aeroTimeStep(dt));
     if (!(limit > 0.0)) fail("simulation.substeps", "\"auto\": no stable time step exists");
     const double needed = std::ceil(dt / (kAutoSubstepMargin * limit));
     if (!(needed <= static_cast<double>(kMaxSubsteps)))
