@@ -8,6 +8,8 @@
 
 #include <catch2/catch.hpp>
 
+#include <cstdio>
+
 #include <chrono>
 #include <cstring>
 #include <fcntl.h>
@@ -648,6 +650,39 @@ TEST_CASE("edges that no cloth surface has are named in a warning: fins and flip
     // The grid as it is: no warning.
     writeText(dir / "grid.obj", gridObj("", ""));
     CHECK(importMesh(dir / "grid.obj").warnings.empty());
+    // A triangle soup of a 6 x 6 grid (50 triangles, each with its own copies of its corners)
+    // whose copies differ by 1e-7 m (float rounding): not welded by the automatic tolerance,
+    // loose triangles, named; with a weld tolerance of 1e-5 m it is one surface, no warning.
+    std::string soup;
+    int v = 0;
+    for (int r = 0; r < 5; ++r)
+        for (int c = 0; c < 5; ++c) {
+            const double x0 = 0.1 * c, z0 = 0.1 * r;
+            const double corners[2][3][2] = {
+                {{x0, z0}, {x0 + 0.1, z0}, {x0, z0 + 0.1}},
+                {{x0 + 0.1, z0}, {x0 + 0.1, z0 + 0.1}, {x0, z0 + 0.1}}};
+            for (const auto& tri : corners) {
+                for (const auto& p : tri) {
+                    const double noise = 1e-7 * ((v * 7919) % 13 - 6) / 6.0;
+                    char line[96];
+                    std::snprintf(line, sizeof line, "v %.12f 0 %.12f\n", p[0] + noise,
+                                  p[1] - noise);
+                    soup += line;
+                    ++v;
+                }
+                soup += "f " + std::to_string(v - 2) + " " + std::to_string(v - 1) + " " +
+                        std::to_string(v) + "\n";
+            }
+        }
+    writeText(dir / "soup.obj", soup);
+    const ImportedMesh loose = importMesh(dir / "soup.obj");
+    REQUIRE(loose.mesh.vertices.size() > 36); // not welded into the 36 grid points
+    REQUIRE(loose.warnings.size() == 1);
+    INFO(loose.warnings[0]);
+    CHECK_THAT(loose.warnings[0], Contains("edges border a single triangle"));
+    const ImportedMesh welded = importMesh(dir / "soup.obj", 1e-5);
+    CHECK(welded.mesh.vertices.size() == 36);
+    CHECK(welded.warnings.empty());
 }
 
 TEST_CASE("a binary STL with a few collapsed facets loads, as assimp's spider does",

@@ -602,11 +602,16 @@ constexpr std::size_t kImportStackBytes = std::size_t(256) << 20;
 
 ImportedMesh importOnThisStack(const std::filesystem::path& file, const MeshImportOptions& options);
 
-/// A warning for edges no cloth surface has (empty when there are none): edges shared by more
+/// A warning for edges no cloth surface has (empty when there are none): mostly border edges
+/// (loose triangles, see kLooseTriangles), edges shared by more
 /// than two triangles (a fin or a pinch: the cloth simulates them, one spring per edge, but
 /// its two sides, the aerodynamics and the self-collision assume a surface), and edges whose
 /// two triangles are wound against each other (the normals flip across them: the lift and the
 /// shading follow the winding). Names up to three of each.
+/// The fewest triangles for which a mesh of mostly border edges is called loose (a strip of a
+/// few triangles has mostly border edges).
+constexpr std::size_t kLooseTriangles = 32;
+
 std::string surfaceWarning(const TriangleMesh& mesh) {
     struct Use {
         Index lo, hi;
@@ -623,7 +628,7 @@ std::string surfaceWarning(const TriangleMesh& mesh) {
             uses.push_back({std::min(a, b), std::max(a, b), a < b});
         }
     std::sort(uses.begin(), uses.end());
-    std::size_t fins = 0, flips = 0;
+    std::size_t fins = 0, flips = 0, edges = 0, borders = 0;
     std::string finExamples, flipExamples;
     auto name = [](std::string& list, const Use& u, std::size_t n) {
         char buf[96];
@@ -636,6 +641,8 @@ std::string surfaceWarning(const TriangleMesh& mesh) {
         while (e < uses.size() && uses[e].lo == uses[b].lo && uses[e].hi == uses[b].hi)
             forward += uses[e++].forward;
         const std::size_t count = e - b;
+        ++edges;
+        borders += count == 1;
         if (count > 2) {
             name(finExamples, uses[b], ++fins);
         } else if (count == 2 && forward != 1) {
@@ -644,9 +651,19 @@ std::string surfaceWarning(const TriangleMesh& mesh) {
         b = e;
     }
     std::string w;
+    // Most edges on a border: loose triangles, not a surface (a cloth mesh's border edges are
+    // a few per cent of its edges; a triangle soup whose copies of a vertex differ by rounding,
+    // 1e-7 m in a float export, is not welded by the automatic tolerance and falls apart).
+    if (mesh.triangles.size() >= kLooseTriangles && 2 * borders > edges)
+        w += std::to_string(borders) + " of " + std::to_string(edges) +
+             " edges border a single triangle: the mesh is mostly loose triangles (the copies of "
+             "a vertex the triangles share were not welded: are they apart by rounding?); the "
+             "cloth falls apart along them: give a larger weld tolerance "
+             "(MeshImportOptions::weldTolerance, a scene's \"weld_tolerance\")";
     if (fins > 0)
-        w += std::to_string(fins) + (fins == 1 ? " edge is" : " edges are") +
-             " shared by more than two triangles (" + finExamples + (fins > 3 ? "; ..." : "") +
+        w += std::string(w.empty() ? "" : "; ") + std::to_string(fins) +
+             (fins == 1 ? " edge is" : " edges are") + " shared by more than two triangles (" +
+             finExamples + (fins > 3 ? "; ..." : "") +
              "): the cloth simulates each edge as one spring, but a cloth is a surface with two "
              "sides (aerodynamics, self-collision); split the mesh there";
     if (flips > 0)
