@@ -10,11 +10,34 @@
 #include "drape/strain_limit.hpp"
 
 #include <cstdio>
+#include <memory>
+#include <vector>
 
 using namespace drape;
 using namespace drape_test;
 
 namespace {
+
+/// Kinetic, gravitational and spring energy [J].
+double mechanicalEnergy(const Cloth& cloth) {
+    return cloth.kineticEnergy() + cloth.gravityEnergy() + cloth.springEnergy();
+}
+
+/// A 1 m sheet of 21 x 21 particles (default settings) held by `pins` and settled for 2 s
+/// at 60 Hz.
+std::unique_ptr<Cloth> settledSheet21(const std::vector<Index>& pins) {
+    SheetSpec sheet;
+    sheet.rows = 21;
+    sheet.cols = 21;
+    sheet.spacing = 0.05;
+    sheet.origin = {-0.5, 2.0, 0.0};
+    auto cloth = std::make_unique<Cloth>(ClothTopology::build(makeSheet(sheet)), ClothSettings{});
+    for (Index p : pins)
+        cloth->pin(p);
+    for (int f = 0; f < 120; ++f)
+        cloth->step(1.0 / 60.0);
+    return cloth;
+}
 
 /// Unequal particle masses in [0.5, 2] kg drawn from rng, and their inverses.
 void randomMasses(Rng& rng, std::size_t n, std::vector<double>& mass,
@@ -179,9 +202,7 @@ TEST_CASE("Experiment I, 10 s with damping: bound every step, no energy source",
     Cloth cloth(ClothTopology::build(makeSheet(spec)), s);
     cloth.pin(sheetIndex(spec, 0, 0));
     cloth.pin(sheetIndex(spec, 0, 34));
-    auto energy = [&] {
-        return cloth.kineticEnergy() + cloth.gravityEnergy() + cloth.springEnergy();
-    };
+    auto energy = [&] { return mechanicalEnergy(cloth); };
     double e = energy(), rise = 0.0, maxRise = 0.0, dissipated = 0.0, worst = 0.0;
     for (int n = 0; n < 1000; ++n) {
         cloth.step(0.01);
@@ -1291,9 +1312,7 @@ TEST_CASE("The strain bound holds for any pin set and stiffness", "[limiter][bou
         if (pc.pinTopRow)
             for (Index c = 0; c < pc.cols; ++c)
                 cloth.pin(sheetIndex(spec, 0, c));
-        auto energy = [&] {
-            return cloth.kineticEnergy() + cloth.gravityEnergy() + cloth.springEnergy();
-        };
+        auto energy = [&] { return mechanicalEnergy(cloth); };
         const double e0 = energy();
         double totalMass = 0.0;
         for (double m : cloth.masses())
@@ -1425,16 +1444,8 @@ TEST_CASE("a cloth held far beyond its reach and let go gains no energy (ClothSt
     // was at release. (Before the repair walk, the whole correction became velocity: 464 J
     // from 27 J, particles at 148 m/s.)
     for (const double speed : {2.0, 10.0, 40.0}) {
-        SheetSpec sheet;
-        sheet.rows = 21;
-        sheet.cols = 21;
-        sheet.spacing = 0.05;
-        sheet.origin = {-0.5, 2.0, 0.0};
-        Cloth cloth(ClothTopology::build(makeSheet(sheet)), ClothSettings{});
-        cloth.pin(0);
-        cloth.pin(20);
-        for (int f = 0; f < 120; ++f)
-            cloth.step(1.0 / 60.0);
+        auto owned = settledSheet21({0, 20});
+        Cloth& cloth = *owned;
         const Index p = 10 * 21 + 10;
         const Vec3 grab = cloth.positions()[p];
         cloth.setKinematicTarget(p, grab + Vec3(0, 0, 1.0), cloth.time() + 1.0 / speed);
@@ -1442,15 +1453,12 @@ TEST_CASE("a cloth held far beyond its reach and let go gains no energy (ClothSt
             cloth.step(1.0 / 60.0);
         REQUIRE(cloth.state().overBound);
         REQUIRE(cloth.maxStrain() > 1.0); // far beyond the bound while held
-        auto energy = [&] {
-            return cloth.kineticEnergy() + cloth.gravityEnergy() + cloth.springEnergy();
-        };
-        const double atRelease = energy();
+        const double atRelease = mechanicalEnergy(cloth);
         cloth.unpin(p);
         double highest = -1e300, fastest = 0.0;
         for (int f = 0; f < 60; ++f) {
             cloth.step(1.0 / 60.0);
-            highest = std::max(highest, energy());
+            highest = std::max(highest, mechanicalEnergy(cloth));
             for (const Vec3& v : cloth.velocities())
                 fastest = std::max(fastest, v.norm());
         }
@@ -1472,22 +1480,14 @@ TEST_CASE("pins teleported with pin(i, position) give the cloth no speed of the 
     // most sqrt(2 g H) falling its height H = 1 m), and from the end of the teleport's frame
     // on nothing adds energy. (Before, the jump became velocity: 133 m/s and 186 J.)
     for (const double jump : {0.5, 1.0}) {
-        SheetSpec sheet;
-        sheet.rows = 21;
-        sheet.cols = 21;
-        sheet.spacing = 0.05;
-        sheet.origin = {-0.5, 2.0, 0.0};
-        Cloth cloth(ClothTopology::build(makeSheet(sheet)), ClothSettings{});
+        std::vector<Index> topRow(21);
         for (Index c = 0; c < 21; ++c)
-            cloth.pin(c);
-        for (int f = 0; f < 120; ++f)
-            cloth.step(1.0 / 60.0);
+            topRow[c] = c;
+        auto owned = settledSheet21(topRow);
+        Cloth& cloth = *owned;
         for (Index c = 0; c < 21; ++c)
             cloth.pin(c, cloth.positions()[c] + Vec3(jump, 0, 0));
         CHECK(cloth.state().overBound);
-        auto energy = [&] {
-            return cloth.kineticEnergy() + cloth.gravityEnergy() + cloth.springEnergy();
-        };
         const double g = cloth.settings().gravity.norm();
         const double speedBound = cloth.settings().stretchWaveSpeed + std::sqrt(2.0 * g * 1.0);
         double fastest = 0.0, previous = 0.0, rise = 0.0;
@@ -1495,7 +1495,7 @@ TEST_CASE("pins teleported with pin(i, position) give the cloth no speed of the 
             cloth.step(1.0 / 60.0);
             for (const Vec3& v : cloth.velocities())
                 fastest = std::max(fastest, v.norm());
-            const double e = energy();
+            const double e = mechanicalEnergy(cloth);
             if (f > 0) rise = std::max(rise, e - previous);
             previous = e;
         }

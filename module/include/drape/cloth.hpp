@@ -204,7 +204,8 @@ class Cloth {
     void setWind(const Vec3& wind); ///< [m/s]; needs aero.airDensity > 0 (setAero) to act
     /// Replaces ClothSettings::aero (air density, drag and lift coefficients, wind): turns
     /// aerodynamics on or off after construction. Throws drape::Error (InvalidArgument or
-    /// NonFinite) for a negative density or a non-finite value, leaving the cloth unchanged.
+    /// NonFinite) for a negative density or drag coefficient or a non-finite value, leaving
+    /// the cloth unchanged.
     void setAero(const AeroSettings& aero);
     void setGravity(const Vec3& g); ///< [m/s^2]
     /// Sets ClothSettings::relativeDamping [1/s] (>= 0; throws drape::Error otherwise).
@@ -390,8 +391,7 @@ class Cloth {
     /// The fastest relative speed of the air a step of dt can see (aeroTimeStep) [m/s].
     double aeroSpeedBound(double dt) const;
     mutable std::vector<double> aeroArea_; ///< aeroTimeStep's scratch: area per particle
-    /// Brings the step's starting positions within the bound, positions only (overBound), in
-    /// at most this many walks.
+    /// The most walks repairStart takes.
     static constexpr int kRepairWalks = 4;
     /// Brings the step's starting positions within the bound, positions only (overBound).
     void repairStart(const LimiterSettings& lim);
