@@ -1,5 +1,5 @@
-// drape-check: says, before a run, whether a time step is stable for a cloth's integrator and
-// stiffness, and which time step or how many sub-steps would be.
+// drape-check: says, before a run, whether a time step is stable for a cloth's integrator,
+// stiffness and aerodynamics, and which time step or how many sub-steps would be.
 //
 //   drape-check --scene samples/scenes/experiment1_suspended_sheet.json [--dt 0.05]
 //               [--integrator rk4]
@@ -88,6 +88,12 @@ int main(int argc, char** argv) {
             if (integrator) scene.cloth.integrator = *integrator;
             scene.cloth.rejectUnstableTimeStep = false; // we are asking, not stepping
             samples::Simulation sim(scene);
+            // What loading the scene noticed (a mesh's loose triangles, a weld that merged
+            // much, a material assimp could not find), as drape-run prints it.
+            for (const std::string& w : sim.warnings())
+                std::cerr << "drape-check: warning: " << w << "\n";
+            // The aerodynamics judged at the strongest wind of the scene's gusts.
+            if (scene.wind) sim.cloth().setWind(scene.wind->strongest());
             // The scene's own cloth step: its time step over its sub-steps (a count, or what
             // "auto" chose); --dt asks about one cloth step of that length instead.
             const int substeps = dt ? 1 : sim.substeps();

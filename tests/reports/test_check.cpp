@@ -72,6 +72,54 @@ TEST_CASE("checkTimeStep: Velocity-Verlet limit is 2 / sqrt(2 k / m) and holds i
     CHECK_FALSE(bounded(*c2, 3.0 * 2.0 / omega, 4000));
 }
 
+TEST_CASE("checkTimeStep: a plate moving through water is limited by its explicit drag, and "
+          "the limit holds in a run") {
+    // A free triangle moving broadside at 1 m/s through still water: quadratic drag slows it,
+    // v' = -c |v| v. Taken explicitly, a step longer than 2 / (the rate it relaxes at) turns
+    // the velocity past zero and makes it larger each step. The springs (no pins: they do not
+    // move) are far from binding.
+    auto plate = [] {
+        auto c = oscillator(IntegratorKind::VelocityVerlet, 200.0, 0.25, 0.0);
+        c->unpin(0);
+        c->unpin(1);
+        AeroSettings water;
+        water.airDensity = 1000.0;
+        c->setAero(water);
+        for (Index i = 0; i < 3; ++i)
+            c->setVelocity(i, Vec3(0.0, 0.0, -1.0));
+        return c;
+    };
+    // Steps n times; the corners' velocity along z, or NaN when the step failed.
+    auto slowed = [](Cloth& c, double dt, int n) {
+        try {
+            for (int i = 0; i < n; ++i)
+                c.step(dt);
+        } catch (const Error& e) {
+            REQUIRE(e.code() == ErrorCode::SimulationFailure);
+            return std::numeric_limits<double>::quiet_NaN();
+        }
+        return c.velocities()[2].z();
+    };
+    auto c = plate();
+    const double drag = c->aeroTimeStep(0.01);
+    REQUIRE(drag < 0.1 * c->stableTimeStep());
+    const TimeStepCheck bad = checkTimeStep(*c, 3.0 * drag);
+    CHECK(bad.aeroLimit == Approx(drag).epsilon(1e-12));
+    CHECK(bad.limit == Approx(drag).epsilon(1e-12));
+    CHECK_FALSE(bad.stable);
+    CHECK(bad.substeps >= 3);
+    INFO(bad.message);
+    CHECK(bad.message.find("drag and lift") != std::string::npos);
+    CHECK(checkTimeStep(*c, 0.9 * drag).stable);
+    // The verdict is the run's: at the suggested sub-step the plate slows toward rest without
+    // passing it; at the refused step the state becomes non-finite within a few steps.
+    const double v = slowed(*c, 3.0 * drag / bad.substeps, 400);
+    CHECK(v < 0.0);
+    CHECK(v > -0.1);
+    auto c2 = plate();
+    CHECK(std::isnan(slowed(*c2, 3.0 * drag, 400)));
+}
+
 TEST_CASE("checkTimeStep: a step far beyond the limit names the count it needs, not an int's "
           "overflow") {
     const double k = 50.0, m = 0.2;

@@ -685,6 +685,23 @@ TEST_CASE("edges that no cloth surface has are named in a warning: fins and flip
     CHECK(welded.warnings.empty());
 }
 
+TEST_CASE("points and lines in a mesh file are named in a warning: the cloth is its triangles",
+          "[mesh]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "primitives";
+    fs::create_directories(dir);
+    // The 3 x 3 grid with a polyline (two segments) and a point of its own vertices.
+    writeText(dir / "lines.obj", gridObj("", "l 1 2 3\np 5\n"));
+    const ImportedMesh m = importMesh(dir / "lines.obj");
+    CHECK(m.mesh.triangles.size() == 8);
+    CHECK(m.mesh.vertices.size() == 9);
+    CHECK(m.skippedPrimitives == 3);
+    REQUIRE(m.warnings.size() == 1);
+    INFO(m.warnings[0]);
+    CHECK_THAT(m.warnings[0], Contains("lines.obj: skipped 3 points or lines"));
+}
+
 TEST_CASE("a binary STL with a few collapsed facets loads, as assimp's spider does",
           "[mesh][degenerate]") {
     if (!meshIoAvailable()) return;

@@ -996,6 +996,10 @@ ImportedMesh importOnThisStack(const std::filesystem::path& file,
         }
         if (!g.empty()) out.groups[name] = std::move(g);
     }
+    if (raw.skipped > 0)
+        out.warnings.push_back(file.string() + ": skipped " + std::to_string(raw.skipped) +
+                               (raw.skipped == 1 ? " point or line" : " points or lines") +
+                               " (a cloth is made of the file's triangles only)");
     if (const std::string w = shortEdgeWarning(out.mesh); !w.empty())
         out.warnings.push_back(file.string() + ": " + w);
     if (const std::string w = surfaceWarning(out.mesh); !w.empty())

@@ -73,6 +73,12 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
     } else {
         c.limit = stableTimeStep(integrator, c.omegaMax);
     }
+    // The explicit aerodynamics' own limit (every integrator takes drag and lift explicitly):
+    // at the cloth's wind now, so a caller judging a gusty scene sets its strongest wind first.
+    const double springsLimit = c.limit;
+    c.aeroLimit = cloth.aeroTimeStep(dt);
+    const bool aeroBinds = c.aeroLimit < c.limit;
+    if (aeroBinds) c.limit = c.aeroLimit;
     c.stable = dt <= c.limit;
     if (!std::isfinite(c.limit)) {
         c.suggestedTimeStep = dt;
@@ -104,8 +110,11 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
     const std::string substepText =
         needed < 1e9 ? std::to_string(static_cast<long long>(needed)) : fmt(needed);
     const std::string why =
-        "omega_max = " + fmt(c.omegaMax) + " rad/s, limit " + fmt(c.limit) + " s";
-    if (!c.stable && integrator == IntegratorKind::ExplicitEuler) {
+        aeroBinds
+            ? "the explicit drag and lift bind at wind " + fmt(cloth.settings().aero.wind.norm()) +
+                  " m/s: limit " + fmt(c.limit) + " s, the springs' " + fmt(springsLimit) + " s"
+            : "omega_max = " + fmt(c.omegaMax) + " rad/s, limit " + fmt(c.limit) + " s";
+    if (!c.stable && integrator == IntegratorKind::ExplicitEuler && !aeroBinds) {
         // |1 + lambda dt|^2 = 1 - 2 gamma dt + (omega dt)^2 = 1 + omega^2 dt (dt - limit): the
         // stiffest mode's growth per step. Say how fast, since it can pass unnoticed.
         const double w2 = c.omegaMax * c.omegaMax;
@@ -123,7 +132,9 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
     } else {
         c.message = name + " at dt = " + fmt(dt) + " s: UNSTABLE (" + why + ", dt is " +
                     fmt(dt / c.limit, 3) + "x the limit). Use dt <= " + fmt(c.suggestedTimeStep) +
-                    " s, i.e. " + substepText + " sub-steps per step, or implicit_euler.";
+                    " s, i.e. " + substepText + " sub-steps per step" +
+                    (aeroBinds ? " (every integrator takes drag and lift explicitly)."
+                               : ", or implicit_euler.");
     }
     return c;
 }

@@ -159,11 +159,7 @@ void Simulation::chooseSubsteps() {
     // only remove free particles, which never lowers the limit).
     // The explicit aerodynamics' limit too, at the strongest wind of the gusts (a cloth in
     // water, or in a gale); applyWind sets the wind of the moment after.
-    if (scene_.wind) {
-        const WindDesc& w = *scene_.wind;
-        const Vec3 up = w.velocity + w.gustAmplitude, down = w.velocity - w.gustAmplitude;
-        cloth_->setWind(up.norm() >= down.norm() ? up : down);
-    }
+    if (scene_.wind) cloth_->setWind(scene_.wind->strongest());
     const double dt = scene_.timeStep;
     const double limit = std::min(cloth_->stableTimeStep(), cloth_->aeroTimeStep(dt));
     if (!(limit > 0.0)) fail("simulation.substeps", "\"auto\": no stable time step exists");

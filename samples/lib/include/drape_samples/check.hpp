@@ -24,9 +24,12 @@ namespace drape::samples {
 /// The verdict on one (cloth, integrator, dt).
 struct TimeStepCheck {
     IntegratorKind integrator = IntegratorKind::VelocityVerlet;
-    double timeStep = 0.0;          ///< the dt asked about [s]
-    double omegaMax = 0.0;          ///< upper bound on the largest angular frequency [rad/s]
-    double limit = 0.0;             ///< largest stable dt of the integrator [s]; inf if none
+    double timeStep = 0.0; ///< the dt asked about [s]
+    double omegaMax = 0.0; ///< upper bound on the largest angular frequency [rad/s]
+    double limit = 0.0;    ///< largest stable dt of the integrator [s]; inf if none
+    /// The explicit aerodynamics' limit at the cloth's wind (Cloth::aeroTimeStep) [s]; inf
+    /// without aerodynamics. `limit` is the smaller of it and the springs'.
+    double aeroLimit = 0.0;
     bool stable = false;            ///< timeStep <= limit
     double suggestedTimeStep = 0.0; ///< a stable dt with a 10 % margin [s] (0: none exists)
     int substeps = 1;               ///< sub-steps of timeStep that make it stable (0: none do)
@@ -34,7 +37,7 @@ struct TimeStepCheck {
 };
 
 /// Checks dt for the cloth's integrator (or `integrator` when given), stiffness, masses,
-/// damping and pins.
+/// damping and pins, and for its aerodynamics at its wind of the moment.
 TimeStepCheck checkTimeStep(const Cloth& cloth, double dt);
 TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integrator);
 

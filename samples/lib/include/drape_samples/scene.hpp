@@ -148,6 +148,12 @@ struct WindDesc {
     Vec3 velocity = Vec3::Zero();      ///< mean wind [m/s]
     Vec3 gustAmplitude = Vec3::Zero(); ///< sinusoidal gust on top of the mean [m/s]
     double gustFrequency = 0.0;        ///< [Hz]
+    /// The strongest wind of the gust (mean plus or minus its amplitude) [m/s]: what the
+    /// aerodynamics' time-step limit is judged at.
+    Vec3 strongest() const {
+        const Vec3 up = velocity + gustAmplitude, down = velocity - gustAmplitude;
+        return up.norm() >= down.norm() ? up : down;
+    }
 };
 
 struct CameraDesc {
