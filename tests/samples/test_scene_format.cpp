@@ -389,6 +389,26 @@ TEST_CASE("simulation.substeps: an integer or \"auto\", given once", "[scene][su
                Contains("collision.substeps: give the sub-steps once, as simulation.substeps"));
 }
 
+TEST_CASE("a run that cannot end within an hour is named before it starts", "[scene][limits]") {
+    using Catch::Matchers::Contains;
+    // 10,000 particles for 4e7 steps: each factor within its limit, 4e11 particle-steps in
+    // all, more than 1.1 hours even at drape's cheapest step.
+    auto scene = [](double duration) {
+        return parse(R"({"cloth": {"sheet": {"rows": 100, "cols": 100, "spacing": 0.01},
+                                    "particle_mass": 0.001, "stiffness": 1.0},
+                         "simulation": {"time_step": 0.001, "substeps": 1, "duration": )" +
+                     std::to_string(duration) + R"(}, "output": {"fps": 2}})");
+    };
+    const Simulation longRun(scene(40000.0));
+    REQUIRE(longRun.warnings().size() == 1);
+    CHECK_THAT(longRun.warnings()[0],
+               Contains("4e+11 particle-steps (10000 particles x 40000000 steps x 1 cloth "
+                        "sub-steps): at least 1.1") &&
+                   Contains("hours"));
+    // An hour's worth at that bound is fine.
+    CHECK(Simulation(scene(36000.0)).warnings().empty());
+}
+
 TEST_CASE("collision.triangle_contacts: off by default, a boolean", "[scene][contacts]") {
     using Catch::Matchers::Contains;
     const std::string body =

@@ -147,6 +147,7 @@ Simulation::Simulation(const SceneDesc& scene) : scene_(scene) {
     for (const RigidBodyDesc& b : scene_.rigidBodies)
         bodyMeshes_.push_back(shapeMeshes(b, centre, planeSize, warnings_, imported));
     chooseSubsteps();
+    warnLongRun();
     if (scene_.needsBullet()) world_ = RigidWorld::create(scene_, *cloth_, attachSets_);
     applyWind();
 }
@@ -172,6 +173,23 @@ void Simulation::chooseSubsteps() {
                  num(limit) + " s), more than the limit of " + std::to_string(kMaxSubsteps) +
                  ": lower simulation.time_step, or use implicit_euler");
     scene_.substeps = std::max(1, static_cast<int>(needed));
+}
+
+void Simulation::warnLongRun() {
+    // Each factor can be within its limit while their product asks for days: say so before
+    // the run starts, at the cost of drape's cheapest steps (a lower bound of the time).
+    const double particleSteps = static_cast<double>(cloth_->particleCount()) *
+                                 static_cast<double>(scene_.stepCount()) * scene_.substeps;
+    const double leastSeconds = particleSteps * kLeastSecondsPerParticleStep;
+    if (leastSeconds <= kLongRunSeconds) return;
+    warnings_.push_back(
+        "the run is " + num(particleSteps) + " particle-steps (" +
+        std::to_string(cloth_->particleCount()) + " particles x " +
+        std::to_string(scene_.stepCount()) + " steps x " + std::to_string(scene_.substeps) +
+        " cloth sub-steps): at least " + num(leastSeconds / 3600.0) +
+        " hours at drape's cheapest steps (" + num(kLeastSecondsPerParticleStep * 1e9) +
+        " ns a particle-step on one core, no contacts); shorten simulation.duration, coarsen "
+        "the cloth, or lower its stiffness to need fewer sub-steps");
 }
 
 void Simulation::fail(const std::string& path, const std::string& what) const {

@@ -39,6 +39,13 @@ struct BodyView {
 /// stability estimate (the estimate is an upper bound on omega_max; the margin covers the
 /// contact and damping forces it leaves out).
 inline constexpr double kAutoSubstepMargin = 0.9;
+/// The cheapest a cloth step gets per particle on one core (Experiment I without a limiter
+/// or contacts: 14 us for 1,225 particles on the 2-core Xeon VM, PERF.md) [s]: a lower bound
+/// of a run's time.
+inline constexpr double kLeastSecondsPerParticleStep = 1e-8;
+/// A run whose lower bound (particles x steps x sub-steps x kLeastSecondsPerParticleStep)
+/// exceeds this gets a warning before it starts [s].
+inline constexpr double kLongRunSeconds = 3600.0;
 
 /// Whether this build can run scenes with rigid bodies (drape::bullet was available).
 bool rigidBodiesAvailable();
@@ -105,6 +112,7 @@ class Simulation {
     [[noreturn]] void fail(const std::string& path, const std::string& what) const;
     [[noreturn]] void overflow(const std::string& what) const;
     void chooseSubsteps();
+    void warnLongRun(); ///< a warning when the run cannot take under kLongRunSeconds
     std::vector<Index> resolve(const ParticleSelector& sel,
                                const std::vector<Index>& vertexToParticle,
                                const std::map<std::string, std::vector<Index>>& groups) const;
