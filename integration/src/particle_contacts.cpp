@@ -322,7 +322,8 @@ bool ContactSolver::pathHit(const BodySnapshot& b, const Vec3& from, const Vec3&
         // hit replace them (the body's answer to the walk's pushes depends on them).
         const int type = b.object->getCollisionShape()->getShapeType();
         if (type == SPHERE_SHAPE_PROXYTYPE || type == CAPSULE_SHAPE_PROXYTYPE ||
-            type == CYLINDER_SHAPE_PROXYTYPE || type == BOX_SHAPE_PROXYTYPE) {
+            type == CYLINDER_SHAPE_PROXYTYPE || type == BOX_SHAPE_PROXYTYPE ||
+            type == CONE_SHAPE_PROXYTYPE) {
             QueryCounters local;
             const SurfaceHit q =
                 closestSurface(b.object->getCollisionShape(), b.pose, hit.point, from, 0.0, local);

@@ -470,6 +470,19 @@ SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const
         const Vec3 e = toVec(cyl->getHalfExtentsWithMargin());
         return placed(pose, closestOnCylinder(axis, e[cylinderRadiusAxis(axis)], e[axis], local));
     }
+    case CONE_SHAPE_PROXYTYPE: {
+        // Bullet's cone grown by its margin (GJK's rounded surface): the sharp cone's nearest
+        // point moved out along its normal. Exact where a face is nearest; round the rim and
+        // the apex a point within the margin's sphere.
+        ++counters.queries;
+        const auto* cone = static_cast<const btConeShape*>(shape);
+        SurfacePoint q = closestOnCone(cone->getConeUpIndex(), double(cone->getRadius()),
+                                       0.5 * double(cone->getHeight()), local);
+        const double margin = double(cone->getMargin());
+        q.distance -= margin;
+        q.point += margin * q.normal;
+        return placed(pose, q);
+    }
     case STATIC_PLANE_PROXYTYPE: {
         ++counters.queries;
         return planeQuery(static_cast<const btStaticPlaneShape*>(shape), local, pose);

@@ -179,6 +179,42 @@ SurfacePoint closestOnCylinder(int axis, double r, double halfHeight, const Vec3
     return {len, d / len, q};
 }
 
+SurfacePoint closestOnCone(int axis, double r, double halfHeight, const Vec3& p) {
+    // In the half-plane through the axis and p: (rho, y), the cone is the triangle of the
+    // apex (0, h), the rim (r, -h) and the base's centre (0, -h); its surface is the slant
+    // apex-rim and the base centre-rim.
+    Vec3 radial = p;
+    radial[axis] = 0.0;
+    const double rho = radial.norm(), y = p[axis], h = halfHeight;
+    const Vec3 u = rho > 0.0 ? Vec3(radial / rho) : Vec3(Vec3::Unit((axis + 1) % 3));
+    auto toSpace = [&](double pr, double py) {
+        Vec3 v = pr * u;
+        v[axis] = py;
+        return v;
+    };
+    // Nearest on the slant (A + t (B - A), A the apex, B the rim) and on the base.
+    const double sr = r, sy = -2.0 * h; // B - A
+    const double len2 = sr * sr + sy * sy;
+    const double t = len2 > 0.0 ? std::clamp((rho * sr + (y - h) * sy) / len2, 0.0, 1.0) : 0.0;
+    const double slantR = t * sr, slantY = h + t * sy;
+    const double baseR = std::clamp(rho, 0.0, r), baseY = -h;
+    const double ds = std::hypot(rho - slantR, y - slantY);
+    const double db = std::hypot(rho - baseR, y - baseY);
+    const bool inside = h > 0.0 && y >= -h && rho * 2.0 * h <= r * (h - y);
+    if (inside) {
+        if (ds < db) {
+            const double n = std::sqrt(4.0 * h * h + r * r); // the slant's outward (2h, r)
+            return {-ds, toSpace(2.0 * h / n, r / n), toSpace(slantR, slantY)};
+        }
+        return {-db, toSpace(0.0, -1.0), toSpace(baseR, baseY)};
+    }
+    const bool slant = ds <= db;
+    const double cr = slant ? slantR : baseR, cy = slant ? slantY : baseY;
+    const double d = slant ? ds : db;
+    if (!(d > 0.0)) return {0.0, toSpace(0.0, 1.0), toSpace(cr, cy)};
+    return {d, toSpace((rho - cr) / d, (y - cy) / d), toSpace(cr, cy)};
+}
+
 SegmentDeepest deepestOnSegment(const Vec3& half, const Vec3& pa, const Vec3& pb, const Vec3& ga,
                                 const Vec3& gb) {
     // The faces either end sees: sign per axis (0: none; both signs: a spring through the box).

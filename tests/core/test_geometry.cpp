@@ -151,6 +151,43 @@ TEST_CASE("the nearest points of a sphere, a capsule and a cylinder", "[geometry
     CHECK(closestOnCapsule(1, hh, r, Vec3(0.0, 0.1, 0.0)).distance == -r);
 }
 
+TEST_CASE("the nearest point of a cone", "[geometry]") {
+    // Against the cone's surface sampled finely: in the plane through the axis and p, the
+    // slant from the apex (0, hh) to the rim (r, -hh) and the base from (0, -hh) to the rim.
+    const double r = 0.3, hh = 0.35;
+    const int n = 4000;
+    for (const Vec3& p : samplePoints(0.8, 300, 7)) {
+        for (int axis = 0; axis < 3; ++axis) {
+            INFO("p = " << p.transpose() << ", axis " << axis);
+            const SurfacePoint c = closestOnCone(axis, r, hh, p);
+            Vec3 radial = p;
+            radial[axis] = 0.0;
+            const double rho = radial.norm(), y = p[axis];
+            double nearest = std::numeric_limits<double>::infinity();
+            for (int i = 0; i <= n; ++i) {
+                const double t = double(i) / n;
+                nearest = std::min(nearest, std::hypot(rho - t * r, y - (hh - 2.0 * hh * t)));
+                nearest = std::min(nearest, std::hypot(rho - t * r, y + hh));
+            }
+            const bool inside = y >= -hh && y <= hh && rho <= r * (hh - y) / (2.0 * hh);
+            CHECK((c.distance < 0.0) == inside);
+            CHECK(std::abs(c.distance) == Approx(nearest).margin(2.0 * hh / n));
+            CHECK(c.normal.norm() == Approx(1.0).epsilon(1e-14));
+            CHECK((c.point + c.distance * c.normal - p).norm() < 1e-14);
+            // The point lies on the surface: on the base disk or on the slant.
+            Vec3 pr = c.point;
+            pr[axis] = 0.0;
+            const double onBase = std::abs(c.point[axis] + hh) + std::max(pr.norm() - r, 0.0);
+            const double onSlant = std::abs(pr.norm() - r * (hh - c.point[axis]) / (2.0 * hh));
+            CHECK(std::min(onBase, onSlant) < 1e-14);
+        }
+    }
+    // On the axis the normal is a unit vector; the apex's side points up, the base's down.
+    CHECK(closestOnCone(1, r, hh, Vec3(0.0, 0.5, 0.0)).normal.y() == 1.0);
+    CHECK(closestOnCone(1, r, hh, Vec3(0.0, -0.5, 0.0)).normal.y() == -1.0);
+    CHECK(closestOnCone(1, r, hh, Vec3(0.0, -0.3, 0.0)).distance == Approx(-0.05));
+}
+
 TEST_CASE("a box's regions: one face's prism is where the distance is linear", "[geometry]") {
     const Vec3 half(0.3, 0.1, 0.2);
     CHECK(boxRegion(half, Vec3(0.0, 0.0, 0.0)) == 0);

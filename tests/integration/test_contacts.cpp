@@ -657,6 +657,46 @@ TEST_CASE("a cloth drapes over cylinders of each axis with unequal half extents 
     }
 }
 
+TEST_CASE("a cloth drapes over cones of each axis at the thickness from their surface, as "
+          "Bullet's GJK measures it",
+          "[contacts][drape][cone]") {
+    // drape measures a cone in closed form (its apex up its axis, the margin's rounding
+    // included); Bullet's signed distance of the shape is the reference. Tilted, so that the
+    // cloth meets the apex, the slant and the rim.
+    struct Case {
+        const char* name;
+        std::function<btConeShape*(TestWorld&)> make;
+    };
+    const std::vector<Case> cases = {
+        {"y axis, r 0.25, height 0.4",
+         [](TestWorld& w) { return w.shape<btConeShape>(0.25f, 0.4f); }},
+        {"x axis, r 0.2, height 0.5",
+         [](TestWorld& w) { return w.shape<btConeShapeX>(0.2f, 0.5f); }},
+        {"z axis, r 0.3, height 0.3",
+         [](TestWorld& w) { return w.shape<btConeShapeZ>(0.3f, 0.3f); }},
+        {"y axis scaled (1.5, 0.6, 1.5)",
+         [](TestWorld& w) {
+             auto* c = w.shape<btConeShape>(0.2f, 0.5f);
+             c->setLocalScaling(btVector3(1.5f, 0.6f, 1.5f));
+             return c;
+         }},
+    };
+    for (const auto& c : cases) {
+        DYNAMIC_SECTION(c.name) {
+            TestWorld w;
+            const btTransform pose(btQuaternion(btVector3(1, 0, 1).normalized(), btScalar(0.5)),
+                                   btVector3(0, 0.3f, 0));
+            const DrapeOnShape r = drapeOnShape(w, c.make(w), pose, 0.3 + 0.5); // above them
+            INFO("closest approach " << r.closest << " m, " << r.resting
+                                     << " particles resting, farthest " << r.farthestResting
+                                     << " m");
+            CHECK(r.closest >= kThickness - 1e-3); // as for the hull above
+            CHECK(r.resting >= 10);
+            CHECK(r.farthestResting <= 2.0 * kThickness);
+        }
+    }
+}
+
 TEST_CASE("a cloth drapes over a static triangle mesh (a roof ridge)", "[contacts][drape][mesh]") {
     // Two roof planes y = 0.5 - 0.5 |x| for |x| <= 1, z in [-1, 1], as a btBvhTriangleMeshShape.
     TestWorld w;

@@ -73,6 +73,11 @@ SurfacePoint closestOnCapsule(int axis, double halfHeight, double r, const Vec3&
 /// Cylinder of radius r along `axis`, from -halfHeight to +halfHeight. Inside: the nearer of
 /// the side wall and the cap on p's side.
 SurfacePoint closestOnCylinder(int axis, double r, double halfHeight, const Vec3& p);
+/// Solid cone along `axis`: its apex at +halfHeight, its base a disk of radius r at
+/// -halfHeight (Bullet's btConeShape without its margin). Outside: the nearest point of the
+/// slanted side or the base, the normal from it to p; inside: the nearer of the two, its
+/// face's normal. On the axis the radial direction is the next axis.
+SurfacePoint closestOnCone(int axis, double r, double halfHeight, const Vec3& p);
 
 /// Signed distance of p from the box |x_k| <= half_k (negative inside), and its outward unit
 /// gradient: from the nearest point outside, the nearest face's normal inside.
