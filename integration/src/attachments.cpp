@@ -99,7 +99,7 @@ void Attachments::followBodies(Cloth& c, const std::vector<BodySnapshot>& bodies
             }
 }
 
-bool Attachments::carryTeleported(Cloth& c, double dt, double speed) {
+std::optional<Pose> Attachments::carryTeleported(Cloth& c, double dt, double speed) {
     // The bodies' poses now, and the one rigid motion they all made since the last call.
     std::vector<std::pair<const btCollisionObject*, Pose>> now;
     for (const Attachment& a : list_)
@@ -108,12 +108,12 @@ bool Attachments::carryTeleported(Cloth& c, double dt, double speed) {
     std::vector<std::pair<const btCollisionObject*, Pose>> before;
     before.swap(seen_);
     seen_ = now;
-    if (list_.empty() || !(speed > 0.0) || !(dt > 0.0)) return false;
+    if (list_.empty() || !(speed > 0.0) || !(dt > 0.0)) return std::nullopt;
     Pose motion; // now = motion * before, for every body
     for (std::size_t k = 0; k < now.size(); ++k) {
         const auto was = std::find_if(before.begin(), before.end(),
                                       [&](const auto& p) { return p.first == now[k].first; });
-        if (was == before.end()) return false; // attached since: no pose to compare
+        if (was == before.end()) return std::nullopt; // attached since: no pose to compare
         const Pose& p0 = was->second;
         const Pose& p1 = now[k].second;
         const Eigen::Matrix3d turn = p1.R * p0.R.transpose();
@@ -126,7 +126,7 @@ bool Attachments::carryTeleported(Cloth& c, double dt, double speed) {
         // cloth is not carried (it hangs between them).
         const double scale = 1.0 + p1.t.norm();
         if ((m.R - motion.R).cwiseAbs().maxCoeff() > 1e-5 || (m.t - motion.t).norm() > 1e-5 * scale)
-            return false;
+            return std::nullopt;
     }
     // The attached particles are where the bodies' poses of the last call put them (else the
     // program moved them, or restored the cloth from a snapshot: nothing to carry), and fast
@@ -138,20 +138,20 @@ bool Attachments::carryTeleported(Cloth& c, double dt, double speed) {
                              return p.first == a.body;
                          })->second;
         const Vec3& xi = x[a.particle];
-        if ((p0.toWorld(a.localPoint) - xi).norm() > 1e-9 * (1.0 + xi.norm())) return false;
+        if ((p0.toWorld(a.localPoint) - xi).norm() > 1e-9 * (1.0 + xi.norm())) return std::nullopt;
         jump = std::max(jump, (motion.toWorld(xi) - xi).norm());
     }
-    if (!(jump > speed * dt)) return false;
+    if (!(jump > speed * dt)) return std::nullopt;
     // Particles the program pinned stay where they are: no carry.
     const auto& w = c.inverseMasses();
-    if (std::size_t(std::count(w.begin(), w.end(), 0.0)) != list_.size()) return false;
+    if (std::size_t(std::count(w.begin(), w.end(), 0.0)) != list_.size()) return std::nullopt;
     Vec3List& xs = c.mutablePositions();
     for (Vec3& xi : xs)
         xi = motion.toWorld(xi);
     Vec3List& vs = c.mutableVelocities();
     for (Vec3& vi : vs)
         vi = motion.R * vi;
-    return true;
+    return motion;
 }
 
 void Attachments::pushBodies(const Cloth& c, double h, std::vector<BodySnapshot>& bodies,

@@ -12,6 +12,7 @@
 #include "drape/cloth.hpp"
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 class btDynamicsWorld;
@@ -37,9 +38,10 @@ class Attachments {
     /// Before a Bullet sub-step of dt [s] (before advance): when every attachment body moved
     /// by one rigid motion since the last sub-step and a point of an attachment moved faster
     /// than `speed` [m/s] (a teleport; 0: never), moves the whole cloth with it (positions
-    /// carried, velocities turned) and returns true. Not for a cloth with particles the program
-    /// pinned. Remembers every attachment body's pose for the next call.
-    bool carryTeleported(Cloth& c, double dt, double speed);
+    /// carried, velocities turned) and returns that motion (world to world). Not for a cloth
+    /// with particles the program pinned. Remembers every attachment body's pose for the next
+    /// call.
+    std::optional<Pose> carryTeleported(Cloth& c, double dt, double speed);
     /// An impulse j [N s] at `at` for a dynamic body that is not among the snapshots.
     struct OutsideImpulse {
         btRigidBody* body = nullptr;

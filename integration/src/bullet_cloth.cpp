@@ -66,6 +66,7 @@
 #include <exception>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -241,6 +242,11 @@ struct BulletCloth::Impl {
     /// Snapshots the bodies among the proxy's overlaps (and the broadphase's answer for a
     /// larger box when the cloth would sweep out of the proxy in this step).
     void gatherBodies(double dt);
+    /// The cloth was carried by `motion` (a teleport, Attachments::carryTeleported): a
+    /// kinematic body that jumped with it (a character's other parts set where it respawns:
+    /// Bullet's velocity is the jump over the sub-step) sweeps only what it moved relative to
+    /// the carried cloth, not the jump through it.
+    void sweepAfterTeleport(const detail::Pose& motion, double dt);
     std::vector<const btCollisionObject*> inWalk; ///< gatherBodies' scratch, sorted
     /// Adds to the candidates the moving bodies that swept through the box lo..hi in the
     /// sub-step of dt [s] although the broadphase did not pair them with the proxy.
@@ -546,9 +552,12 @@ void BulletCloth::Impl::prepare(double dt) {
     if (!attachments.list().empty()) checkAttachmentBodies();
     // 0. a teleported attachment body carries the cloth (before the bodies are gathered: the
     // proxy's candidates are found where the cloth is then)
-    if (attachments.carryTeleported(c, dt, settings.teleportSpeed)) ++last.teleports;
+    const std::optional<detail::Pose> carried =
+        attachments.carryTeleported(c, dt, settings.teleportSpeed);
+    if (carried) ++last.teleports;
     // 1. bodies
     gatherBodies(dt);
+    if (carried) sweepAfterTeleport(*carried, dt);
     // 2. attach
     attachments.advance(c, dt);
     followWorldGravity();
@@ -616,6 +625,32 @@ void BulletCloth::Impl::finish() {
     bodySeconds += std::chrono::duration<double>(Clock::now() - afterSteps).count();
     c.timers().add(slotBodies, bodySeconds);
     accumulate(total, last);
+}
+
+void BulletCloth::Impl::sweepAfterTeleport(const detail::Pose& motion, double dt) {
+    if (!(dt > 0.0)) return;
+    const double limit = settings.teleportSpeed;
+    for (detail::BodySnapshot& b : contacts.bodies) {
+        if (b.dynamicBody || b.plane || b.still) continue; // Bullet's velocity is its own
+        // Where Bullet's velocity says it started, carried with the cloth; what is left of
+        // its way to where it is now.
+        const detail::Pose start = motion * detail::poseBefore(b.end, b.v, b.w, dt);
+        const Vec3 v = (b.end.t - start.t) / dt;
+        const Eigen::AngleAxisd turn(Eigen::Matrix3d(b.end.R * start.R.transpose()));
+        const Vec3 w = turn.angle() / dt * turn.axis();
+        // Only a body that took part in the jump: it moved faster than a teleport, and
+        // relative to the carried cloth it does not.
+        btVector3 centre;
+        btScalar bound = 0;
+        b.object->getCollisionShape()->getBoundingSphere(centre, bound);
+        const double radius = double(bound) + double(centre.length());
+        const auto fastest = [radius](const Vec3& lin, const Vec3& ang) {
+            return lin.norm() + ang.norm() * radius;
+        };
+        if (!(fastest(b.v, b.w) > limit) || !(fastest(v, w) <= limit)) continue;
+        b.v = v;
+        b.w = w;
+    }
 }
 
 void BulletCloth::Impl::gatherBodies(double dt) {
