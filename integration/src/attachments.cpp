@@ -99,7 +99,7 @@ void Attachments::followBodies(Cloth& c, const std::vector<BodySnapshot>& bodies
             }
 }
 
-std::optional<Pose> Attachments::carryTeleported(Cloth& c, double dt, double speed) {
+std::optional<Pose> Attachments::carryTeleported(Cloth& c, double dt, double speed, double turn) {
     // The bodies' poses now, and the one rigid motion they all made since the last call.
     std::vector<std::pair<const btCollisionObject*, Pose>> now;
     for (const Attachment& a : list_)
@@ -108,7 +108,7 @@ std::optional<Pose> Attachments::carryTeleported(Cloth& c, double dt, double spe
     std::vector<std::pair<const btCollisionObject*, Pose>> before;
     before.swap(seen_);
     seen_ = now;
-    if (list_.empty() || !(speed > 0.0) || !(dt > 0.0)) return std::nullopt;
+    if (list_.empty() || !(speed > 0.0 || turn > 0.0) || !(dt > 0.0)) return std::nullopt;
     Pose motion; // now = motion * before, for every body
     for (std::size_t k = 0; k < now.size(); ++k) {
         const auto was = std::find_if(before.begin(), before.end(),
@@ -116,8 +116,8 @@ std::optional<Pose> Attachments::carryTeleported(Cloth& c, double dt, double spe
         if (was == before.end()) return std::nullopt; // attached since: no pose to compare
         const Pose& p0 = was->second;
         const Pose& p1 = now[k].second;
-        const Eigen::Matrix3d turn = p1.R * p0.R.transpose();
-        const Pose m{turn, p1.t - turn * p0.t};
+        const Eigen::Matrix3d rotation = p1.R * p0.R.transpose();
+        const Pose m{rotation, p1.t - rotation * p0.t};
         if (k == 0) {
             motion = m;
             continue;
@@ -130,7 +130,7 @@ std::optional<Pose> Attachments::carryTeleported(Cloth& c, double dt, double spe
     }
     // The attached particles are where the bodies' poses of the last call put them (else the
     // program moved them, or restored the cloth from a snapshot: nothing to carry), and fast
-    // enough to be a teleport: an attachment's point moved beyond speed dt.
+    // enough to be a teleport (an attachment's point moved beyond speed dt) or a snap turn.
     const Vec3List& x = c.positions();
     double jump = 0.0;
     for (const Attachment& a : list_) {
@@ -141,7 +141,9 @@ std::optional<Pose> Attachments::carryTeleported(Cloth& c, double dt, double spe
         if ((p0.toWorld(a.localPoint) - xi).norm() > 1e-9 * (1.0 + xi.norm())) return std::nullopt;
         jump = std::max(jump, (motion.toWorld(xi) - xi).norm());
     }
-    if (!(jump > speed * dt)) return std::nullopt;
+    const bool jumped = speed > 0.0 && jump > speed * dt;
+    const bool snapped = turn > 0.0 && Eigen::AngleAxisd(motion.R).angle() > turn;
+    if (!jumped && !snapped) return std::nullopt;
     // Particles the program pinned stay where they are: no carry.
     const auto& w = c.inverseMasses();
     if (std::size_t(std::count(w.begin(), w.end(), 0.0)) != list_.size()) return std::nullopt;

@@ -37,11 +37,12 @@ class Attachments {
     void advance(Cloth& c, double dt) const;
     /// Before a Bullet sub-step of dt [s] (before advance): when every attachment body moved
     /// by one rigid motion since the last sub-step and a point of an attachment moved faster
-    /// than `speed` [m/s] (a teleport; 0: never), moves the whole cloth with it (positions
+    /// than `speed` [m/s] or the motion turned by more than `turn` [rad] (a teleport or a
+    /// snap turn; 0: never), moves the whole cloth with it (positions
     /// carried, velocities turned) and returns that motion (world to world). Not for a cloth
     /// with particles the program pinned. Remembers every attachment body's pose for the next
     /// call.
-    std::optional<Pose> carryTeleported(Cloth& c, double dt, double speed);
+    std::optional<Pose> carryTeleported(Cloth& c, double dt, double speed, double turn);
     /// An impulse j [N s] at `at` for a dynamic body that is not among the snapshots.
     struct OutsideImpulse {
         btRigidBody* body = nullptr;

@@ -242,10 +242,10 @@ struct BulletCloth::Impl {
     /// Snapshots the bodies among the proxy's overlaps (and the broadphase's answer for a
     /// larger box when the cloth would sweep out of the proxy in this step).
     void gatherBodies(double dt);
-    /// The cloth was carried by `motion` (a teleport, Attachments::carryTeleported): a
-    /// kinematic body that jumped with it (a character's other parts set where it respawns:
-    /// Bullet's velocity is the jump over the sub-step) sweeps only what it moved relative to
-    /// the carried cloth, not the jump through it.
+    /// The cloth was carried by `motion` (a teleport or a snap turn,
+    /// Attachments::carryTeleported): a kinematic body that jumped or turned with it (a
+    /// character's other parts set where it respawns: Bullet's velocity is the jump over the
+    /// sub-step) sweeps only what it moved relative to the carried cloth, not the jump.
     void sweepAfterTeleport(const detail::Pose& motion, double dt);
     std::vector<const btCollisionObject*> inWalk; ///< gatherBodies' scratch, sorted
     /// Adds to the candidates the moving bodies that swept through the box lo..hi in the
@@ -553,7 +553,7 @@ void BulletCloth::Impl::prepare(double dt) {
     // 0. a teleported attachment body carries the cloth (before the bodies are gathered: the
     // proxy's candidates are found where the cloth is then)
     const std::optional<detail::Pose> carried =
-        attachments.carryTeleported(c, dt, settings.teleportSpeed);
+        attachments.carryTeleported(c, dt, settings.teleportSpeed, settings.teleportTurn);
     if (carried) ++last.teleports;
     // 1. bodies
     gatherBodies(dt);
@@ -638,8 +638,8 @@ void BulletCloth::Impl::sweepAfterTeleport(const detail::Pose& motion, double dt
         const Vec3 v = (b.end.t - start.t) / dt;
         const Eigen::AngleAxisd turn(Eigen::Matrix3d(b.end.R * start.R.transpose()));
         const Vec3 w = turn.angle() / dt * turn.axis();
-        // Only a body that took part in the jump: it moved faster than a teleport, and
-        // relative to the carried cloth it does not.
+        // Only a body that took part in the jump or the turn: relative to the carried cloth it
+        // moves at most half as fast as Bullet says, and no faster than a teleport.
         btVector3 centre;
         btScalar bound = 0;
         b.object->getCollisionShape()->getBoundingSphere(centre, bound);
@@ -647,7 +647,9 @@ void BulletCloth::Impl::sweepAfterTeleport(const detail::Pose& motion, double dt
         const auto fastest = [radius](const Vec3& lin, const Vec3& ang) {
             return lin.norm() + ang.norm() * radius;
         };
-        if (!(fastest(b.v, b.w) > limit) || !(fastest(v, w) <= limit)) continue;
+        const double relative = fastest(v, w);
+        if (!(relative <= 0.5 * fastest(b.v, b.w)) || (limit > 0.0 && !(relative <= limit)))
+            continue;
         b.v = v;
         b.w = w;
     }

@@ -66,6 +66,9 @@ void validate(const BulletClothSettings& s) {
                 "timeStep must be positive and finite, got " + num(*s.timeStep));
     require(std::isfinite(s.teleportSpeed) && s.teleportSpeed >= 0.0, ErrorCode::InvalidArgument,
             "teleportSpeed must be >= 0 and finite (0: off), got " + num(s.teleportSpeed));
+    require(s.teleportTurn >= 0.0 && s.teleportTurn <= 3.141592653589793,
+            ErrorCode::InvalidArgument,
+            "teleportTurn must be in [0, pi] radians (0: off), got " + num(s.teleportTurn));
     require(s.threads >= 1 && s.threads <= 1024, ErrorCode::InvalidArgument,
             "threads must be between 1 and 1024, got " + std::to_string(s.threads));
     // selfCollision is the cloth's own: Cloth::setSelfCollision validates it.

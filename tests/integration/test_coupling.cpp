@@ -346,22 +346,39 @@ TEST_CASE("a cape comes along when its character is teleported, turned or not",
     bad.teleportSpeed = -1.0;
     CHECK_THROWS_WITH(w.add(makeCloth(horizontalSheet(3, 3, 0.1, 1.0), ClothSettings{}), bad),
                       Catch::Contains("teleportSpeed"));
+    // A turn beyond half a turn, negative or NaN likewise.
+    for (double turn : {-0.1, 4.0, std::numeric_limits<double>::quiet_NaN()}) {
+        bullet::BulletClothSettings badTurn;
+        badTurn.teleportTurn = turn;
+        CHECK_THROWS_WITH(
+            w.add(makeCloth(horizontalSheet(3, 3, 0.1, 1.0), ClothSettings{}), badTurn),
+            Catch::Contains("teleportTurn must be in [0, pi]"));
+    }
 }
 
-TEST_CASE("a skirt teleported with its character is not hit by the character's other "
-          "parts jumping through it",
-          "[coupling][attach][kinematic][teleport]") {
-    // A skirt (a tube of 40 x 21 particles, 2.5 cm) attached by its top ring to a kinematic
-    // box (the hips) with a kinematic capsule (a leg) inside it; the character runs at 4 m/s,
-    // and at 2 s the game sets both transforms 20 m away, turned a quarter turn (a respawn).
-    // The skirt is carried with the hips (teleportSpeed); Bullet gives the leg the velocity
-    // of its jump, 1,200 m/s, and a contact stage that swept it through the carried skirt
-    // threw the skirt's particles at 2,600 m/s (strain 0.44). The leg jumped with the cloth:
-    // what it sweeps is only what it moved relative to it.
-    TestWorld w;
-    btRigidBody* hips =
-        w.kinematic(w.shape<btBoxShape>(btVector3(0.06f, 0.05f, 0.06f)), Vec3(0, 1.0, 0));
-    btRigidBody* leg =
+namespace {
+
+/// A skirt (a tube of 40 x 21 particles, 2.5 cm, radius 16.5 cm) attached by its top ring to
+/// a kinematic box (the hips, at 1 m) with a kinematic capsule (a leg) inside it.
+struct Skirt {
+    btRigidBody* hips = nullptr;
+    btRigidBody* leg = nullptr;
+    std::shared_ptr<Cloth> cloth;
+    bullet::BulletCloth* handle = nullptr;
+    /// Sets the character's transform (hips and leg) as a game does, through the motion
+    /// states, and steps one 60 Hz frame.
+    void frame(TestWorld& w, const btTransform& at) const {
+        hips->getMotionState()->setWorldTransform(at);
+        leg->getMotionState()->setWorldTransform(
+            at * btTransform(btQuaternion::getIdentity(), btVector3(0.05f, -0.45f, 0)));
+        w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    }
+};
+
+Skirt skirtOnHips(TestWorld& w, const bullet::BulletClothSettings& bs = {}) {
+    Skirt k;
+    k.hips = w.kinematic(w.shape<btBoxShape>(btVector3(0.06f, 0.05f, 0.06f)), Vec3(0, 1.0, 0));
+    k.leg =
         w.kinematic(w.shape<btCapsuleShape>(btScalar(0.07), btScalar(0.5)), Vec3(0.05, 0.55, 0));
     const int seg = 40, rings = 21;
     const double radius = 0.165, spacing = 0.025;
@@ -378,35 +395,94 @@ TEST_CASE("a skirt teleported with its character is not hit by the character's o
             tube.triangles.push_back({a, b, Index(a + seg)});
             tube.triangles.push_back({b, Index(b + seg), Index(a + seg)});
         }
-    auto cloth = makeCloth(tube, ClothSettings{});
-    auto& handle = w.add(cloth);
+    k.cloth = makeCloth(tube, ClothSettings{});
+    k.handle = &w.add(k.cloth, bs);
     for (Index j = 0; j < Index(seg); ++j)
-        handle.attachHere(j, hips);
-    double x = 0.0, z = 0.0, yaw = 0.0, fastest = 0.0, strain = 0.0;
+        k.handle->attachHere(j, k.hips);
+    return k;
+}
+
+/// The fastest particle and the largest strain over frames from `from` on.
+struct AfterJump {
+    double fastest = 0.0, strain = 0.0;
     std::size_t teleports = 0;
+};
+
+} // namespace
+
+TEST_CASE("a skirt teleported with its character is not hit by the character's other "
+          "parts jumping through it",
+          "[coupling][attach][kinematic][teleport]") {
+    // The character runs at 4 m/s; at 2 s the game sets its transform 20 m away, turned a
+    // quarter turn (a respawn). The skirt is carried with the hips (teleportSpeed); Bullet
+    // gives the leg the velocity of its jump, 1,200 m/s, and a contact stage that swept it
+    // through the carried skirt threw the skirt's particles at 2,600 m/s (strain 0.44). The
+    // leg jumped with the cloth: what it sweeps is only what it moved relative to it.
+    TestWorld w;
+    const Skirt k = skirtOnHips(w);
+    double x = 0.0, z = 0.0, yaw = 0.0;
+    AfterJump r;
     for (int f = 1; f <= 150; ++f) {
         if (f > 30) x += 4.0 / 60.0;
         if (f == 120) {
             z += 20.0;
             yaw = M_PI / 2;
         }
-        const btTransform at(btQuaternion(btVector3(0, 1, 0), btScalar(yaw)),
-                             btVector3(btScalar(x), 1.0f, btScalar(z)));
-        hips->getMotionState()->setWorldTransform(at);
-        leg->getMotionState()->setWorldTransform(
-            at * btTransform(btQuaternion::getIdentity(), btVector3(0.05f, -0.45f, 0)));
-        w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
-        teleports += handle.lastStats().teleports;
+        k.frame(w, btTransform(btQuaternion(btVector3(0, 1, 0), btScalar(yaw)),
+                               btVector3(btScalar(x), 1.0f, btScalar(z))));
+        r.teleports += k.handle->lastStats().teleports;
         if (f < 120) continue;
-        for (const Vec3& v : cloth->velocities())
-            fastest = std::max(fastest, v.norm());
-        strain = std::max(strain, cloth->maxStrain());
+        for (const Vec3& v : k.cloth->velocities())
+            r.fastest = std::max(r.fastest, v.norm());
+        r.strain = std::max(r.strain, k.cloth->maxStrain());
     }
-    INFO("after the respawn: fastest particle " << fastest << " m/s, strain " << strain);
-    CHECK(teleports == 1);
+    INFO("after the respawn: fastest particle " << r.fastest << " m/s, strain " << r.strain);
+    CHECK(r.teleports == 1);
     // The skirt swings as a running character's does (4 m/s and its swing), no faster.
-    CHECK(fastest < 15.0);
-    CHECK(strain <= cloth->settings().limiter.maxStrain + 0.0011);
+    CHECK(r.fastest < 15.0);
+    CHECK(r.strain <= k.cloth->settings().limiter.maxStrain + 0.0011);
+}
+
+TEST_CASE("a skirt turned half a turn in one frame comes round with its character",
+          "[coupling][attach][kinematic][teleport]") {
+    // The character runs along +x at 4 m/s and the game sets it facing and running the other
+    // way in one frame (a snap turn). Dragged round by its attached ring (teleportTurn 0),
+    // the skirt was twisted through the leg: 0.4-0.6 s of CPU in that frame, particles at
+    // 65-70 m/s, strain up to 0.47. Carried with the turn (teleportTurn, 45 degrees a
+    // frame), its velocities turned with it, it runs on with the character.
+    auto run = [](double teleportTurn) {
+        TestWorld w;
+        bullet::BulletClothSettings bs;
+        bs.teleportTurn = teleportTurn;
+        const Skirt k = skirtOnHips(w, bs);
+        double x = 0.0, speed = 0.0, yaw = 0.0;
+        AfterJump r;
+        for (int f = 1; f <= 120; ++f) {
+            if (f == 30) speed = 4.0;
+            if (f == 90) {
+                speed = -4.0;
+                yaw = M_PI;
+            }
+            x += speed / 60.0;
+            k.frame(w, btTransform(btQuaternion(btVector3(0, 1, 0), btScalar(yaw)),
+                                   btVector3(btScalar(x), 1.0f, 0)));
+            r.teleports += k.handle->lastStats().teleports;
+            if (f < 90) continue;
+            for (const Vec3& v : k.cloth->velocities())
+                r.fastest = std::max(r.fastest, v.norm());
+            r.strain = std::max(r.strain, k.cloth->maxStrain());
+        }
+        return r;
+    };
+    const AfterJump carried = run(bullet::BulletClothSettings{}.teleportTurn);
+    INFO("carried: fastest " << carried.fastest << " m/s, strain " << carried.strain);
+    CHECK(carried.teleports == 1);
+    CHECK(carried.fastest < 15.0);
+    CHECK(carried.strain <= 0.1011);
+    const AfterJump dragged = run(0.0);
+    INFO("dragged: fastest " << dragged.fastest << " m/s, strain " << dragged.strain);
+    CHECK(dragged.teleports == 0);
+    CHECK(dragged.fastest > 30.0);
 }
 
 TEST_CASE("a kinematic paddle pushes a hanging cloth", "[coupling][kinematic]") {

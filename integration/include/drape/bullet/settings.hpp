@@ -134,6 +134,13 @@ struct BulletClothSettings {
     /// is carried too (its cloth does not trail). Counted in ContactStats::teleports. 0 turns
     /// it off; must be >= 0 and finite.
     double teleportSpeed = 50.0;
+    /// Snap turns [rad]: when every body the cloth is attached to turned by one rigid motion
+    /// by more than this in a Bullet sub-step (a game that sets its character facing the
+    /// other way in one frame), the cloth is carried with it as for a teleport: a skirt on a
+    /// character flipped half a turn was twisted round by its attached ring, 0.4-0.6 s of CPU
+    /// in that frame, its hem thrown above the hips. Pi / 4 (45 degrees a 60 Hz frame, 47
+    /// rad/s) is far beyond a body turning by physics; 0 turns it off; must be in [0, pi].
+    double teleportTurn = 0.7853981633974483;
 };
 
 /// Work done in the last Bullet sub-step (all cloth sub-steps summed). Counts, not times, so
