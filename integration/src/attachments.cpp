@@ -99,6 +99,82 @@ void Attachments::followBodies(Cloth& c, const std::vector<BodySnapshot>& bodies
             }
 }
 
+namespace {
+
+/// The rigid motion (R, t) that best takes points `from` onto `to` (least squares, Kabsch);
+/// for points on a line (or one point) the smallest turn that aligns the line, since a turn
+/// about it is not determined.
+Pose bestRigidMotion(const std::vector<Vec3>& from, const std::vector<Vec3>& to) {
+    Vec3 cf = Vec3::Zero(), ct = Vec3::Zero();
+    for (std::size_t k = 0; k < from.size(); ++k) {
+        cf += from[k];
+        ct += to[k];
+    }
+    cf /= double(from.size());
+    ct /= double(to.size());
+    Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+    for (std::size_t k = 0; k < from.size(); ++k)
+        H += (from[k] - cf) * (to[k] - ct).transpose();
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    const Vec3 sv = svd.singularValues();
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+    if (sv[1] > 1e-9 * sv[0]) { // not on a line: determined
+        const Eigen::Matrix3d U = svd.matrixU(), V = svd.matrixV();
+        Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+        D(2, 2) = (V * U.transpose()).determinant() < 0.0 ? -1.0 : 1.0;
+        R = V * D * U.transpose();
+    } else if (sv[0] > 0.0) { // a line: turn its direction onto the other's, the short way
+        const Vec3 a = svd.matrixU().col(0), b = svd.matrixV().col(0);
+        R = Eigen::Quaterniond::FromTwoVectors(a, a.dot(b) < 0.0 ? Vec3(-b) : b).toRotationMatrix();
+    }
+    return Pose{R, ct - R * cf};
+}
+
+} // namespace
+
+std::size_t Attachments::placeMoved(Cloth& c) const {
+    const auto near = [](const Vec3& p, const Vec3& x) {
+        return (p - x).norm() <= 1e-9 * (1.0 + x.norm()); // Bullet's poses, rounded
+    };
+    std::vector<Vec3> from, to;
+    std::vector<Index> moved;
+    std::size_t held = 0; // attachments to static or kinematic bodies known since the last call
+    for (const Attachment& a : list_) {
+        // A free body's particles follow its snapshot, not its pose (followBodies).
+        const btRigidBody* rb = btRigidBody::upcast(a.body);
+        if (rb && !rb->isStaticOrKinematicObject()) continue;
+        const auto was = std::find_if(seen_.begin(), seen_.end(),
+                                      [&](const auto& p) { return p.first == a.body; });
+        if (was == seen_.end()) continue; // attached since the last call
+        ++held;
+        const Vec3& x = c.positions()[a.particle];
+        const Vec3 now = attachmentPoint(a);
+        if (near(was->second.toWorld(a.localPoint), x) || near(now, x)) continue;
+        from.push_back(x);
+        to.push_back(now);
+        moved.push_back(a.particle);
+    }
+    if (moved.empty()) return 0;
+    // Every attached particle moved (the whole cloth reset or restored): the cloth goes with
+    // the rigid motion that best puts them on their points, its velocities turned, so that
+    // its shape arrives as it was set. What that leaves is placed below.
+    const std::vector<double>& w = c.inverseMasses();
+    const auto holds = std::size_t(std::count(w.begin(), w.end(), 0.0));
+    if (moved.size() == held && list_.size() == held && holds == held) {
+        const Pose m = bestRigidMotion(from, to);
+        Vec3List& xs = c.mutablePositions();
+        Vec3List& vs = c.mutableVelocities();
+        for (std::size_t i = 0; i < xs.size(); ++i) {
+            if (w[i] == 0.0) continue; // held: placed below (or kept, if the program pinned it)
+            xs[i] = m.toWorld(xs[i]);
+            vs[i] = m.R * vs[i];
+        }
+    }
+    for (std::size_t k = 0; k < moved.size(); ++k)
+        c.setPosition(moved[k], to[k]);
+    return moved.size();
+}
+
 std::optional<Pose> Attachments::carryTeleported(Cloth& c, double dt, double speed, double turn) {
     // The bodies' poses now, and the one rigid motion they all made since the last call.
     std::vector<std::pair<const btCollisionObject*, Pose>> now;

@@ -35,6 +35,14 @@ class Attachments {
     /// A Bullet sub-step of dt begins: every attached particle gets its point on the body as
     /// the body is now as the target it reaches at the end of the sub-step.
     void advance(Cloth& c, double dt) const;
+    /// Before a Bullet sub-step (before carryTeleported): an attached particle of a static or
+    /// kinematic body that is neither where the body's pose at the last call put it nor where
+    /// its pose now puts it was moved by the program (a reset to the rest shape, a snapshot
+    /// restored after the body moved): it is put on its point now as a teleport of a held
+    /// particle (Cloth::setPosition: the next step brings the rest of the cloth within the
+    /// bound as positions), not pulled there by its target at the speed of the gap. Returns
+    /// how many were put.
+    std::size_t placeMoved(Cloth& c) const;
     /// Before a Bullet sub-step of dt [s] (before advance): when every attachment body moved
     /// by one rigid motion since the last sub-step and a point of an attachment moved faster
     /// than `speed` [m/s] or the motion turned by more than `turn` [rad] (a teleport or a

@@ -552,6 +552,7 @@ void BulletCloth::Impl::prepare(double dt) {
     if (!attachments.list().empty()) checkAttachmentBodies();
     // 0. a teleported attachment body carries the cloth (before the bodies are gathered: the
     // proxy's candidates are found where the cloth is then)
+    attachments.placeMoved(c);
     const std::optional<detail::Pose> carried =
         attachments.carryTeleported(c, dt, settings.teleportSpeed, settings.teleportTurn);
     if (carried) ++last.teleports;
