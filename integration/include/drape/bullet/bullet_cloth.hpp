@@ -78,7 +78,9 @@ class BulletCloth {
     BulletCloth(const BulletCloth&) = delete;
     BulletCloth& operator=(const BulletCloth&) = delete;
 
-    /// Takes the cloth out of the world (its proxy, its action, its stage). Idempotent.
+    /// Takes the cloth out of the world (its proxy, its action, its stage). Idempotent. Its
+    /// attachments go with it: the attached particles are free again (a cloth added again
+    /// is attached again by the program).
     void remove();
     /// True between construction and remove(), while the world lives.
     bool inWorld() const;
@@ -147,7 +149,7 @@ std::unique_ptr<BulletCloth> addCloth(btDynamicsWorld* world, std::shared_ptr<Cl
                                       const BulletClothSettings& settings = {});
 
 /// Removes the cloth from its world: one call. The handle stays valid (the cloth keeps its
-/// state) and can be destroyed later.
+/// state, its attachments detached: BulletCloth::remove) and can be destroyed later.
 void removeCloth(BulletCloth& cloth);
 
 } // namespace drape::bullet
