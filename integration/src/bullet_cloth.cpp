@@ -95,6 +95,7 @@ void accumulate(ContactStats& total, const ContactStats& s) {
     total.heldBetween += s.heldBetween;
     total.maxDepth = std::max(total.maxDepth, s.maxDepth);
     total.maxStrain = std::max(total.maxStrain, s.maxStrain);
+    total.boundBroken += s.boundBroken;
     total.selfContacts += s.selfContacts;
     total.selfPairTests += s.selfPairTests;
     total.impulseOnBodies += s.impulseOnBodies;
@@ -618,6 +619,9 @@ void BulletCloth::Impl::finish() {
     Cloth& c = *cloth;
     const auto afterSteps = Clock::now();
     last.maxStrain = lastStrain;
+    const LimiterSettings& limiter = cloth->settings().limiter;
+    if (limiter.kind != LimiterKind::None && lastStrain > limiter.maxStrain + limiter.tolerance)
+        last.boundBroken = 1;
     // 4. impulses
     if (!slept) attachments.holdTethers(c, stepDt, contacts.bodies, world);
     applyImpulses();

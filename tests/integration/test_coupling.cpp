@@ -499,6 +499,49 @@ TEST_CASE("a cape restored from a snapshot after its body moved is put on the bo
                   .norm() < 1e-6);
 }
 
+TEST_CASE("a broken strain bound is counted in the contact stats whatever broke it",
+          "[coupling][limiter][stats]") {
+    // A sheet hung from its two top corners in a world, its limiter allowed one sweep a walk
+    // (maxRounds 1): the bound breaks in most sub-steps. ContactStats::boundBroken counts the
+    // Bullet sub-steps that ended beyond maxStrain + tolerance, as measured; with the default
+    // walk none do.
+    auto run = [](int maxRounds) {
+        TestWorld w;
+        ClothSettings cs;
+        cs.limiter.maxRounds = maxRounds;
+        auto cloth = makeCloth(makeSheet([] {
+                                   SheetSpec spec;
+                                   spec.rows = spec.cols = 21;
+                                   spec.spacing = 0.05;
+                                   spec.origin = Vec3(-0.5, 2.0, 0.0);
+                                   spec.uAxis = Vec3::UnitX();
+                                   spec.vAxis = -Vec3::UnitY();
+                                   return spec;
+                               }()),
+                               cs);
+        cloth->pin(0);
+        cloth->pin(20);
+        auto& handle = w.add(cloth);
+        const double promise = cs.limiter.maxStrain + cs.limiter.tolerance;
+        std::size_t over = 0, counted = 0;
+        for (int f = 0; f < 60; ++f) {
+            w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+            over += handle.lastStats().maxStrain > promise ? 1 : 0;
+            counted += handle.lastStats().boundBroken;
+        }
+        CHECK(handle.totalStats().boundBroken == counted);
+        return std::make_pair(over, counted);
+    };
+    const auto capped = run(1);
+    INFO("one sweep a walk: " << capped.first << " sub-steps over the bound, " << capped.second
+                              << " counted");
+    CHECK(capped.first > 10);
+    CHECK(capped.second == capped.first);
+    const auto held = run(LimiterSettings{}.maxRounds);
+    CHECK(held.first == 0);
+    CHECK(held.second == 0);
+}
+
 TEST_CASE("a skirt turned half a turn in one frame comes round with its character",
           "[coupling][attach][kinematic][teleport]") {
     // The character runs along +x at 4 m/s and the game sets it facing and running the other

@@ -177,6 +177,11 @@ struct ContactStats {
     /// largest at the end of any sub-step [-]. Compare with the limit
     /// (ClothSettings::limiter.maxStrain) to see whether the bound held in every world step.
     double maxStrain = 0.0;
+    /// Bullet sub-steps that ended with a spring beyond the limiter's promise,
+    /// limiter.maxStrain + limiter.tolerance (maxStrain above it; 0 without a limiter): the
+    /// bound broken, whatever broke it (a walk stopped at its cap, counted in
+    /// Cloth::limiterCapHits(), or contacts after the walk, which no cap counts).
+    std::size_t boundBroken = 0;
     std::size_t selfContacts = 0;  ///< particle-triangle self contacts resolved
     std::size_t selfPairTests = 0; ///< particle-triangle pairs tested by self-collision
     /// Total linear impulse the cloth gave dynamic bodies, through contacts and through
