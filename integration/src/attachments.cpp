@@ -79,10 +79,17 @@ void Attachments::clear(Cloth& c) {
     tethersValid_ = false;
 }
 
+Pose Attachments::poseOf(const btCollisionObject* body) const {
+    if (followed_)
+        for (const auto& [object, pose] : *followed_)
+            if (object == body) return pose;
+    return toPose(body->getWorldTransform());
+}
+
 void Attachments::advance(Cloth& c, double dt) const {
     const double arrival = c.time() + dt;
     for (const auto& a : list_)
-        c.setKinematicTarget(a.particle, attachmentPoint(a), arrival);
+        c.setKinematicTarget(a.particle, poseOf(a.body).toWorld(a.localPoint), arrival);
 }
 
 void Attachments::followBodies(Cloth& c, const std::vector<BodySnapshot>& bodies, double arrival) {
@@ -148,7 +155,7 @@ std::size_t Attachments::placeMoved(Cloth& c) const {
         if (was == seen_.end()) continue; // attached since the last call
         ++held;
         const Vec3& x = c.positions()[a.particle];
-        const Vec3 now = attachmentPoint(a);
+        const Vec3 now = poseOf(a.body).toWorld(a.localPoint);
         if (near(was->second.toWorld(a.localPoint), x) || near(now, x)) continue;
         from.push_back(x);
         to.push_back(now);
@@ -180,7 +187,7 @@ std::optional<Pose> Attachments::carryTeleported(Cloth& c, double dt, double spe
     std::vector<std::pair<const btCollisionObject*, Pose>> now;
     for (const Attachment& a : list_)
         if (std::none_of(now.begin(), now.end(), [&](const auto& p) { return p.first == a.body; }))
-            now.emplace_back(a.body, toPose(a.body->getWorldTransform()));
+            now.emplace_back(a.body, poseOf(a.body));
     std::vector<std::pair<const btCollisionObject*, Pose>> before;
     before.swap(seen_);
     seen_ = now;

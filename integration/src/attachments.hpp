@@ -51,6 +51,14 @@ class Attachments {
     /// with particles the program pinned. Remembers every attachment body's pose for the next
     /// call.
     std::optional<Pose> carryTeleported(Cloth& c, double dt, double speed, double turn);
+    /// The poses kinematic bodies have in this Bullet sub-step (followKinematic) where they
+    /// differ from their world transforms: the attachments' points follow them. The list
+    /// must live while the sub-step's calls below use it.
+    void followPoses(const std::vector<std::pair<const btCollisionObject*, Pose>>* poses) {
+        followed_ = poses;
+    }
+    /// The body's pose in this sub-step: followed, or its world transform.
+    Pose poseOf(const btCollisionObject* body) const;
     /// An impulse j [N s] at `at` for a dynamic body that is not among the snapshots.
     struct OutsideImpulse {
         btRigidBody* body = nullptr;
@@ -106,6 +114,9 @@ class Attachments {
     std::vector<double> masses_;                ///< and masses
     /// Each attachment body's pose at the last carryTeleported.
     std::vector<std::pair<const btCollisionObject*, Pose>> seen_;
+    /// Kinematic bodies' poses in this Bullet sub-step where they differ from their world
+    /// transforms (followKinematic), set by the world's step (followPoses); null: none.
+    const std::vector<std::pair<const btCollisionObject*, Pose>>* followed_ = nullptr;
     /// The springs between particles attached to two different bodies and their two
     /// attachments' indices in list_, rebuilt after list_ changes.
     struct Tether {

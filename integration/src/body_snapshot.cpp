@@ -146,14 +146,15 @@ void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies) 
 }
 
 bool snapshotBody(const btCollisionObject* obj, double reach, double frictionScale, BodySnapshot& b,
-                  double dt) {
+                  double dt, const Pose* at) {
     const int type = obj->getInternalType();
     if (type != btCollisionObject::CO_RIGID_BODY && type != btCollisionObject::CO_COLLISION_OBJECT)
         return false; // ghosts (other cloths' proxies, triggers), soft bodies, multibodies
     if (!obj->hasContactResponse() || !obj->getCollisionShape()) return false;
     b = BodySnapshot{};
     b.object = obj;
-    b.pose = toPose(obj->getWorldTransform());
+    const btTransform placed = at ? toBtTransform(*at) : obj->getWorldTransform();
+    b.pose = at ? *at : toPose(placed);
     b.com = b.pose.t;
     const double mu = double(obj->getFriction());
     if (!(std::isfinite(mu) && mu >= 0.0)) { // (the message is built only then: every step)
@@ -164,7 +165,7 @@ bool snapshotBody(const btCollisionObject* obj, double reach, double frictionSca
                         "and finite");
     }
     b.friction = mu * frictionScale;
-    const btTransform& tr = obj->getWorldTransform();
+    const btTransform& tr = placed;
     bool finite = toVec(tr.getOrigin()).allFinite() && toMat(tr.getBasis()).allFinite();
     const btRigidBody* body = btRigidBody::upcast(obj);
     if (body)
@@ -179,7 +180,7 @@ bool snapshotBody(const btCollisionObject* obj, double reach, double frictionSca
                         "from before the step)");
     }
     btVector3 mn, mx;
-    shapeAabb(obj->getCollisionShape(), obj->getWorldTransform(), mn, mx);
+    shapeAabb(obj->getCollisionShape(), placed, mn, mx);
     b.aabbMin = toVec(mn).array() - reach;
     b.aabbMax = toVec(mx).array() + reach;
     b.plane = obj->getCollisionShape()->getShapeType() == STATIC_PLANE_PROXYTYPE;

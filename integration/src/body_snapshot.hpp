@@ -148,9 +148,10 @@ struct BodySnapshot {
 /// contact response; not ghosts, such as other cloths' proxies and triggers, soft bodies or
 /// multibodies): its AABB grown by `reach` [m] and by where it came from in the sub-step of
 /// dt [s] (at its velocities), its friction times `frictionScale`. Throws drape::Error when its
-/// friction is negative or not finite.
+/// friction is negative or not finite. `at`, when given, is the body's pose in place of its
+/// world transform (a kinematic body followed through the frame's sub-steps, followKinematic).
 bool snapshotBody(const btCollisionObject* object, double reach, double frictionScale,
-                  BodySnapshot& out, double dt);
+                  BodySnapshot& out, double dt, const Pose* at = nullptr);
 
 /// An elongated dynamic body (4 times lighter about an axis than about its heaviest one) that is
 /// lighter about that axis than a ring of radius `gyration` [m] of its mass (a

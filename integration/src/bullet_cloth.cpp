@@ -243,6 +243,12 @@ struct BulletCloth::Impl {
     /// Snapshots the bodies among the proxy's overlaps (and the broadphase's answer for a
     /// larger box when the cloth would sweep out of the proxy in this step).
     void gatherBodies(double dt);
+    /// A kinematic body's pose in this Bullet sub-step of dt: followKinematic from its pose in
+    /// the last one (Bullet puts it at the end of the frame's motion in every sub-step),
+    /// recorded for the next; nothing for any other body.
+    std::optional<detail::Pose> followed(const btCollisionObject* obj, double dt);
+    /// Kinematic bodies' poses in the last Bullet sub-step and in this one (followed).
+    std::vector<std::pair<const btCollisionObject*, detail::Pose>> kinematicBefore, kinematicNow;
     /// The cloth was carried by `motion` (a teleport or a snap turn,
     /// Attachments::carryTeleported): a kinematic body that jumped or turned with it (a
     /// character's other parts set where it respawns: Bullet's velocity is the jump over the
@@ -553,6 +559,13 @@ void BulletCloth::Impl::prepare(double dt) {
     if (!attachments.list().empty()) checkAttachmentBodies();
     // 0. a teleported attachment body carries the cloth (before the bodies are gathered: the
     // proxy's candidates are found where the cloth is then)
+    // Kinematic bodies through the frame's sub-steps: the attachment bodies now, the others
+    // as the contact stage finds them.
+    kinematicBefore.swap(kinematicNow);
+    kinematicNow.clear();
+    for (const Attachment& a : attachments.list())
+        followed(a.body, dt);
+    attachments.followPoses(&kinematicNow);
     attachments.placeMoved(c);
     const std::optional<detail::Pose> carried =
         attachments.carryTeleported(c, dt, settings.teleportSpeed, settings.teleportTurn);
@@ -660,6 +673,23 @@ void BulletCloth::Impl::sweepAfterTeleport(const detail::Pose& motion, double dt
     }
 }
 
+std::optional<detail::Pose> BulletCloth::Impl::followed(const btCollisionObject* obj, double dt) {
+    const btRigidBody* rb = btRigidBody::upcast(obj);
+    if (!rb || !rb->isKinematicObject()) return std::nullopt;
+    for (const auto& [object, pose] : kinematicNow)
+        if (object == obj) return pose;
+    const detail::Pose to = detail::toPose(obj->getWorldTransform());
+    detail::Pose at = to;
+    for (const auto& [object, pose] : kinematicBefore)
+        if (object == obj) {
+            at = detail::followKinematic(pose, to, toVec(rb->getLinearVelocity()),
+                                         toVec(rb->getAngularVelocity()), dt);
+            break;
+        }
+    kinematicNow.emplace_back(obj, at);
+    return at;
+}
+
 void BulletCloth::Impl::gatherBodies(double dt) {
     std::vector<detail::BodySnapshot>& bodies = contacts.bodies;
     bodies.clear();
@@ -687,7 +717,9 @@ void BulletCloth::Impl::gatherBodies(double dt) {
     for (const btCollisionObject* obj : candidates) {
         if (!obj || obj == proxy.object()) continue;
         detail::BodySnapshot b;
-        if (detail::snapshotBody(obj, reach, settings.contact.frictionScale, b, dt)) {
+        const std::optional<detail::Pose> at = followed(obj, dt);
+        if (detail::snapshotBody(obj, reach, settings.contact.frictionScale, b, dt,
+                                 at ? &*at : nullptr)) {
             // The cloth's spacing: the smallest lever its contacts resolve.
             detail::limitSpin(b, contacts.longestSpring(*cloth));
             bodies.push_back(b);
@@ -748,11 +780,15 @@ void BulletCloth::Impl::addFastBodies(const Vec3& lo, const Vec3& hi, double dt)
         if (obj->isStaticObject() && !obj->isKinematicObject()) continue;
         const btRigidBody* rb = btRigidBody::upcast(obj);
         if (!rb) continue;
+        // Every kinematic body is followed through the frame's sub-steps, near the cloth or
+        // not yet: one that comes near in a later sub-step is where its way has taken it.
+        const std::optional<detail::Pose> at = followed(obj, dt);
         const Vec3 step = dt * toVec(rb->getLinearVelocity());
         if (!(step.norm() > margin)) continue;  // the proxy's margin covers it
         if (!proxy.collidesWith(obj)) continue; // filtered out as the broadphase would
         btVector3 mn, mx;
-        detail::shapeAabb(rb->getCollisionShape(), rb->getWorldTransform(), mn, mx);
+        detail::shapeAabb(rb->getCollisionShape(),
+                          at ? detail::toBtTransform(*at) : rb->getWorldTransform(), mn, mx);
         const Vec3 bodyLo = toVec(mn).cwiseMin(toVec(mn) - step);
         const Vec3 bodyHi = toVec(mx).cwiseMax(toVec(mx) - step);
         if ((bodyHi.array() < lo.array()).any() || (bodyLo.array() > hi.array()).any()) continue;

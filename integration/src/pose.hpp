@@ -40,6 +40,35 @@ inline Pose poseBefore(const Pose& end, const Vec3& v, const Vec3& w, double bac
     return p;
 }
 
+/// Where a kinematic body is after a Bullet sub-step of dt [s] that starts at `from`, given
+/// Bullet's pose `to` and velocities v, w. Bullet puts a kinematic body at its motion state's
+/// pose in every internal sub-step of a stepSimulation call, with the velocity of the whole
+/// call's motion (btRigidBody::saveKinematicState): at 30 fps, or after a hitch, the body
+/// would make the frame's motion in its first sub-step. When the way from `from` to `to` is m
+/// > 1 sub-steps of that velocity (translation and turn alike), the body is taken one
+/// sub-step along it; otherwise (the last sub-step, or a pose set without that velocity: a
+/// teleport) it is at `to`.
+inline Pose followKinematic(const Pose& from, const Pose& to, const Vec3& v, const Vec3& w,
+                            double dt) {
+    const Vec3 d = to.t - from.t;
+    const Eigen::AngleAxisd turn(Eigen::Matrix3d(to.R * from.R.transpose()));
+    const double lin = v.norm() * dt, ang = w.norm() * dt;
+    double m = 0.0;
+    if (lin > 0.0)
+        m = d.norm() / lin;
+    else if (ang > 0.0)
+        m = turn.angle() / ang;
+    if (!(m > 1.0 + 1e-6) || !(m < 1e6)) return to;
+    // The way is m steps of the velocity (Bullet's float velocities: a relative 1e-4).
+    if ((d - m * dt * v).norm() > 1e-4 * d.norm() + 1e-9) return to;
+    if (ang > 0.0 || turn.angle() > 1e-6) {
+        if (!(ang > 0.0) || std::abs(turn.angle() - m * ang) > 1e-4 * turn.angle() + 1e-6 ||
+            turn.axis().dot(w / w.norm()) < 1.0 - 1e-6)
+            return to;
+    }
+    return poseBefore(from, -v, -w, dt); // dt after `from`, at v and w
+}
+
 /// A body's way from pose `from` to pose `to` within a step: the origin on the straight line,
 /// the rotation about the fixed axis of to.R from.R^T (the shorter way), both at constant rates.
 struct PosePath {
