@@ -81,8 +81,8 @@ void Attachments::clear(Cloth& c) {
 
 Pose Attachments::poseOf(const btCollisionObject* body) const {
     if (followed_)
-        for (const auto& [object, pose] : *followed_)
-            if (object == body) return pose;
+        if (const auto found = followed_->find(body); found != followed_->end())
+            return found->second;
     return toPose(body->getWorldTransform());
 }
 

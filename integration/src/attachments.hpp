@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <unordered_map>
 #include <vector>
 
 class btDynamicsWorld;
@@ -54,7 +55,7 @@ class Attachments {
     /// The poses kinematic bodies have in this Bullet sub-step (followKinematic) where they
     /// differ from their world transforms: the attachments' points follow them. The list
     /// must live while the sub-step's calls below use it.
-    void followPoses(const std::vector<std::pair<const btCollisionObject*, Pose>>* poses) {
+    void followPoses(const std::unordered_map<const btCollisionObject*, Pose>* poses) {
         followed_ = poses;
     }
     /// The body's pose in this sub-step: followed, or its world transform.
@@ -116,7 +117,7 @@ class Attachments {
     std::vector<std::pair<const btCollisionObject*, Pose>> seen_;
     /// Kinematic bodies' poses in this Bullet sub-step where they differ from their world
     /// transforms (followKinematic), set by the world's step (followPoses); null: none.
-    const std::vector<std::pair<const btCollisionObject*, Pose>>* followed_ = nullptr;
+    const std::unordered_map<const btCollisionObject*, Pose>* followed_ = nullptr;
     /// The springs between particles attached to two different bodies and their two
     /// attachments' indices in list_, rebuilt after list_ changes.
     struct Tether {

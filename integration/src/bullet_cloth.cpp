@@ -68,6 +68,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -248,7 +249,7 @@ struct BulletCloth::Impl {
     /// recorded for the next; nothing for any other body.
     std::optional<detail::Pose> followed(const btCollisionObject* obj, double dt);
     /// Kinematic bodies' poses in the last Bullet sub-step and in this one (followed).
-    std::vector<std::pair<const btCollisionObject*, detail::Pose>> kinematicBefore, kinematicNow;
+    std::unordered_map<const btCollisionObject*, detail::Pose> kinematicBefore, kinematicNow;
     /// The cloth was carried by `motion` (a teleport or a snap turn,
     /// Attachments::carryTeleported): a kinematic body that jumped or turned with it (a
     /// character's other parts set where it respawns: Bullet's velocity is the jump over the
@@ -676,17 +677,14 @@ void BulletCloth::Impl::sweepAfterTeleport(const detail::Pose& motion, double dt
 std::optional<detail::Pose> BulletCloth::Impl::followed(const btCollisionObject* obj, double dt) {
     const btRigidBody* rb = btRigidBody::upcast(obj);
     if (!rb || !rb->isKinematicObject()) return std::nullopt;
-    for (const auto& [object, pose] : kinematicNow)
-        if (object == obj) return pose;
+    if (const auto found = kinematicNow.find(obj); found != kinematicNow.end())
+        return found->second;
     const detail::Pose to = detail::toPose(obj->getWorldTransform());
     detail::Pose at = to;
-    for (const auto& [object, pose] : kinematicBefore)
-        if (object == obj) {
-            at = detail::followKinematic(pose, to, toVec(rb->getLinearVelocity()),
-                                         toVec(rb->getAngularVelocity()), dt);
-            break;
-        }
-    kinematicNow.emplace_back(obj, at);
+    if (const auto was = kinematicBefore.find(obj); was != kinematicBefore.end())
+        at = detail::followKinematic(was->second, to, toVec(rb->getLinearVelocity()),
+                                     toVec(rb->getAngularVelocity()), dt);
+    kinematicNow.emplace(obj, at);
     return at;
 }
 
