@@ -89,7 +89,7 @@ Pose Attachments::poseOf(const btCollisionObject* body) const {
 void Attachments::advance(Cloth& c, double dt) const {
     const double arrival = c.time() + dt;
     for (const auto& a : list_)
-        c.setKinematicTarget(a.particle, poseOf(a.body).toWorld(a.localPoint), arrival);
+        c.setKinematicTarget(a.particle, pointOf(a), arrival);
 }
 
 void Attachments::followBodies(Cloth& c, const std::vector<BodySnapshot>& bodies, double arrival) {
@@ -107,6 +107,19 @@ void Attachments::followBodies(Cloth& c, const std::vector<BodySnapshot>& bodies
 }
 
 namespace {
+
+/// Whether x is at point p to the rounding of Bullet's poses.
+bool atPoint(const Vec3& p, const Vec3& x) {
+    return (p - x).norm() <= 1e-9 * (1.0 + x.norm());
+}
+
+/// Moves every particle of the cloth by the rigid motion m, its velocities turned with it.
+void carryCloth(Cloth& c, const Pose& m) {
+    for (Vec3& x : c.mutablePositions())
+        x = m.toWorld(x);
+    for (Vec3& v : c.mutableVelocities())
+        v = m.R * v;
+}
 
 /// The rigid motion (R, t) that best takes points `from` onto `to` (least squares, Kabsch);
 /// for points on a line (or one point) the smallest turn that aligns the line, since a turn
@@ -139,10 +152,7 @@ Pose bestRigidMotion(const std::vector<Vec3>& from, const std::vector<Vec3>& to)
 
 } // namespace
 
-std::size_t Attachments::placeMoved(Cloth& c) const {
-    const auto near = [](const Vec3& p, const Vec3& x) {
-        return (p - x).norm() <= 1e-9 * (1.0 + x.norm()); // Bullet's poses, rounded
-    };
+void Attachments::placeMoved(Cloth& c) const {
     std::vector<Vec3> from, to;
     std::vector<Index> moved;
     std::size_t held = 0; // attachments to static or kinematic bodies known since the last call
@@ -155,31 +165,22 @@ std::size_t Attachments::placeMoved(Cloth& c) const {
         if (was == seen_.end()) continue; // attached since the last call
         ++held;
         const Vec3& x = c.positions()[a.particle];
-        const Vec3 now = poseOf(a.body).toWorld(a.localPoint);
-        if (near(was->second.toWorld(a.localPoint), x) || near(now, x)) continue;
+        const Vec3 now = pointOf(a);
+        if (atPoint(was->second.toWorld(a.localPoint), x) || atPoint(now, x)) continue;
         from.push_back(x);
         to.push_back(now);
         moved.push_back(a.particle);
     }
-    if (moved.empty()) return 0;
-    // Every attached particle moved (the whole cloth reset or restored): the cloth goes with
-    // the rigid motion that best puts them on their points, its velocities turned, so that
+    if (moved.empty()) return;
+    // Every attached particle moved (the whole cloth reset or restored) and the program pins
+    // none: the cloth goes with the rigid motion that best puts them on their points, so that
     // its shape arrives as it was set. What that leaves is placed below.
     const std::vector<double>& w = c.inverseMasses();
-    const auto holds = std::size_t(std::count(w.begin(), w.end(), 0.0));
-    if (moved.size() == held && list_.size() == held && holds == held) {
-        const Pose m = bestRigidMotion(from, to);
-        Vec3List& xs = c.mutablePositions();
-        Vec3List& vs = c.mutableVelocities();
-        for (std::size_t i = 0; i < xs.size(); ++i) {
-            if (w[i] == 0.0) continue; // held: placed below (or kept, if the program pinned it)
-            xs[i] = m.toWorld(xs[i]);
-            vs[i] = m.R * vs[i];
-        }
-    }
+    if (moved.size() == held && list_.size() == held &&
+        std::size_t(std::count(w.begin(), w.end(), 0.0)) == held)
+        carryCloth(c, bestRigidMotion(from, to));
     for (std::size_t k = 0; k < moved.size(); ++k)
         c.setPosition(moved[k], to[k]);
-    return moved.size();
 }
 
 std::optional<Pose> Attachments::carryTeleported(Cloth& c, double dt, double speed, double turn) {
@@ -221,7 +222,7 @@ std::optional<Pose> Attachments::carryTeleported(Cloth& c, double dt, double spe
                              return p.first == a.body;
                          })->second;
         const Vec3& xi = x[a.particle];
-        if ((p0.toWorld(a.localPoint) - xi).norm() > 1e-9 * (1.0 + xi.norm())) return std::nullopt;
+        if (!atPoint(p0.toWorld(a.localPoint), xi)) return std::nullopt;
         jump = std::max(jump, (motion.toWorld(xi) - xi).norm());
     }
     const bool jumped = speed > 0.0 && jump > speed * dt;
@@ -230,12 +231,7 @@ std::optional<Pose> Attachments::carryTeleported(Cloth& c, double dt, double spe
     // Particles the program pinned stay where they are: no carry.
     const auto& w = c.inverseMasses();
     if (std::size_t(std::count(w.begin(), w.end(), 0.0)) != list_.size()) return std::nullopt;
-    Vec3List& xs = c.mutablePositions();
-    for (Vec3& xi : xs)
-        xi = motion.toWorld(xi);
-    Vec3List& vs = c.mutableVelocities();
-    for (Vec3& vi : vs)
-        vi = motion.R * vi;
+    carryCloth(c, motion);
     return motion;
 }
 

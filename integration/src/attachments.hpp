@@ -41,9 +41,9 @@ class Attachments {
     /// its pose now puts it was moved by the program (a reset to the rest shape, a snapshot
     /// restored after the body moved): it is put on its point now as a teleport of a held
     /// particle (Cloth::setPosition: the next step brings the rest of the cloth within the
-    /// bound as positions), not pulled there by its target at the speed of the gap. Returns
-    /// how many were put.
-    std::size_t placeMoved(Cloth& c) const;
+    /// bound as positions), not pulled there by its target at the speed of the gap; when all
+    /// were moved, the whole cloth first goes with the rigid motion that best puts them there.
+    void placeMoved(Cloth& c) const;
     /// Before a Bullet sub-step of dt [s] (before advance): when every attachment body moved
     /// by one rigid motion since the last sub-step and a point of an attachment moved faster
     /// than `speed` [m/s] or the motion turned by more than `turn` [rad] (a teleport or a
@@ -52,14 +52,16 @@ class Attachments {
     /// with particles the program pinned. Remembers every attachment body's pose for the next
     /// call.
     std::optional<Pose> carryTeleported(Cloth& c, double dt, double speed, double turn);
-    /// The poses kinematic bodies have in this Bullet sub-step (followKinematic) where they
-    /// differ from their world transforms: the attachments' points follow them. The list
-    /// must live while the sub-step's calls below use it.
+    /// The poses kinematic bodies have in this Bullet sub-step (followKinematic): the
+    /// attachments' points follow them. The map must live while the sub-step's calls above
+    /// (placeMoved, carryTeleported, advance) use it.
     void followPoses(const std::unordered_map<const btCollisionObject*, Pose>* poses) {
         followed_ = poses;
     }
     /// The body's pose in this sub-step: followed, or its world transform.
     Pose poseOf(const btCollisionObject* body) const;
+    /// The attachment's point in this sub-step (poseOf its body).
+    Vec3 pointOf(const Attachment& a) const { return poseOf(a.body).toWorld(a.localPoint); }
     /// An impulse j [N s] at `at` for a dynamic body that is not among the snapshots.
     struct OutsideImpulse {
         btRigidBody* body = nullptr;
@@ -115,8 +117,8 @@ class Attachments {
     std::vector<double> masses_;                ///< and masses
     /// Each attachment body's pose at the last carryTeleported.
     std::vector<std::pair<const btCollisionObject*, Pose>> seen_;
-    /// Kinematic bodies' poses in this Bullet sub-step where they differ from their world
-    /// transforms (followKinematic), set by the world's step (followPoses); null: none.
+    /// Kinematic bodies' poses in this Bullet sub-step (followKinematic), set by the world's
+    /// step (followPoses); null: every body at its world transform.
     const std::unordered_map<const btCollisionObject*, Pose>* followed_ = nullptr;
     /// The springs between particles attached to two different bodies and their two
     /// attachments' indices in list_, rebuilt after list_ changes.

@@ -558,15 +558,16 @@ void BulletCloth::Impl::prepare(double dt) {
     outside.clear();
     stepDt = dt;
     if (!attachments.list().empty()) checkAttachmentBodies();
-    // 0. a teleported attachment body carries the cloth (before the bodies are gathered: the
-    // proxy's candidates are found where the cloth is then)
-    // Kinematic bodies through the frame's sub-steps: the attachment bodies now, the others
-    // as the contact stage finds them.
+    // 0. kinematic bodies through the frame's sub-steps: the attachment bodies now, the others
+    // as the contact stage finds them
     kinematicBefore.swap(kinematicNow);
     kinematicNow.clear();
     for (const Attachment& a : attachments.list())
         followed(a.body, dt);
     attachments.followPoses(&kinematicNow);
+    // attached particles the program moved are put on their bodies, and a teleported
+    // attachment body carries the cloth (before the bodies are gathered: the proxy's
+    // candidates are found where the cloth is then)
     attachments.placeMoved(c);
     const std::optional<detail::Pose> carried =
         attachments.carryTeleported(c, dt, settings.teleportSpeed, settings.teleportTurn);
