@@ -52,6 +52,7 @@
 #include "validate.hpp"
 
 #include "drape/bullet/convert.hpp"
+#include "drape/cloth_pair.hpp"
 #include "drape/error.hpp"
 
 #include <btBulletDynamicsCommon.h>
@@ -64,6 +65,8 @@
 #include <chrono>
 #include <cmath>
 #include <exception>
+#include <limits>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -99,6 +102,8 @@ void accumulate(ContactStats& total, const ContactStats& s) {
     total.boundBroken += s.boundBroken;
     total.selfContacts += s.selfContacts;
     total.selfPairTests += s.selfPairTests;
+    total.clothContacts += s.clothContacts;
+    total.clothPairTests += s.clothPairTests;
     total.impulseOnBodies += s.impulseOnBodies;
     total.impulseOnCloth += s.impulseOnCloth;
     total.refusedBodyImpulses += s.refusedBodyImpulses;
@@ -219,6 +224,8 @@ struct BulletCloth::Impl {
     /// Timer slot in the cloth's PhaseTimers of the handle's work around the cloth's steps
     /// (body snapshot, proxy, impulses on bodies).
     std::size_t slotBodies = 0;
+    std::size_t slotPairs =
+        0; ///< "bullet_cloth_pairs": the collisions with other cloths it is first of
 
     /// One Bullet sub-step of dt [s]: prepare, advance, finish.
     void step(double dt);
@@ -228,6 +235,10 @@ struct BulletCloth::Impl {
     /// The cloth's steps. Touches no Bullet object but the shapes it queries (read only), so
     /// the cloths of a world may advance in parallel (BulletClothSettings::threads).
     void advance();
+    /// One cloth step of advance (false: the cloth left the world in it).
+    bool advanceOne();
+    /// What advance does after its cloth steps: the strain at the end, the proxy's next box.
+    void advanceEnd();
     /// After them (on the world's thread): the impulses on the bodies, the proxy, the counts.
     void finish();
     /// The step being taken: its dt [s], cloth steps, their length [s], and timing.
@@ -277,6 +288,9 @@ struct BulletCloth::Impl {
     void nextBounds(double dt, Vec3& lo, Vec3& hi) const;
     void updateBounds(double dt);
     Vec3 nextLo = Vec3::Zero(), nextHi = Vec3::Zero(); ///< advance's nextBounds, for finish
+    /// The positions at the Bullet sub-step's start (after prepare), kept while the world has
+    /// another cloth to collide with (BulletClothSettings::collideWithCloths).
+    Vec3List pairStart;
     /// Detaches the particles whose body is no longer in the world (removed, maybe deleted:
     /// its pointer is only compared, never read) and throws drape::Error naming them.
     void checkAttachmentBodies();
@@ -349,14 +363,10 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
                 errors_[k] = std::current_exception();
             }
         }
-        auto advance = [this, &list](std::size_t k) {
-            if (errors_[k] || skip_[k] || !list[k]->inWorld) return;
-            try {
-                list[k]->advance();
-            } catch (...) {
-                errors_[k] = std::current_exception();
-            }
-        };
+        // Cloths that may meet in this sub-step take their steps together (formGroups); every
+        // other cloth is a group of its own.
+        formGroups(list, double(dt));
+        auto advance = [this, &list](std::size_t g) { advanceGroup(list, g); };
         // The cloths step in parallel on up to the largest BulletClothSettings::threads; the
         // arena also serves the loops of the cloths that ask for threads of their own and have
         // no executor of their program (lendExecutor), so it has the largest of both. No more
@@ -378,17 +388,18 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
         }
         for (Impl* c : list)
             if (c->inWorld) lendExecutor(*c);
-        if (worldThreads > 1 && n > 1) {
+        const std::size_t groups = groupStart_.size() - 1;
+        if (worldThreads > 1 && groups > 1) {
             executor_->arena().execute([&] {
-                tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1),
+                tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups, 1),
                                   [&](const tbb::blocked_range<std::size_t>& r) {
-                                      for (std::size_t k = r.begin(); k != r.end(); ++k)
-                                          advance(k);
+                                      for (std::size_t g = r.begin(); g != r.end(); ++g)
+                                          advance(g);
                                   });
             });
         } else {
-            for (std::size_t k = 0; k < n; ++k)
-                advance(k);
+            for (std::size_t g = 0; g < groups; ++g)
+                advance(g);
         }
         for (std::size_t k = 0; k < n; ++k) {
             if (errors_[k] || skip_[k] || !list[k]->inWorld) continue;
@@ -430,6 +441,197 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
     }
 
   private:
+    /// Whether cloth k of the step takes its steps (prepared, in the world, no error yet).
+    bool stepping(const std::vector<Impl*>& list, std::size_t k) const {
+        return !errors_[k] && !skip_[k] && list[k]->inWorld;
+    }
+
+    /// Puts the cloths that may meet in this sub-step into groups (groupStart_, members_, in
+    /// the order they were added): two cloths that collide with each other (collideWithCloths,
+    /// filters both ways) whose boxes, grown by how far their fastest particles can move in
+    /// the sub-step (twice their speed and g dt, plus the thickness), overlap. Every other
+    /// cloth is a group of its own.
+    void formGroups(const std::vector<Impl*>& list, double dt) {
+        const std::size_t n = list.size();
+        root_.resize(n);
+        boxLo_.resize(n);
+        boxHi_.resize(n);
+        // Cloths asleep do not move: while all are, no two meet that did not already rest.
+        std::size_t pairing = 0, awake = 0;
+        for (std::size_t k = 0; k < n; ++k) {
+            root_[k] = k;
+            if (stepping(list, k) && list[k]->settings.collideWithCloths) {
+                ++pairing;
+                awake += !list[k]->cloth->isAsleep();
+            }
+        }
+        if (awake == 0) pairing = 0;
+        for (std::size_t k = 0; k < n && pairing >= 2; ++k) {
+            if (!stepping(list, k) || !list[k]->settings.collideWithCloths) continue;
+            const Cloth& c = *list[k]->cloth;
+            Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+            double v2 = 0.0;
+            for (std::size_t i = 0; i < c.particleCount(); ++i) {
+                lo = lo.cwiseMin(c.positions()[i]);
+                hi = hi.cwiseMax(c.positions()[i]);
+                v2 = std::max(v2, c.velocities()[i].squaredNorm());
+            }
+            const double reach = 2.0 * (std::sqrt(v2) + c.settings().gravity.norm() * dt) * dt +
+                                 list[k]->settings.clothCollision.thickness;
+            boxLo_[k] = lo.array() - reach;
+            boxHi_[k] = hi.array() + reach;
+        }
+        const auto find = [this](std::size_t k) {
+            while (root_[k] != k)
+                k = root_[k] = root_[root_[k]];
+            return k;
+        };
+        for (std::size_t i = 0; i < n && pairing >= 2; ++i)
+            for (std::size_t j = i + 1; j < n; ++j)
+                if (meet(list, i, j) && (boxLo_[i].array() <= boxHi_[j].array()).all() &&
+                    (boxLo_[j].array() <= boxHi_[i].array()).all())
+                    root_[find(j)] = find(i);
+        // Groups by their first cloth, members in order.
+        groupOf_.assign(n, n);
+        groupStart_.assign(1, 0);
+        members_.clear();
+        std::vector<std::size_t> count;
+        for (std::size_t k = 0; k < n; ++k) {
+            const std::size_t r = find(k);
+            if (groupOf_[r] == n) {
+                groupOf_[r] = count.size();
+                count.push_back(0);
+            }
+            groupOf_[k] = groupOf_[r];
+            ++count[groupOf_[k]];
+        }
+        for (const std::size_t c : count)
+            groupStart_.push_back(groupStart_.back() + c);
+        members_.resize(n);
+        std::vector<std::size_t> fill(groupStart_.begin(), groupStart_.end() - 1);
+        for (std::size_t k = 0; k < n; ++k)
+            members_[fill[groupOf_[k]]++] = k;
+        // The colliders of the pairs that may meet, kept from the last sub-step (their pair
+        // lists) while the two keep meeting.
+        std::map<std::pair<const Impl*, const Impl*>, ClothPairCollider> kept;
+        for (std::size_t g = 0; g + 1 < groupStart_.size(); ++g)
+            for (std::size_t m = groupStart_[g]; m < groupStart_[g + 1]; ++m)
+                for (std::size_t o = m + 1; o < groupStart_[g + 1]; ++o) {
+                    const std::size_t i = members_[m], j = members_[o];
+                    if (!meet(list, i, j)) continue;
+                    const std::pair<const Impl*, const Impl*> key(list[i], list[j]);
+                    const auto it = colliders_.find(key);
+                    if (it != colliders_.end()) {
+                        kept.emplace(key, std::move(it->second));
+                    } else {
+                        kept.emplace(key, ClothPairCollider{});
+                    }
+                }
+        colliders_.swap(kept);
+    }
+
+    /// Whether cloths i and j of the step collide with each other: both take their steps and
+    /// collide with cloths, and their filters let them meet.
+    bool meet(const std::vector<Impl*>& list, std::size_t i, std::size_t j) const {
+        if (!stepping(list, i) || !stepping(list, j)) return false;
+        const BulletClothSettings& a = list[i]->settings;
+        const BulletClothSettings& b = list[j]->settings;
+        return a.collideWithCloths && b.collideWithCloths && (a.collisionGroup & b.collisionMask) &&
+               (b.collisionGroup & a.collisionMask);
+    }
+
+    /// Advances group g: a cloth on its own as BulletCloth::Impl::advance; the cloths of a
+    /// larger group take the same number of cloth steps (the most any of them needs), and
+    /// after each, every two of them that meet are kept apart (drape::collideCloths, their
+    /// positions before that cloth step as its start).
+    void advanceGroup(const std::vector<Impl*>& list, std::size_t g) {
+        const std::size_t first = groupStart_[g], last = groupStart_[g + 1];
+        const auto guarded = [&](std::size_t k, auto&& f) {
+            if (!stepping(list, k)) return;
+            try {
+                f(*list[k]);
+            } catch (...) {
+                errors_[k] = std::current_exception();
+            }
+        };
+        if (last - first == 1) {
+            guarded(members_[first], [](Impl& c) { c.advance(); });
+            return;
+        }
+        int steps = 1;
+        for (std::size_t m = first; m < last; ++m)
+            guarded(members_[m], [&](Impl& c) { steps = std::max(steps, c.stepSubsteps); });
+        for (std::size_t m = first; m < last; ++m)
+            guarded(members_[m], [&](Impl& c) {
+                c.stepSubsteps = c.last.substeps = steps;
+                c.stepH = c.stepDt / steps;
+            });
+        std::vector<unsigned char> done(last - first, 0);
+        // The cloths are kept apart whenever their particles may have come half the thinnest
+        // of their thicknesses nearer since the last time (the fastest particles' speeds after
+        // each step, summed over the group), and after the last step: a cloth at rest on
+        // another once per Bullet sub-step, a cloth falling onto it at 5 m/s every other step.
+        double thinnest = std::numeric_limits<double>::infinity();
+        for (std::size_t m = first; m < last; ++m)
+            guarded(members_[m], [&](Impl& c) {
+                thinnest = std::min(thinnest, c.settings.clothCollision.thickness);
+                c.pairStart = c.cloth->positions();
+            });
+        double travel = 0.0;
+        for (int s = 0; s < steps; ++s) {
+            double speeds = 0.0, h = 0.0;
+            for (std::size_t m = first; m < last; ++m)
+                guarded(members_[m], [&](Impl& c) {
+                    if (done[m - first]) return;
+                    done[m - first] = !c.advanceOne();
+                    if (!done[m - first]) speeds += fastestParticle(*c.cloth);
+                    h = c.stepH;
+                });
+            travel += speeds * h;
+            if (s + 1 < steps && travel + speeds * h < 0.5 * thinnest) continue;
+            travel = 0.0;
+            for (std::size_t m = first; m < last; ++m)
+                for (std::size_t o = m + 1; o < last; ++o) {
+                    const std::size_t i = members_[m], j = members_[o];
+                    if (done[m - first] || done[o - first] || !meet(list, i, j)) continue;
+                    Impl& a = *list[i];
+                    Impl& b = *list[j];
+                    const ClothPairSettings& sa = a.settings.clothCollision;
+                    const ClothPairSettings& sb = b.settings.clothCollision;
+                    ClothPairSettings both;
+                    both.thickness = std::max(sa.thickness, sb.thickness);
+                    both.friction = std::sqrt(sa.friction * sb.friction);
+                    both.iterations = std::max(sa.iterations, sb.iterations);
+                    const auto start = std::chrono::steady_clock::now();
+                    guarded(i, [&](Impl&) {
+                        const ClothPairStats st = colliders_.at({&a, &b}).collide(
+                            *a.cloth, a.pairStart, *b.cloth, b.pairStart, both, a.stepH);
+                        for (Impl* c : {&a, &b}) {
+                            c->last.clothContacts += st.contacts;
+                            c->last.clothPairTests += st.pairTests;
+                            if (!c->cloth->isAsleep()) c->slept = false; // woken
+                        }
+                    });
+                    a.cloth->timers().add(a.slotPairs, std::chrono::duration<double>(
+                                                           std::chrono::steady_clock::now() - start)
+                                                           .count());
+                }
+            for (std::size_t m = first; m < last; ++m)
+                guarded(members_[m], [&](Impl& c) { c.pairStart = c.cloth->positions(); });
+        }
+        for (std::size_t m = first; m < last; ++m)
+            guarded(members_[m], [&](Impl& c) {
+                if (!done[m - first]) c.advanceEnd();
+            });
+    }
+
+    /// Per pair of cloths that may meet in this sub-step (formGroups; read by the groups' tasks).
+    std::map<std::pair<const Impl*, const Impl*>, ClothPairCollider> colliders_;
+    std::vector<std::size_t> root_;       ///< formGroups' union-find
+    std::vector<std::size_t> groupOf_;    ///< per cloth of the step: its group
+    std::vector<std::size_t> groupStart_; ///< group g: members_[groupStart_[g], ...[g + 1])
+    std::vector<std::size_t> members_;    ///< the cloths of the step by group, in order
+    std::vector<Vec3> boxLo_, boxHi_;     ///< per cloth: its box grown by its reach in the sub-step
     std::vector<std::exception_ptr> errors_;
     std::vector<unsigned char> skip_; ///< per cloth of the step: not stepped (out of the world)
     std::shared_ptr<ArenaExecutor> executor_; ///< the world's threads (more than one)
@@ -595,30 +797,40 @@ void BulletCloth::Impl::prepare(double dt) {
 }
 
 void BulletCloth::Impl::advance() {
+    for (int s = 0; s < stepSubsteps; ++s)
+        if (!advanceOne()) return; // removed during the step (by a stage)
+    advanceEnd();
+}
+
+bool BulletCloth::Impl::advanceOne() {
     using Clock = std::chrono::steady_clock;
     Cloth& c = *cloth;
     // 3. step
     const detail::ScopedFlag guard(contacts.inStep);
-    for (int s = 0; s < stepSubsteps; ++s) {
-        const bool wasAsleep = c.isAsleep();
-        // The bodies move through the Bullet sub-step with the cloth (BodySnapshot::advance).
-        for (auto& b : contacts.bodies)
-            b.advance(stepH);
-        // Particles attached to a free body follow it through the sub-step as the cloth moves
-        // it (its snapshot: the walk's share, the impulses), not Bullet's pose alone.
-        attachments.followBodies(c, contacts.bodies, c.time() + stepH);
-        c.stepPart(stepH, stepSubsteps); // the contact stage runs inside it, the contact
-                                         // force is one of its terms
-        if (!inWorld) return; // removed during the step (by a stage): nothing more to give
-        ++last.steps;
-        last.selfPairTests += c.lastSelfCollision().pairTests;
-        last.selfContacts += c.lastSelfCollision().contacts;
-        if (wasAsleep && c.isAsleep()) continue; // nothing moved, nothing to hand to bodies
-        slept = false;
-        const auto afterStep = Clock::now();
-        pushBodies(stepH);
-        bodySeconds += std::chrono::duration<double>(Clock::now() - afterStep).count();
-    }
+    const bool wasAsleep = c.isAsleep();
+    // The bodies move through the Bullet sub-step with the cloth (BodySnapshot::advance).
+    for (auto& b : contacts.bodies)
+        b.advance(stepH);
+    // Particles attached to a free body follow it through the sub-step as the cloth moves
+    // it (its snapshot: the walk's share, the impulses), not Bullet's pose alone.
+    attachments.followBodies(c, contacts.bodies, c.time() + stepH);
+    c.stepPart(stepH, stepSubsteps); // the contact stage runs inside it, the contact
+                                     // force is one of its terms
+    if (!inWorld) return false;      // removed during the step (by a stage): nothing more to give
+    ++last.steps;
+    last.selfPairTests += c.lastSelfCollision().pairTests;
+    last.selfContacts += c.lastSelfCollision().contacts;
+    if (wasAsleep && c.isAsleep()) return true; // nothing moved, nothing to hand to bodies
+    slept = false;
+    const auto afterStep = Clock::now();
+    pushBodies(stepH);
+    bodySeconds += std::chrono::duration<double>(Clock::now() - afterStep).count();
+    return true;
+}
+
+void BulletCloth::Impl::advanceEnd() {
+    using Clock = std::chrono::steady_clock;
+    Cloth& c = *cloth;
     const auto afterSteps = Clock::now();
     // The strain the sub-step ends with, measured (one pass over the springs; a cloth that slept
     // through it has not moved), and the proxy's next box (set by finish): both here, in the
@@ -943,6 +1155,7 @@ BulletCloth::BulletCloth(btDynamicsWorld* world, std::shared_ptr<Cloth> cloth,
     m.contacts.limiterSlot = m.cloth->timers().slot("bullet_contacts/limiter");
     m.contacts.attached = &m.attachments.list();
     m.slotBodies = m.cloth->timers().slot("bullet_bodies");
+    m.slotPairs = m.cloth->timers().slot("bullet_cloth_pairs");
     // The cloth's contact force term reads the records the contact stage makes (removed with
     // this handle).
     m.cloth->setContacts(m.contacts.records);
@@ -1098,6 +1311,7 @@ BulletClothSettings BulletClothSettings::inUnits(double unitsPerMetre) {
     s.contact.depenetrationSpeed *= unitsPerMetre;
     s.teleportSpeed *= unitsPerMetre;
     s.selfCollision.thickness *= unitsPerMetre;
+    s.clothCollision.thickness *= unitsPerMetre;
     return s;
 }
 

@@ -1,6 +1,8 @@
 // Settings checks (see validate.hpp).
 #include "validate.hpp"
 
+#include "drape/cloth_pair.hpp"
+
 #include <cmath>
 #include <sstream>
 
@@ -30,11 +32,13 @@ void validate(const BulletClothSettings& s) {
     const bool allMetreDefaults = c.thickness == metres.contact.thickness &&
                                   c.depenetrationSpeed == metres.contact.depenetrationSpeed &&
                                   s.teleportSpeed == metres.teleportSpeed &&
-                                  s.selfCollision.thickness == metres.selfCollision.thickness;
+                                  s.selfCollision.thickness == metres.selfCollision.thickness &&
+                                  s.clothCollision.thickness == metres.clothCollision.thickness;
     require(s.unitsPerMetre == 1.0 || !allMetreDefaults, ErrorCode::InvalidArgument,
             "unitsPerMetre is " + num(s.unitsPerMetre) +
                 " but the contact thickness, depenetration speed, teleport speed and "
-                "self-collision thickness are all still their defaults in metres (thickness " +
+                "self-collision and cloth-collision thicknesses are all still their defaults in "
+                "metres (thickness " +
                 num(c.thickness) + "): start from BulletClothSettings::inUnits(" +
                 num(s.unitsPerMetre) +
                 "), which converts them, or set at least one of them in the world's units");
@@ -72,6 +76,7 @@ void validate(const BulletClothSettings& s) {
     require(s.threads >= 1 && s.threads <= 1024, ErrorCode::InvalidArgument,
             "threads must be between 1 and 1024, got " + std::to_string(s.threads));
     // selfCollision is the cloth's own: Cloth::setSelfCollision validates it.
+    validateClothPair(s.clothCollision, "clothCollision.");
 }
 
 } // namespace drape::bullet::detail

@@ -21,6 +21,8 @@
 // the same weights remove an approaching relative normal velocity and apply friction.
 #include "self_collision.hpp"
 
+#include "layer_contact.hpp"
+
 #include "drape/geometry.hpp"
 
 #include <algorithm>
@@ -234,27 +236,11 @@ SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,
                     wp + bary[0] * bary[0] * w0 + bary[1] * bary[1] * w1 + bary[2] * bary[2] * w2;
                 if (!(denom > 0.0)) continue;
                 ++contactsThisPass;
-                const double lambda = violation / denom;
-                x[p] += (wp * lambda) * nrm;
-                for (int k = 0; k < 3; ++k)
-                    x[t[k]] -= (bary[k] * invMass[t[k]] * lambda) * nrm;
-                // Velocity: remove approach along the normal, then Coulomb friction.
-                const Vec3 vTri = bary[0] * v[t[0]] + bary[1] * v[t[1]] + bary[2] * v[t[2]];
-                const Vec3 rel = v[p] - vTri;
-                const double vn = rel.dot(nrm);
-                if (vn < 0.0) {
-                    const double jn = -vn / denom;
-                    Vec3 dv = jn * nrm;
-                    const Vec3 vt = rel - vn * nrm;
-                    const double vtLen = vt.norm();
-                    if (vtLen > 0.0 && friction > 0.0) {
-                        const double jt = std::min(vtLen / denom, friction * jn);
-                        dv -= (jt / vtLen) * vt;
-                    }
-                    v[p] += wp * dv;
-                    for (int k = 0; k < 3; ++k)
-                        v[t[k]] -= (bary[k] * invMass[t[k]]) * dv;
-                }
+                separateLayers({&x[p], &v[p], wp},
+                               {LayerPoint{&x[t[0]], &v[t[0]], w0},
+                                LayerPoint{&x[t[1]], &v[t[1]], w1},
+                                LayerPoint{&x[t[2]], &v[t[2]], w2}},
+                               bary, nrm, violation, denom, friction);
             }
         }
         counts.contacts += contactsThisPass;

@@ -119,6 +119,8 @@ struct ClothHit {
 /// A prescribed path for a kinematic particle: position [m] at simulated time t [s].
 using KinematicPath = std::function<Vec3(double t)>;
 
+class ClothPairCollider;
+
 class Cloth {
   public:
     /// Builds masses and stiffnesses from the settings and validates everything; throws
@@ -359,6 +361,7 @@ class Cloth {
     void checkStateSizes(const std::string& who) const;
 
   private:
+    friend class ClothPairCollider; // moves particles of a cloth at rest without waking it
     /// checkStateSizes for the diagnostics (maxStrain, energies, momentum): the common case,
     /// sizes unchanged, without building the message.
     void checkDiagnosticSizes(const char* who) const;

@@ -185,6 +185,14 @@ struct SelfCollisionSettings {
     double friction = 0.2; ///< Coulomb mu between layers of the cloth [-]
 };
 
+/// How two cloths keep apart (drape::collideCloths, drape/cloth_pair.hpp).
+struct ClothPairSettings {
+    /// Distance a particle of one cloth keeps from the triangles of the other [m] (> 0).
+    double thickness = 0.01;
+    double friction = 0.3; ///< Coulomb mu between the cloths [-] (>= 0)
+    int iterations = 2;    ///< passes over the particle-triangle pairs (>= 1)
+};
+
 /// How Cloth::step(dt) divides a step into sub-steps.
 struct SubstepSettings {
     /// Take a step as the fewest equal sub-steps of at most `fraction` times the integrator's

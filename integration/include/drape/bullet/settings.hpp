@@ -141,6 +141,18 @@ struct BulletClothSettings {
     /// in that frame, its hem thrown above the hips. Pi / 4 (45 degrees a 60 Hz frame, 47
     /// rad/s) is far beyond a body turning by physics; 0 turns it off; must be in [0, pi].
     double teleportTurn = 0.7853981633974483;
+    /// Collision with the world's other cloths: after every Bullet sub-step, each pair of
+    /// cloths whose paths came within reach of each other and whose filters let them meet
+    /// (collisionGroup and collisionMask, both ways) is kept apart by drape::collideCloths
+    /// (drape/cloth_pair.hpp): the particles of each keep the larger of the two cloths'
+    /// clothCollision.thickness from the other's triangles, on the side they were on, with
+    /// the geometric mean of their frictions, in the larger of their iterations. A cape over a
+    /// skirt, a towel dropped on a tablecloth. false for either cloth: the two pass through
+    /// each other. Counted in ContactStats::clothContacts.
+    bool collideWithCloths = true;
+    /// Thickness (scaled by inUnits), friction and iterations of the collision with other
+    /// cloths; validated when the cloth is added.
+    ClothPairSettings clothCollision;
 };
 
 /// Work done in the last Bullet sub-step (all cloth sub-steps summed). Counts, not times, so
@@ -184,6 +196,10 @@ struct ContactStats {
     std::size_t boundBroken = 0;
     std::size_t selfContacts = 0;  ///< particle-triangle self contacts resolved
     std::size_t selfPairTests = 0; ///< particle-triangle pairs tested by self-collision
+    /// Particle-triangle contacts with the world's other cloths (collideWithCloths), summed
+    /// over both ways and the passes; the other cloth counts them too.
+    std::size_t clothContacts = 0;
+    std::size_t clothPairTests = 0; ///< particle-triangle pairs between cloths tested
     /// Total linear impulse the cloth gave dynamic bodies, through contacts and through
     /// attachments [N s].
     Vec3 impulseOnBodies = Vec3::Zero();

@@ -1,0 +1,332 @@
+// Collision between two cloths (see drape/cloth_pair.hpp).
+//
+// Broadphase, each way (the particles of one cloth against the triangles of the other): the
+// triangles whose swept boxes (their corners at the step's start and end, grown by the
+// thickness) reach the particles' swept box go into a uniform grid, kept as a list of (cell
+// key, triangle) sorted by key; the cell is the mean extent of those boxes and at least twice
+// the thickness (doubled while the boxes would fill more than eight cells each on average, so
+// a fast cloth cannot make the list explode). Each particle looks in the cells its path's box
+// covers and keeps the triangles whose swept box holds that path's box. Hash keys of unequal
+// cells may meet: that only adds candidates the box test drops.
+//
+// Narrowphase, for particle p and triangle (a, b, c) at the step's end, q the closest point
+// of the triangle to p with weights bary, n the unit normal turned toward the side p was on
+// at the step's start (the sign of (p0 - q0) . n0, q0 with the same weights): a contact when
+// the gap (p - q) . n is below the thickness and p lies over the triangle, or beside its rim
+// by less than the thickness and less than it lies off its plane; a gap below zero (p crossed it) only as deep as p's move relative
+// to the triangle in the step, plus the thickness, could have carried it. The response is
+// self-collision's (layer_contact.hpp).
+#include "drape/cloth_pair.hpp"
+
+#include "drape/error.hpp"
+#include "drape/geometry.hpp"
+#include "layer_contact.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+namespace drape {
+namespace {
+
+struct Box {
+    Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
+    Vec3 hi = Vec3::Constant(-std::numeric_limits<double>::infinity());
+    void add(const Vec3& p) {
+        lo = lo.cwiseMin(p);
+        hi = hi.cwiseMax(p);
+    }
+    bool overlaps(const Box& o) const {
+        return (lo.array() <= o.hi.array()).all() && (o.lo.array() <= hi.array()).all();
+    }
+};
+
+Box sweptBox(const Vec3List& start, const Vec3List& end) {
+    Box b;
+    for (std::size_t i = 0; i < end.size(); ++i) {
+        b.add(start[i]);
+        b.add(end[i]);
+    }
+    return b;
+}
+
+Box triangleBox(const Triangle& t, const Vec3List& start, const Vec3List& end, double grow) {
+    Box b;
+    for (int k = 0; k < 3; ++k) {
+        b.add(start[t[k]]);
+        b.add(end[t[k]]);
+    }
+    b.lo.array() -= grow;
+    b.hi.array() += grow;
+    return b;
+}
+
+std::int64_t cellCoord(double v, double invCell) {
+    return static_cast<std::int64_t>(std::floor(v * invCell));
+}
+
+std::uint64_t cellKey(std::int64_t i, std::int64_t j, std::int64_t k) {
+    const auto ui = static_cast<std::uint64_t>(i), uj = static_cast<std::uint64_t>(j),
+               uk = static_cast<std::uint64_t>(k);
+    return (ui * 73856093ull) ^ (uj * 19349663ull) ^ (uk * 83492791ull);
+}
+
+/// Cells a box covers along each axis at cell size `cell` (as a double: no overflow).
+double cellsOf(const Box& b, double cell) {
+    double n = 1.0;
+    for (int d = 0; d < 3; ++d)
+        n *= std::floor(b.hi[d] / cell) - std::floor(b.lo[d] / cell) + 1.0;
+    return n;
+}
+
+} // namespace
+
+void validateClothPair(const ClothPairSettings& s, const std::string& who) {
+    if (!std::isfinite(s.thickness) || !(s.thickness > 0.0))
+        throw Error(ErrorCode::InvalidArgument,
+                    who + "thickness must be positive and finite, got " + std::to_string(s.thickness));
+    if (!std::isfinite(s.friction) || s.friction < 0.0)
+        throw Error(ErrorCode::InvalidArgument,
+                    who + "friction must be >= 0 and finite, got " + std::to_string(s.friction));
+    if (s.iterations < 1)
+        throw Error(ErrorCode::InvalidArgument,
+                    who + "iterations must be >= 1, got " + std::to_string(s.iterations));
+}
+
+void ClothPairCollider::findPairs(const Cloth& from, const Vec3List& fromStart, const Cloth& onto,
+                                  const Vec3List& ontoStart, double reach,
+                                  std::vector<std::pair<Index, Index>>& pairs) {
+    pairs.clear();
+    const Vec3List& xf = from.positions();
+    const Vec3List& xo = onto.positions();
+    const auto& tris = onto.topology().triangles();
+    const Box paths = sweptBox(fromStart, xf);
+    // The triangles that reach the particles' box, and the mean extent of their boxes.
+    cells_.clear();
+    std::vector<Box> boxes;
+    std::vector<Index> kept;
+    Box region; // of the triangles kept
+    double extent = 0.0;
+    for (std::size_t ti = 0; ti < tris.size(); ++ti) {
+        const Box b = triangleBox(tris[ti], ontoStart, xo, reach);
+        if (!b.overlaps(paths)) continue;
+        kept.push_back(static_cast<Index>(ti));
+        boxes.push_back(b);
+        region.add(b.lo);
+        region.add(b.hi);
+        extent += (b.hi - b.lo).maxCoeff();
+    }
+    if (kept.empty()) return;
+    double cell = std::max(reach, extent / static_cast<double>(kept.size()));
+    for (int tries = 0; tries < 64; ++tries) {
+        double entries = 0.0;
+        for (const Box& b : boxes)
+            entries += cellsOf(b, cell);
+        if (entries <= 8.0 * static_cast<double>(kept.size()) + 64.0) break;
+        cell *= 2.0;
+    }
+    const double invCell = 1.0 / cell;
+    for (std::size_t e = 0; e < kept.size(); ++e) {
+        const Box& b = boxes[e];
+        for (auto i = cellCoord(b.lo.x(), invCell); i <= cellCoord(b.hi.x(), invCell); ++i)
+            for (auto j = cellCoord(b.lo.y(), invCell); j <= cellCoord(b.hi.y(), invCell); ++j)
+                for (auto k = cellCoord(b.lo.z(), invCell); k <= cellCoord(b.hi.z(), invCell);
+                     ++k)
+                    cells_.emplace_back(cellKey(i, j, k), static_cast<Index>(e));
+    }
+    std::sort(cells_.begin(), cells_.end());
+    for (std::size_t p = 0; p < xf.size(); ++p) {
+        Box path;
+        path.add(fromStart[p]);
+        path.add(xf[p]);
+        if (!path.overlaps(region)) continue;
+        near_.clear();
+        for (auto i = cellCoord(path.lo.x(), invCell); i <= cellCoord(path.hi.x(), invCell); ++i)
+            for (auto j = cellCoord(path.lo.y(), invCell); j <= cellCoord(path.hi.y(), invCell);
+                 ++j)
+                for (auto k = cellCoord(path.lo.z(), invCell);
+                     k <= cellCoord(path.hi.z(), invCell); ++k) {
+                    const std::uint64_t key = cellKey(i, j, k);
+                    auto it = std::lower_bound(
+                        cells_.begin(), cells_.end(), std::make_pair(key, Index(0)));
+                    for (; it != cells_.end() && it->first == key; ++it)
+                        if (boxes[it->second].overlaps(path)) near_.push_back(it->second);
+                }
+        std::sort(near_.begin(), near_.end());
+        near_.erase(std::unique(near_.begin(), near_.end()), near_.end());
+        for (const Index e : near_)
+            pairs.emplace_back(static_cast<Index>(p), kept[e]);
+    }
+}
+
+// A pair listed is any whose particle and triangle came within the reach of each other in
+// the step the lists were built for (the triangle's box grown by it); since then every
+// particle of both cloths, at the start and at the end of this step, is within `slack` of
+// where it was when they were built. Then along the axis on which a pair not listed was
+// farther apart than the reach, it is still farther than the reach less twice the slack,
+// the thickness, at every point of the straight paths of this step: no contact, no crossing.
+bool ClothPairCollider::listsHold(const Cloth& a, const Vec3List& aStart, const Cloth& b,
+                                  const Vec3List& bStart, double thickness) const {
+    if (builtA_ != &a || builtB_ != &b || builtReach_ != kReach * thickness ||
+        builtAt_[0].size() != a.particleCount() || builtAt_[1].size() != b.particleCount())
+        return false;
+    const double slack = 0.5 * (builtReach_ - thickness);
+    const double slack2 = slack * slack;
+    const auto near = [slack2](const Vec3List& x, const Vec3List& built) {
+        for (std::size_t i = 0; i < x.size(); ++i)
+            if ((x[i] - built[i]).squaredNorm() > slack2) return false;
+        return true;
+    };
+    return near(aStart, builtAt_[0]) && near(a.positions(), builtAt_[0]) &&
+           near(bStart, builtAt_[1]) && near(b.positions(), builtAt_[1]);
+}
+
+ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Cloth& b,
+                                          const Vec3List& bStart, const ClothPairSettings& s,
+                                          double dt) {
+    validateClothPair(s, "ClothPairSettings::");
+    if (&a == &b)
+        throw Error(ErrorCode::InvalidArgument,
+                    "collideCloths: a cloth with itself (that is ClothSettings::selfCollision)");
+    if (a.inStep() || b.inStep())
+        throw Error(ErrorCode::InvalidArgument,
+                    "collideCloths: not allowed during a cloth's own step (from a stage)");
+    if (aStart.size() != a.particleCount() || bStart.size() != b.particleCount())
+        throw Error(ErrorCode::InvalidArgument,
+                    "collideCloths: the start positions have " + std::to_string(aStart.size()) +
+                        " and " + std::to_string(bStart.size()) + " entries, the cloths " +
+                        std::to_string(a.particleCount()) + " and " +
+                        std::to_string(b.particleCount()) + " particles");
+    if (!std::isfinite(dt) || !(dt > 0.0))
+        throw Error(ErrorCode::InvalidArgument,
+                    "collideCloths: the step must be positive and finite, got " + std::to_string(dt));
+    ClothPairStats stats;
+    const bool aAsleep = a.isAsleep(), bAsleep = b.isAsleep();
+    if (aAsleep && bAsleep) return stats; // neither moved
+    const double h = s.thickness;
+    {
+        Box ba = sweptBox(aStart, a.positions()), bb = sweptBox(bStart, b.positions());
+        ba.lo.array() -= h;
+        ba.hi.array() += h;
+        if (!ba.overlaps(bb)) return stats;
+    }
+    if (!listsHold(a, aStart, b, bStart, h)) {
+        findPairs(a, aStart, b, bStart, kReach * h, ab_);
+        findPairs(b, bStart, a, aStart, kReach * h, ba_);
+        builtA_ = &a;
+        builtB_ = &b;
+        builtAt_[0] = a.positions();
+        builtAt_[1] = b.positions();
+        builtReach_ = kReach * h;
+    }
+    if (ab_.empty() && ba_.empty()) return stats;
+
+    // A sleeping cloth is woken by an approach faster than resting on it (|g| dt a step) by
+    // the speed of a fall from its sleep distance, sqrt(2 |g| d) (without gravity, d over its
+    // quiet time).
+    const double g = std::max(a.settings().gravity.norm(), b.settings().gravity.norm());
+    const auto wake = [g, dt](const SleepSettings& sleep) {
+        return g * dt + std::max(std::sqrt(2.0 * g * sleep.distance), sleep.distance / sleep.time);
+    };
+    const double wakeA = wake(a.settings().sleep), wakeB = wake(b.settings().sleep);
+    bool movedA = false, movedB = false;
+    // Particles of `pc` (asleep: no give) against the triangles of `tc`.
+    const auto pass = [&](const std::vector<std::pair<Index, Index>>& pairs, Cloth& pc,
+                          const Vec3List& pStart, bool pAsleep, double pWake, bool& pMoved,
+                          bool& pWoken, Cloth& tc, const Vec3List& tStart, bool tAsleep,
+                          double tWake, bool& tMoved, bool& tWoken) {
+        std::size_t contacts = 0;
+        Vec3List& xp = pc.state_.x;
+        Vec3List& vp = pc.state_.v;
+        Vec3List& xt = tc.state_.x;
+        Vec3List& vt = tc.state_.v;
+        const std::vector<double>& mp = pc.invMass_;
+        const std::vector<double>& mt = tc.invMass_;
+        const auto& tris = tc.topology().triangles();
+        for (const auto& [p, ti] : pairs) {
+            const Triangle& t = tris[ti];
+            const double wp = pAsleep ? 0.0 : mp[p];
+            const double w0 = tAsleep ? 0.0 : mt[t[0]], w1 = tAsleep ? 0.0 : mt[t[1]],
+                         w2 = tAsleep ? 0.0 : mt[t[2]];
+            if (wp == 0.0 && w0 == 0.0 && w1 == 0.0 && w2 == 0.0) continue;
+            ++stats.pairTests;
+            const Vec3 &x0 = xt[t[0]], &x1 = xt[t[1]], &x2 = xt[t[2]];
+            Vec3 face = (x1 - x0).cross(x2 - x0);
+            const double len = face.norm();
+            if (!(len > 0.0)) continue;
+            face /= len;
+            // The side p started on (of the triangle's plane at the start), the gap now along
+            // the normal toward it (the same for every point of the plane): most pairs end
+            // here, before the closest point.
+            const Vec3 faceStart =
+                (tStart[t[1]] - tStart[t[0]]).cross(tStart[t[2]] - tStart[t[0]]);
+            double side = (pStart[p] - tStart[t[0]]).dot(faceStart);
+            if (side == 0.0) side = (xp[p] - x0).dot(face);
+            const Vec3 nrm = side >= 0.0 ? face : Vec3(-face);
+            const double gap = (xp[p] - x0).dot(nrm);
+            if (gap >= h) continue;
+            if (gap < 0.0) {
+                // Crossed: only as deep as p's move relative to the triangle in the step could
+                // have carried it (at most its own move and its corners' largest).
+                const double reach = (xp[p] - pStart[p]).norm() +
+                                     std::max({(x0 - tStart[t[0]]).norm(),
+                                               (x1 - tStart[t[1]]).norm(),
+                                               (x2 - tStart[t[2]]).norm()}) +
+                                     h;
+                if (-gap > reach) continue;
+            }
+            Vec3 bary;
+            const Vec3 off = xp[p] - closestPointOnTriangle(xp[p], x0, x1, x2, bary);
+            // Beside the triangle rather than over it: the nearest point on its rim, and the
+            // particle no farther off the plane than it is beside the rim (a cloth lying next
+            // to the other in its plane, their edges a few millimetres apart, is no contact).
+            const double beside2 = off.squaredNorm() - gap * gap;
+            if (beside2 >= h * h || beside2 > gap * gap) continue;
+            if (gap < 0.0) {
+                const Vec3 moved = (xp[p] - pStart[p]) - (bary[0] * (x0 - tStart[t[0]]) +
+                                                           bary[1] * (x1 - tStart[t[1]]) +
+                                                           bary[2] * (x2 - tStart[t[2]]));
+                if (-gap > moved.norm() + h) continue; // never on the other side near it
+            }
+            const double denom =
+                wp + bary[0] * bary[0] * w0 + bary[1] * bary[1] * w1 + bary[2] * bary[2] * w2;
+            if (!(denom > 0.0)) continue;
+            ++contacts;
+            const double approach = detail::separateLayers(
+                {&xp[p], &vp[p], wp},
+                {detail::LayerPoint{&xt[t[0]], &vt[t[0]], w0},
+                 detail::LayerPoint{&xt[t[1]], &vt[t[1]], w1},
+                 detail::LayerPoint{&xt[t[2]], &vt[t[2]], w2}},
+                bary, nrm, h - gap, denom, s.friction);
+            if (wp != 0.0) pMoved = true;
+            if (w0 != 0.0 || w1 != 0.0 || w2 != 0.0) tMoved = true;
+            if (pAsleep && approach > pWake) pWoken = true;
+            if (tAsleep && approach > tWake) tWoken = true;
+        }
+        return contacts;
+    };
+    for (int iter = 0; iter < s.iterations; ++iter) {
+        const std::size_t contacts =
+            pass(ab_, a, aStart, aAsleep, wakeA, movedA, stats.wokeA, b, bStart, bAsleep, wakeB,
+                 movedB, stats.wokeB) +
+            pass(ba_, b, bStart, bAsleep, wakeB, movedB, stats.wokeB, a, aStart, aAsleep, wakeA,
+                 movedA, stats.wokeA);
+        stats.contacts += contacts;
+        if (contacts == 0) break;
+    }
+    // Moved positions need their forces again at the next step's start.
+    if (movedA) a.state_.forcesValid = false;
+    if (movedB) b.state_.forcesValid = false;
+    if (stats.wokeA) a.wake();
+    if (stats.wokeB) b.wake();
+    return stats;
+}
+
+ClothPairStats collideCloths(Cloth& a, const Vec3List& aStart, Cloth& b, const Vec3List& bStart,
+                             const ClothPairSettings& settings, double dt) {
+    ClothPairCollider collider;
+    return collider.collide(a, aStart, b, bStart, settings, dt);
+}
+
+} // namespace drape
