@@ -288,9 +288,12 @@ struct BulletCloth::Impl {
     void nextBounds(double dt, Vec3& lo, Vec3& hi) const;
     void updateBounds(double dt);
     Vec3 nextLo = Vec3::Zero(), nextHi = Vec3::Zero(); ///< advance's nextBounds, for finish
-    /// The positions at the Bullet sub-step's start (after prepare), kept while the world has
-    /// another cloth to collide with (BulletClothSettings::collideWithCloths).
+    /// The positions when the cloth was last kept apart from the others it may meet in this
+    /// Bullet sub-step (BulletClothSettings::collideWithCloths).
     Vec3List pairStart;
+    /// Where the cloth can get in this Bullet sub-step: its proxy's box and its particles'
+    /// sweep at their speeds, grown by the contact reach (gatherBodies).
+    Vec3 reachLo = Vec3::Zero(), reachHi = Vec3::Zero();
     /// Detaches the particles whose body is no longer in the world (removed, maybe deleted:
     /// its pointer is only compared, never read) and throws drape::Error naming them.
     void checkAttachmentBodies();
@@ -448,9 +451,9 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
 
     /// Puts the cloths that may meet in this sub-step into groups (groupStart_, members_, in
     /// the order they were added): two cloths that collide with each other (collideWithCloths,
-    /// filters both ways) whose boxes, grown by how far their fastest particles can move in
-    /// the sub-step (twice their speed and g dt, plus the thickness), overlap. Every other
-    /// cloth is a group of its own.
+    /// filters both ways) whose reach in the sub-step (prepare's box: the proxy's and the
+    /// particles' sweep, grown by g dt^2 and the thickness) overlap. Every other cloth is a
+    /// group of its own.
     void formGroups(const std::vector<Impl*>& list, double dt) {
         const std::size_t n = list.size();
         root_.resize(n);
@@ -468,18 +471,11 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
         if (awake == 0) pairing = 0;
         for (std::size_t k = 0; k < n && pairing >= 2; ++k) {
             if (!stepping(list, k) || !list[k]->settings.collideWithCloths) continue;
-            const Cloth& c = *list[k]->cloth;
-            Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-            double v2 = 0.0;
-            for (std::size_t i = 0; i < c.particleCount(); ++i) {
-                lo = lo.cwiseMin(c.positions()[i]);
-                hi = hi.cwiseMax(c.positions()[i]);
-                v2 = std::max(v2, c.velocities()[i].squaredNorm());
-            }
-            const double reach = 2.0 * (std::sqrt(v2) + c.settings().gravity.norm() * dt) * dt +
-                                 list[k]->settings.clothCollision.thickness;
-            boxLo_[k] = lo.array() - reach;
-            boxHi_[k] = hi.array() + reach;
+            const Impl& c = *list[k];
+            const double grow =
+                c.cloth->settings().gravity.norm() * dt * dt + c.settings.clothCollision.thickness;
+            boxLo_[k] = c.reachLo.array() - grow;
+            boxHi_[k] = c.reachHi.array() + grow;
         }
         const auto find = [this](std::size_t k) {
             while (root_[k] != k)
@@ -914,6 +910,8 @@ void BulletCloth::Impl::gatherBodies(double dt) {
     Vec3 lo = proxy.min(), hi = proxy.max();
     if (!cloth->isAsleep()) detail::sweptBounds(*cloth, dt, reach, lo, hi);
     if (proxy.candidates(lo, hi, candidates)) ++last.proxyRefreshes;
+    reachLo = lo;
+    reachHi = hi;
     addFastBodies(lo, hi, dt);
     // Every dynamic body the cloth is attached to is snapshotted, near the cloth or not (a long
     // attachment): its particles move with it and it takes their load in the cloth's steps.

@@ -13,9 +13,9 @@
 // of the triangle to p with weights bary, n the unit normal turned toward the side p was on
 // at the step's start (the sign of (p0 - q0) . n0, q0 with the same weights): a contact when
 // the gap (p - q) . n is below the thickness and p lies over the triangle, or beside its rim
-// by less than the thickness and less than it lies off its plane; a gap below zero (p crossed it) only as deep as p's move relative
-// to the triangle in the step, plus the thickness, could have carried it. The response is
-// self-collision's (layer_contact.hpp).
+// by less than the thickness and less than it lies off its plane; a gap below zero (p crossed it)
+// only as deep as p's move relative to the triangle in the step, plus the thickness, could have
+// carried it. The response is self-collision's (layer_contact.hpp).
 #include "drape/cloth_pair.hpp"
 
 #include "drape/error.hpp"
@@ -84,8 +84,9 @@ double cellsOf(const Box& b, double cell) {
 
 void validateClothPair(const ClothPairSettings& s, const std::string& who) {
     if (!std::isfinite(s.thickness) || !(s.thickness > 0.0))
-        throw Error(ErrorCode::InvalidArgument,
-                    who + "thickness must be positive and finite, got " + std::to_string(s.thickness));
+        throw Error(ErrorCode::InvalidArgument, who +
+                                                    "thickness must be positive and finite, got " +
+                                                    std::to_string(s.thickness));
     if (!std::isfinite(s.friction) || s.friction < 0.0)
         throw Error(ErrorCode::InvalidArgument,
                     who + "friction must be >= 0 and finite, got " + std::to_string(s.friction));
@@ -131,8 +132,7 @@ void ClothPairCollider::findPairs(const Cloth& from, const Vec3List& fromStart, 
         const Box& b = boxes[e];
         for (auto i = cellCoord(b.lo.x(), invCell); i <= cellCoord(b.hi.x(), invCell); ++i)
             for (auto j = cellCoord(b.lo.y(), invCell); j <= cellCoord(b.hi.y(), invCell); ++j)
-                for (auto k = cellCoord(b.lo.z(), invCell); k <= cellCoord(b.hi.z(), invCell);
-                     ++k)
+                for (auto k = cellCoord(b.lo.z(), invCell); k <= cellCoord(b.hi.z(), invCell); ++k)
                     cells_.emplace_back(cellKey(i, j, k), static_cast<Index>(e));
     }
     std::sort(cells_.begin(), cells_.end());
@@ -145,11 +145,11 @@ void ClothPairCollider::findPairs(const Cloth& from, const Vec3List& fromStart, 
         for (auto i = cellCoord(path.lo.x(), invCell); i <= cellCoord(path.hi.x(), invCell); ++i)
             for (auto j = cellCoord(path.lo.y(), invCell); j <= cellCoord(path.hi.y(), invCell);
                  ++j)
-                for (auto k = cellCoord(path.lo.z(), invCell);
-                     k <= cellCoord(path.hi.z(), invCell); ++k) {
+                for (auto k = cellCoord(path.lo.z(), invCell); k <= cellCoord(path.hi.z(), invCell);
+                     ++k) {
                     const std::uint64_t key = cellKey(i, j, k);
-                    auto it = std::lower_bound(
-                        cells_.begin(), cells_.end(), std::make_pair(key, Index(0)));
+                    auto it = std::lower_bound(cells_.begin(), cells_.end(),
+                                               std::make_pair(key, Index(0)));
                     for (; it != cells_.end() && it->first == key; ++it)
                         if (boxes[it->second].overlaps(path)) near_.push_back(it->second);
                 }
@@ -200,7 +200,8 @@ ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Clot
                         std::to_string(b.particleCount()) + " particles");
     if (!std::isfinite(dt) || !(dt > 0.0))
         throw Error(ErrorCode::InvalidArgument,
-                    "collideCloths: the step must be positive and finite, got " + std::to_string(dt));
+                    "collideCloths: the step must be positive and finite, got " +
+                        std::to_string(dt));
     ClothPairStats stats;
     const bool aAsleep = a.isAsleep(), bAsleep = b.isAsleep();
     if (aAsleep && bAsleep) return stats; // neither moved
@@ -259,8 +260,7 @@ ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Clot
             // The side p started on (of the triangle's plane at the start), the gap now along
             // the normal toward it (the same for every point of the plane): most pairs end
             // here, before the closest point.
-            const Vec3 faceStart =
-                (tStart[t[1]] - tStart[t[0]]).cross(tStart[t[2]] - tStart[t[0]]);
+            const Vec3 faceStart = (tStart[t[1]] - tStart[t[0]]).cross(tStart[t[2]] - tStart[t[0]]);
             double side = (pStart[p] - tStart[t[0]]).dot(faceStart);
             if (side == 0.0) side = (xp[p] - x0).dot(face);
             const Vec3 nrm = side >= 0.0 ? face : Vec3(-face);
@@ -269,11 +269,11 @@ ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Clot
             if (gap < 0.0) {
                 // Crossed: only as deep as p's move relative to the triangle in the step could
                 // have carried it (at most its own move and its corners' largest).
-                const double reach = (xp[p] - pStart[p]).norm() +
-                                     std::max({(x0 - tStart[t[0]]).norm(),
-                                               (x1 - tStart[t[1]]).norm(),
-                                               (x2 - tStart[t[2]]).norm()}) +
-                                     h;
+                const double reach =
+                    (xp[p] - pStart[p]).norm() +
+                    std::max({(x0 - tStart[t[0]]).norm(), (x1 - tStart[t[1]]).norm(),
+                              (x2 - tStart[t[2]]).norm()}) +
+                    h;
                 if (-gap > reach) continue;
             }
             Vec3 bary;
@@ -284,21 +284,21 @@ ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Clot
             const double beside2 = off.squaredNorm() - gap * gap;
             if (beside2 >= h * h || beside2 > gap * gap) continue;
             if (gap < 0.0) {
-                const Vec3 moved = (xp[p] - pStart[p]) - (bary[0] * (x0 - tStart[t[0]]) +
-                                                           bary[1] * (x1 - tStart[t[1]]) +
-                                                           bary[2] * (x2 - tStart[t[2]]));
+                const Vec3 moved = (xp[p] - pStart[p]) -
+                                   (bary[0] * (x0 - tStart[t[0]]) + bary[1] * (x1 - tStart[t[1]]) +
+                                    bary[2] * (x2 - tStart[t[2]]));
                 if (-gap > moved.norm() + h) continue; // never on the other side near it
             }
             const double denom =
                 wp + bary[0] * bary[0] * w0 + bary[1] * bary[1] * w1 + bary[2] * bary[2] * w2;
             if (!(denom > 0.0)) continue;
             ++contacts;
-            const double approach = detail::separateLayers(
-                {&xp[p], &vp[p], wp},
-                {detail::LayerPoint{&xt[t[0]], &vt[t[0]], w0},
-                 detail::LayerPoint{&xt[t[1]], &vt[t[1]], w1},
-                 detail::LayerPoint{&xt[t[2]], &vt[t[2]], w2}},
-                bary, nrm, h - gap, denom, s.friction);
+            const double approach =
+                detail::separateLayers({&xp[p], &vp[p], wp},
+                                       {detail::LayerPoint{&xt[t[0]], &vt[t[0]], w0},
+                                        detail::LayerPoint{&xt[t[1]], &vt[t[1]], w1},
+                                        detail::LayerPoint{&xt[t[2]], &vt[t[2]], w2}},
+                                       bary, nrm, h - gap, denom, s.friction);
             if (wp != 0.0) pMoved = true;
             if (w0 != 0.0 || w1 != 0.0 || w2 != 0.0) tMoved = true;
             if (pAsleep && approach > pWake) pWoken = true;
@@ -307,11 +307,10 @@ ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Clot
         return contacts;
     };
     for (int iter = 0; iter < s.iterations; ++iter) {
-        const std::size_t contacts =
-            pass(ab_, a, aStart, aAsleep, wakeA, movedA, stats.wokeA, b, bStart, bAsleep, wakeB,
-                 movedB, stats.wokeB) +
-            pass(ba_, b, bStart, bAsleep, wakeB, movedB, stats.wokeB, a, aStart, aAsleep, wakeA,
-                 movedA, stats.wokeA);
+        const std::size_t contacts = pass(ab_, a, aStart, aAsleep, wakeA, movedA, stats.wokeA, b,
+                                          bStart, bAsleep, wakeB, movedB, stats.wokeB) +
+                                     pass(ba_, b, bStart, bAsleep, wakeB, movedB, stats.wokeB, a,
+                                          aStart, aAsleep, wakeA, movedA, stats.wokeA);
         stats.contacts += contacts;
         if (contacts == 0) break;
     }

@@ -124,8 +124,7 @@ TEST_CASE("two cloths that meet stay apart and move on together, their momentum 
     CHECK_FALSE(apart.upperAbove());
 }
 
-TEST_CASE("a cloth that crosses another within one step is put back on its side",
-          "[cloth_pair]") {
+TEST_CASE("a cloth that crosses another within one step is put back on its side", "[cloth_pair]") {
     // 30 m/s: the upper sheet moves 0.5 m in the step, ten times the gap, 50 thicknesses.
     const double dt = 1.0 / 60.0;
     Pair pair(0.05, 30.0);

@@ -28,8 +28,7 @@ std::vector<int> sides(const Cloth& p, const Cloth& t) {
             const Vec3 c = closestPointOnTriangle(q, x[tri[0]], x[tri[1]], x[tri[2]], bary);
             if ((q - c).norm() >= nearest) continue;
             nearest = (q - c).norm();
-            gap = (q - c).dot(
-                (x[tri[1]] - x[tri[0]]).cross(x[tri[2]] - x[tri[0]]).normalized());
+            gap = (q - c).dot((x[tri[1]] - x[tri[0]]).cross(x[tri[2]] - x[tri[0]]).normalized());
         }
         out.push_back(std::abs(gap) + 1e-6 < nearest ? 0 : (gap >= 0.0 ? 1 : -1));
     }
@@ -69,7 +68,8 @@ TEST_CASE("a towel dropped on a tablecloth rests on it, and both fall asleep", "
     double lowest = std::numeric_limits<double>::infinity();
     for (int f = 0; f < 360; ++f) {
         table.w.world.stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
-        if (f % 10 == 9) crossed = std::max(crossed, onOtherSide(*table.towel, *table.tablecloth, 1));
+        if (f % 10 == 9)
+            crossed = std::max(crossed, onOtherSide(*table.towel, *table.tablecloth, 1));
     }
     for (const Vec3& x : table.towel->positions())
         lowest = std::min(lowest, x.y());

@@ -56,12 +56,12 @@ class ClothPairCollider {
     void findPairs(const Cloth& from, const Vec3List& fromStart, const Cloth& onto,
                    const Vec3List& ontoStart, double reach,
                    std::vector<std::pair<Index, Index>>& pairs);
-    bool listsHold(const Cloth& a, const Vec3List& aStart, const Cloth& b,
-                   const Vec3List& bStart, double thickness) const;
+    bool listsHold(const Cloth& a, const Vec3List& aStart, const Cloth& b, const Vec3List& bStart,
+                   double thickness) const;
     const Cloth* builtA_ = nullptr; ///< the cloths the lists were built for (compared only)
     const Cloth* builtB_ = nullptr;
-    Vec3List builtAt_[2];       ///< their positions then
-    double builtReach_ = 0.0;   ///< the reach they were built with [m]
+    Vec3List builtAt_[2];                                ///< their positions then
+    double builtReach_ = 0.0;                            ///< the reach they were built with [m]
     std::vector<std::pair<std::uint64_t, Index>> cells_; ///< (cell key, triangle), by key
     std::vector<Index> near_;                            ///< one particle's candidate triangles
     std::vector<std::pair<Index, Index>> ab_, ba_;       ///< pairs of a onto b, of b onto a
