@@ -155,17 +155,30 @@ void ClothPairCollider::findPairs(const Cloth& from, const Vec3List& fromStart, 
                 }
         std::sort(near_.begin(), near_.end());
         near_.erase(std::unique(near_.begin(), near_.end()), near_.end());
-        for (const Index e : near_)
+        // Within the reach of the triangle now, give or take what both moved in the step (the
+        // box test above is looser: a particle over a flat cloth listed a dozen of its
+        // triangles instead of the five or six near it).
+        const double own = (xf[p] - fromStart[p]).norm();
+        for (const Index e : near_) {
+            const Triangle& t = tris[kept[e]];
+            const double moved = own + std::max({(xo[t[0]] - ontoStart[t[0]]).norm(),
+                                                 (xo[t[1]] - ontoStart[t[1]]).norm(),
+                                                 (xo[t[2]] - ontoStart[t[2]]).norm()});
+            Vec3 bary;
+            const Vec3 q = closestPointOnTriangle(xf[p], xo[t[0]], xo[t[1]], xo[t[2]], bary);
+            if ((xf[p] - q).norm() > reach + moved) continue;
             pairs.emplace_back(static_cast<Index>(p), kept[e]);
+        }
     }
 }
 
-// A pair listed is any whose particle and triangle came within the reach of each other in
-// the step the lists were built for (the triangle's box grown by it); since then every
-// particle of both cloths, at the start and at the end of this step, is within `slack` of
-// where it was when they were built. Then along the axis on which a pair not listed was
-// farther apart than the reach, it is still farther than the reach less twice the slack,
-// the thickness, at every point of the straight paths of this step: no contact, no crossing.
+// A pair not listed was farther apart than the reach at the end of the step the lists were
+// built for (by more than both moved in that step, so it came no nearer than the reach then
+// either); since then every particle of both cloths, at the start and at the end of this
+// step, is within `slack` of where it was at that end, and so is every point of a triangle
+// (an average of its corners). So the pair is still farther apart than the reach less twice
+// the slack, the thickness, at every point of the straight paths of this step: no contact,
+// no crossing.
 bool ClothPairCollider::listsHold(const Cloth& a, const Vec3List& aStart, const Cloth& b,
                                   const Vec3List& bStart, double thickness) const {
     if (builtA_ != &a || builtB_ != &b || builtReach_ != kReach * thickness ||
@@ -215,6 +228,16 @@ ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Clot
     if (!listsHold(a, aStart, b, bStart, h)) {
         findPairs(a, aStart, b, bStart, kReach * h, ab_);
         findPairs(b, bStart, a, aStart, kReach * h, ba_);
+        const auto trianglesOf = [](const std::vector<std::pair<Index, Index>>& pairs,
+                                    std::vector<Index>& out) {
+            out.clear();
+            for (const auto& pr : pairs)
+                out.push_back(pr.second);
+            std::sort(out.begin(), out.end());
+            out.erase(std::unique(out.begin(), out.end()), out.end());
+        };
+        trianglesOf(ab_, abTris_);
+        trianglesOf(ba_, baTris_);
         builtA_ = &a;
         builtB_ = &b;
         builtAt_[0] = a.positions();
@@ -233,7 +256,24 @@ ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Clot
     const double wakeA = wake(a.settings().sleep), wakeB = wake(b.settings().sleep);
     bool movedA = false, movedB = false;
     // Particles of `pc` (asleep: no give) against the triangles of `tc`.
-    const auto pass = [&](const std::vector<std::pair<Index, Index>>& pairs, Cloth& pc,
+    // Each pass looks at the triangles' normals (now, once a pass; and at the start) from these
+    // arrays, each triangle once instead of once a pair.
+    const auto normals = [](const std::vector<Index>& listed, const Cloth& tc, const Vec3List& x,
+                            std::vector<Vec3>& out, bool unit) {
+        const auto& tris = tc.topology().triangles();
+        out.resize(tris.size());
+        for (const Index ti : listed) {
+            const Triangle& t = tris[ti];
+            const Vec3 face = (x[t[1]] - x[t[0]]).cross(x[t[2]] - x[t[0]]);
+            const double len = face.norm();
+            out[ti] = !unit ? face : len > 0.0 ? Vec3(face / len) : Vec3(Vec3::Zero());
+        }
+    };
+    normals(abTris_, b, bStart, startFace_[0], false);
+    normals(baTris_, a, aStart, startFace_[1], false);
+    // Particles of `pc` (asleep: no give) against the triangles of `tc`.
+    const auto pass = [&](const std::vector<std::pair<Index, Index>>& pairs,
+                          const std::vector<Index>& listed, int dir, Cloth& pc,
                           const Vec3List& pStart, bool pAsleep, double pWake, bool& pMoved,
                           bool& pWoken, Cloth& tc, const Vec3List& tStart, bool tAsleep,
                           double tWake, bool& tMoved, bool& tWoken) {
@@ -245,6 +285,9 @@ ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Clot
         const std::vector<double>& mp = pc.invMass_;
         const std::vector<double>& mt = tc.invMass_;
         const auto& tris = tc.topology().triangles();
+        normals(listed, tc, xt, unitFace_[dir], true);
+        const std::vector<Vec3>& unitFace = unitFace_[dir];
+        const std::vector<Vec3>& startFace = startFace_[dir];
         for (const auto& [p, ti] : pairs) {
             const Triangle& t = tris[ti];
             const double wp = pAsleep ? 0.0 : mp[p];
@@ -252,17 +295,19 @@ ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Clot
                          w2 = tAsleep ? 0.0 : mt[t[2]];
             if (wp == 0.0 && w0 == 0.0 && w1 == 0.0 && w2 == 0.0) continue;
             ++stats.pairTests;
-            const Vec3 &x0 = xt[t[0]], &x1 = xt[t[1]], &x2 = xt[t[2]];
+            // The side p started on (of the triangle's plane at the start), the gap now along
+            // the normal toward it (the same for every point of the plane): most pairs end
+            // here, before the closest point. The normal is the pass's; the exact one (the
+            // corners may have moved in the pass) for a contact.
+            double side = (pStart[p] - tStart[t[0]]).dot(startFace[ti]);
+            const Vec3& x0 = xt[t[0]];
+            if (side == 0.0) side = (xp[p] - x0).dot(unitFace[ti]);
+            if ((side >= 0.0 ? 1.0 : -1.0) * (xp[p] - x0).dot(unitFace[ti]) >= h) continue;
+            const Vec3 &x1 = xt[t[1]], &x2 = xt[t[2]];
             Vec3 face = (x1 - x0).cross(x2 - x0);
             const double len = face.norm();
             if (!(len > 0.0)) continue;
             face /= len;
-            // The side p started on (of the triangle's plane at the start), the gap now along
-            // the normal toward it (the same for every point of the plane): most pairs end
-            // here, before the closest point.
-            const Vec3 faceStart = (tStart[t[1]] - tStart[t[0]]).cross(tStart[t[2]] - tStart[t[0]]);
-            double side = (pStart[p] - tStart[t[0]]).dot(faceStart);
-            if (side == 0.0) side = (xp[p] - x0).dot(face);
             const Vec3 nrm = side >= 0.0 ? face : Vec3(-face);
             const double gap = (xp[p] - x0).dot(nrm);
             if (gap >= h) continue;
@@ -307,10 +352,11 @@ ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Clot
         return contacts;
     };
     for (int iter = 0; iter < s.iterations; ++iter) {
-        const std::size_t contacts = pass(ab_, a, aStart, aAsleep, wakeA, movedA, stats.wokeA, b,
-                                          bStart, bAsleep, wakeB, movedB, stats.wokeB) +
-                                     pass(ba_, b, bStart, bAsleep, wakeB, movedB, stats.wokeB, a,
-                                          aStart, aAsleep, wakeA, movedA, stats.wokeA);
+        const std::size_t contacts =
+            pass(ab_, abTris_, 0, a, aStart, aAsleep, wakeA, movedA, stats.wokeA, b, bStart,
+                 bAsleep, wakeB, movedB, stats.wokeB) +
+            pass(ba_, baTris_, 1, b, bStart, bAsleep, wakeB, movedB, stats.wokeB, a, aStart,
+                 aAsleep, wakeA, movedA, stats.wokeA);
         stats.contacts += contacts;
         if (contacts == 0) break;
     }

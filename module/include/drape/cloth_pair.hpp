@@ -65,6 +65,10 @@ class ClothPairCollider {
     std::vector<std::pair<std::uint64_t, Index>> cells_; ///< (cell key, triangle), by key
     std::vector<Index> near_;                            ///< one particle's candidate triangles
     std::vector<std::pair<Index, Index>> ab_, ba_;       ///< pairs of a onto b, of b onto a
+    std::vector<Index> abTris_, baTris_;                 ///< the triangles of b in ab_, of a in ba_
+    /// Per triangle of b (index 0) and of a (1), those listed: its normal at the start (not
+    /// unit) and its unit normal in the pass.
+    std::vector<Vec3> startFace_[2], unitFace_[2];
 };
 
 /// One call of a ClothPairCollider (its scratch memory not kept).
