@@ -142,17 +142,28 @@ void ClothPairCollider::findPairs(const Cloth& from, const Vec3List& fromStart, 
         path.add(xf[p]);
         if (!path.overlaps(region)) continue;
         near_.clear();
-        for (auto i = cellCoord(path.lo.x(), invCell); i <= cellCoord(path.hi.x(), invCell); ++i)
-            for (auto j = cellCoord(path.lo.y(), invCell); j <= cellCoord(path.hi.y(), invCell);
-                 ++j)
-                for (auto k = cellCoord(path.lo.z(), invCell); k <= cellCoord(path.hi.z(), invCell);
-                     ++k) {
-                    const std::uint64_t key = cellKey(i, j, k);
-                    auto it = std::lower_bound(cells_.begin(), cells_.end(),
-                                               std::make_pair(key, Index(0)));
-                    for (; it != cells_.end() && it->first == key; ++it)
-                        if (boxes[it->second].overlaps(path)) near_.push_back(it->second);
-                }
+        // The cells of the path's part in the triangles' region; a path across more cells than
+        // there are entries (a particle thrown far in one step) looks at every box instead.
+        Box cellsBox;
+        cellsBox.lo = path.lo.cwiseMax(region.lo);
+        cellsBox.hi = path.hi.cwiseMin(region.hi);
+        if (cellsOf(cellsBox, cell) > static_cast<double>(cells_.size())) {
+            for (std::size_t e = 0; e < boxes.size(); ++e)
+                if (boxes[e].overlaps(path)) near_.push_back(static_cast<Index>(e));
+        } else {
+            for (auto i = cellCoord(cellsBox.lo.x(), invCell);
+                 i <= cellCoord(cellsBox.hi.x(), invCell); ++i)
+                for (auto j = cellCoord(cellsBox.lo.y(), invCell);
+                     j <= cellCoord(cellsBox.hi.y(), invCell); ++j)
+                    for (auto k = cellCoord(cellsBox.lo.z(), invCell);
+                         k <= cellCoord(cellsBox.hi.z(), invCell); ++k) {
+                        const std::uint64_t key = cellKey(i, j, k);
+                        auto it = std::lower_bound(cells_.begin(), cells_.end(),
+                                                   std::make_pair(key, Index(0)));
+                        for (; it != cells_.end() && it->first == key; ++it)
+                            if (boxes[it->second].overlaps(path)) near_.push_back(it->second);
+                    }
+        }
         std::sort(near_.begin(), near_.end());
         near_.erase(std::unique(near_.begin(), near_.end()), near_.end());
         // Within the reach of the triangle now, give or take what both moved in the step (the

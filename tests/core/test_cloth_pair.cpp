@@ -175,6 +175,30 @@ TEST_CASE("a sleeping cloth holds what rests on it and wakes for what hits it", 
     }
 }
 
+TEST_CASE("a cloth that came a kilometre in one step is still caught, without a search of every "
+          "cell on its way",
+          "[cloth_pair]") {
+    // The upper sheet's particles came from 1 km away (up and to the side) to 0.5 m below the
+    // lower sheet: a path whose box holds 10^13 grid cells, which the search must not walk.
+    Pair pair(-0.5, 0.0);
+    for (Index i = 0; i < pair.lower->particleCount(); ++i)
+        pair.lower->pin(i); // held: the upper sheet alone is put back
+    Vec3List upperStart = pair.upper->positions();
+    for (Vec3& x : upperStart)
+        x += Vec3(1000.0, 1000.5, 1000.0);
+    const Vec3List lowerStart = pair.lower->positions();
+    const ClothPairStats st = collideCloths(*pair.lower, lowerStart, *pair.upper, upperStart,
+                                            ClothPairSettings{}, 1.0 / 60.0);
+    CHECK(st.contacts > 0);
+    // On the side it came from, the thickness above the held sheet (a little more where the
+    // pass also lifted a triangle of it off a held particle below).
+    const double h = ClothPairSettings{}.thickness;
+    for (const Vec3& x : pair.upper->positions()) {
+        CHECK(x.y() >= h * (1.0 - 1e-9));
+        CHECK(x.y() <= 1.2 * h);
+    }
+}
+
 TEST_CASE("collideCloths refuses what it cannot do, by name", "[cloth_pair][errors]") {
     Pair pair(0.05, 1.0);
     const Vec3List lower = pair.lower->positions(), upper = pair.upper->positions();
