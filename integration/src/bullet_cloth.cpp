@@ -537,9 +537,9 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
     }
 
     /// Advances group g: a cloth on its own as BulletCloth::Impl::advance; the cloths of a
-    /// larger group take the same number of cloth steps (the most any of them needs), and
-    /// after each, every two of them that meet are kept apart (drape::collideCloths, their
-    /// positions before that cloth step as its start).
+    /// larger group take the same number of cloth steps (the most any of them needs), one after
+    /// the other, and between them every two that meet and may have come nearer are kept apart
+    /// (drape::collideCloths, from their positions when they last were).
     void advanceGroup(const std::vector<Impl*>& list, std::size_t g) {
         const std::size_t first = groupStart_[g], last = groupStart_[g + 1];
         const auto guarded = [&](std::size_t k, auto&& f) {
