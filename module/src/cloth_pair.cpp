@@ -310,9 +310,12 @@ ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Clot
             // the normal toward it (the same for every point of the plane): most pairs end
             // here, before the closest point. The normal is the pass's; the exact one (the
             // corners may have moved in the pass) for a contact.
-            double side = (pStart[p] - tStart[t[0]]).dot(startFace[ti]);
+            // A particle that started in the triangle's plane (within a thousandth of the
+            // thickness) has no side: two cloths lying in one plane, overlapping at their
+            // edges (two curtain panels meeting), are left to pass in it until one leaves it.
+            const double side = (pStart[p] - tStart[t[0]]).dot(startFace[ti]);
+            if (std::abs(side) <= 1e-3 * h * startFace[ti].norm()) continue;
             const Vec3& x0 = xt[t[0]];
-            if (side == 0.0) side = (xp[p] - x0).dot(unitFace[ti]);
             if ((side >= 0.0 ? 1.0 : -1.0) * (xp[p] - x0).dot(unitFace[ti]) >= h) continue;
             const Vec3 &x1 = xt[t[1]], &x2 = xt[t[2]];
             Vec3 face = (x1 - x0).cross(x2 - x0);
@@ -336,9 +339,12 @@ ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Clot
             const Vec3 off = xp[p] - closestPointOnTriangle(xp[p], x0, x1, x2, bary);
             // Beside the triangle rather than over it: the nearest point on its rim, and the
             // particle no farther off the plane than it is beside the rim (a cloth lying next
-            // to the other in its plane, their edges a few millimetres apart, is no contact).
-            const double beside2 = off.squaredNorm() - gap * gap;
-            if (beside2 >= h * h || beside2 > gap * gap) continue;
+            // to the other in its plane, their edges a few millimetres apart or on each other
+            // -- two panels of a curtain meeting -- is no contact).
+            if (bary.minCoeff() <= 0.0) { // nearest on the rim
+                const double beside2 = off.squaredNorm() - gap * gap;
+                if (beside2 >= h * h || beside2 >= gap * gap) continue;
+            }
             if (gap < 0.0) {
                 const Vec3 moved = (xp[p] - pStart[p]) -
                                    (bary[0] * (x0 - tStart[t[0]]) + bary[1] * (x1 - tStart[t[1]]) +
@@ -348,13 +354,15 @@ ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Clot
             const double denom =
                 wp + bary[0] * bary[0] * w0 + bary[1] * bary[1] * w1 + bary[2] * bary[2] * w2;
             if (!(denom > 0.0)) continue;
+            const detail::LayerPoint particle{&xp[p], &vp[p], wp};
+            const std::array<detail::LayerPoint, 3> corners = {
+                detail::LayerPoint{&xt[t[0]], &vt[t[0]], w0},
+                detail::LayerPoint{&xt[t[1]], &vt[t[1]], w1},
+                detail::LayerPoint{&xt[t[2]], &vt[t[2]], w2}};
+            if (detail::heldFast(particle, corners, bary, denom)) continue;
             ++contacts;
             const double approach =
-                detail::separateLayers({&xp[p], &vp[p], wp},
-                                       {detail::LayerPoint{&xt[t[0]], &vt[t[0]], w0},
-                                        detail::LayerPoint{&xt[t[1]], &vt[t[1]], w1},
-                                        detail::LayerPoint{&xt[t[2]], &vt[t[2]], w2}},
-                                       bary, nrm, h - gap, denom, s.friction);
+                detail::separateLayers(particle, corners, bary, nrm, h - gap, denom, s.friction);
             if (wp != 0.0) pMoved = true;
             if (w0 != 0.0 || w1 != 0.0 || w2 != 0.0) tMoved = true;
             if (pAsleep && approach > pWake) pWoken = true;

@@ -18,6 +18,18 @@ struct LayerPoint {
     double w;
 };
 
+/// Whether a contact is held fast: the points that can move carry so small a share of the
+/// contact point (a free corner next to held ones: its barycentric weight small) that moving
+/// the contact point by d would move one of them by more than four times d. Such a contact is
+/// left alone (as between held points): the linearised projection threw the free corner of a
+/// triangle two of whose corners were held by violation / weight (1e14 m once), and capped at
+/// the violation it pushed the corner again in every pass.
+inline bool heldFast(const LayerPoint& p, const std::array<LayerPoint, 3>& c, const Vec3& bary,
+                     double denom) {
+    const double most = std::max({p.w, bary[0] * c[0].w, bary[1] * c[1].w, bary[2] * c[2].w});
+    return most > 4.0 * denom;
+}
+
 /// Moves particle `p` and the triangle's corners `c` apart along the unit normal `nrm` (toward
 /// p's side) by `violation` (thickness - gap > 0), weighted by inverse mass and the closest
 /// point's barycentric weights `bary`, `denom` = w_p + sum bary_k^2 w_k > 0: the linearised
@@ -27,7 +39,14 @@ struct LayerPoint {
 inline double separateLayers(const LayerPoint& p, const std::array<LayerPoint, 3>& c,
                              const Vec3& bary, const Vec3& nrm, double violation, double denom,
                              double friction) {
-    const double lambda = violation / denom;
+    // The linearised projection moves corner k by bary_k w_k lambda, up to violation / bary_k
+    // when the other points are held: a corner with a small share of the contact point next to
+    // a held one was thrown 1e14 m (two curtains pinned along their tops, their edges meeting).
+    // No point moves, or changes its velocity, by more than the contact asks of the contact
+    // point itself; where nothing is held the cap is never reached (same result).
+    const double most = std::max({p.w, bary[0] * c[0].w, bary[1] * c[1].w, bary[2] * c[2].w});
+    double lambda = violation / denom;
+    if (most * lambda > violation) lambda = violation / most;
     *p.x += (p.w * lambda) * nrm;
     for (int k = 0; k < 3; ++k)
         *c[k].x -= (bary[k] * c[k].w * lambda) * nrm;
@@ -35,12 +54,14 @@ inline double separateLayers(const LayerPoint& p, const std::array<LayerPoint, 3
     const Vec3 rel = *p.v - vTri;
     const double vn = rel.dot(nrm);
     if (!(vn < 0.0)) return 0.0;
-    const double jn = -vn / denom;
+    double jn = -vn / denom;
+    if (most * jn > -vn) jn = -vn / most;
     Vec3 dv = jn * nrm;
     const Vec3 vt = rel - vn * nrm;
     const double vtLen = vt.norm();
     if (vtLen > 0.0 && friction > 0.0) {
-        const double jt = std::min(vtLen / denom, friction * jn);
+        double jt = std::min(vtLen / denom, friction * jn);
+        if (most * jt > vtLen) jt = vtLen / most;
         dv -= (jt / vtLen) * vt;
     }
     *p.v += p.w * dv;

@@ -235,12 +235,13 @@ SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,
                 const double denom =
                     wp + bary[0] * bary[0] * w0 + bary[1] * bary[1] * w1 + bary[2] * bary[2] * w2;
                 if (!(denom > 0.0)) continue;
+                const LayerPoint particle{&x[p], &v[p], wp};
+                const std::array<LayerPoint, 3> corners = {LayerPoint{&x[t[0]], &v[t[0]], w0},
+                                                           LayerPoint{&x[t[1]], &v[t[1]], w1},
+                                                           LayerPoint{&x[t[2]], &v[t[2]], w2}};
+                if (heldFast(particle, corners, bary, denom)) continue;
                 ++contactsThisPass;
-                separateLayers({&x[p], &v[p], wp},
-                               {LayerPoint{&x[t[0]], &v[t[0]], w0},
-                                LayerPoint{&x[t[1]], &v[t[1]], w1},
-                                LayerPoint{&x[t[2]], &v[t[2]], w2}},
-                               bary, nrm, violation, denom, friction);
+                separateLayers(particle, corners, bary, nrm, violation, denom, friction);
             }
         }
         counts.contacts += contactsThisPass;
