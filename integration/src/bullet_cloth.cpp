@@ -705,6 +705,16 @@ void BulletCloth::Impl::leaveStepper(bool worldAlive) {
         std::lock_guard<std::mutex> guard(steppers().lock);
         auto& cs = stepper->cloths;
         cs.erase(std::remove(cs.begin(), cs.end(), this), cs.end());
+        // A cloth asleep on this one (its proxy's box meeting this one's) would stay in the
+        // air: it wakes, as for a body that leaves. (Not from inside a step, where the others
+        // may be stepping on other threads; a cloth removed there wakes no one.)
+        if (worldAlive && !steppingIn && settings.collideWithCloths)
+            for (Impl* other : cs) {
+                if (!other->settings.collideWithCloths || !other->cloth->isAsleep()) continue;
+                if (((proxy.min().array() <= other->proxy.max().array()).all() &&
+                     (other->proxy.min().array() <= proxy.max().array()).all()))
+                    other->cloth->wake();
+            }
         if (cs.empty() && stepper->inWorld) {
             if (worldAlive) world->removeAction(stepper.get());
             stepper->inWorld = false;

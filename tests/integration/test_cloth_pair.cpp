@@ -212,3 +212,31 @@ TEST_CASE("two curtain panels hung edge to edge, their edge particles on each ot
     CAPTURE(worst);
     CHECK(worst < 1.0);
 }
+
+TEST_CASE("a towel asleep on a tablecloth wakes and falls to the table when the tablecloth is "
+          "removed",
+          "[cloth_pair][sleep]") {
+    Table table{bullet::BulletClothSettings{}};
+    for (int f = 0; f < 360; ++f)
+        table.w.world.stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
+    REQUIRE(table.towel->isAsleep());
+    const auto lowestOf = [](const Cloth& c) {
+        double lowest = std::numeric_limits<double>::infinity();
+        for (const Vec3& x : c.positions())
+            lowest = std::min(lowest, x.y());
+        return lowest;
+    };
+    double clothAt = -std::numeric_limits<double>::infinity(); // its top, over the table
+    for (const Vec3& x : table.tablecloth->positions())
+        clothAt = std::max(clothAt, x.y());
+    const double onCloth = lowestOf(*table.towel);
+    bullet::removeCloth(*table.clothHandle);
+    CHECK_FALSE(table.towel->isAsleep());
+    for (int f = 0; f < 120; ++f)
+        table.w.world.stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
+    // On the table now, where the tablecloth lay (the table's contact thickness above it),
+    // not the cloths' thickness higher.
+    CAPTURE(onCloth, clothAt);
+    CHECK(lowestOf(*table.towel) == Approx(clothAt).margin(1e-3));
+    CHECK(lowestOf(*table.towel) < onCloth - 0.003);
+}
