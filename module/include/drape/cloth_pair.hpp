@@ -32,11 +32,14 @@ struct ClothPairStats {
 /// triangle only: an edge of one cloth can pass an edge of the other where no particle is near
 /// a triangle (two thin strips crossed), so keep the thickness near the mesh spacing. Moves can
 /// stretch springs past the strain limiter's bound; the cloths' next steps bring them back.
-/// Call it after every step both cloths take, with their positions before it: the shorter the
-/// step, the faster the cloths it holds apart (two free sheets, one thrown at the other, stay
-/// apart at 2 m/s with one step a 60 Hz frame, and one that crossed the other at 30 m/s within a
-/// frame is put back with the steps of Cloth::substepsFor; a net pinned round its edges in a
-/// Bullet world holds a cloth thrown into it at 16 m/s). A collider
+/// Call it after every step both cloths take, with their positions before it, and take short
+/// steps: NOT once after Cloth::step(1/60), whose automatic sub-steps (11-22 at 60 Hz with the
+/// defaults) happen inside it; step both with Cloth::step(dt / n), n = the larger
+/// Cloth::substepsFor(dt) of the two, and call it after each. Once a frame a towel sinks
+/// through a net within half a second; after each of those steps it stays on it. (Two free
+/// sheets, one thrown at the other, stay apart at 2 m/s with one step a frame; one that crossed
+/// the other at 30 m/s within a frame is put back with the sub-steps; drape::bullet does this
+/// for the cloths of a world.) A collider
 /// keeps its pair lists for the next call on the same two cloths while they hold.
 /// Deterministic (pairs in the order of particles, then triangles). Throws drape::Error
 /// (InvalidArgument) for a start of the wrong size, a cloth paired with itself (self-collision
