@@ -291,6 +291,7 @@ struct BulletCloth::Impl {
     /// The positions when the cloth was last kept apart from the others it may meet in this
     /// Bullet sub-step (BulletClothSettings::collideWithCloths).
     Vec3List pairStart;
+    bool pairStartValid = false; ///< pairStart is from the last Bullet sub-step's group
     /// Where the cloth can get in this Bullet sub-step: its proxy's box and its particles'
     /// sweep at their speeds, grown by the contact reach (gatherBodies).
     Vec3 reachLo = Vec3::Zero(), reachHi = Vec3::Zero();
@@ -507,6 +508,8 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
         std::vector<std::size_t> fill(groupStart_.begin(), groupStart_.end() - 1);
         for (std::size_t k = 0; k < n; ++k)
             members_[fill[groupOf_[k]]++] = k;
+        for (std::size_t k = 0; k < n; ++k)
+            if (count[groupOf_[k]] == 1) list[k]->pairStartValid = false;
         // The colliders of the pairs that may meet, kept from the last sub-step (their pair
         // lists) while the two keep meeting.
         std::map<std::pair<const Impl*, const Impl*>, ClothPairCollider> kept;
@@ -589,27 +592,15 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
         // step), and after the last step: a cloth at rest on another once per Bullet sub-step,
         // a cloth falling onto it at 2 m/s every other step. (Half the thickness let a pile of
         // four sheets jitter awake: 32 ms frames instead of asleep after 3 s.)
+        // Where each cloth was when the group was last kept apart: from the last Bullet
+        // sub-step if it was in a group then, else where it is now.
         for (std::size_t m = first; m < last; ++m)
-            guarded(members_[m], [&](Impl& c) { c.pairStart = c.cloth->positions(); });
-        std::vector<double> speed(last - first, 0.0);
-        double travel = 0.0;
-        for (int s = 0; s < steps; ++s) {
-            double h = 0.0;
-            for (std::size_t m = first; m < last; ++m)
-                guarded(members_[m], [&](Impl& c) {
-                    if (done[m - first]) return;
-                    done[m - first] = !c.advanceOne();
-                    speed[m - first] = done[m - first] ? 0.0 : fastestParticle(*c.cloth);
-                    h = c.stepH;
-                });
-            double closing = 0.0, thinnest = std::numeric_limits<double>::infinity();
-            for (const Near& pr : pairs) {
-                closing = std::max(closing, speed[pr.m] + speed[pr.o]);
-                thinnest = std::min(thinnest, pr.both.thickness);
-            }
-            travel += closing * h;
-            if (s + 1 < steps && travel + closing * h < 0.25 * thinnest) continue;
-            travel = 0.0;
+            guarded(members_[m], [&](Impl& c) {
+                if (!c.pairStartValid || c.pairStart.size() != c.cloth->particleCount())
+                    c.pairStart = c.cloth->positions();
+                c.pairStartValid = true;
+            });
+        const auto keepApart = [&]() {
             for (const Near& pr : pairs) {
                 const std::size_t i = members_[first + pr.m], j = members_[first + pr.o];
                 if (done[pr.m] || done[pr.o] || !stepping(list, i) || !stepping(list, j)) continue;
@@ -631,6 +622,32 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
             }
             for (std::size_t m = first; m < last; ++m)
                 guarded(members_[m], [&](Impl& c) { c.pairStart = c.cloth->positions(); });
+        };
+        double thinnest = std::numeric_limits<double>::infinity();
+        for (const Near& pr : pairs)
+            thinnest = std::min(thinnest, pr.both.thickness);
+        std::vector<double> speed(last - first, 0.0);
+        double travel = 0.0, closing = 0.0, h = 0.0;
+        for (int s = 0; s < steps; ++s) {
+            // Before the first step (what the last step of the Bullet sub-step before did) and
+            // before any step by which the pairs may have closed a quarter of the thickness:
+            // each cloth step's limiter then follows the pass, so a frame ends within the
+            // strain bound.
+            if (s == 0 || travel + closing * h >= 0.25 * thinnest) {
+                keepApart();
+                travel = 0.0;
+            }
+            for (std::size_t m = first; m < last; ++m)
+                guarded(members_[m], [&](Impl& c) {
+                    if (done[m - first]) return;
+                    done[m - first] = !c.advanceOne();
+                    speed[m - first] = done[m - first] ? 0.0 : fastestParticle(*c.cloth);
+                    h = c.stepH;
+                });
+            closing = 0.0;
+            for (const Near& pr : pairs)
+                closing = std::max(closing, speed[pr.m] + speed[pr.o]);
+            travel += closing * h;
         }
         for (std::size_t m = first; m < last; ++m)
             guarded(members_[m], [&](Impl& c) {
