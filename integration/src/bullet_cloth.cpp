@@ -544,7 +544,7 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
     /// the other, and between them every two that meet and may have come nearer are kept apart
     /// (drape::collideCloths, from their positions when they last were).
     void advanceGroup(const std::vector<Impl*>& list, std::size_t g) {
-        const std::size_t first = groupStart_[g], last = groupStart_[g + 1];
+        const std::size_t first = groupStart_[g], past = groupStart_[g + 1];
         const auto guarded = [&](std::size_t k, auto&& f) {
             if (!stepping(list, k)) return;
             try {
@@ -553,19 +553,19 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
                 errors_[k] = std::current_exception();
             }
         };
-        if (last - first == 1) {
+        if (past - first == 1) {
             guarded(members_[first], [](Impl& c) { c.advance(); });
             return;
         }
         int steps = 1;
-        for (std::size_t m = first; m < last; ++m)
+        for (std::size_t m = first; m < past; ++m)
             guarded(members_[m], [&](Impl& c) { steps = std::max(steps, c.stepSubsteps); });
-        for (std::size_t m = first; m < last; ++m)
+        for (std::size_t m = first; m < past; ++m)
             guarded(members_[m], [&](Impl& c) {
                 c.stepSubsteps = c.last.substeps = steps;
                 c.stepH = c.stepDt / steps;
             });
-        std::vector<unsigned char> done(last - first, 0);
+        std::vector<unsigned char> done(past - first, 0);
         // The pairs of the group that meet and whose reach in the sub-step overlaps (indices
         // into the group), each with its thickness and friction.
         struct Near {
@@ -573,8 +573,8 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
             ClothPairSettings both;
         };
         std::vector<Near> pairs;
-        for (std::size_t m = first; m < last; ++m)
-            for (std::size_t o = m + 1; o < last; ++o) {
+        for (std::size_t m = first; m < past; ++m)
+            for (std::size_t o = m + 1; o < past; ++o) {
                 const std::size_t i = members_[m], j = members_[o];
                 if (!meet(list, i, j) || (boxLo_[i].array() > boxHi_[j].array()).any() ||
                     (boxLo_[j].array() > boxHi_[i].array()).any())
@@ -589,12 +589,12 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
             }
         // The pairs are kept apart whenever their fastest particles may have closed a quarter
         // of their thickness since the last time (the largest sum of two speeds after each
-        // step), and after the last step: a cloth at rest on another once per Bullet sub-step,
-        // a cloth falling onto it at 2 m/s every other step. (Half the thickness let a pile of
-        // four sheets jitter awake: 32 ms frames instead of asleep after 3 s.)
+        // step), and at the sub-step's start: a cloth at rest on another once per Bullet
+        // sub-step, a cloth falling onto it at 2 m/s every other step. (Half the thickness let
+        // a pile of four sheets jitter awake: 32 ms frames instead of asleep after 3 s.)
         // Where each cloth was when the group was last kept apart: from the last Bullet
         // sub-step if it was in a group then, else where it is now.
-        for (std::size_t m = first; m < last; ++m)
+        for (std::size_t m = first; m < past; ++m)
             guarded(members_[m], [&](Impl& c) {
                 if (!c.pairStartValid || c.pairStart.size() != c.cloth->particleCount())
                     c.pairStart = c.cloth->positions();
@@ -620,13 +620,13 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
                                                        std::chrono::steady_clock::now() - start)
                                                        .count());
             }
-            for (std::size_t m = first; m < last; ++m)
+            for (std::size_t m = first; m < past; ++m)
                 guarded(members_[m], [&](Impl& c) { c.pairStart = c.cloth->positions(); });
         };
         double thinnest = std::numeric_limits<double>::infinity();
         for (const Near& pr : pairs)
             thinnest = std::min(thinnest, pr.both.thickness);
-        std::vector<double> speed(last - first, 0.0);
+        std::vector<double> speed(past - first, 0.0);
         double travel = 0.0, closing = 0.0, h = 0.0;
         for (int s = 0; s < steps; ++s) {
             // Before the first step (what the last step of the Bullet sub-step before did) and
@@ -637,7 +637,7 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
                 keepApart();
                 travel = 0.0;
             }
-            for (std::size_t m = first; m < last; ++m)
+            for (std::size_t m = first; m < past; ++m)
                 guarded(members_[m], [&](Impl& c) {
                     if (done[m - first]) return;
                     done[m - first] = !c.advanceOne();
@@ -649,7 +649,7 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
                 closing = std::max(closing, speed[pr.m] + speed[pr.o]);
             travel += closing * h;
         }
-        for (std::size_t m = first; m < last; ++m)
+        for (std::size_t m = first; m < past; ++m)
             guarded(members_[m], [&](Impl& c) {
                 if (!done[m - first]) c.advanceEnd();
             });
