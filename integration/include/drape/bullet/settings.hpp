@@ -93,7 +93,8 @@ struct BulletClothSettings {
     /// fixedTimeStep / substeps while the rigid bodies keep the world's step. Not given (the
     /// default): Cloth::substepsFor, chosen in every sub-step: the fewest cloth steps within
     /// ClothSettings::substeps.fraction (90 %) of the cloth's stability limit, or 1 if the
-    /// cloth's automatic sub-steps are off.
+    /// cloth's automatic sub-steps are off. Cloths that may meet in a sub-step
+    /// (collideWithCloths) take the most that any of them asks for.
     std::optional<int> substeps;
     /// The cloth's exact time step [s] (> 0). Bullet hands its sub-step to the cloth as a
     /// btScalar (a float in Debian's build): 1/60 s arrives as 0.016666668. When the sub-step
