@@ -224,8 +224,8 @@ struct BulletCloth::Impl {
     /// Timer slot in the cloth's PhaseTimers of the handle's work around the cloth's steps
     /// (body snapshot, proxy, impulses on bodies).
     std::size_t slotBodies = 0;
-    std::size_t slotPairs =
-        0; ///< "bullet_cloth_pairs": the collisions with other cloths it is first of
+    /// "bullet_cloth_pairs": the collisions with other cloths this cloth is the first of.
+    std::size_t slotPairs = 0;
 
     /// One Bullet sub-step of dt [s]: prepare, advance, finish.
     void step(double dt);
