@@ -393,7 +393,8 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
         for (Impl* c : list)
             if (c->inWorld) lendExecutor(*c);
         const std::size_t groups = groupStart_.size() - 1;
-        if (worldThreads > 1 && groups > 1) {
+        parallelMembers_ = worldThreads > 1;
+        if (worldThreads > 1 && (groups > 1 || groups < n)) {
             executor_->arena().execute([&] {
                 tbb::parallel_for(tbb::blocked_range<std::size_t>(0, groups, 1),
                                   [&](const tbb::blocked_range<std::size_t>& r) {
@@ -637,13 +638,27 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
                 keepApart();
                 travel = 0.0;
             }
-            for (std::size_t m = first; m < past; ++m)
+            // Between passes the cloths of the group do not touch each other's state: on the
+            // world's threads they take their step in parallel (each the same on any count).
+            const auto stepOne = [&](std::size_t m) {
                 guarded(members_[m], [&](Impl& c) {
                     if (done[m - first]) return;
                     done[m - first] = !c.advanceOne();
                     speed[m - first] = done[m - first] ? 0.0 : fastestParticle(*c.cloth);
-                    h = c.stepH;
                 });
+            };
+            if (parallelMembers_) {
+                tbb::parallel_for(tbb::blocked_range<std::size_t>(first, past, 1),
+                                  [&](const tbb::blocked_range<std::size_t>& r) {
+                                      for (std::size_t m = r.begin(); m != r.end(); ++m)
+                                          stepOne(m);
+                                  });
+            } else {
+                for (std::size_t m = first; m < past; ++m)
+                    stepOne(m);
+            }
+            for (std::size_t m = first; m < past; ++m)
+                guarded(members_[m], [&](Impl& c) { h = std::max(h, c.stepH); });
             closing = 0.0;
             for (const Near& pr : pairs)
                 closing = std::max(closing, speed[pr.m] + speed[pr.o]);
@@ -657,8 +672,9 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
 
     /// Per pair of cloths that may meet in this sub-step (formGroups; read by the groups' tasks).
     std::map<std::pair<const Impl*, const Impl*>, ClothPairCollider> colliders_;
-    std::vector<std::size_t> root_;       ///< formGroups' union-find
-    std::vector<std::size_t> groupOf_;    ///< per cloth of the step: its group
+    bool parallelMembers_ = false;     ///< a group's cloths step in parallel (the world's threads)
+    std::vector<std::size_t> root_;    ///< formGroups' union-find
+    std::vector<std::size_t> groupOf_; ///< per cloth of the step: its group
     std::vector<std::size_t> groupStart_; ///< group g: members_[groupStart_[g], ...[g + 1])
     std::vector<std::size_t> members_;    ///< the cloths of the step by group, in order
     std::vector<Vec3> boxLo_, boxHi_;     ///< per cloth: its box grown by its reach in the sub-step
