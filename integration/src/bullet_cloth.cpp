@@ -288,8 +288,9 @@ struct BulletCloth::Impl {
     void nextBounds(double dt, Vec3& lo, Vec3& hi) const;
     void updateBounds(double dt);
     Vec3 nextLo = Vec3::Zero(), nextHi = Vec3::Zero(); ///< advance's nextBounds, for finish
-    /// The positions when the cloth was last kept apart from the others it may meet in this
-    /// Bullet sub-step (BulletClothSettings::collideWithCloths).
+    /// The positions when the cloth was last kept apart from the cloths of its group
+    /// (BulletClothSettings::collideWithCloths), kept from one Bullet sub-step to the next
+    /// while it stays in a group.
     Vec3List pairStart;
     bool pairStartValid = false; ///< pairStart is from the last Bullet sub-step's group
     /// Where the cloth can get in this Bullet sub-step: its proxy's box and its particles'
@@ -561,10 +562,12 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
         int steps = 1;
         for (std::size_t m = first; m < past; ++m)
             guarded(members_[m], [&](Impl& c) { steps = std::max(steps, c.stepSubsteps); });
+        double h = 0.0; // the cloth step [s]
         for (std::size_t m = first; m < past; ++m)
             guarded(members_[m], [&](Impl& c) {
                 c.stepSubsteps = c.last.substeps = steps;
                 c.stepH = c.stepDt / steps;
+                h = std::max(h, c.stepH);
             });
         std::vector<unsigned char> done(past - first, 0);
         // The pairs of the group that meet and whose reach in the sub-step overlaps (indices
@@ -588,11 +591,6 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
                 both.iterations = std::max(sa.iterations, sb.iterations);
                 pairs.push_back({m - first, o - first, both});
             }
-        // The pairs are kept apart whenever their fastest particles may have closed a quarter
-        // of their thickness since the last time (the largest sum of two speeds after each
-        // step), and at the sub-step's start: a cloth at rest on another once per Bullet
-        // sub-step, a cloth falling onto it at 2 m/s every other step. (Half the thickness let
-        // a pile of four sheets jitter awake: 32 ms frames instead of asleep after 3 s.)
         // Where each cloth was when the group was last kept apart: from the last Bullet
         // sub-step if it was in a group then, else where it is now.
         for (std::size_t m = first; m < past; ++m)
@@ -628,25 +626,28 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
         for (const Near& pr : pairs)
             thinnest = std::min(thinnest, pr.both.thickness);
         std::vector<double> speed(past - first, 0.0);
-        double travel = 0.0, closing = 0.0, h = 0.0;
+        // Between passes the cloths of the group do not touch each other's state: on the
+        // world's threads they take their step in parallel (each the same on any count).
+        const auto stepOne = [&](std::size_t m) {
+            guarded(members_[m], [&](Impl& c) {
+                if (done[m - first]) return;
+                done[m - first] = !c.advanceOne();
+                speed[m - first] = done[m - first] ? 0.0 : fastestParticle(*c.cloth);
+            });
+        };
+        double travel = 0.0, closing = 0.0;
         for (int s = 0; s < steps; ++s) {
-            // Before the first step (what the last step of the Bullet sub-step before did) and
-            // before any step by which the pairs may have closed a quarter of the thickness:
-            // each cloth step's limiter then follows the pass, so a frame ends within the
-            // strain bound.
+            // The pairs are kept apart before the first step (what the last step of the Bullet
+            // sub-step before did) and before any step by which their fastest particles may
+            // have closed a quarter of their thickness since the last time (the largest sum of
+            // two speeds): a cloth at rest on another once per Bullet sub-step, a cloth falling
+            // onto it at 2 m/s every other step. Each cloth step's limiter follows the pass, so
+            // a frame ends within the strain bound. (Half the thickness let a pile of four
+            // sheets jitter awake: 32 ms frames instead of asleep after 3 s.)
             if (s == 0 || travel + closing * h >= 0.25 * thinnest) {
                 keepApart();
                 travel = 0.0;
             }
-            // Between passes the cloths of the group do not touch each other's state: on the
-            // world's threads they take their step in parallel (each the same on any count).
-            const auto stepOne = [&](std::size_t m) {
-                guarded(members_[m], [&](Impl& c) {
-                    if (done[m - first]) return;
-                    done[m - first] = !c.advanceOne();
-                    speed[m - first] = done[m - first] ? 0.0 : fastestParticle(*c.cloth);
-                });
-            };
             if (parallelMembers_) {
                 tbb::parallel_for(tbb::blocked_range<std::size_t>(first, past, 1),
                                   [&](const tbb::blocked_range<std::size_t>& r) {
@@ -657,8 +658,6 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
                 for (std::size_t m = first; m < past; ++m)
                     stepOne(m);
             }
-            for (std::size_t m = first; m < past; ++m)
-                guarded(members_[m], [&](Impl& c) { h = std::max(h, c.stepH); });
             closing = 0.0;
             for (const Near& pr : pairs)
                 closing = std::max(closing, speed[pr.m] + speed[pr.o]);

@@ -30,6 +30,9 @@
 namespace drape {
 namespace {
 
+using detail::cellCoord;
+using detail::cellKey;
+
 struct Box {
     Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
     Vec3 hi = Vec3::Constant(-std::numeric_limits<double>::infinity());
@@ -60,16 +63,6 @@ Box triangleBox(const Triangle& t, const Vec3List& start, const Vec3List& end, d
     b.lo.array() -= grow;
     b.hi.array() += grow;
     return b;
-}
-
-std::int64_t cellCoord(double v, double invCell) {
-    return static_cast<std::int64_t>(std::floor(v * invCell));
-}
-
-std::uint64_t cellKey(std::int64_t i, std::int64_t j, std::int64_t k) {
-    const auto ui = static_cast<std::uint64_t>(i), uj = static_cast<std::uint64_t>(j),
-               uk = static_cast<std::uint64_t>(k);
-    return (ui * 73856093ull) ^ (uj * 19349663ull) ^ (uk * 83492791ull);
 }
 
 /// Cells a box covers along each axis at cell size `cell` (as a double: no overflow).

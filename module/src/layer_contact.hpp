@@ -1,14 +1,29 @@
 // layer_contact.hpp (private to the core): one particle kept off one triangle of cloth, the
 // response that self-collision (self_collision.cpp) and the collision of two cloths
-// (cloth_pair.cpp) share.
+// (cloth_pair.cpp) share, and the grid hash both broadphases use.
 #pragma once
 
 #include "drape/forces.hpp"
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <cstdint>
 
 namespace drape::detail {
+
+/// The integer coordinate of a uniform grid's cell along one axis (invCell = 1 / cell size).
+inline std::int64_t cellCoord(double v, double invCell) {
+    return static_cast<std::int64_t>(std::floor(v * invCell));
+}
+
+/// A grid cell's hash key: unequal cells may share a key, which only adds candidates the exact
+/// test rejects.
+inline std::uint64_t cellKey(std::int64_t i, std::int64_t j, std::int64_t k) {
+    const auto ui = static_cast<std::uint64_t>(i), uj = static_cast<std::uint64_t>(j),
+               uk = static_cast<std::uint64_t>(k);
+    return (ui * 73856093ull) ^ (uj * 19349663ull) ^ (uk * 83492791ull);
+}
 
 /// A particle or a triangle's corner: its position, velocity and inverse mass (0: held, or a
 /// cloth that does not give way).

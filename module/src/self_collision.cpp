@@ -32,17 +32,6 @@
 namespace drape::detail {
 namespace {
 
-std::int64_t cellCoord(double v, double invCell) {
-    return static_cast<std::int64_t>(std::floor(v * invCell));
-}
-
-std::uint64_t cellKey(std::int64_t i, std::int64_t j, std::int64_t k) {
-    // A hash: unequal cells may share a key, which only adds candidates the exact test rejects.
-    const auto ui = static_cast<std::uint64_t>(i), uj = static_cast<std::uint64_t>(j),
-               uk = static_cast<std::uint64_t>(k);
-    return (ui * 73856093ull) ^ (uj * 19349663ull) ^ (uk * 83492791ull);
-}
-
 // A particle and a triangle that lie within the thickness of each other in the rest shape are
 // neighbours, not a collision (on a mesh finer than the thickness, the triangles next to a
 // particle's own): pushing them the thickness apart threw a flat sheet at rest apart (a 1.2 cm
