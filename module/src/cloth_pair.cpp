@@ -1,11 +1,11 @@
 // Collision between two cloths (see drape/cloth_pair.hpp).
 //
 // Broadphase, each way (the particles of one cloth against the triangles of the other): the
-// triangles whose swept boxes (their corners at the step's start and end, grown by the
-// thickness) reach the particles' swept box go into a uniform grid, kept as a list of (cell
-// key, triangle) sorted by key; the cell is the mean extent of those boxes and at least twice
-// the thickness (doubled while the boxes would fill more than eight cells each on average, so
-// a fast cloth cannot make the list explode). Each particle looks in the cells its path's box
+// triangles whose swept boxes (their corners at the step's start and end, grown by the reach)
+// reach the particles' swept box go into a uniform grid, a hash table of cells (CellTable,
+// built in time linear in its entries); the cell is the mean extent of those boxes and at
+// least the reach (doubled while the boxes would fill more than eight cells each on average, so
+// a fast cloth cannot make the table explode). Each particle looks in the cells its path's box
 // covers and keeps the triangles whose swept box holds that path's box. Hash keys of unequal
 // cells may meet: that only adds candidates the box test drops.
 //
@@ -88,6 +88,22 @@ void validateClothPair(const ClothPairSettings& s, const std::string& who) {
                     who + "iterations must be >= 1, got " + std::to_string(s.iterations));
 }
 
+ClothPairCollider::ClothPairCollider() : cells_(std::make_unique<detail::CellTable>()) {}
+ClothPairCollider::~ClothPairCollider() = default;
+ClothPairCollider::ClothPairCollider(ClothPairCollider&&) noexcept = default;
+ClothPairCollider& ClothPairCollider::operator=(ClothPairCollider&&) noexcept = default;
+
+ClothPairCollider::ClothPairCollider(const ClothPairCollider& other)
+    : builtA_(other.builtA_),
+      builtB_(other.builtB_), builtAt_{other.builtAt_[0], other.builtAt_[1]},
+      builtReach_(other.builtReach_), cells_(std::make_unique<detail::CellTable>()), ab_(other.ab_),
+      ba_(other.ba_), abTris_(other.abTris_), baTris_(other.baTris_) {}
+
+ClothPairCollider& ClothPairCollider::operator=(const ClothPairCollider& other) {
+    if (this != &other) *this = ClothPairCollider(other);
+    return *this;
+}
+
 void ClothPairCollider::findPairs(const Cloth& from, const Vec3List& fromStart, const Cloth& onto,
                                   const Vec3List& ontoStart, double reach,
                                   std::vector<std::pair<Index, Index>>& pairs) {
@@ -97,7 +113,6 @@ void ClothPairCollider::findPairs(const Cloth& from, const Vec3List& fromStart, 
     const auto& tris = onto.topology().triangles();
     const Box paths = sweptBox(fromStart, xf);
     // The triangles that reach the particles' box, and the mean extent of their boxes.
-    cells_.clear();
     std::vector<Box> boxes;
     std::vector<Index> kept;
     Box region; // of the triangles kept
@@ -121,14 +136,17 @@ void ClothPairCollider::findPairs(const Cloth& from, const Vec3List& fromStart, 
         cell *= 2.0;
     }
     const double invCell = 1.0 / cell;
+    if (!cells_) cells_ = std::make_unique<detail::CellTable>(); // moved from
+    detail::CellTable& table = *cells_;
+    table.clear();
     for (std::size_t e = 0; e < kept.size(); ++e) {
         const Box& b = boxes[e];
         for (auto i = cellCoord(b.lo.x(), invCell); i <= cellCoord(b.hi.x(), invCell); ++i)
             for (auto j = cellCoord(b.lo.y(), invCell); j <= cellCoord(b.hi.y(), invCell); ++j)
                 for (auto k = cellCoord(b.lo.z(), invCell); k <= cellCoord(b.hi.z(), invCell); ++k)
-                    cells_.emplace_back(cellKey(i, j, k), static_cast<Index>(e));
+                    table.add(cellKey(i, j, k), static_cast<Index>(e));
     }
-    std::sort(cells_.begin(), cells_.end());
+    table.build();
     for (std::size_t p = 0; p < xf.size(); ++p) {
         Box path;
         path.add(fromStart[p]);
@@ -140,7 +158,7 @@ void ClothPairCollider::findPairs(const Cloth& from, const Vec3List& fromStart, 
         Box cellsBox;
         cellsBox.lo = path.lo.cwiseMax(region.lo);
         cellsBox.hi = path.hi.cwiseMin(region.hi);
-        if (cellsOf(cellsBox, cell) > static_cast<double>(cells_.size())) {
+        if (cellsOf(cellsBox, cell) > static_cast<double>(table.size())) {
             for (std::size_t e = 0; e < boxes.size(); ++e)
                 if (boxes[e].overlaps(path)) near_.push_back(static_cast<Index>(e));
         } else {
@@ -150,11 +168,9 @@ void ClothPairCollider::findPairs(const Cloth& from, const Vec3List& fromStart, 
                      j <= cellCoord(cellsBox.hi.y(), invCell); ++j)
                     for (auto k = cellCoord(cellsBox.lo.z(), invCell);
                          k <= cellCoord(cellsBox.hi.z(), invCell); ++k) {
-                        const std::uint64_t key = cellKey(i, j, k);
-                        auto it = std::lower_bound(cells_.begin(), cells_.end(),
-                                                   std::make_pair(key, Index(0)));
-                        for (; it != cells_.end() && it->first == key; ++it)
-                            if (boxes[it->second].overlaps(path)) near_.push_back(it->second);
+                        const auto [first, last] = table.at(cellKey(i, j, k));
+                        for (const Index* e = first; e != last; ++e)
+                            if (boxes[*e].overlaps(path)) near_.push_back(*e);
                     }
         }
         std::sort(near_.begin(), near_.end());
@@ -178,11 +194,14 @@ void ClothPairCollider::findPairs(const Cloth& from, const Vec3List& fromStart, 
 
 // A pair not listed was farther apart than the reach at the end of the step the lists were
 // built for (by more than both moved in that step, so it came no nearer than the reach then
-// either); since then every particle of both cloths, at the start and at the end of this
-// step, is within `slack` of where it was at that end, and so is every point of a triangle
-// (an average of its corners). So the pair is still farther apart than the reach less twice
-// the slack, the thickness, at every point of the straight paths of this step: no contact,
-// no crossing.
+// either). A pair's distance does not see a translation of both cloths: since then every
+// particle of both cloths at the start of this step is within `slack` of where it was at that
+// end moved by one common translation (the mean move of all their particles), and so is every
+// particle at the step's end with another. Then so is every point of a triangle (an average of
+// its corners), and every point of the step's straight paths (with the translation between the
+// two). So the pair is still farther apart than the reach less twice the slack, the thickness,
+// all through this step: no contact, no crossing. (A cape and a skirt on a running character
+// keep their lists.)
 bool ClothPairCollider::listsHold(const Cloth& a, const Vec3List& aStart, const Cloth& b,
                                   const Vec3List& bStart, double thickness) const {
     if (builtA_ != &a || builtB_ != &b || builtReach_ != kReach * thickness ||
@@ -190,13 +209,20 @@ bool ClothPairCollider::listsHold(const Cloth& a, const Vec3List& aStart, const 
         return false;
     const double slack = 0.5 * (builtReach_ - thickness);
     const double slack2 = slack * slack;
-    const auto near = [slack2](const Vec3List& x, const Vec3List& built) {
-        for (std::size_t i = 0; i < x.size(); ++i)
-            if ((x[i] - built[i]).squaredNorm() > slack2) return false;
+    const auto near = [&](const Vec3List& xa, const Vec3List& xb) {
+        Vec3 mean = Vec3::Zero();
+        for (std::size_t i = 0; i < xa.size(); ++i)
+            mean += xa[i] - builtAt_[0][i];
+        for (std::size_t i = 0; i < xb.size(); ++i)
+            mean += xb[i] - builtAt_[1][i];
+        mean /= static_cast<double>(xa.size() + xb.size());
+        for (std::size_t i = 0; i < xa.size(); ++i)
+            if ((xa[i] - builtAt_[0][i] - mean).squaredNorm() > slack2) return false;
+        for (std::size_t i = 0; i < xb.size(); ++i)
+            if ((xb[i] - builtAt_[1][i] - mean).squaredNorm() > slack2) return false;
         return true;
     };
-    return near(aStart, builtAt_[0]) && near(a.positions(), builtAt_[0]) &&
-           near(bStart, builtAt_[1]) && near(b.positions(), builtAt_[1]);
+    return near(aStart, bStart) && near(a.positions(), b.positions());
 }
 
 ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Cloth& b,
@@ -247,6 +273,7 @@ ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Clot
         builtAt_[0] = a.positions();
         builtAt_[1] = b.positions();
         builtReach_ = kReach * h;
+        stats.listsBuilt = true;
     }
     if (ab_.empty() && ba_.empty()) return stats;
 

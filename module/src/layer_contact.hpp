@@ -9,6 +9,8 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <utility>
+#include <vector>
 
 namespace drape::detail {
 
@@ -24,6 +26,72 @@ inline std::uint64_t cellKey(std::int64_t i, std::int64_t j, std::int64_t k) {
                uk = static_cast<std::uint64_t>(k);
     return (ui * 73856093ull) ^ (uj * 19349663ull) ^ (uk * 83492791ull);
 }
+
+/// The entries of a grid's cells by cell key (`add` them, `build`, then look them up with `at`):
+/// each distinct key gets a slot of an open-addressing hash table (linear probing, at least twice
+/// as many slots as entries), and the entries of a key are listed contiguously in the order they
+/// were added. Built and looked up in time linear in the entries (no sort).
+class CellTable {
+  public:
+    void clear() { cells_.clear(); }
+    void add(std::uint64_t key, Index entry) { cells_.emplace_back(key, entry); }
+    std::size_t size() const { return cells_.size(); }
+
+    void build() {
+        std::size_t size = 16;
+        while (size < 2 * cells_.size())
+            size *= 2;
+        const std::size_t mask = size - 1;
+        slotKey_.resize(size); // read only where slotUsed_ is set
+        slotUsed_.assign(size, 0);
+        slotBegin_.assign(size + 1, 0);
+        entrySlot_.resize(cells_.size());
+        for (std::size_t e = 0; e < cells_.size(); ++e) {
+            const std::uint64_t key = cells_[e].first;
+            std::size_t slot = static_cast<std::size_t>(mix(key)) & mask;
+            while (slotUsed_[slot] && slotKey_[slot] != key)
+                slot = (slot + 1) & mask;
+            slotUsed_[slot] = 1;
+            slotKey_[slot] = key;
+            ++slotBegin_[slot + 1];
+            entrySlot_[e] = static_cast<std::uint32_t>(slot);
+        }
+        for (std::size_t k = 0; k < size; ++k)
+            slotBegin_[k + 1] += slotBegin_[k];
+        fill_.assign(slotBegin_.begin(), slotBegin_.end() - 1);
+        listed_.resize(cells_.size());
+        for (std::size_t e = 0; e < cells_.size(); ++e)
+            listed_[fill_[entrySlot_[e]]++] = cells_[e].second;
+        mask_ = mask;
+    }
+
+    /// The entries of key `key` (an empty range if none), in the order they were added.
+    std::pair<const Index*, const Index*> at(std::uint64_t key) const {
+        if (slotUsed_.empty()) return {nullptr, nullptr};
+        std::size_t slot = static_cast<std::size_t>(mix(key)) & mask_;
+        while (slotUsed_[slot]) {
+            if (slotKey_[slot] == key)
+                return {listed_.data() + slotBegin_[slot], listed_.data() + slotBegin_[slot + 1]};
+            slot = (slot + 1) & mask_;
+        }
+        return {nullptr, nullptr};
+    }
+
+  private:
+    /// A key's slot hash (the keys themselves are a multiplicative hash of the cell).
+    static std::uint64_t mix(std::uint64_t key) {
+        key ^= key >> 33;
+        key *= 0xff51afd7ed558ccdull;
+        return key ^ (key >> 33);
+    }
+    std::vector<std::pair<std::uint64_t, Index>> cells_; ///< (cell key, entry) as added
+    std::vector<std::uint64_t> slotKey_;
+    std::vector<unsigned char> slotUsed_;
+    std::vector<std::size_t> slotBegin_, fill_; ///< per slot: its first entry in listed_
+    std::vector<std::uint32_t> entrySlot_;      ///< per entry of cells_: its key's slot
+    std::vector<Index> listed_;                 ///< the entries by slot
+    std::size_t mask_ = 0;
+};
 
 /// A particle or a triangle's corner: its position, velocity and inverse mass (0: held, or a
 /// cloth that does not give way).

@@ -50,47 +50,6 @@ bool restNeighbours(const Vec3List& rest, Index p, const Triangle& t, double thi
 
 } // namespace
 
-// The grid's table: each distinct key of cells_ gets a slot of an open-addressing hash table
-// (linear probing, at least twice as many slots as entries), and the particles of a key are
-// listed contiguously in listed_, in the order cells_ has them (ascending), in time linear in
-// the entries.
-void SelfCollider::buildTable() {
-    std::size_t size = 16;
-    while (size < 2 * cells_.size())
-        size *= 2;
-    const std::size_t mask = size - 1;
-    slotKey_.resize(size); // read only where slotUsed_ is set
-    slotUsed_.assign(size, 0);
-    slotBegin_.assign(size + 1, 0);
-    entrySlot_.resize(cells_.size());
-    for (std::size_t e = 0; e < cells_.size(); ++e) {
-        const std::uint64_t key = cells_[e].first;
-        std::size_t slot = static_cast<std::size_t>(mix(key)) & mask;
-        while (slotUsed_[slot] && slotKey_[slot] != key)
-            slot = (slot + 1) & mask;
-        slotUsed_[slot] = 1;
-        slotKey_[slot] = key;
-        ++slotBegin_[slot + 1];
-        entrySlot_[e] = static_cast<std::uint32_t>(slot);
-    }
-    for (std::size_t k = 0; k < size; ++k)
-        slotBegin_[k + 1] += slotBegin_[k];
-    fill_.assign(slotBegin_.begin(), slotBegin_.end() - 1);
-    listed_.resize(cells_.size());
-    for (std::size_t e = 0; e < cells_.size(); ++e)
-        listed_[fill_[entrySlot_[e]]++] = cells_[e].second;
-    tableMask_ = mask;
-}
-
-std::pair<std::size_t, std::size_t> SelfCollider::entriesAt(std::uint64_t key) const {
-    std::size_t slot = static_cast<std::size_t>(mix(key)) & tableMask_;
-    while (slotUsed_[slot]) {
-        if (slotKey_[slot] == key) return {slotBegin_[slot], slotBegin_[slot + 1]};
-        slot = (slot + 1) & tableMask_;
-    }
-    return {0, 0};
-}
-
 // The pair list: for each particle, the triangles (ascending) within `reach` of it at x; its
 // own triangles and its rest-shape neighbours are left out here once instead of every pass.
 void SelfCollider::buildPairs(const ClothTopology& topology, const Vec3List& x, double thickness,
@@ -113,9 +72,9 @@ void SelfCollider::buildPairs(const ClothTopology& topology, const Vec3List& x, 
                                                cellCoord(x[p].y(), invCell),
                                                cellCoord(x[p].z(), invCell)};
         particleCell_[p] = c;
-        cells_.emplace_back(cellKey(c[0], c[1], c[2]), static_cast<Index>(p));
+        cells_.add(cellKey(c[0], c[1], c[2]), static_cast<Index>(p));
     }
-    buildTable();
+    cells_.build();
 
     found_.clear();
     for (std::size_t ti = 0; ti < tris.size(); ++ti) {
@@ -126,9 +85,9 @@ void SelfCollider::buildPairs(const ClothTopology& topology, const Vec3List& x, 
         for (auto i = cellCoord(lo.x(), invCell); i <= cellCoord(hi.x(), invCell); ++i)
             for (auto j = cellCoord(lo.y(), invCell); j <= cellCoord(hi.y(), invCell); ++j)
                 for (auto k = cellCoord(lo.z(), invCell); k <= cellCoord(hi.z(), invCell); ++k) {
-                    const auto [first, last] = entriesAt(cellKey(i, j, k));
-                    for (std::size_t e = first; e < last; ++e) {
-                        const Index p = listed_[e];
+                    const auto [first, last] = cells_.at(cellKey(i, j, k));
+                    for (const Index* e = first; e != last; ++e) {
+                        const Index p = *e;
                         // Another cell with the same key: p is looked at from its own only.
                         const auto& pc = particleCell_[p];
                         if (pc[0] != i || pc[1] != j || pc[2] != k) continue;

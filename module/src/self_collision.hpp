@@ -5,6 +5,7 @@
 
 #include "drape/forces.hpp"
 #include "drape/topology.hpp"
+#include "layer_contact.hpp"
 
 #include <array>
 #include <cstdint>
@@ -42,24 +43,9 @@ class SelfCollider {
                     double reach);
     /// Whether the pair list still holds every pair nearer than `thickness` at x.
     bool pairsHold(const Vec3List& x, double thickness) const;
-    /// Lists the entries (particles) of each key of cells_ by key (see self_collision.cpp).
-    void buildTable();
-    /// The range of listed_ holding the entries of cell key `key` (empty if none).
-    std::pair<std::size_t, std::size_t> entriesAt(std::uint64_t key) const;
-    /// A key's slot hash (the keys themselves are a multiplicative hash of the cell).
-    static std::uint64_t mix(std::uint64_t key) {
-        key ^= key >> 33;
-        key *= 0xff51afd7ed558ccdull;
-        return key ^ (key >> 33);
-    }
-    std::vector<std::pair<std::uint64_t, Index>> cells_; ///< (cell key, particle), by particle
-    std::vector<std::uint64_t> slotKey_;
-    std::vector<unsigned char> slotUsed_;
-    std::vector<std::size_t> slotBegin_, fill_; ///< per slot: its first entry in listed_
-    std::vector<std::uint32_t> entrySlot_;      ///< per entry of cells_: its key's slot
-    std::vector<Index> listed_;                 ///< particles by slot
-    std::size_t tableMask_ = 0;
+    CellTable cells_;                    ///< the particles by grid cell
     std::vector<std::size_t> pairStart_; ///< per particle: its first entry in pairTriangle_
+    std::vector<std::size_t> fill_;      ///< scratch: the next free entry of each particle
     std::vector<Index> pairTriangle_;    ///< each particle's listed triangles, ascending
     Vec3List built_;                     ///< positions the list was built at
     std::vector<std::array<std::int64_t, 3>> particleCell_; ///< each particle's grid cell

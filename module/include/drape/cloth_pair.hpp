@@ -5,11 +5,14 @@
 
 #include "drape/cloth.hpp"
 
-#include <cstdint>
+#include <memory>
 #include <utility>
 #include <vector>
 
 namespace drape {
+namespace detail {
+class CellTable; // layer_contact.hpp
+} // namespace detail
 
 /// What one collideCloths call did.
 struct ClothPairStats {
@@ -17,6 +20,9 @@ struct ClothPairStats {
     std::size_t contacts = 0;  ///< pairs found nearer than the thickness, or crossed, and moved
     bool wokeA = false;        ///< cloth a was asleep and the other's approach woke it
     bool wokeB = false;        ///< the same for cloth b
+    /// The pair lists were built in this call (false: kept from the last call on the same two
+    /// cloths, or no list was needed: the cloths' swept boxes did not meet, or both slept).
+    bool listsBuilt = false;
 };
 
 /// Keeps every particle of each cloth `thickness` from every triangle of the other, on the side
@@ -46,13 +52,22 @@ struct ClothPairStats {
 /// is ClothSettings::selfCollision), invalid settings or a call from inside a step.
 class ClothPairCollider {
   public:
+    ClothPairCollider();
+    ~ClothPairCollider();
+    /// A copy keeps the pair lists (its grid, scratch only, is its own).
+    ClothPairCollider(const ClothPairCollider& other);
+    ClothPairCollider& operator=(const ClothPairCollider& other);
+    ClothPairCollider(ClothPairCollider&&) noexcept;
+    ClothPairCollider& operator=(ClothPairCollider&&) noexcept;
+
     ClothPairStats collide(Cloth& a, const Vec3List& aStart, Cloth& b, const Vec3List& bStart,
                            const ClothPairSettings& settings, double dt);
 
   private:
     /// The pair lists reach this many thicknesses and are kept, from one call to the next on
     /// the same two cloths, while no particle of either is farther than half the reach beyond
-    /// the thickness from where it was when they were built (listsHold).
+    /// the thickness from where it was when they were built, moved by the mean move of both
+    /// (listsHold).
     static constexpr double kReach = 2.0;
     /// Lists (particle of `from`, triangle of `onto`) whose swept boxes (start and end; the
     /// triangle's grown by `reach`) overlap, into `pairs`.
@@ -63,12 +78,12 @@ class ClothPairCollider {
                    double thickness) const;
     const Cloth* builtA_ = nullptr; ///< the cloths the lists were built for (compared only)
     const Cloth* builtB_ = nullptr;
-    Vec3List builtAt_[2];                                ///< their positions then
-    double builtReach_ = 0.0;                            ///< the reach they were built with [m]
-    std::vector<std::pair<std::uint64_t, Index>> cells_; ///< (cell key, triangle), by key
-    std::vector<Index> near_;                            ///< one particle's candidate triangles
-    std::vector<std::pair<Index, Index>> ab_, ba_;       ///< pairs of a onto b, of b onto a
-    std::vector<Index> abTris_, baTris_;                 ///< the triangles of b in ab_, of a in ba_
+    Vec3List builtAt_[2];                          ///< their positions then
+    double builtReach_ = 0.0;                      ///< the reach they were built with [m]
+    std::unique_ptr<detail::CellTable> cells_;     ///< the triangles by grid cell (findPairs)
+    std::vector<Index> near_;                      ///< one particle's candidate triangles
+    std::vector<std::pair<Index, Index>> ab_, ba_; ///< pairs of a onto b, of b onto a
+    std::vector<Index> abTris_, baTris_;           ///< the triangles of b in ab_, of a in ba_
     /// Per triangle of b (index 0) and of a (1), those listed: its normal at the start (not
     /// unit) and its unit normal in the pass.
     std::vector<Vec3> startFace_[2], unitFace_[2];
