@@ -617,6 +617,32 @@ TEST_CASE("a cloth drapes over a convex hull rock at the thickness from its surf
     CHECK(r.farthestResting <= 2.0 * kThickness);
 }
 
+TEST_CASE("a cloth drapes over a sharp hull (an octahedron: its corners and edges nearest) at "
+          "the thickness from its surface, as Bullet's GJK measures it",
+          "[contacts][drape][hull]") {
+    // Six points, tilted: a sheet over it rests on a corner and four edges, where the nearest
+    // feature is no face, and slides down its faces. The query measures those exactly from the
+    // faces' rims; a rim measured wrong (a corner's distance from the wrong face) lets the
+    // sheet sink into the shape or float off it.
+    TestWorld w;
+    auto* octahedron = w.shape<btConvexHullShape>();
+    for (int axis = 0; axis < 3; ++axis)
+        for (const double sign : {-1.0, 1.0}) {
+            btVector3 q(0, 0, 0);
+            q[axis] = btScalar(sign * (axis == 1 ? 0.3 : 0.25));
+            octahedron->addPoint(q, false);
+        }
+    octahedron->recalcLocalAabb();
+    const btTransform pose(btQuaternion(btVector3(1, 0, 1).normalized(), btScalar(0.3)),
+                           btVector3(0, 0.3f, 0));
+    const DrapeOnShape r = drapeOnShape(w, octahedron, pose, 0.75);
+    INFO("closest approach " << r.closest << " m, " << r.resting << " particles resting, farthest "
+                             << r.farthestResting << " m");
+    CHECK(r.closest >= kThickness - 1e-3); // as for the rock above
+    CHECK(r.resting >= 20);
+    CHECK(r.farthestResting <= 2.0 * kThickness);
+}
+
 TEST_CASE("a cloth drapes over cylinders of each axis with unequal half extents at the "
           "thickness from their surface, as Bullet's GJK measures it",
           "[contacts][drape][cylinder]") {
