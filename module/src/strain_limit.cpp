@@ -420,8 +420,9 @@ void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<dou
     moved_.resize(n, 0);
     pulled_.resize(n, 0);
     heldPull_.resize(n, Vec3::Zero());
-    const double upper = 1.0 + s.maxStrain + s.tolerance;
-    const double lower = std::max(0.0, 1.0 + s.maxStrain - s.tolerance);
+    const double band = std::max(s.tolerance, kMinimumLimiterBand);
+    const double upper = 1.0 + s.maxStrain + band;
+    const double lower = std::max(0.0, 1.0 + s.maxStrain - band);
     upper2_ = upper * upper;
     lower2_ = lower * lower;
     limit_ = 1.0 + s.maxStrain;
@@ -1053,7 +1054,7 @@ StrainLimitStats limitStrainProvot(const ClothTopology& topology,
                                    std::vector<Vec3>& x) {
     StrainLimitStats stats;
     const double stretchLimit = 1.0 + s.maxStrain;
-    const double stopLimit = 1.0 + s.maxStrain + s.tolerance;
+    const double stopLimit = 1.0 + s.maxStrain + std::max(s.tolerance, kMinimumLimiterBand);
     stats.maxStrainBefore = maxSpringStrain(topology, x);
     stats.maxStrainAfter = stats.maxStrainBefore;
     stats.work = topology.springCount();
@@ -1085,7 +1086,7 @@ StrainLimitStats limitStrainOneSided(const ClothTopology& topology,
                                      std::vector<Vec3>& x) {
     StrainLimitStats stats;
     const double stretchLimit = 1.0 + s.maxStrain;
-    const double stopLimit = 1.0 + s.maxStrain + s.tolerance;
+    const double stopLimit = 1.0 + s.maxStrain + std::max(s.tolerance, kMinimumLimiterBand);
     const auto& springs = topology.springs();
     const auto& off = topology.adjacencyOffsets();
     const auto& nbr = topology.adjacentParticles();
