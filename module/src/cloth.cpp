@@ -118,6 +118,21 @@ std::vector<double> buildMasses(const ClothTopology& topo, const ClothSettings& 
     return m;
 }
 
+} // namespace
+
+double automaticWaveSpeed(const ClothTopology& topology, const ClothSettings& settings) {
+    Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+    for (const Vec3& p : topology.restPositions()) {
+        lo = lo.cwiseMin(p);
+        hi = hi.cwiseMax(p);
+    }
+    const double extent = topology.restPositions().empty() ? 0.0 : (hi - lo).maxCoeff();
+    const double hanging = std::sqrt(settings.gravity.norm() * extent / kAutomaticHangingStrain);
+    return std::max(settings.stretchWaveSpeed, std::isfinite(hanging) ? hanging : 0.0);
+}
+
+namespace {
+
 std::vector<double> buildStiffness(const ClothTopology& topo, const ClothSettings& s,
                                    const std::vector<double>& masses) {
     if (given(s.springStiffness, "springStiffness")) {
@@ -133,7 +148,7 @@ std::vector<double> buildStiffness(const ClothTopology& topo, const ClothSetting
     const double area = topo.totalRestArea();
     if (!(area > 0.0) || !(mass > 0.0)) return std::vector<double>(topo.springCount(), 1.0);
     requirePositive(s.stretchWaveSpeed, "stretchWaveSpeed");
-    const double c = s.stretchWaveSpeed;
+    const double c = automaticWaveSpeed(topo, s);
     const double eh = mass / area * c * c;
     return springStiffnessFromMaterial(topo, eh, 1.0);
 }

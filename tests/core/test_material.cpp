@@ -286,6 +286,46 @@ TEST_CASE("A default ClothSettings simulates: 200 g/m^2 cotton, mesh-free stiffn
     CHECK(lowest > -std::sqrt(2.0) * 1.1);
 }
 
+TEST_CASE("The automatic springs of a large cloth carry its weight hanging, not the limiter",
+          "[material][settings]") {
+    // A membrane hanging a height H is stretched g H / c^2 at the top: with the least wave speed
+    // (20 m/s) a 6 m curtain would hang at 15 %, beyond the 10 % bound, and the limiter carries
+    // its weight in every step; its waves are made faster, sqrt(g L / 0.05) (34 m/s for 6 m),
+    // and a cloth up to about 2 m keeps the least speed.
+    auto curtain = [](double size) {
+        SheetSpec spec;
+        spec.rows = 21;
+        spec.cols = 21;
+        spec.spacing = size / 20.0;
+        spec.uAxis = Vec3::UnitX();
+        spec.vAxis = -Vec3::UnitY();
+        return ClothTopology::build(makeSheet(spec));
+    };
+    const ClothSettings s;
+    const double g = s.gravity.norm();
+    CHECK(automaticWaveSpeed(*curtain(1.0), s) == kAutomaticStretchWaveSpeed);
+    CHECK(automaticWaveSpeed(*curtain(2.0), s) == kAutomaticStretchWaveSpeed);
+    CHECK(automaticWaveSpeed(*curtain(4.0), s) ==
+          Approx(std::sqrt(g * 4.0 / kAutomaticHangingStrain)).epsilon(1e-12));
+    ClothSettings fast;
+    fast.stretchWaveSpeed = 100.0; // a given speed above it is kept
+    CHECK(automaticWaveSpeed(*curtain(4.0), fast) == 100.0);
+    ClothSettings space;
+    space.gravity = Vec3::Zero();
+    CHECK(automaticWaveSpeed(*curtain(4.0), space) == kAutomaticStretchWaveSpeed);
+
+    // A 6 m curtain hung from its top row and settled: its springs hold it, the limiter has
+    // nothing to correct at the end of a step's drift.
+    Cloth cloth(curtain(6.0), s);
+    for (Index i = 0; i < 21; ++i)
+        cloth.pin(i);
+    for (int f = 0; f < 600; ++f)
+        cloth.step(1.0 / 60.0);
+    CHECK(cloth.kineticEnergy() < 1e-2 * cloth.totalMass() * g); // (x 1 m: nearly at rest)
+    CHECK(cloth.maxStrain() <= 1.25 * kAutomaticHangingStrain);
+    CHECK(cloth.lastLimiterStats().maxStrainBefore < s.limiter.maxStrain);
+}
+
 // A cloth in centimetres (ClothSettings::inUnits(100)) is the same cloth as in metres: the
 // same masses in kilograms, the same springs in N/m (kg/s^2 has no length in it), the same
 // stability limit and sub-steps, and every position 100 times the metre cloth's. Left in SI,

@@ -119,6 +119,11 @@ struct ClothHit {
 /// A prescribed path for a kinematic particle: position [m] at simulated time t [s].
 using KinematicPath = std::function<Vec3(double t)>;
 
+/// The stretch-wave speed of the automatic stiffness for `topology` under `settings` [m/s, or
+/// scene units per second]: settings.stretchWaveSpeed, or sqrt(|g| L / kAutomaticHangingStrain)
+/// if that is more, L the largest side of the rest shape's bounding box (drape/settings.hpp).
+double automaticWaveSpeed(const ClothTopology& topology, const ClothSettings& settings);
+
 class ClothPairCollider;
 
 class Cloth {

@@ -225,6 +225,15 @@ struct SubstepSettings {
 /// (samples/benchmarks/GAMES.md).
 inline constexpr double kAutomaticStretchWaveSpeed = 20.0;
 
+/// The automatic stiffness's springs carry a cloth hanging its full length with at most this
+/// strain [-] (half the default bound): a cloth whose largest rest extent L is over about 2 m
+/// gets stretch waves faster than ClothSettings::stretchWaveSpeed, sqrt(|g| L / this)
+/// (automaticWaveSpeed). Hanging a height H stretches a membrane by |g| H / c^2 at the top, so
+/// at 20 m/s a cloth that hangs more than about 4 m leaves its weight to the strain limiter:
+/// a 20 m tarp over a 6 m box cost 29 ms a frame for ever and never slept, at 63 m/s it
+/// costs 4 ms and sleeps (review 10).
+inline constexpr double kAutomaticHangingStrain = 0.05;
+
 /// ClothSettings::relativeDamping's default [1/s]: motion about the cloth's mean velocity
 /// decays with a time constant of 0.5 s, so a cloth dropped on a stack of boxes, its flaps
 /// swinging, is still within SleepSettings' 1 cm after about 6 s (samples/benchmarks/GAMES.md).
@@ -274,7 +283,9 @@ struct ClothSettings {
     FabricMaterial material; ///< used for whatever is not given directly
     /// Speed of the stretch waves of the automatic stiffness [m/s] (> 0; used when neither
     /// springStiffness nor material.youngsModulus is given): kAutomaticStretchWaveSpeed, or
-    /// that many scene units per second after inUnits().
+    /// that many scene units per second after inUnits(). The least speed: a cloth larger than
+    /// about 2 m gets faster waves, so that its springs carry its weight
+    /// (kAutomaticHangingStrain, automaticWaveSpeed).
     double stretchWaveSpeed = kAutomaticStretchWaveSpeed;
 
     Vec3 gravity = Vec3(0.0, -9.81, 0.0); ///< g [m/s^2]; eq. (6)
