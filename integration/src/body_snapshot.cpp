@@ -260,24 +260,40 @@ bool BodySnapshot::applyAccumulatedImpulses(double clothSpeed, double floorSpeed
     return pushedActive;
 }
 
-bool BodyPoses::changed(const std::vector<BodySnapshot>& bodies, double tol, double dt) const {
-    if (bodies.size() != last_.size()) return true;
+bool BodyPoses::changed(const std::vector<BodySnapshot>& bodies, double tol, double dt,
+                        const std::vector<Vec3>& x) const {
+    const auto holdsParticle = [&x](const Vec3& lo, const Vec3& hi) {
+        for (const Vec3& p : x)
+            if ((p.array() >= lo.array()).all() && (p.array() <= hi.array()).all()) return true;
+        return false;
+    };
+    for (const Last& was : last_) { // gone from the candidates
+        const bool gone = std::none_of(bodies.begin(), bodies.end(), [&](const BodySnapshot& b) {
+            return b.object == was.object;
+        });
+        if (gone && holdsParticle(was.lo, was.hi)) return true;
+    }
     for (const BodySnapshot& b : bodies) {
         const auto was = std::find_if(last_.begin(), last_.end(),
                                       [&](const Last& p) { return p.object == b.object; });
-        if (was == last_.end()) return true; // a new candidate
-        if (was->shape != b.object->getCollisionShape() || was->friction != b.friction) return true;
+        if (was == last_.end()) { // a new candidate
+            if (holdsParticle(b.aabbMin, b.aabbMax)) return true;
+            continue;
+        }
+        bool moved = was->shape != b.object->getCollisionShape() || was->friction != b.friction;
         // A shape grown or shrunk in place (a static box's setLocalScaling under a sleeping
         // cloth) moves its surface as motion would.
         const Vec3 grown = b.aabbMax - b.aabbMin - was->extent; // (a plane's: 0)
-        if (grown.allFinite() && grown.cwiseAbs().maxCoeff() > 2.0 * tol * dt) return true;
+        moved = moved || (grown.allFinite() && grown.cwiseAbs().maxCoeff() > 2.0 * tol * dt);
         const Pose& pose = was->pose;
         // Turning is measured at the body's extent (its AABB's half diagonal; an infinite
         // plane turns only when its pose changes at all).
         const double radius = 0.5 * (b.aabbMax - b.aabbMin).norm();
         const double turn = (b.pose.R - pose.R).cwiseAbs().maxCoeff();
-        if ((b.pose.t - pose.t).norm() > tol * dt || (turn > 0.0 && !(turn * radius <= tol * dt)) ||
-            b.v.norm() > tol || (b.w.norm() > 0.0 && !(b.w.norm() * radius <= tol)))
+        moved = moved || (b.pose.t - pose.t).norm() > tol * dt ||
+                (turn > 0.0 && !(turn * radius <= tol * dt)) || b.v.norm() > tol ||
+                (b.w.norm() > 0.0 && !(b.w.norm() * radius <= tol));
+        if (moved && (holdsParticle(b.aabbMin, b.aabbMax) || holdsParticle(was->lo, was->hi)))
             return true;
     }
     return false;
@@ -286,8 +302,10 @@ bool BodyPoses::changed(const std::vector<BodySnapshot>& bodies, double tol, dou
 void BodyPoses::record(const std::vector<BodySnapshot>& bodies) {
     last_.resize(bodies.size());
     for (std::size_t k = 0; k < bodies.size(); ++k)
-        last_[k] = {bodies[k].object, bodies[k].object->getCollisionShape(), bodies[k].pose,
-                    bodies[k].aabbMax - bodies[k].aabbMin, bodies[k].friction};
+        last_[k] = {bodies[k].object,   bodies[k].object->getCollisionShape(),
+                    bodies[k].pose,     bodies[k].aabbMax - bodies[k].aabbMin,
+                    bodies[k].friction, bodies[k].aabbMin,
+                    bodies[k].aabbMax};
 }
 
 namespace {

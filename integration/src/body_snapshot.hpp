@@ -184,8 +184,12 @@ class BodyPoses {
     /// Whether a body is new or gone since the last record, or moves: farther or faster than
     /// the speed `tol` [m/s] carries a point within dt (turning measured at its extent); or its
     /// shape changed (another shape, or its extent grew or shrank that much: setLocalScaling),
-    /// or its friction did (setFriction: a cloth at rest on a slope may slide).
-    bool changed(const std::vector<BodySnapshot>& bodies, double tol, double dt) const;
+    /// or its friction did (setFriction: a cloth at rest on a slope may slide). Only bodies
+    /// whose box (grown by the contact reach, over its way in the sub-step) holds a particle of
+    /// `x`, now or at the last record, count: one that came, went or moved beside the cloth
+    /// touched nothing and held nothing up.
+    bool changed(const std::vector<BodySnapshot>& bodies, double tol, double dt,
+                 const std::vector<Vec3>& x) const;
     void record(const std::vector<BodySnapshot>& bodies);
 
   private:
@@ -195,6 +199,7 @@ class BodyPoses {
         Pose pose;
         Vec3 extent;     ///< the world AABB's size
         double friction; ///< BodySnapshot::friction
+        Vec3 lo, hi;     ///< BodySnapshot::aabbMin, aabbMax
     };
     std::vector<Last> last_;
 };

@@ -1116,7 +1116,7 @@ void BulletCloth::Impl::wakeForBodies(double dt) {
     // within the quiet time (a mean speed of distance / time).
     const auto& sl = c.settings().sleep;
     const double tol = sl.distance / std::max(sl.time, dt);
-    if (c.isAsleep() && poses.changed(contacts.bodies, tol, dt)) c.wake();
+    if (c.isAsleep() && poses.changed(contacts.bodies, tol, dt, c.positions())) c.wake();
     poses.record(contacts.bodies);
 }
 
