@@ -252,7 +252,7 @@ bool BodySnapshot::applyAccumulatedImpulses(double clothSpeed, double floorSpeed
     rb->applyCentralImpulse(toBt(linearImpulse));
     rb->applyTorqueImpulse(toBt(spinFilter * angularImpulse)); // (limitSpin)
     // Where the cloth's sub-steps took it (stopped on the way, pushed back out).
-    if (moved_ && !supported) rb->setCenterOfMassTransform(toBtTransform(pose));
+    if (moved_ && (!supported || liftedOut_)) rb->setCenterOfMassTransform(toBtTransform(pose));
     // Only a sleeping body is woken: activate() on an awake one would restart its
     // deactivation time, and a body the cloth rests on could never fall asleep. An awake body
     // that the cloth's impulse leaves below its sleeping thresholds sleeps as Bullet decides.

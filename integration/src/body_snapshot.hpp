@@ -97,6 +97,13 @@ struct BodySnapshot {
     /// Moves the body by `shift` [m] and turns it by `turn` [rad] about its centre of mass
     /// (where the limiter's walk pushed a body that gives way: ContactPlanes::Mover).
     void displace(const Vec3& shift, const Vec3& turn);
+    /// displace() out of particles a static or kinematic body holds from behind (solveHeld):
+    /// the body ends there even when it rests on something (supported), which would otherwise
+    /// keep it where Bullet put it (a crate spawned standing on the floor through a rug).
+    void liftOut(const Vec3& shift) {
+        displace(shift, Vec3::Zero());
+        liftedOut_ = dynamicBody != nullptr;
+    }
     /// Whether the body moves through the cloth's steps (else pose == previous == end).
     bool sweeps() const { return sweeping_ || moved_; }
     Vec3 linearImpulse = Vec3::Zero();  ///< accumulated for the body [N s]
@@ -140,8 +147,9 @@ struct BodySnapshot {
     bool refused = false;
 
   private:
-    bool sweeping_ = false; ///< startSweep found it moving
-    bool moved_ = false;    ///< impulses or displacements changed its sweep
+    bool sweeping_ = false;  ///< startSweep found it moving
+    bool moved_ = false;     ///< impulses or displacements changed its sweep
+    bool liftedOut_ = false; ///< liftOut moved it
 };
 
 /// Snapshots `object` if the cloth collides with it (rigid bodies and collision objects with

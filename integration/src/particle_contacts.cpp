@@ -107,8 +107,7 @@ void ContactSolver::solveHeld(Cloth& c) {
         if (h.depth > 0.0 && (!d || h.depth > d->depth)) d = &h;
     }
     for (std::size_t bi = 0; bi < bodies.size(); ++bi)
-        if (const HeldContact* d = deepestHeld_[bi])
-            bodies[bi].displace(-d->depth * d->normal, Vec3::Zero());
+        if (const HeldContact* d = deepestHeld_[bi]) bodies[bi].liftOut(-d->depth * d->normal);
     held_.clear();
 }
 
