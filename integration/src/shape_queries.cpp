@@ -2,6 +2,7 @@
 #include "shape_queries.hpp"
 
 #include <BulletCollision/CollisionShapes/btConvexHullShape.h>
+#include <BulletCollision/CollisionShapes/btMultiSphereShape.h>
 #include <BulletCollision/CollisionShapes/btTriangleShape.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkEpaPenetrationDepthSolver.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkPairDetector.h>
@@ -523,6 +524,24 @@ SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const
         const int axis = cyl->getUpAxis();
         const Vec3 e = toVec(cyl->getHalfExtentsWithMargin());
         return placed(pose, closestOnCylinder(axis, e[cylinderRadiusAxis(axis)], e[axis], local));
+    }
+    case MULTI_SPHERE_SHAPE_PROXYTYPE: {
+        // One or two spheres at a uniform scaling: their hull in closed form (Bullet's support
+        // puts the margin back: the surface is the spheres' own). More spheres, or a
+        // non-uniform scaling (whose support is no sphere's), through GJK below.
+        const auto* ms = static_cast<const btMultiSphereShape*>(shape);
+        const btVector3 sc = ms->getLocalScaling();
+        const int n = ms->getSphereCount();
+        if ((n == 1 || n == 2) && sc.x() == sc.y() && sc.y() == sc.z()) {
+            ++counters.queries;
+            const double k = double(sc.x());
+            const Vec3 c0 = k * toVec(ms->getSpherePosition(0));
+            const double r0 = k * double(ms->getSphereRadius(0));
+            const int last = n - 1;
+            return placed(pose, closestOnSphereHull(c0, r0, k * toVec(ms->getSpherePosition(last)),
+                                                    k * double(ms->getSphereRadius(last)), local));
+        }
+        break;
     }
     case CONE_SHAPE_PROXYTYPE: {
         // Bullet's cone grown by its margin (GJK's rounded surface): the sharp cone's nearest

@@ -215,6 +215,38 @@ SurfacePoint closestOnCone(int axis, double r, double halfHeight, const Vec3& p)
     return {d, toSpace((rho - cr) / d, (y - cy) / d), toSpace(cr, cy)};
 }
 
+SurfacePoint closestOnSphereHull(const Vec3& c0, double r0, const Vec3& c1, double r1,
+                                 const Vec3& p) {
+    const Vec3 axis = c1 - c0;
+    const double d = axis.norm();
+    auto onSphere = [&p](const Vec3& c, double r) {
+        const Vec3 off = p - c;
+        const double len = off.norm();
+        const Vec3 n = len > 0.0 ? Vec3(off / len) : Vec3(Vec3::UnitY());
+        return SurfacePoint{len - r, n, c + r * n};
+    };
+    if (d <= std::abs(r0 - r1)) return r0 >= r1 ? onSphere(c0, r0) : onSphere(c1, r1);
+    const Vec3 u = axis / d;
+    const double b = (r0 - r1) / d, a = std::sqrt(1.0 - b * b);
+    const Vec3 rel = p - c0;
+    const double y = rel.dot(u);
+    Vec3 radial = rel - y * u;
+    const double rho = radial.norm();
+    Vec3 e;
+    if (rho > 0.0) {
+        e = radial / rho;
+    } else { // on the axis: any direction across it
+        e = u.cross(std::abs(u.x()) < 0.9 ? Vec3(Vec3::UnitX()) : Vec3(Vec3::UnitY())).normalized();
+    }
+    // Along the side, from its tangent point on sphere 0 (k = 0) to sphere 1's (k = d a).
+    const double k = -b * rho + a * y;
+    if (k < 0.0) return onSphere(c0, r0);
+    if (k > d * a) return onSphere(c1, r1);
+    const Vec3 n = a * e + b * u;
+    const double dist = a * rho + b * y - r0;
+    return {dist, n, p - dist * n};
+}
+
 SegmentDeepest deepestOnSegment(const Vec3& half, const Vec3& pa, const Vec3& pb, const Vec3& ga,
                                 const Vec3& gb) {
     // The faces either end sees: sign per axis (0: none; both signs: a spring through the box).

@@ -188,6 +188,62 @@ TEST_CASE("the nearest point of a cone", "[geometry]") {
     CHECK(closestOnCone(1, r, hh, Vec3(0.0, -0.3, 0.0)).distance == Approx(-0.05));
 }
 
+TEST_CASE("the nearest point of the hull of two spheres", "[geometry]") {
+    // Against its surface sampled finely: in the half-plane through the axis and p (x radial,
+    // y along the axis from c0), the profile is sphere 0's arc, the tangent segment and sphere
+    // 1's arc; p is inside where some ball between the two (centre and radius interpolated)
+    // holds it (the hull of two balls is the union of those).
+    struct Case {
+        Vec3 c0;
+        double r0;
+        Vec3 c1;
+        double r1;
+    };
+    const std::vector<Case> cases = {
+        {Vec3(-0.15, 0.0, 0.0), 0.25, Vec3(0.15, 0.0, 0.0), 0.2}, // overlapping, unequal
+        {Vec3(0.1, -0.2, 0.05), 0.05, Vec3(-0.1, 0.3, 0.2), 0.3}, // a cone-like hull
+        {Vec3(0.0, 0.1, 0.0), 0.2, Vec3(0.0, -0.1, 0.1), 0.2},    // equal: a capsule
+        {Vec3(0.0, 0.0, 0.0), 0.4, Vec3(0.05, 0.05, 0.0), 0.1}};  // one inside the other
+    const int n = 4000;
+    for (const Case& k : cases) {
+        const Vec3 axis = k.c1 - k.c0;
+        const double d = axis.norm();
+        const Vec3 u = axis / d;
+        const bool contained = d <= std::abs(k.r0 - k.r1);
+        const double b = (k.r0 - k.r1) / d, a = contained ? 0.0 : std::sqrt(1.0 - b * b);
+        for (const Vec3& p : samplePoints(0.8, 300, 11)) {
+            INFO("p = " << p.transpose() << ", spheres " << k.c0.transpose() << " " << k.r0 << ", "
+                        << k.c1.transpose() << " " << k.r1);
+            const SurfacePoint c = closestOnSphereHull(k.c0, k.r0, k.c1, k.r1, p);
+            const double y = (p - k.c0).dot(u), x = (p - k.c0 - y * u).norm();
+            double nearest = std::numeric_limits<double>::infinity(), inside = 1.0;
+            for (int i = 0; i <= n; ++i) {
+                const double t = double(i) / n, phi = -M_PI / 2.0 + M_PI * t;
+                inside = std::min(inside, std::hypot(x, y - t * d) - (k.r0 + t * (k.r1 - k.r0)));
+                const double x0 = k.r0 * std::cos(phi), y0 = k.r0 * std::sin(phi);
+                const double x1 = k.r1 * std::cos(phi), y1 = d + k.r1 * std::sin(phi);
+                if (contained) {
+                    const bool big0 = k.r0 >= k.r1;
+                    nearest = std::min(nearest, big0 ? std::hypot(x - x0, y - y0)
+                                                     : std::hypot(x - x1, y - y1));
+                    continue;
+                }
+                if (-b * x0 + a * y0 <= 0.0)
+                    nearest = std::min(nearest, std::hypot(x - x0, y - y0));
+                if (-b * x1 + a * y1 >= d * a)
+                    nearest = std::min(nearest, std::hypot(x - x1, y - y1));
+                const double sx = k.r0 * a + t * (k.r1 - k.r0) * a;
+                const double sy = k.r0 * b + t * (d + (k.r1 - k.r0) * b);
+                nearest = std::min(nearest, std::hypot(x - sx, y - sy));
+            }
+            CHECK((c.distance < 0.0) == (inside < 0.0));
+            CHECK(std::abs(c.distance) == Approx(nearest).margin(4.0 * M_PI * 0.4 / n));
+            CHECK(c.normal.norm() == Approx(1.0).epsilon(1e-12));
+            CHECK((c.point + c.distance * c.normal - p).norm() < 1e-12);
+        }
+    }
+}
+
 TEST_CASE("a box's regions: one face's prism is where the distance is linear", "[geometry]") {
     const Vec3 half(0.3, 0.1, 0.2);
     CHECK(boxRegion(half, Vec3(0.0, 0.0, 0.0)) == 0);

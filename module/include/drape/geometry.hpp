@@ -78,6 +78,14 @@ SurfacePoint closestOnCylinder(int axis, double r, double halfHeight, const Vec3
 /// slanted side or the base, the normal from it to p; inside: the nearer of the two, its
 /// face's normal. On the axis the radial direction is the next axis.
 SurfacePoint closestOnCone(int axis, double r, double halfHeight, const Vec3& p);
+/// The convex hull of two spheres (centres c0, c1, radii r0, r1 >= 0): their two caps and the
+/// cone touching both (a capsule with unequal ends; Bullet's btMultiSphereShape of two
+/// spheres). Exact inside and out; where one sphere holds the other, that sphere. In the
+/// half-plane through the axis and p, with b = (r0 - r1) / |c1 - c0| and a = sqrt(1 - b^2),
+/// the side's outward normal is (a radial, b axial) and the tangent points split the
+/// half-plane into the two caps' regions and the side's.
+SurfacePoint closestOnSphereHull(const Vec3& c0, double r0, const Vec3& c1, double r1,
+                                 const Vec3& p);
 
 /// Signed distance of p from the box |x_k| <= half_k (negative inside), and its outward unit
 /// gradient: from the nearest point outside, the nearest face's normal inside.
