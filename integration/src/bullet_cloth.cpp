@@ -766,7 +766,8 @@ void BulletCloth::Impl::leaveStepper(bool worldAlive) {
 }
 
 void BulletCloth::Impl::draw(btIDebugDraw* drawer) const {
-    if (!drawer) return;
+    // As Bullet draws a body: only in a wireframe mode.
+    if (!drawer || !(drawer->getDebugMode() & btIDebugDraw::DBG_DrawWireframe)) return;
     const Cloth& c = *cloth;
     const btVector3 colour(0.8f, 0.5f, 0.2f);
     for (const auto& s : c.topology().springs()) {

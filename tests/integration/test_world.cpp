@@ -552,3 +552,39 @@ TEST_CASE("a cloth in a centimetre world with inUnits(100) lands as the same clo
     CHECK(lowest == Approx(0.01).margin(1e-6)); // resting at the thickness: 1 cm, not 0.1 mm
     CHECK(worst < 1e-9);
 }
+
+namespace {
+/// A debug drawer that counts the lines it is given, in the mode it is set to.
+class CountingDrawer : public btIDebugDraw {
+  public:
+    int lines = 0;
+    int mode = 0;
+    void drawLine(const btVector3&, const btVector3&, const btVector3&) override { ++lines; }
+    void drawContactPoint(const btVector3&, const btVector3&, btScalar, int,
+                          const btVector3&) override {}
+    void reportErrorWarning(const char*) override {}
+    void draw3dText(const btVector3&, const char*) override {}
+    void setDebugMode(int m) override { mode = m; }
+    int getDebugMode() const override { return mode; }
+};
+} // namespace
+
+TEST_CASE("a cloth's debug drawing follows the drawer's debug mode, as Bullet's bodies do",
+          "[world]") {
+    TestWorld w;
+    auto cloth = makeCloth(horizontalSheet(5, 5, 0.1, 1.0), ClothSettings{});
+    auto& handle = w.add(cloth);
+    CountingDrawer drawer;
+    w.world.setDebugDrawer(&drawer);
+    drawer.setDebugMode(btIDebugDraw::DBG_NoDebug);
+    handle.debugDraw(&drawer);
+    w.world.debugDrawWorld();
+    CHECK(drawer.lines == 0);
+    drawer.setDebugMode(btIDebugDraw::DBG_DrawWireframe);
+    handle.debugDraw(&drawer);
+    CHECK(drawer.lines == int(cloth->topology().springCount()));
+    drawer.lines = 0;
+    w.world.debugDrawWorld(); // the world draws every cloth (and its bodies: none here)
+    CHECK(drawer.lines == int(cloth->topology().springCount()));
+    w.world.setDebugDrawer(nullptr);
+}

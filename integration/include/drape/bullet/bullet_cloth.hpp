@@ -118,7 +118,9 @@ class BulletCloth {
     const ContactStats& lastStats() const;
     /// Counts summed since the cloth was added.
     const ContactStats& totalStats() const;
-    /// Draws the cloth's triangles with the world's debug drawer conventions.
+    /// Draws the cloth's springs (its triangles' edges) as lines, as Bullet draws a body: only
+    /// when the drawer's debug mode has btIDebugDraw::DBG_DrawWireframe. The world's
+    /// debugDrawWorld() draws every cloth so.
     void debugDraw(btIDebugDraw* drawer) const;
 
     /// Steps the cloth once by dt [s] as the world would in a sub-step (snapshot bodies, step
