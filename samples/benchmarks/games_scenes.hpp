@@ -15,6 +15,8 @@
 #include <drape/mesh.hpp>
 #include <drape/topology.hpp>
 
+#include <BulletCollision/CollisionShapes/btMultiSphereShape.h>
+#include <BulletCollision/NarrowPhaseCollision/btGjkEpa2.h>
 #include <btBulletDynamicsCommon.h>
 
 #include <algorithm>
@@ -823,6 +825,75 @@ inline GameScene makeTowelTablecloth() {
     return s;
 }
 
+/// 16. rock_drape and 17. boulder_drape: a 1 m sheet (41 x 41, 0.025 m) dropped from 0.3 m
+/// above onto a static rock on the floor: a convex hull of 24 points on a 0.3 m sphere
+/// (btConvexHullShape, Bullet's default margin), or a two-sphere boulder (btMultiSphereShape,
+/// radii 0.25 and 0.2, centres 0.3 m apart). Notes: the nearest any particle came to the shape,
+/// by Bullet's own signed distance (btGjkEpaSolver2, margin included; the contact thickness is
+/// 1 cm), and when the sheet fell asleep.
+inline GameScene makeDrapeOn(std::unique_ptr<btConvexShape> rock, double top) {
+    GameScene s;
+    s.world = std::make_unique<GameWorld>();
+    s.world->addBody(std::make_unique<btStaticPlaneShape>(btVector3(0, 1, 0), btScalar(0)), 0.0f,
+                     at(0.0, 0.0, 0.0));
+    const btConvexShape* shape = rock.get();
+    const btTransform pose = at(0.0, 0.3, 0.0);
+    s.world->addBody(std::move(rock), 0.0f, pose);
+    SheetSpec sheet;
+    sheet.rows = 41;
+    sheet.cols = 41;
+    sheet.spacing = 0.025;
+    sheet.origin = Vec3(-0.5, top + 0.3, -0.5);
+    sheet.uAxis = Vec3::UnitX();
+    sheet.vAxis = Vec3::UnitZ();
+    addDefaultCloth(s, makeSheet(sheet));
+    struct State {
+        double closest = 1e9, asleepAt = -1.0;
+    };
+    auto st = std::make_shared<State>();
+    const Cloth* cloth = s.cloth.get();
+    s.afterFrame = [st, cloth, shape, pose](double t) {
+        if (!cloth->isAsleep())
+            st->asleepAt = -1.0;
+        else if (st->asleepAt < 0.0)
+            st->asleepAt = t;
+        for (const Vec3& x : cloth->positions()) {
+            btGjkEpaSolver2::sResults res;
+            st->closest = std::min(st->closest, double(btGjkEpaSolver2::SignedDistance(
+                                                    bullet::toBt(x), 0, shape, pose, res)));
+        }
+    };
+    s.notes = [st]() {
+        char buf[160];
+        std::snprintf(buf, sizeof buf,
+                      "nearest to the rock's surface %.1f mm (Bullet's signed distance), "
+                      "asleep %s",
+                      1e3 * st->closest, timeOrNever(st->asleepAt).c_str());
+        return std::string(buf);
+    };
+    s.seconds = 8.0;
+    return s;
+}
+
+inline GameScene makeRockDrape() {
+    auto hull = std::make_unique<btConvexHullShape>();
+    for (int i = 0; i < 24; ++i) {
+        const double a = i * 2.399963, y = 1.0 - 2.0 * (i + 0.5) / 24.0;
+        const double r = std::sqrt(1.0 - y * y);
+        hull->addPoint(btVector3(btScalar(0.3 * r * std::cos(a)), btScalar(0.3 * y),
+                                 btScalar(0.3 * r * std::sin(a))),
+                       false);
+    }
+    hull->recalcLocalAabb();
+    return makeDrapeOn(std::move(hull), 0.6);
+}
+
+inline GameScene makeBoulderDrape() {
+    const btVector3 centres[2] = {btVector3(-0.15f, 0.0f, 0.0f), btVector3(0.15f, 0.0f, 0.0f)};
+    const btScalar radii[2] = {0.25f, 0.2f};
+    return makeDrapeOn(std::make_unique<btMultiSphereShape>(centres, radii, 2), 0.55);
+}
+
 /// The scenes, in the order they run.
 struct SceneEntry {
     const char* name;
@@ -845,6 +916,8 @@ inline const std::vector<SceneEntry>& allScenes() {
         {"crate_net", &makeCrateNet},
         {"cape_ragdoll", &makeCapeRagdoll},
         {"towel_tablecloth", &makeTowelTablecloth},
+        {"rock_drape", &makeRockDrape},
+        {"boulder_drape", &makeBoulderDrape},
     };
     return scenes;
 }
