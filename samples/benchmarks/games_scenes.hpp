@@ -894,6 +894,86 @@ inline GameScene makeBoulderDrape() {
     return makeDrapeOn(std::make_unique<btMultiSphereShape>(centres, radii, 2), 0.55);
 }
 
+/// 18. cape_skirt: a kinematic capsule character (r 0.2 m, 1.4 m tall) wearing a skirt (a cone
+/// of 64 x 17 particles, 0.25 m round at the waist to 0.36 m at the hem, attached by its waist
+/// row) and a cape (21 x 33, 0.025 m, attached by its top row, hanging over the skirt's back):
+/// two cloths that collide with each other. It stands 1 s, then walks at 1.5 m/s and turns 90
+/// degrees in 0.25 s every 2.5 s. The table's columns are the cape's; the frame's time
+/// includes the skirt. Notes: the skirt's peak strain, the sub-steps either ended over the
+/// strain bound (ContactStats::boundBroken) and the contacts between the cloths.
+inline GameScene makeCapeSkirt() {
+    GameScene s;
+    s.world = std::make_unique<GameWorld>();
+    s.world->addBody(std::make_unique<btStaticPlaneShape>(btVector3(0, 1, 0), btScalar(0)), 0.0f,
+                     at(0.0, 0.0, 0.0));
+    btRigidBody* body = s.world->addBody(std::make_unique<btCapsuleShape>(btScalar(0.2), 1.0f),
+                                         0.0f, at(0.0, 1.0, 0.0), true);
+    constexpr int kAround = 64, kRows = 17;
+    constexpr double kWaist = 0.95, kHem = 0.45, kWaistR = 0.25, kHemR = 0.36;
+    TriangleMesh skirtMesh;
+    for (int r = 0; r < kRows; ++r) {
+        const double f = r / double(kRows - 1), y = kWaist - (kWaist - kHem) * f;
+        const double rad = kWaistR + (kHemR - kWaistR) * f;
+        for (int a = 0; a < kAround; ++a) {
+            const double th = 2.0 * M_PI * a / kAround;
+            skirtMesh.vertices.push_back(Vec3(rad * std::sin(th), y, rad * std::cos(th)));
+        }
+    }
+    for (int r = 0; r + 1 < kRows; ++r)
+        for (int a = 0; a < kAround; ++a) {
+            const Index i = Index(r * kAround + a), j = Index(r * kAround + (a + 1) % kAround);
+            skirtMesh.triangles.push_back({i, i + kAround, j});
+            skirtMesh.triangles.push_back({j, i + kAround, j + kAround});
+        }
+    auto skirt = std::make_shared<Cloth>(ClothTopology::build(skirtMesh), ClothSettings{});
+    s.others.push_back(skirt);
+    s.otherHandles.push_back(bullet::addCloth(s.world->world(), skirt));
+    for (int a = 0; a < kAround; ++a)
+        s.otherHandles.back()->attachHere(Index(a), body);
+    SheetSpec sheet;
+    sheet.rows = 33;
+    sheet.cols = 21;
+    sheet.spacing = 0.025;
+    sheet.origin = Vec3(-0.25, 1.45, -0.32);
+    sheet.uAxis = Vec3::UnitX();
+    sheet.vAxis = Vec3(0.0, -0.8, -0.18).normalized();
+    addDefaultCloth(s, makeSheet(sheet));
+    for (Index c = 0; c < sheet.cols; ++c)
+        s.handle->attachHere(c, body);
+    struct State {
+        double heading = 0.0, x = 0.0, z = 0.0, skirtStrain = 0.0;
+    };
+    auto st = std::make_shared<State>();
+    s.beforeFrame = [st, body](double tEnd) {
+        const double t = tEnd - kFrame, phase = std::fmod(t, 2.5);
+        if (phase > 2.0 && phase <= 2.25) st->heading += (M_PI / 2.0) / 0.25 * kFrame;
+        const double v = t < 1.0 ? 0.0 : 1.5;
+        st->x += v * std::sin(st->heading) * kFrame;
+        st->z += v * std::cos(st->heading) * kFrame;
+        btTransform pose = at(st->x, 1.0, st->z);
+        pose.setRotation(btQuaternion(btVector3(0, 1, 0), btScalar(st->heading)));
+        moveKinematic(body, pose);
+    };
+    s.afterFrame = [st, skirt](double) {
+        st->skirtStrain = std::max(st->skirtStrain, skirt->maxStrain());
+    };
+    const bullet::BulletCloth* capeHandle = s.handle.get();
+    const bullet::BulletCloth* skirtHandle = s.otherHandles.back().get();
+    s.notes = [st, capeHandle, skirtHandle]() {
+        char buf[200];
+        std::snprintf(buf, sizeof buf,
+                      "skirt peak strain %.4f, %zu sub-steps over the bound (cape and skirt); %zu "
+                      "contacts between the cloths",
+                      st->skirtStrain,
+                      std::size_t(capeHandle->totalStats().boundBroken +
+                                  skirtHandle->totalStats().boundBroken),
+                      std::size_t(capeHandle->totalStats().clothContacts));
+        return std::string(buf);
+    };
+    s.seconds = 8.0;
+    return s;
+}
+
 /// The scenes, in the order they run.
 struct SceneEntry {
     const char* name;
@@ -918,6 +998,7 @@ inline const std::vector<SceneEntry>& allScenes() {
         {"towel_tablecloth", &makeTowelTablecloth},
         {"rock_drape", &makeRockDrape},
         {"boulder_drape", &makeBoulderDrape},
+        {"cape_skirt", &makeCapeSkirt},
     };
     return scenes;
 }
