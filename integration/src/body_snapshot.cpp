@@ -261,8 +261,9 @@ bool BodySnapshot::applyAccumulatedImpulses(double clothSpeed, double floorSpeed
 }
 
 bool BodyPoses::changed(const std::vector<BodySnapshot>& bodies, double tol, double dt,
-                        const std::vector<Vec3>& x) const {
-    const auto holdsParticle = [&x](const Vec3& lo, const Vec3& hi) {
+                        const std::vector<Vec3>& x, double spring) const {
+    const auto holdsParticle = [&x, spring](const Vec3& boxLo, const Vec3& boxHi) {
+        const Vec3 lo = boxLo.array() - spring, hi = boxHi.array() + spring;
         for (const Vec3& p : x)
             if ((p.array() >= lo.array()).all() && (p.array() <= hi.array()).all()) return true;
         return false;

@@ -193,11 +193,12 @@ class BodyPoses {
     /// the speed `tol` [m/s] carries a point within dt (turning measured at its extent); or its
     /// shape changed (another shape, or its extent grew or shrank that much: setLocalScaling),
     /// or its friction did (setFriction: a cloth at rest on a slope may slide). Only bodies
-    /// whose box (grown by the contact reach, over its way in the sub-step) holds a particle of
-    /// `x`, now or at the last record, count: one that came, went or moved beside the cloth
-    /// touched nothing and held nothing up.
+    /// whose box (grown by the contact reach, over its way in the sub-step), grown again by
+    /// `spring` [m] (the cloth's longest spring: a thin body can touch a triangle or a spring
+    /// between particles), holds a particle of `x`, now or at the last record, count: one that
+    /// came, went or moved beside the cloth touched nothing and held nothing up.
     bool changed(const std::vector<BodySnapshot>& bodies, double tol, double dt,
-                 const std::vector<Vec3>& x) const;
+                 const std::vector<Vec3>& x, double spring) const;
     void record(const std::vector<BodySnapshot>& bodies);
 
   private:

@@ -903,7 +903,8 @@ void BulletCloth::Impl::finish() {
     const auto afterSteps = Clock::now();
     last.maxStrain = lastStrain;
     const LimiterSettings& limiter = cloth->settings().limiter;
-    if (limiter.kind != LimiterKind::None && lastStrain > limiter.maxStrain + limiter.tolerance)
+    if (limiter.kind != LimiterKind::None &&
+        lastStrain > limiter.maxStrain + std::max(limiter.tolerance, kMinimumLimiterBand))
         last.boundBroken = 1;
     // 4. impulses
     if (!slept) attachments.holdTethers(c, stepDt, contacts.bodies, world);
@@ -1117,7 +1118,9 @@ void BulletCloth::Impl::wakeForBodies(double dt) {
     // within the quiet time (a mean speed of distance / time).
     const auto& sl = c.settings().sleep;
     const double tol = sl.distance / std::max(sl.time, dt);
-    if (c.isAsleep() && poses.changed(contacts.bodies, tol, dt, c.positions())) c.wake();
+    if (c.isAsleep() &&
+        poses.changed(contacts.bodies, tol, dt, c.positions(), contacts.longestSpring(c)))
+        c.wake();
     poses.record(contacts.bodies);
 }
 

@@ -215,6 +215,10 @@ const HullFaces& hullFaces(const btConvexHullShape* shape) {
     std::vector<btVector3> scaled(h.points);
     for (btVector3& p : scaled)
         p *= h.scaling;
+    h.normal.clear(); // (a shape at a reused address, or with fewer points: no old faces)
+    h.offset.clear();
+    h.first.assign(1, 0);
+    h.corner.clear();
     if (n >= 4) buildFaces(scaled, h);
     return h;
 }
@@ -279,7 +283,14 @@ SurfaceHit hullQuery(const btConvexHullShape* shape, const Vec3& p, const Pose& 
         return makeHit(pose, distance, n, p - distance * n);
     }
     // Off a rim: d >= ahead > 0 (the point is off every face's plane by at most its distance).
+    // On a corner itself, where rounding put it ahead of a face whose polygon it missed: the
+    // face farthest ahead.
     const double d = std::sqrt(nearest2);
+    if (!(d > 1e-12 * h.size)) {
+        const Vec3& n = h.normal[best];
+        const double distance = ahead - margin;
+        return makeHit(pose, distance, n, p - distance * n);
+    }
     const Vec3 n = (p - nearest) / d;
     const double distance = d - margin;
     return makeHit(pose, distance, n, p - distance * n);

@@ -217,9 +217,9 @@ bool ClothPairCollider::listsHold(const Cloth& a, const Vec3List& aStart, const 
             mean += xb[i] - builtAt_[1][i];
         mean /= static_cast<double>(xa.size() + xb.size());
         for (std::size_t i = 0; i < xa.size(); ++i)
-            if ((xa[i] - builtAt_[0][i] - mean).squaredNorm() > slack2) return false;
+            if (!((xa[i] - builtAt_[0][i] - mean).squaredNorm() <= slack2)) return false;
         for (std::size_t i = 0; i < xb.size(); ++i)
-            if ((xb[i] - builtAt_[1][i] - mean).squaredNorm() > slack2) return false;
+            if (!((xb[i] - builtAt_[1][i] - mean).squaredNorm() <= slack2)) return false;
         return true;
     };
     return near(aStart, bStart) && near(a.positions(), b.positions());

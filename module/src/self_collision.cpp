@@ -133,7 +133,7 @@ bool SelfCollider::pairsHold(const Vec3List& x, double thickness) const {
         mean += x[i] - built_[i];
     mean /= static_cast<double>(x.size());
     for (std::size_t i = 0; i < x.size(); ++i) {
-        if ((x[i] - built_[i] - mean).squaredNorm() >= slack2) return false;
+        if (!((x[i] - built_[i] - mean).squaredNorm() < slack2)) return false; // (NaN: rebuilt)
     }
     return true;
 }

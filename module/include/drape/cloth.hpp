@@ -122,6 +122,8 @@ using KinematicPath = std::function<Vec3(double t)>;
 /// The stretch-wave speed of the automatic stiffness for `topology` under `settings` [m/s, or
 /// scene units per second]: settings.stretchWaveSpeed, or sqrt(|g| L / kAutomaticHangingStrain)
 /// if that is more, L the largest side of the rest shape's bounding box (drape/settings.hpp).
+/// Taken when the cloth is built, with the settings' gravity: a later Cloth::setGravity (or a
+/// Bullet world's gravity, BulletClothSettings::useWorldGravity) does not change the springs.
 double automaticWaveSpeed(const ClothTopology& topology, const ClothSettings& settings);
 
 class ClothPairCollider;
