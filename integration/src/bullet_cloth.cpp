@@ -903,8 +903,7 @@ void BulletCloth::Impl::finish() {
     const auto afterSteps = Clock::now();
     last.maxStrain = lastStrain;
     const LimiterSettings& limiter = cloth->settings().limiter;
-    if (limiter.kind != LimiterKind::None &&
-        lastStrain > limiter.maxStrain + std::max(limiter.tolerance, kMinimumLimiterBand))
+    if (limiter.kind != LimiterKind::None && lastStrain > limiter.maxStrain + limiterBand(limiter))
         last.boundBroken = 1;
     // 4. impulses
     if (!slept) attachments.holdTethers(c, stepDt, contacts.bodies, world);

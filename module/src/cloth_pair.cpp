@@ -208,21 +208,9 @@ bool ClothPairCollider::listsHold(const Cloth& a, const Vec3List& aStart, const 
         builtAt_[0].size() != a.particleCount() || builtAt_[1].size() != b.particleCount())
         return false;
     const double slack = 0.5 * (builtReach_ - thickness);
-    const double slack2 = slack * slack;
-    const auto near = [&](const Vec3List& xa, const Vec3List& xb) {
-        Vec3 mean = Vec3::Zero();
-        for (std::size_t i = 0; i < xa.size(); ++i)
-            mean += xa[i] - builtAt_[0][i];
-        for (std::size_t i = 0; i < xb.size(); ++i)
-            mean += xb[i] - builtAt_[1][i];
-        mean /= static_cast<double>(xa.size() + xb.size());
-        for (std::size_t i = 0; i < xa.size(); ++i)
-            if (!((xa[i] - builtAt_[0][i] - mean).squaredNorm() <= slack2)) return false;
-        for (std::size_t i = 0; i < xb.size(); ++i)
-            if (!((xb[i] - builtAt_[1][i] - mean).squaredNorm() <= slack2)) return false;
-        return true;
-    };
-    return near(aStart, bStart) && near(a.positions(), b.positions());
+    return detail::movedTogetherWithin({{&aStart, &builtAt_[0]}, {&bStart, &builtAt_[1]}}, slack) &&
+           detail::movedTogetherWithin(
+               {{&a.positions(), &builtAt_[0]}, {&b.positions(), &builtAt_[1]}}, slack);
 }
 
 ClothPairStats ClothPairCollider::collide(Cloth& a, const Vec3List& aStart, Cloth& b,

@@ -9,6 +9,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <initializer_list>
 #include <utility>
 #include <vector>
 
@@ -92,6 +93,30 @@ class CellTable {
     std::vector<Index> listed_;                 ///< the entries by slot
     std::size_t mask_ = 0;
 };
+
+/// Whether every point of the lists (each `now` against where it was, `built`, of the same
+/// size) moved less than `slack` from where the mean move of all of them took it. A pair's
+/// distance does not see a common translation, so pair lists built with a reach of the
+/// thickness plus twice the slack still hold every pair nearer than the thickness (a falling
+/// cloth, or two cloths carried together, keep theirs). A non-finite move fails.
+inline bool
+movedTogetherWithin(std::initializer_list<std::pair<const Vec3List*, const Vec3List*>> moves,
+                    double slack) {
+    Vec3 mean = Vec3::Zero();
+    std::size_t count = 0;
+    for (const auto& [now, built] : moves) {
+        for (std::size_t i = 0; i < now->size(); ++i)
+            mean += (*now)[i] - (*built)[i];
+        count += now->size();
+    }
+    if (count == 0) return true;
+    mean /= static_cast<double>(count);
+    const double slack2 = slack * slack;
+    for (const auto& [now, built] : moves)
+        for (std::size_t i = 0; i < now->size(); ++i)
+            if (!(((*now)[i] - (*built)[i] - mean).squaredNorm() < slack2)) return false;
+    return true;
+}
 
 /// A particle or a triangle's corner: its position, velocity and inverse mass (0: held, or a
 /// cloth that does not give way).

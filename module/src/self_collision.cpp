@@ -124,18 +124,9 @@ bool SelfCollider::pairsHold(const Vec3List& x, double thickness) const {
     if (!valid_ || builtThickness_ != thickness || built_.size() != x.size()) return false;
     // A pair's distance changes by at most twice the largest move of a particle since the
     // list was built: while that stays within the reach beyond the thickness, every pair
-    // nearer than the thickness is listed. Moves are measured from the cloth's mean move (a
-    // pair's distance does not see a common translation), so a falling cloth keeps its list.
-    const double slack = 0.5 * (builtReach_ - thickness);
-    const double slack2 = slack * slack;
-    Vec3 mean = Vec3::Zero();
-    for (std::size_t i = 0; i < x.size(); ++i)
-        mean += x[i] - built_[i];
-    mean /= static_cast<double>(x.size());
-    for (std::size_t i = 0; i < x.size(); ++i) {
-        if (!((x[i] - built_[i] - mean).squaredNorm() < slack2)) return false; // (NaN: rebuilt)
-    }
-    return true;
+    // nearer than the thickness is listed. Moves are measured from the cloth's mean move, so a
+    // falling cloth keeps its list.
+    return movedTogetherWithin({{&x, &built_}}, 0.5 * (builtReach_ - thickness));
 }
 
 SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,

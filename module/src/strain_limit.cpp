@@ -420,7 +420,7 @@ void StrainLimiter::prepare(const ClothTopology& topology, const std::vector<dou
     moved_.resize(n, 0);
     pulled_.resize(n, 0);
     heldPull_.resize(n, Vec3::Zero());
-    const double band = std::max(s.tolerance, kMinimumLimiterBand);
+    const double band = limiterBand(s);
     const double upper = 1.0 + s.maxStrain + band;
     const double lower = std::max(0.0, 1.0 + s.maxStrain - band);
     upper2_ = upper * upper;
@@ -1054,7 +1054,7 @@ StrainLimitStats limitStrainProvot(const ClothTopology& topology,
                                    std::vector<Vec3>& x) {
     StrainLimitStats stats;
     const double stretchLimit = 1.0 + s.maxStrain;
-    const double stopLimit = 1.0 + s.maxStrain + std::max(s.tolerance, kMinimumLimiterBand);
+    const double stopLimit = 1.0 + s.maxStrain + limiterBand(s);
     stats.maxStrainBefore = maxSpringStrain(topology, x);
     stats.maxStrainAfter = stats.maxStrainBefore;
     stats.work = topology.springCount();
@@ -1086,7 +1086,7 @@ StrainLimitStats limitStrainOneSided(const ClothTopology& topology,
                                      std::vector<Vec3>& x) {
     StrainLimitStats stats;
     const double stretchLimit = 1.0 + s.maxStrain;
-    const double stopLimit = 1.0 + s.maxStrain + std::max(s.tolerance, kMinimumLimiterBand);
+    const double stopLimit = 1.0 + s.maxStrain + limiterBand(s);
     const auto& springs = topology.springs();
     const auto& off = topology.adjacencyOffsets();
     const auto& nbr = topology.adjacentParticles();

@@ -107,6 +107,12 @@ struct LimiterSettings {
 /// steps and 300 s of CPU in 4 s, against none).
 inline constexpr double kMinimumLimiterBand = 1e-12;
 
+/// The band a limiter keeps for settings `s` already at its step (Cloth passes bandAt's):
+/// s.tolerance, at least kMinimumLimiterBand [-].
+inline double limiterBand(const LimiterSettings& s) {
+    return std::max(s.tolerance, kMinimumLimiterBand);
+}
+
 /// The limiter's band for a step of dt [s]: tolerance * min(1, (dt / toleranceStep)^2), and at
 /// least kMinimumLimiterBand [-].
 inline double bandAt(const LimiterSettings& s, double dt) {
