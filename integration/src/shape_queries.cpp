@@ -15,6 +15,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <unordered_map>
 #include <vector>
 
@@ -133,6 +134,10 @@ struct HullFaces {
     std::vector<std::size_t> first;
     std::vector<Vec3> corner;
     double size = 0.0; ///< the hull's largest extent [m]
+    /// The face this thread's last query found nearest, tried first by the next (particles
+    /// are queried in index order, so neighbours follow each other). Only a start: the answer
+    /// is the same from any face.
+    mutable std::size_t lastFace = 0;
 };
 
 /// Builds the faces of the hull of `points` (btConvexHullComputer); none for a hull that is
@@ -223,6 +228,10 @@ const HullFaces& hullFaces(const btConvexHullShape* shape) {
     return h;
 }
 
+/// How far inside a face's polygon (times the hull's size) a point's projection must lie for
+/// the last query's face to answer without the scan (hullQuery).
+constexpr double kHintRoom = 1e-9;
+
 /// A convex hull shape (margin included: the hull of its points grown by a sphere of that
 /// radius) and a point in its frame, exactly from its faces. Outside the hull of the points:
 /// if the point's projection on a face it is in front of lies in that face's polygon, the
@@ -230,15 +239,45 @@ const HullFaces& hullFaces(const btConvexHullShape* shape) {
 /// point, since the projection is in the hull: the faces are read in order until one is found);
 /// else the nearest point lies on the rim of a face the point is in front of, the nearest of
 /// those. Inside, the face farthest ahead of the point is the nearest (the projection on it
-/// lies in the face). Invalid only for a hull without faces (flat, or fewer than four points:
-/// the caller asks GJK then). GJK per particle and cloth step was 70 % of the cost of a cloth
-/// resting on a rock, and where an edge or a corner was nearest it still cost a rock three
-/// times a box.
-SurfaceHit hullQuery(const btConvexHullShape* shape, const Vec3& p, const Pose& pose) {
+/// lies in the face). A point ahead of some face's plane by more than `reach` (> 0) is
+/// farther than that from the hull: an invalid hit, as closestSurface allows. Nothing for a
+/// hull without faces (flat, or fewer than four points: the caller asks GJK then). GJK per
+/// particle and cloth step was 70 % of the cost of a cloth resting on a rock, and where an
+/// edge or a corner was nearest it still cost a rock three times a box.
+std::optional<SurfaceHit> hullQuery(const btConvexHullShape* shape, const Vec3& p, const Pose& pose,
+                                    double reach) {
     const HullFaces& h = hullFaces(shape);
-    if (h.normal.empty()) return {};
+    if (h.normal.empty()) return std::nullopt;
     const double margin = double(shape->getMargin());
     const std::size_t faces = h.normal.size();
+    // The last query's face first: if the point is in front of it and its projection lies
+    // in the polygon, farther than kHintRoom times the hull's size from every rim, that
+    // projection is the nearest point, the one the scan below would find (no other face can
+    // hold a point so far inside this one's polygon; nearer a rim, rounding could let two
+    // faces claim it, and the scan's order decides).
+    if (h.lastFace < faces) {
+        const std::size_t f = h.lastFace;
+        const Vec3& n = h.normal[f];
+        const double s = n.dot(p) - h.offset[f];
+        if (reach > 0.0 && s - margin > reach) return SurfaceHit{}; // beyond reach
+        if (s > 0.0) {
+            const Vec3* c = h.corner.data() + h.first[f];
+            const std::size_t m = h.first[f + 1] - h.first[f];
+            const Vec3 q = p - s * n;
+            const double room = kHintRoom * h.size;
+            bool inside = true;
+            for (std::size_t k = 0; k < m && inside; ++k) {
+                const Vec3& a = c[k];
+                const Vec3 ab = c[k + 1 == m ? 0 : k + 1] - a;
+                const double across = ab.cross(q - a).dot(n); // |ab| times q's room from the rim
+                inside = across > 0.0 && across * across >= room * room * ab.squaredNorm();
+            }
+            if (inside) {
+                const double distance = s - margin;
+                return makeHit(pose, distance, n, p - distance * n);
+            }
+        }
+    }
     std::size_t best = 0;
     double ahead = -std::numeric_limits<double>::infinity();
     double nearest2 = std::numeric_limits<double>::infinity(); // of the rims in front
@@ -246,6 +285,7 @@ SurfaceHit hullQuery(const btConvexHullShape* shape, const Vec3& p, const Pose& 
     for (std::size_t f = 0; f < faces; ++f) {
         const Vec3& n = h.normal[f];
         const double s = n.dot(p) - h.offset[f];
+        if (reach > 0.0 && s - margin > reach) return SurfaceHit{}; // beyond reach
         if (s > ahead) {
             ahead = s;
             best = f;
@@ -261,6 +301,7 @@ SurfaceHit hullQuery(const btConvexHullShape* shape, const Vec3& p, const Pose& 
             inside = (b - a).cross(q - a).dot(n) >= 0.0;
         }
         if (inside) {
+            h.lastFace = f;
             const double distance = s - margin;
             return makeHit(pose, distance, n, p - distance * n);
         }
@@ -596,9 +637,9 @@ SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const
     if (shape->isConvex()) {
         ++counters.queries;
         if (shape->getShapeType() == CONVEX_HULL_SHAPE_PROXYTYPE) {
-            const SurfaceHit hull =
-                hullQuery(static_cast<const btConvexHullShape*>(shape), local, pose);
-            if (hull.valid) return hull;
+            const std::optional<SurfaceHit> hull =
+                hullQuery(static_cast<const btConvexHullShape*>(shape), local, pose, reach);
+            if (hull) return *hull;
         }
         return convexQuery(static_cast<const btConvexShape*>(shape), local, pose);
     }
