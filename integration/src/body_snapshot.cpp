@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <string>
 
@@ -213,6 +214,25 @@ bool snapshotBody(const btCollisionObject* obj, double reach, double frictionSca
     return true;
 }
 
+bool holdIfJumped(BodySnapshot& b, double dt, double speed, double turn, double reach) {
+    const btRigidBody* rb = btRigidBody::upcast(b.object);
+    if (!rb || !rb->isKinematicObject() || b.still || b.plane || !(dt > 0.0)) return false;
+    btVector3 centre;
+    btScalar radius = 0;
+    b.object->getCollisionShape()->getBoundingSphere(centre, radius);
+    const double fastest = b.v.norm() + b.w.norm() * double(centre.length() + radius);
+    const bool jumped = (speed > 0.0 && fastest > speed) || (turn > 0.0 && b.w.norm() * dt > turn);
+    if (!jumped) return false;
+    b.v.setZero();
+    b.w.setZero();
+    b.still = true;
+    btVector3 mn, mx;
+    shapeAabb(b.object->getCollisionShape(), toBtTransform(b.pose), mn, mx);
+    b.aabbMin = toVec(mn).array() - reach;
+    b.aabbMax = toVec(mx).array() + reach;
+    return true;
+}
+
 bool BodySnapshot::applyAccumulatedImpulses(double clothSpeed, double floorSpeed) {
     refused = false;
     if (!dynamicBody) return false;
@@ -260,6 +280,36 @@ bool BodySnapshot::applyAccumulatedImpulses(double clothSpeed, double floorSpeed
     return pushedActive;
 }
 
+namespace {
+/// A number that changes when a compound shape's children are added, removed, replaced or
+/// moved (btCompoundShape's update revision, which updateChildTransform leaves alone, and each
+/// child's shape and transform), at any depth; 0 for other shapes.
+std::uint64_t shapeRevision(const btCollisionShape* shape) {
+    if (!shape || shape->getShapeType() != COMPOUND_SHAPE_PROXYTYPE) return 0;
+    const auto* compound = static_cast<const btCompoundShape*>(shape);
+    std::uint64_t r = std::uint64_t(std::uint32_t(compound->getUpdateRevision())) + 1;
+    const auto mix = [&r](std::uint64_t v) { r = (r ^ v) * 0x100000001b3ull; }; // FNV-1a step
+    for (int c = 0; c < compound->getNumChildShapes(); ++c) {
+        const btCollisionShape* child = compound->getChildShape(c);
+        mix(reinterpret_cast<std::uintptr_t>(child));
+        const btTransform& t = compound->getChildTransform(c);
+        btScalar values[12];
+        for (int k = 0; k < 3; ++k) {
+            values[k] = t.getOrigin()[k];
+            for (int j = 0; j < 3; ++j)
+                values[3 + 3 * k + j] = t.getBasis()[k][j];
+        }
+        for (const btScalar v : values) {
+            std::uint64_t bits = 0;
+            std::memcpy(&bits, &v, sizeof v);
+            mix(bits);
+        }
+        mix(shapeRevision(child));
+    }
+    return r;
+}
+} // namespace
+
 bool BodyPoses::changed(const std::vector<BodySnapshot>& bodies, double tol, double dt,
                         const std::vector<Vec3>& x, double spring) const {
     const auto holdsParticle = [&x, spring](const Vec3& boxLo, const Vec3& boxHi) {
@@ -281,7 +331,9 @@ bool BodyPoses::changed(const std::vector<BodySnapshot>& bodies, double tol, dou
             if (holdsParticle(b.aabbMin, b.aabbMax)) return true;
             continue;
         }
-        bool moved = was->shape != b.object->getCollisionShape() || was->friction != b.friction;
+        const btCollisionShape* shape = b.object->getCollisionShape();
+        bool moved = was->shape != shape || was->friction != b.friction ||
+                     was->revision != shapeRevision(shape);
         // A shape grown or shrunk in place (a static box's setLocalScaling under a sleeping
         // cloth) moves its surface as motion would.
         const Vec3 grown = b.aabbMax - b.aabbMin - was->extent; // (a plane's: 0)
@@ -303,9 +355,13 @@ bool BodyPoses::changed(const std::vector<BodySnapshot>& bodies, double tol, dou
 void BodyPoses::record(const std::vector<BodySnapshot>& bodies) {
     last_.resize(bodies.size());
     for (std::size_t k = 0; k < bodies.size(); ++k)
-        last_[k] = {bodies[k].object,   bodies[k].object->getCollisionShape(),
-                    bodies[k].pose,     bodies[k].aabbMax - bodies[k].aabbMin,
-                    bodies[k].friction, bodies[k].aabbMin,
+        last_[k] = {bodies[k].object,
+                    bodies[k].object->getCollisionShape(),
+                    shapeRevision(bodies[k].object->getCollisionShape()),
+                    bodies[k].pose,
+                    bodies[k].aabbMax - bodies[k].aabbMin,
+                    bodies[k].friction,
+                    bodies[k].aabbMin,
                     bodies[k].aabbMax};
 }
 

@@ -7,6 +7,7 @@
 
 #include "drape/strain_limit.hpp"
 
+#include <cstdint>
 #include <utility>
 #include <vector>
 
@@ -161,6 +162,13 @@ struct BodySnapshot {
 bool snapshotBody(const btCollisionObject* object, double reach, double frictionScale,
                   BodySnapshot& out, double dt, const Pose* at = nullptr);
 
+/// A kinematic body (a snapshot of one) whose fastest point moved faster than `speed` [m/s],
+/// or that turned by more than `turn` [rad], in the sub-step of dt [s] is taken as put where it
+/// is: no velocities, no way swept in the sub-step (its box `reach` [m] round where it is).
+/// Bullet gives a kinematic body whose motion state the program set in one go the velocity of
+/// that jump over the sub-step. Either limit 0: not tested. Returns whether it was taken so.
+bool holdIfJumped(BodySnapshot& b, double dt, double speed, double turn, double reach);
+
 /// An elongated dynamic body (4 times lighter about an axis than about its heaviest one) that is
 /// lighter about that axis than a ring of radius `gyration` [m] of its mass (a
 /// rod or bar thinner than the cloth's spacing, about its own axis) is treated as that ring
@@ -191,7 +199,8 @@ class BodyPoses {
   public:
     /// Whether a body is new or gone since the last record, or moves: farther or faster than
     /// the speed `tol` [m/s] carries a point within dt (turning measured at its extent); or its
-    /// shape changed (another shape, or its extent grew or shrank that much: setLocalScaling),
+    /// shape changed (another shape, a compound's children added, removed or moved at any
+    /// depth, or its extent grew or shrank that much: setLocalScaling),
     /// or its friction did (setFriction: a cloth at rest on a slope may slide). Only bodies
     /// whose box (grown by the contact reach, over its way in the sub-step), grown again by
     /// `spring` [m] (the cloth's longest spring: a thin body can touch a triangle or a spring
@@ -205,6 +214,7 @@ class BodyPoses {
     struct Last {
         const btCollisionObject* object;
         const btCollisionShape* shape;
+        std::uint64_t revision; ///< shapeRevision of the shape
         Pose pose;
         Vec3 extent;     ///< the world AABB's size
         double friction; ///< BodySnapshot::friction

@@ -94,6 +94,7 @@ void accumulate(ContactStats& total, const ContactStats& s) {
     total.sweptTriangles += s.sweptTriangles;
     total.edgeContacts += s.edgeContacts;
     total.teleports += s.teleports;
+    total.jumpedBodies += s.jumpedBodies;
     total.contacts += s.contacts;
     total.projections += s.projections;
     total.heldBetween += s.heldBetween;
@@ -254,7 +255,9 @@ struct BulletCloth::Impl {
     void leaveStepper(bool worldAlive);
     /// Snapshots the bodies among the proxy's overlaps (and the broadphase's answer for a
     /// larger box when the cloth would sweep out of the proxy in this step).
-    void gatherBodies(double dt);
+    /// `carried`: the cloth was carried with its attachment bodies (a teleport) in this
+    /// sub-step (the bodies that jumped with it are then sweepAfterTeleport's).
+    void gatherBodies(double dt, bool carried);
     /// A kinematic body's pose in this Bullet sub-step of dt: followKinematic from its pose in
     /// the last one (Bullet puts it at the end of the frame's motion in every sub-step),
     /// recorded for the next; nothing for any other body.
@@ -831,7 +834,7 @@ void BulletCloth::Impl::prepare(double dt) {
         attachments.carryTeleported(c, dt, settings.teleportSpeed, settings.teleportTurn);
     if (carried) ++last.teleports;
     // 1. bodies
-    gatherBodies(dt);
+    gatherBodies(dt, carried.has_value());
     if (carried) sweepAfterTeleport(*carried, dt);
     // 2. attach
     attachments.advance(c, dt);
@@ -957,7 +960,7 @@ std::optional<detail::Pose> BulletCloth::Impl::followed(const btCollisionObject*
     return at;
 }
 
-void BulletCloth::Impl::gatherBodies(double dt) {
+void BulletCloth::Impl::gatherBodies(double dt, bool carried) {
     std::vector<detail::BodySnapshot>& bodies = contacts.bodies;
     bodies.clear();
     candidates.clear();
@@ -989,6 +992,14 @@ void BulletCloth::Impl::gatherBodies(double dt) {
         const std::optional<detail::Pose> at = followed(obj, dt);
         if (detail::snapshotBody(obj, reach, settings.contact.frictionScale, b, dt,
                                  at ? &*at : nullptr)) {
+            // A kinematic body set somewhere in one go (not one the cloth hangs from: those
+            // carry it, carryTeleported) appears there.
+            const bool attachedTo =
+                !attachments.list().empty() &&
+                std::binary_search(attachedBodies.begin(), attachedBodies.end(), obj);
+            if (at && !carried && !attachedTo &&
+                detail::holdIfJumped(b, dt, settings.teleportSpeed, settings.teleportTurn, reach))
+                ++last.jumpedBodies;
             // The cloth's spacing: the smallest lever its contacts resolve.
             detail::limitSpin(b, contacts.longestSpring(*cloth));
             bodies.push_back(b);

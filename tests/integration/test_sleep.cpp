@@ -209,6 +209,63 @@ TEST_CASE("a sleeping cloth wakes when the shape under it is scaled or replaced"
     }
 }
 
+TEST_CASE("a sleeping cloth wakes when a child of the compound under it is moved, removed or "
+          "added",
+          "[world][sleep]") {
+    // A cloth asleep on a table built as a compound (a top and a post far outside the cloth,
+    // which keeps the compound's box as it is). The game lowers the top
+    // (updateChildTransform, which Bullet's update revision does not count), removes it, or
+    // adds a plate round the cloth's middle: the cloth wakes and falls, or comes out onto it.
+    // Before, it slept on in the air (a new user's review: 0.45 m above the lowered top for
+    // 10 s).
+    for (const int change : {0, 1, 2}) {
+        TestWorld w;
+        auto* compound = w.shape<btCompoundShape>();
+        auto* top = w.shape<btBoxShape>(btVector3(0.3f, 0.05f, 0.3f));
+        auto* post = w.shape<btBoxShape>(btVector3(0.03f, 0.5f, 0.03f));
+        auto* block = w.shape<btBoxShape>(btVector3(0.1f, 0.025f, 0.1f));
+        btTransform t;
+        t.setIdentity();
+        t.setOrigin(btVector3(0, -0.05f, 0));
+        compound->addChildShape(t, top);
+        t.setOrigin(btVector3(1.2f, -0.5f, 1.2f));
+        compound->addChildShape(t, post);
+        if (change == 2) { // a lower top, then a plate round the cloth's middle, nearer its top
+            t.setOrigin(btVector3(0, -0.45f, 0));
+            compound->updateChildTransform(0, t);
+        }
+        btRigidBody* table = w.body(compound, 0.0, Vec3::Zero());
+        auto cloth =
+            makeCloth(horizontalSheet(7, 7, 0.05, change == 2 ? -0.39 : 0.01), smallCloth());
+        w.add(cloth);
+        REQUIRE(runUntilAsleep(w, *cloth));
+        run(w, 30);
+        REQUIRE(cloth->isAsleep());
+        const double before = cloth->positions()[24].y();
+        if (change == 0) {
+            t.setOrigin(btVector3(0, -0.45f, 0));
+            compound->updateChildTransform(0, t);
+        } else if (change == 1) {
+            compound->removeChildShapeByIndex(0);
+        } else {
+            t.setOrigin(btVector3(0, -0.4f, 0)); // top at -0.375
+            compound->addChildShape(t, block);
+        }
+        w.world.updateSingleAabb(table);
+        run(w, 1);
+        const bool woke = !cloth->isAsleep();
+        run(w, 120);
+        const double after = cloth->positions()[24].y();
+        INFO("change " << change << ": woke " << woke << ", the middle particle " << before
+                       << " -> " << after << " m in 0.5 s");
+        CHECK(woke);
+        if (change == 2)
+            CHECK(after > -0.375); // lifted out onto the plate
+        else
+            CHECK(after < before - 0.1); // fell after the top
+    }
+}
+
 TEST_CASE("a cloth on a stack of dynamic boxes stays on it, lets it sleep, and wakes it when "
           "pushed",
           "[world][sleep][stack]") {

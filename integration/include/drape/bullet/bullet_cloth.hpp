@@ -26,9 +26,12 @@
 //    wakes before it steps when a candidate body (a broadphase overlap of its proxy) is new,
 //    has left, moves faster than v = sleep.distance / sleep.time (1 cm/s by default) or
 //    has moved or turned by more than v times the step since the last sub-step, or has another
-//    shape or a shape grown or shrunk by that much (setLocalScaling); when an attachment's body
+//    shape, a shape grown or shrunk by that much (setLocalScaling) or a compound shape whose
+//    children were added, removed or moved (at any depth); when an attachment's body
 //    moves; when the world's gravity changes. It stays awake while it pushes an
 //    active dynamic body (a body resting on a sleeping cloth would lose its support).
+//    A shape edited in place, which Bullet keeps no count of (a heightfield's height data, a
+//    triangle mesh's vertices), is not seen: call Cloth::wake() after such an edit.
 //
 // Units are the world's (metres, kilograms, seconds when the scene is in SI). Bullet is
 // single precision; drape is double precision; values are converted at this boundary.

@@ -132,8 +132,15 @@ struct BulletClothSettings {
     /// dragged there by its attached row at the speed of the jump (a 2 m jump of a kinematic
     /// capsule was 120 m/s and cost up to 1.6 s of CPU a frame). Not for a cloth that is also
     /// pinned by the program or attached to bodies that moved differently. A body truly this fast
-    /// is carried too (its cloth does not trail). Counted in ContactStats::teleports. 0 turns
-    /// it off; must be >= 0 and finite.
+    /// is carried too (its cloth does not trail). Counted in ContactStats::teleports.
+    /// A kinematic body the cloth is not attached to whose fastest point moves faster than this
+    /// (or that turns by more than teleportTurn) in a Bullet sub-step is taken as put where it
+    /// is, not swept there (a game that sets a platform's or a door's motion state to where it
+    /// resets: Bullet's velocity is the jump over the sub-step; a box set 2 m across a curtain
+    /// swept through it at 120 m/s, 4 s of CPU in that frame and the curtain thrown at 200
+    /// m/s): particles it lands on come out at contact.depenetrationSpeed. Counted in
+    /// ContactStats::jumpedBodies. A kinematic body that truly moves this fast needs a higher
+    /// value. 0 turns both off; must be >= 0 and finite.
     double teleportSpeed = 50.0;
     /// Snap turns [rad]: when every body the cloth is attached to turned by one rigid motion
     /// by more than this in a Bullet sub-step (a game that sets its character facing the
@@ -172,6 +179,10 @@ struct ContactStats {
     /// Sub-steps in which the cloth was carried with the bodies it is attached to
     /// (BulletClothSettings::teleportSpeed).
     std::size_t teleports = 0;
+    /// Kinematic bodies near the cloth taken as put where they are in a sub-step, not swept
+    /// there: they moved faster than teleportSpeed or turned by more than teleportTurn
+    /// (BulletClothSettings::teleportSpeed), once per body and Bullet sub-step.
+    std::size_t jumpedBodies = 0;
     /// Particle-body contacts: particles touching a body (projected, or resting at the
     /// thickness) or, with eq. (7) on, inside its band; once per particle and body per cloth
     /// step, summed over the sub-steps.
