@@ -149,8 +149,9 @@ void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies) 
 bool snapshotBody(const btCollisionObject* obj, double reach, double frictionScale, BodySnapshot& b,
                   double dt, const Pose* at) {
     const int type = obj->getInternalType();
-    if (type != btCollisionObject::CO_RIGID_BODY && type != btCollisionObject::CO_COLLISION_OBJECT)
-        return false; // ghosts (other cloths' proxies, triggers), soft bodies, multibodies
+    if (type != btCollisionObject::CO_RIGID_BODY &&
+        type != btCollisionObject::CO_COLLISION_OBJECT && !isCharacter(obj))
+        return false; // other ghosts (other cloths' proxies, triggers), soft bodies, multibodies
     if (!obj->hasContactResponse() || !obj->getCollisionShape()) return false;
     b = BodySnapshot{};
     b.object = obj;
@@ -214,9 +215,29 @@ bool snapshotBody(const btCollisionObject* obj, double reach, double frictionSca
     return true;
 }
 
+bool isCharacter(const btCollisionObject* obj) {
+    return obj->getInternalType() == btCollisionObject::CO_GHOST_OBJECT &&
+           (obj->getCollisionFlags() & btCollisionObject::CF_CHARACTER_OBJECT) != 0;
+}
+
+void moveCharacter(BodySnapshot& b, const Pose& before, double dt) {
+    if (!(dt > 0.0)) return;
+    b.v = (b.pose.t - before.t) / dt;
+    const Eigen::AngleAxisd turn(Eigen::Matrix3d(b.pose.R * before.R.transpose()));
+    b.w = turn.angle() > 0.0 ? Vec3(turn.angle() / dt * turn.axis()) : Vec3::Zero();
+    b.still = b.v == Vec3::Zero() && b.w == Vec3::Zero();
+    if (b.still) return;
+    // Its box covers its way, as snapshotBody's does for a body with velocities.
+    const Vec3 back = -dt * b.v;
+    const double spin = b.w.norm() * dt * 0.5 * (b.aabbMax - b.aabbMin).norm();
+    b.aabbMin = b.aabbMin.cwiseMin(b.aabbMin + back).array() - spin;
+    b.aabbMax = b.aabbMax.cwiseMax(b.aabbMax + back).array() + spin;
+}
+
 bool holdIfJumped(BodySnapshot& b, double dt, double speed, double turn, double reach) {
     const btRigidBody* rb = btRigidBody::upcast(b.object);
-    if (!rb || !rb->isKinematicObject() || b.still || b.plane || !(dt > 0.0)) return false;
+    const bool kinematic = rb ? rb->isKinematicObject() : isCharacter(b.object);
+    if (!kinematic || b.still || b.plane || !(dt > 0.0)) return false;
     btVector3 centre;
     btScalar radius = 0;
     b.object->getCollisionShape()->getBoundingSphere(centre, radius);

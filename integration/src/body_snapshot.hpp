@@ -162,10 +162,20 @@ struct BodySnapshot {
 bool snapshotBody(const btCollisionObject* object, double reach, double frictionScale,
                   BodySnapshot& out, double dt, const Pose* at = nullptr);
 
-/// A kinematic body (a snapshot of one) whose fastest point moved faster than `speed` [m/s],
-/// or that turned by more than `turn` [rad], in the sub-step of dt [s] is taken as put where it
-/// is: no velocities, no way swept in the sub-step (its box `reach` [m] round where it is).
-/// Bullet gives a kinematic body whose motion state the program set in one go the velocity of
+/// A character: a ghost object flagged btCollisionObject::CF_CHARACTER_OBJECT, as Bullet's
+/// btKinematicCharacterController's is. The cloth collides with it as with a kinematic body
+/// whose velocities are its move since the last sub-step (moveCharacter); other ghosts
+/// (triggers, other cloths' proxies) it passes through.
+bool isCharacter(const btCollisionObject* object);
+
+/// A character's snapshot `b` (at its pose now) moved from `before` within the sub-step of dt
+/// [s]: its velocities that move, and its box grown over the way.
+void moveCharacter(BodySnapshot& b, const Pose& before, double dt);
+
+/// A kinematic body (a snapshot of one, or of a character) whose fastest point moved faster than
+/// `speed` [m/s], or that turned by more than `turn` [rad], in the sub-step of dt [s] is taken as
+/// put where it is: no velocities, no way swept in the sub-step (its box `reach` [m] round where it
+/// is). Bullet gives a kinematic body whose motion state the program set in one go the velocity of
 /// that jump over the sub-step. Either limit 0: not tested. Returns whether it was taken so.
 bool holdIfJumped(BodySnapshot& b, double dt, double speed, double turn, double reach);
 

@@ -262,7 +262,7 @@ struct BulletCloth::Impl {
     /// the last one (Bullet puts it at the end of the frame's motion in every sub-step),
     /// recorded for the next; nothing for any other body.
     std::optional<detail::Pose> followed(const btCollisionObject* obj, double dt);
-    /// Kinematic bodies' poses in the last Bullet sub-step and in this one (followed).
+    /// Kinematic bodies' (and characters') poses in the last Bullet sub-step and in this one
     std::unordered_map<const btCollisionObject*, detail::Pose> kinematicBefore, kinematicNow;
     /// The cloth was carried by `motion` (a teleport or a snap turn,
     /// Attachments::carryTeleported): a kinematic body that jumped or turned with it (a
@@ -947,6 +947,11 @@ void BulletCloth::Impl::sweepAfterTeleport(const detail::Pose& motion, double dt
 }
 
 std::optional<detail::Pose> BulletCloth::Impl::followed(const btCollisionObject* obj, double dt) {
+    if (detail::isCharacter(obj)) { // where it is; its way from where it was (moveCharacter)
+        const detail::Pose at = detail::toPose(obj->getWorldTransform());
+        kinematicNow.emplace(obj, at);
+        return at;
+    }
     const btRigidBody* rb = btRigidBody::upcast(obj);
     if (!rb || !rb->isKinematicObject()) return std::nullopt;
     if (const auto found = kinematicNow.find(obj); found != kinematicNow.end())
@@ -992,6 +997,9 @@ void BulletCloth::Impl::gatherBodies(double dt, bool carried) {
         const std::optional<detail::Pose> at = followed(obj, dt);
         if (detail::snapshotBody(obj, reach, settings.contact.frictionScale, b, dt,
                                  at ? &*at : nullptr)) {
+            if (detail::isCharacter(obj))
+                if (const auto was = kinematicBefore.find(obj); was != kinematicBefore.end())
+                    detail::moveCharacter(b, was->second, dt);
             // A kinematic body set somewhere in one go (not one the cloth hangs from: those
             // carry it, carryTeleported) appears there.
             const bool attachedTo =
