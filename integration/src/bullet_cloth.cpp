@@ -352,6 +352,7 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
         // it (it leaves `cloths`, and may take the last reference to this stepper) is passed
         // over from then on.
         const std::shared_ptr<Stepper> keep = shared_from_this();
+        detail::shapesMayHaveChanged(); // (the program's edits before this sub-step)
         const std::vector<Impl*> list = cloths;
         const Stepping during(*this, list);
         const std::size_t n = list.size();

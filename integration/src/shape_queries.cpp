@@ -2,8 +2,11 @@
 #include "shape_queries.hpp"
 
 #include <BulletCollision/CollisionShapes/btConvexHullShape.h>
+#include <BulletCollision/CollisionShapes/btConvexPointCloudShape.h>
+#include <BulletCollision/CollisionShapes/btConvexTriangleMeshShape.h>
 #include <BulletCollision/CollisionShapes/btMultiSphereShape.h>
 #include <BulletCollision/CollisionShapes/btTriangleShape.h>
+#include <BulletCollision/CollisionShapes/btUniformScalingShape.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkEpaPenetrationDepthSolver.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkPairDetector.h>
 #include <BulletCollision/NarrowPhaseCollision/btPointCollector.h>
@@ -12,7 +15,9 @@
 #include <btBulletCollisionCommon.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <limits>
 #include <optional>
@@ -121,12 +126,13 @@ SurfaceHit convexQuery(const btConvexShape* shape, const Vec3& p, const Pose& po
     return makeHit(pose, double(out.m_distance), n, toVec(out.m_pointInWorld));
 }
 
-/// A convex hull shape's faces as planes n . x = d (outward unit n, local frame, scaled
+/// A polyhedral convex shape's faces as planes n . x = d (outward unit n, local frame, scaled
 /// points, margin not included) and as polygons, built once per shape and kept while its
-/// points and scaling stay as they were.
+/// corners stay as they were (polyhedronFaces).
 struct HullFaces {
-    std::vector<btVector3> points; ///< the shape's unscaled points when built (the key)
-    btVector3 scaling{1, 1, 1};
+    std::vector<btVector3> points; ///< the shape's scaled corners when built (the key)
+    /// The gShapeGeneration at which `points` were last found to be the shape's.
+    std::uint64_t checkedAt = 0;
     std::vector<Vec3> normal;
     std::vector<double> offset;
     /// Face f's corners are corner[first[f]] ... corner[first[f + 1] - 1], counter-clockwise
@@ -198,42 +204,99 @@ void buildFaces(const std::vector<btVector3>& points, HullFaces& out) {
     }
 }
 
-/// The faces of `shape` (thread-local cache by shape; rebuilt when its points or scaling
-/// changed, cleared when it holds many shapes).
-const HullFaces& hullFaces(const btConvexHullShape* shape) {
-    thread_local std::unordered_map<const btConvexHullShape*, HullFaces> cache;
-    const int n = shape->getNumPoints();
-    const btVector3* pts = shape->getUnscaledPoints();
+std::atomic<std::uint64_t> gShapeGeneration{1};
+
+/// Collects the corners a hull is the hull of, for the kinds polyhedronFaces measures.
+class CornerCollector : public btInternalTriangleIndexCallback {
+  public:
+    explicit CornerCollector(std::vector<btVector3>& out) : out_(out) {}
+    void internalProcessTriangleIndex(btVector3* tri, int, int) override {
+        out_.insert(out_.end(), tri, tri + 3);
+    }
+
+  private:
+    std::vector<btVector3>& out_;
+};
+
+/// The corners of a polyhedral convex shape in its frame, scaled (margin not included):
+/// a convex hull's or a point cloud's points, a convex triangle mesh's vertices (each as often
+/// as its triangles name it). False for other shapes.
+bool polyhedronCorners(const btConvexShape* shape, std::vector<btVector3>& out) {
+    out.clear();
+    const btVector3 scaling = shape->getLocalScaling();
+    switch (shape->getShapeType()) {
+    case CONVEX_HULL_SHAPE_PROXYTYPE: {
+        const auto* hull = static_cast<const btConvexHullShape*>(shape);
+        const btVector3* pts = hull->getUnscaledPoints();
+        for (int i = 0; i < hull->getNumPoints(); ++i)
+            out.push_back(pts[i] * scaling);
+        return true;
+    }
+    case CONVEX_POINT_CLOUD_SHAPE_PROXYTYPE: {
+        const auto* cloud = static_cast<const btConvexPointCloudShape*>(shape);
+        const btVector3* pts = cloud->getUnscaledPoints();
+        for (int i = 0; pts && i < cloud->getNumPoints(); ++i)
+            out.push_back(pts[i] * scaling);
+        return true;
+    }
+    case CONVEX_TRIANGLEMESH_SHAPE_PROXYTYPE: {
+        // (The mesh interface applies the shape's scaling, which setLocalScaling put there.)
+        const auto* mesh = static_cast<const btConvexTriangleMeshShape*>(shape);
+        const btStridingMeshInterface* source = mesh->getMeshInterface();
+        if (!source) return false;
+        CornerCollector collect(out);
+        const btScalar big = BT_LARGE_FLOAT;
+        source->InternalProcessAllTriangles(&collect, btVector3(-big, -big, -big),
+                                            btVector3(big, big, big));
+        return true;
+    }
+    default:
+        return false;
+    }
+}
+
+/// The faces of a polyhedral convex shape (polyhedronCorners; a thread-local cache by shape,
+/// cleared when it holds many shapes): its corners are compared with those the faces were
+/// built from once per thread after each shapesMayHaveChanged(), and the faces are built
+/// again if they differ. Null for other shapes.
+const HullFaces* polyhedronFaces(const btConvexShape* shape) {
+    thread_local std::unordered_map<const btConvexShape*, HullFaces> cache;
+    thread_local std::vector<btVector3> corners;
+    const std::uint64_t generation = gShapeGeneration.load(std::memory_order_relaxed);
     auto it = cache.find(shape);
+    if (it != cache.end() && it->second.checkedAt == generation) return &it->second;
+    if (!polyhedronCorners(shape, corners)) return nullptr;
     if (it != cache.end()) {
-        const HullFaces& h = it->second;
-        if (h.points.size() == std::size_t(n) && h.scaling == shape->getLocalScaling() &&
-            (n == 0 || std::memcmp(h.points.data(), pts, sizeof(btVector3) * std::size_t(n)) == 0))
-            return h;
+        HullFaces& h = it->second;
+        if (h.points.size() == corners.size() &&
+            (corners.empty() || std::memcmp(h.points.data(), corners.data(),
+                                            sizeof(btVector3) * corners.size()) == 0)) {
+            h.checkedAt = generation;
+            return &h;
+        }
     } else {
         if (cache.size() >= 256) cache.clear();
         it = cache.emplace(shape, HullFaces{}).first;
     }
     HullFaces& h = it->second;
-    h.points.assign(pts, pts + n);
-    h.scaling = shape->getLocalScaling();
-    std::vector<btVector3> scaled(h.points);
-    for (btVector3& p : scaled)
-        p *= h.scaling;
+    h.points = corners;
+    h.checkedAt = generation;
     h.normal.clear(); // (a shape at a reused address, or with fewer points: no old faces)
     h.offset.clear();
     h.first.assign(1, 0);
     h.corner.clear();
-    if (n >= 4) buildFaces(scaled, h);
-    return h;
+    h.lastFace = 0;
+    if (h.points.size() >= 4) buildFaces(h.points, h);
+    return &h;
 }
 
 /// How far inside a face's polygon (times the hull's size) a point's projection must lie for
 /// the last query's face to answer without the scan (hullQuery).
 constexpr double kHintRoom = 1e-9;
 
-/// A convex hull shape (margin included: the hull of its points grown by a sphere of that
-/// radius) and a point in its frame, exactly from its faces. Outside the hull of the points:
+/// A polyhedral convex shape (a convex hull, a point cloud or a convex triangle mesh; margin
+/// included: the hull of its corners grown by a sphere of that radius) and a point in its
+/// frame, exactly from its faces. Outside the hull of the points:
 /// if the point's projection on a face it is in front of lies in that face's polygon, the
 /// projection is the nearest point (every other face's plane passes no farther ahead of the
 /// point, since the projection is in the hull: the faces are read in order until one is found);
@@ -244,10 +307,11 @@ constexpr double kHintRoom = 1e-9;
 /// hull without faces (flat, or fewer than four points: the caller asks GJK then). GJK per
 /// particle and cloth step was 70 % of the cost of a cloth resting on a rock, and where an
 /// edge or a corner was nearest it still cost a rock three times a box.
-std::optional<SurfaceHit> hullQuery(const btConvexHullShape* shape, const Vec3& p, const Pose& pose,
+std::optional<SurfaceHit> hullQuery(const btConvexShape* shape, const Vec3& p, const Pose& pose,
                                     double reach) {
-    const HullFaces& h = hullFaces(shape);
-    if (h.normal.empty()) return std::nullopt;
+    const HullFaces* built = polyhedronFaces(shape);
+    if (!built || built->normal.empty()) return std::nullopt;
+    const HullFaces& h = *built;
     const double margin = double(shape->getMargin());
     const std::size_t faces = h.normal.size();
     // The last query's face first: if the point is in front of it and its projection lies
@@ -631,17 +695,26 @@ SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const
         }
         return best;
     }
+    case UNIFORM_SCALING_SHAPE_PROXYTYPE: {
+        // The child's surface (its margin included) scaled about the origin by k: measured on
+        // the child at local / k, distances and points times k.
+        const auto* scaled = static_cast<const btUniformScalingShape*>(shape);
+        const double k = double(scaled->getUniformScalingFactor());
+        if (!(k > 0.0 && std::isfinite(k))) break;
+        const SurfaceHit h = closestSurface(scaled->getChildShape(), Pose{}, local / k,
+                                            pose.toLocal(prev) / k, reach / k, counters);
+        if (!h.valid) return h;
+        return makeHit(pose, k * h.distance, h.normal, k * h.point);
+    }
     default:
         break;
     }
     if (shape->isConvex()) {
         ++counters.queries;
-        if (shape->getShapeType() == CONVEX_HULL_SHAPE_PROXYTYPE) {
-            const std::optional<SurfaceHit> hull =
-                hullQuery(static_cast<const btConvexHullShape*>(shape), local, pose, reach);
-            if (hull) return *hull;
-        }
-        return convexQuery(static_cast<const btConvexShape*>(shape), local, pose);
+        const auto* convex = static_cast<const btConvexShape*>(shape);
+        if (const std::optional<SurfaceHit> hull = hullQuery(convex, local, pose, reach))
+            return *hull;
+        return convexQuery(convex, local, pose);
     }
     if (shape->isConcave()) {
         ++counters.queries;
@@ -653,6 +726,10 @@ SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const
         return makeHit(pose, cb.best_, cb.normal_, cb.point_);
     }
     return {}; // soft bodies, empty shapes and the like: nothing to collide with
+}
+
+void shapesMayHaveChanged() {
+    gShapeGeneration.fetch_add(1, std::memory_order_relaxed);
 }
 
 } // namespace drape::bullet::detail

@@ -37,6 +37,11 @@ struct QueryCounters {
 void shapeAabb(const btCollisionShape* shape, const btTransform& transform, btVector3& lo,
                btVector3& hi);
 
+/// The program may have changed shapes since the last call (a Bullet sub-step begins): the
+/// faces the queries keep of each polyhedral shape (convex hulls, point clouds, convex
+/// triangle meshes) are checked against it again, once per thread, at its next query.
+void shapesMayHaveChanged();
+
 /// Signed distance of `p` to `shape` placed at `pose`. Only surfaces nearer than `reach` [m]
 /// need to be found (concave shapes search triangles within it; the result is invalid if none
 /// is). `prev` is where the point was at the previous step: for two-sided surfaces (triangle
