@@ -139,7 +139,11 @@ struct HullFaces {
     /// seen from outside (along -normal[f]).
     std::vector<std::size_t> first;
     std::vector<Vec3> corner;
-    double size = 0.0; ///< the hull's largest extent [m]
+    /// The face across rim k of face f (from corner[first[f] + k] to the next): across[first[f]
+    /// + k]. Filled only when every rim has one (`walkable`).
+    std::vector<std::uint32_t> across;
+    bool walkable = false; ///< the faces close up: a query may walk from face to face
+    double size = 0.0;     ///< the hull's largest extent [m]
     /// The face this thread's last query found nearest, tried first by the next (particles
     /// are queried in index order, so neighbours follow each other). Only a start: the answer
     /// is the same from any face.
@@ -153,6 +157,8 @@ void buildFaces(const std::vector<btVector3>& points, HullFaces& out) {
     out.offset.clear();
     out.first.assign(1, 0);
     out.corner.clear();
+    out.across.clear();
+    out.walkable = false;
     btConvexHullComputer hull;
     hull.compute(&points[0].x(), int(sizeof(btVector3)), int(points.size()), 0, 0);
     if (hull.faces.size() < 4) return;
@@ -165,6 +171,7 @@ void buildFaces(const std::vector<btVector3>& points, HullFaces& out) {
     }
     centre /= double(hull.vertices.size());
     out.size = (hi - lo).maxCoeff();
+    std::vector<int> cornerVertex; // the hull's vertex at each corner
     for (int f = 0; f < hull.faces.size(); ++f) {
         // Newell's normal of the face polygon, through its vertices' mean.
         const btConvexHullComputer::Edge* first = &hull.edges[hull.faces[f]];
@@ -178,12 +185,14 @@ void buildFaces(const std::vector<btVector3>& points, HullFaces& out) {
             n += a.cross(b); // twice the area along the loop's normal (Newell)
             mean += a;
             out.corner.push_back(a);
+            cornerVertex.push_back(e->getSourceVertex());
             ++count;
             e = e->getNextEdgeOfFace();
         } while (e != first && count <= hull.edges.size());
         const double len = n.norm();
         if (!(len > 1e-12 * out.size * out.size) || count < 3) {
             out.corner.resize(start);
+            cornerVertex.resize(start);
             continue;
         }
         n /= len;
@@ -191,11 +200,35 @@ void buildFaces(const std::vector<btVector3>& points, HullFaces& out) {
         if (n.dot(mean - centre) < 0.0) { // the loop runs clockwise seen from outside
             n = -n;
             std::reverse(out.corner.begin() + std::ptrdiff_t(start), out.corner.end());
+            std::reverse(cornerVertex.begin() + std::ptrdiff_t(start), cornerVertex.end());
         }
         out.normal.push_back(n);
         out.offset.push_back(n.dot(mean));
         out.first.push_back(out.corner.size());
     }
+    // Each rim runs one way round its face; the face across it runs it the other way.
+    const std::size_t faces = out.normal.size();
+    std::unordered_map<std::uint64_t, std::uint32_t> rimOwner; // (from, to) vertex -> face
+    auto key = [](int from, int to) {
+        return (std::uint64_t(std::uint32_t(from)) << 32) | std::uint32_t(to);
+    };
+    for (std::size_t f = 0; f < faces; ++f)
+        for (std::size_t c = out.first[f], end = out.first[f + 1]; c < end; ++c)
+            rimOwner[key(cornerVertex[c], cornerVertex[c + 1 == end ? out.first[f] : c + 1])] =
+                std::uint32_t(f);
+    out.across.assign(out.corner.size(), 0);
+    out.walkable = faces >= 4;
+    for (std::size_t f = 0; f < faces && out.walkable; ++f)
+        for (std::size_t c = out.first[f], end = out.first[f + 1]; c < end; ++c) {
+            const auto other = rimOwner.find(
+                key(cornerVertex[c + 1 == end ? out.first[f] : c + 1], cornerVertex[c]));
+            if (other == rimOwner.end()) {
+                out.walkable = false;
+                break;
+            }
+            out.across[c] = other->second;
+        }
+    if (!out.walkable) out.across.clear();
     if (out.normal.size() < 4) {
         out.normal.clear();
         out.offset.clear();
@@ -294,6 +327,97 @@ const HullFaces* polyhedronFaces(const btConvexShape* shape) {
 /// the last query's face to answer without the scan (hullQuery).
 constexpr double kHintRoom = 1e-9;
 
+/// hullQuery's answer for a point in front of the last query's face, from the faces it is
+/// in front of only: they are found by walking from that face across rims to faces the point
+/// is in front of (from outside a convex polyhedron, the faces in front of a point are one
+/// connected patch, and it holds the farthest-ahead face and every rim the nearest point can
+/// lie on). The answer is the scan's: the lowest-numbered face whose polygon holds the
+/// projection, else the nearest rim point (ties to the lowest face and rim), the normal of the
+/// lowest-numbered farthest-ahead face where it must. Nothing when the point is not in front
+/// of that face or the faces do not close up (then hullQuery scans every face).
+std::optional<SurfaceHit> walkFaces(const HullFaces& h, const Vec3& p, const Pose& pose,
+                                    double margin, double reach) {
+    const std::size_t faces = h.normal.size();
+    if (!h.walkable || h.lastFace >= faces) return std::nullopt;
+    const auto ahead = [&](std::size_t f) { return h.normal[f].dot(p) - h.offset[f]; };
+    if (!(ahead(h.lastFace) > 0.0)) return std::nullopt;
+    thread_local std::vector<std::uint32_t> seenAt;
+    thread_local std::vector<std::uint32_t> queue;
+    thread_local std::uint32_t stamp = 0;
+    if (seenAt.size() < faces) seenAt.resize(faces, 0);
+    if (++stamp == 0) { // wrapped: forget every old mark
+        std::fill(seenAt.begin(), seenAt.end(), 0u);
+        stamp = 1;
+    }
+    queue.assign(1, std::uint32_t(h.lastFace));
+    seenAt[h.lastFace] = stamp;
+    std::size_t best = faces, insideFace = faces, nearFace = faces, nearRim = 0;
+    double farthest = -std::numeric_limits<double>::infinity();
+    double nearest2 = std::numeric_limits<double>::infinity();
+    Vec3 nearest = p;
+    for (std::size_t next = 0; next < queue.size(); ++next) {
+        const std::size_t f = queue[next];
+        const Vec3& n = h.normal[f];
+        const double s = ahead(f); // > 0: only such faces are queued
+        if (reach > 0.0 && s - margin > reach) return SurfaceHit{}; // beyond reach
+        if (s > farthest || (s == farthest && f < best)) {
+            farthest = s;
+            best = f;
+        }
+        const Vec3* c = h.corner.data() + h.first[f];
+        const std::size_t m = h.first[f + 1] - h.first[f];
+        for (std::size_t k = 0; k < m; ++k) { // the faces across, in front of the point too
+            const std::uint32_t g = h.across[h.first[f] + k];
+            if (seenAt[g] == stamp) continue;
+            seenAt[g] = stamp;
+            if (ahead(g) > 0.0) queue.push_back(g);
+        }
+        if (f > insideFace) continue; // a lower face already holds the projection
+        const Vec3 q = p - s * n;
+        bool inside = true;
+        for (std::size_t k = 0; k < m && inside; ++k) {
+            const Vec3& a = c[k];
+            const Vec3& b = c[k + 1 == m ? 0 : k + 1];
+            inside = (b - a).cross(q - a).dot(n) >= 0.0;
+        }
+        if (inside) {
+            insideFace = f;
+            continue;
+        }
+        for (std::size_t k = 0; k < m; ++k) {
+            const Vec3& a = c[k];
+            const Vec3 ab = c[k + 1 == m ? 0 : k + 1] - a;
+            const double len2 = ab.squaredNorm();
+            const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+            const Vec3 e = a + t * ab;
+            const double d2 = (p - e).squaredNorm();
+            if (d2 < nearest2 ||
+                (d2 == nearest2 && (f < nearFace || (f == nearFace && k < nearRim)))) {
+                nearest2 = d2;
+                nearest = e;
+                nearFace = f;
+                nearRim = k;
+            }
+        }
+    }
+    if (insideFace < faces) {
+        h.lastFace = insideFace;
+        const Vec3& n = h.normal[insideFace];
+        const double distance = ahead(insideFace) - margin;
+        return makeHit(pose, distance, n, p - distance * n);
+    }
+    h.lastFace = best; // the next particle's walk starts from a face in front of this one
+    const double d = std::sqrt(nearest2);
+    if (!(d > 1e-12 * h.size)) {
+        const Vec3& n = h.normal[best];
+        const double distance = farthest - margin;
+        return makeHit(pose, distance, n, p - distance * n);
+    }
+    const Vec3 n = (p - nearest) / d;
+    const double distance = d - margin;
+    return makeHit(pose, distance, n, p - distance * n);
+}
+
 /// A polyhedral convex shape (a convex hull, a point cloud or a convex triangle mesh; margin
 /// included: the hull of its corners grown by a sphere of that radius) and a point in its
 /// frame, exactly from its faces. Outside the hull of the points:
@@ -342,6 +466,8 @@ std::optional<SurfaceHit> hullQuery(const btConvexShape* shape, const Vec3& p, c
             }
         }
     }
+    if (const std::optional<SurfaceHit> walked = walkFaces(h, p, pose, margin, reach))
+        return *walked;
     std::size_t best = 0;
     double ahead = -std::numeric_limits<double>::infinity();
     double nearest2 = std::numeric_limits<double>::infinity(); // of the rims in front
