@@ -1,6 +1,7 @@
 // Closest surface points of Bullet collision shapes (see shape_queries.hpp).
 #include "shape_queries.hpp"
 
+#include <BulletCollision/CollisionShapes/btBox2dShape.h>
 #include <BulletCollision/CollisionShapes/btConvexHullShape.h>
 #include <BulletCollision/CollisionShapes/btConvexPointCloudShape.h>
 #include <BulletCollision/CollisionShapes/btConvexTriangleMeshShape.h>
@@ -746,6 +747,14 @@ SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const
     case BOX_SHAPE_PROXYTYPE: {
         ++counters.queries;
         const auto* box = static_cast<const btBoxShape*>(shape);
+        return boxQuery(toVec(box->getHalfExtentsWithMargin()), local, pose);
+    }
+    case BOX_2D_SHAPE_PROXYTYPE: {
+        // Bullet's support of a btBox2dShape is a box of these half extents (its z one 0 for
+        // the usual flat one, its margin taken off the z extent and put back): GJK and EPA on
+        // that flat box let a cloth sink 13 cm through its top edge (a new user's review).
+        ++counters.queries;
+        const auto* box = static_cast<const btBox2dShape*>(shape);
         return boxQuery(toVec(box->getHalfExtentsWithMargin()), local, pose);
     }
     case SPHERE_SHAPE_PROXYTYPE: {
