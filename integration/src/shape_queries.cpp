@@ -144,15 +144,18 @@ struct HullFaces {
     /// + k]. Filled only when every rim has one (`walkable`).
     std::vector<std::uint32_t> across;
     bool walkable = false; ///< the faces close up: a query may walk from face to face
-    double size = 0.0;     ///< the hull's largest extent [m]
+    /// A flat hull: two faces, one polygon seen from either side (flatQuery measures it).
+    bool flat = false;
+    double size = 0.0; ///< the hull's largest extent [m]
     /// The face this thread's last query found nearest, tried first by the next (particles
     /// are queried in index order, so neighbours follow each other). Only a start: the answer
     /// is the same from any face.
     mutable std::size_t lastFace = 0;
 };
 
-/// Builds the faces of the hull of `points` (btConvexHullComputer); none for a hull that is
-/// flat or has fewer than four faces (then the queries keep using GJK).
+/// Builds the faces of the hull of `points` (btConvexHullComputer): at least four, or the
+/// two sides of a flat one (`flat`); none for fewer points or no area (then the queries keep
+/// using GJK).
 void buildFaces(const std::vector<btVector3>& points, HullFaces& out) {
     out.normal.clear();
     out.offset.clear();
@@ -160,9 +163,10 @@ void buildFaces(const std::vector<btVector3>& points, HullFaces& out) {
     out.corner.clear();
     out.across.clear();
     out.walkable = false;
+    out.flat = false;
     btConvexHullComputer hull;
     hull.compute(&points[0].x(), int(sizeof(btVector3)), int(points.size()), 0, 0);
-    if (hull.faces.size() < 4) return;
+    if (hull.faces.size() < 2) return;
     Vec3 centre = Vec3::Zero(), lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
     for (int k = 0; k < hull.vertices.size(); ++k) {
         const Vec3 v = toVec(hull.vertices[k]);
@@ -230,12 +234,56 @@ void buildFaces(const std::vector<btVector3>& points, HullFaces& out) {
             out.across[c] = other->second;
         }
     if (!out.walkable) out.across.clear();
-    if (out.normal.size() < 4) {
+    // All its points in one plane: the polygon, seen from both sides (Newell's normals of
+    // the two loops are opposite).
+    out.flat = out.normal.size() == 2 && out.normal[0].dot(out.normal[1]) < -0.999999;
+    if (out.normal.size() < 4 && !out.flat) {
         out.normal.clear();
         out.offset.clear();
         out.first.assign(1, 0);
         out.corner.clear();
     }
+}
+
+/// hullQuery for a flat hull (a polygon grown by the margin): the face on the point's side
+/// (where the point is in the polygon's plane, the side it came from, `prev`); the projection
+/// if it lies in the polygon, else the nearest rim point.
+SurfaceHit flatQuery(const HullFaces& h, const Vec3& p, const Vec3& prev, const Pose& pose,
+                     double margin) {
+    const double s0 = h.normal[0].dot(p) - h.offset[0];
+    const double side = s0 != 0.0 ? s0 : h.normal[0].dot(prev) - h.offset[0];
+    const std::size_t f = side >= 0.0 ? 0 : 1;
+    const Vec3& n = h.normal[f];
+    const double s = n.dot(p) - h.offset[f]; // >= 0 but for rounding
+    const Vec3* c = h.corner.data() + h.first[f];
+    const std::size_t m = h.first[f + 1] - h.first[f];
+    const Vec3 q = p - s * n;
+    bool inside = true;
+    for (std::size_t k = 0; k < m && inside; ++k)
+        inside = (c[k + 1 == m ? 0 : k + 1] - c[k]).cross(q - c[k]).dot(n) >= 0.0;
+    if (!inside) {
+        double nearest2 = std::numeric_limits<double>::infinity();
+        Vec3 nearest = p;
+        for (std::size_t k = 0; k < m; ++k) {
+            const Vec3& a = c[k];
+            const Vec3 ab = c[k + 1 == m ? 0 : k + 1] - a;
+            const double len2 = ab.squaredNorm();
+            const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+            const Vec3 e = a + t * ab;
+            const double d2 = (p - e).squaredNorm();
+            if (d2 < nearest2) {
+                nearest2 = d2;
+                nearest = e;
+            }
+        }
+        const double d = std::sqrt(nearest2);
+        if (d > 1e-12 * h.size) {
+            const Vec3 out = (p - nearest) / d;
+            return makeHit(pose, d - margin, out, p - (d - margin) * out);
+        }
+    }
+    const double distance = s - margin;
+    return makeHit(pose, distance, n, p - distance * n);
 }
 
 std::atomic<std::uint64_t> gShapeGeneration{1};
@@ -429,15 +477,18 @@ std::optional<SurfaceHit> walkFaces(const HullFaces& h, const Vec3& p, const Pos
 /// those. Inside, the face farthest ahead of the point is the nearest (the projection on it
 /// lies in the face). A point ahead of some face's plane by more than `reach` (> 0) is
 /// farther than that from the hull: an invalid hit, as closestSurface allows. Nothing for a
-/// hull without faces (flat, or fewer than four points: the caller asks GJK then). GJK per
+/// hull without faces (fewer than four points, or no area: the caller asks GJK then); a flat
+/// hull is a polygon grown by the margin (flatQuery), `prev` (where the point was) the side
+/// it is on when it lies in the polygon's plane. GJK per
 /// particle and cloth step was 70 % of the cost of a cloth resting on a rock, and where an
 /// edge or a corner was nearest it still cost a rock three times a box.
-std::optional<SurfaceHit> hullQuery(const btConvexShape* shape, const Vec3& p, const Pose& pose,
-                                    double reach) {
+std::optional<SurfaceHit> hullQuery(const btConvexShape* shape, const Vec3& p, const Vec3& prev,
+                                    const Pose& pose, double reach) {
     const HullFaces* built = polyhedronFaces(shape);
     if (!built || built->normal.empty()) return std::nullopt;
     const HullFaces& h = *built;
     const double margin = double(shape->getMargin());
+    if (h.flat) return flatQuery(h, p, prev, pose, margin);
     const std::size_t faces = h.normal.size();
     // The last query's face first: if the point is in front of it and its projection lies
     // in the polygon, farther than kHintRoom times the hull's size from every rim, that
@@ -847,7 +898,8 @@ SurfaceHit closestSurface(const btCollisionShape* shape, const Pose& pose, const
     if (shape->isConvex()) {
         ++counters.queries;
         const auto* convex = static_cast<const btConvexShape*>(shape);
-        if (const std::optional<SurfaceHit> hull = hullQuery(convex, local, pose, reach))
+        if (const std::optional<SurfaceHit> hull =
+                hullQuery(convex, local, pose.toLocal(prev), pose, reach))
             return *hull;
         return convexQuery(convex, local, pose);
     }

@@ -789,14 +789,16 @@ TEST_CASE("a cloth drapes over a sharp hull (an octahedron: its corners and edge
     CHECK(r.farthestResting <= 2.0 * kThickness);
 }
 
-TEST_CASE("a cloth drapes over a convex triangle mesh, a point cloud and a uniformly scaled "
-          "shape at the thickness from their surfaces, as Bullet's GJK measures it",
+TEST_CASE("a cloth drapes over a convex triangle mesh, a point cloud, a uniformly scaled "
+          "shape and a flat hull at the thickness from their surfaces, as Bullet's GJK measures "
+          "it",
           "[contacts][drape][hull]") {
     // The faces of a btConvexTriangleMeshShape (a rock's hull as triangles, scaled) and of a
     // btConvexPointCloudShape are measured as a convex hull's; a btUniformScalingShape is its
-    // child measured at the scaled point (through GJK they cost 62 and 16 ms a frame for a 41 x
-    // 41 sheet on a box, 5.5 ms now). A scaling missed, or a margin, sinks the sheet into
-    // the shape or holds it off.
+    // child measured at the scaled point; a flat btConvexHullShape (a square plate lying flat)
+    // as its polygon grown by the margin (through GJK they cost 62, 16 and 21 ms a frame for a
+    // 41 x 41 sheet, 5-5.5 ms now). A scaling missed, or a margin, sinks the sheet into the
+    // shape or holds it off.
     std::vector<btVector3> points;
     for (int i = 0; i < 24; ++i) {
         const double th = std::acos(1.0 - 2.0 * (i + 0.5) / 24.0), ph = i * 2.39996;
@@ -816,7 +818,7 @@ TEST_CASE("a cloth drapes over a convex triangle mesh, a point cloud and a unifo
                                   hull.vertices[e->getTargetVertex()]);
     }
     const btTransform pose(btQuaternion(btVector3(0, 1, 0), btScalar(0.4)), btVector3(0, 0.3f, 0));
-    for (const int kind : {0, 1, 2}) {
+    for (const int kind : {0, 1, 2, 3}) {
         TestWorld w;
         btConvexShape* shape = nullptr;
         if (kind == 0) {
@@ -825,14 +827,22 @@ TEST_CASE("a cloth drapes over a convex triangle mesh, a point cloud and a unifo
         } else if (kind == 1) {
             shape = w.shape<btConvexPointCloudShape>(points.data(), int(points.size()),
                                                      btVector3(0.9f, 1.0f, 1.2f));
-        } else {
+        } else if (kind == 2) {
             auto* box = w.shape<btBoxShape>(btVector3(0.15f, 0.1f, 0.12f));
             shape = w.shape<btUniformScalingShape>(box, 1.6f);
+        } else {
+            auto* plate = w.shape<btConvexHullShape>();
+            for (int i = 0; i < 4; ++i)
+                plate->addPoint(btVector3((i & 1) ? 0.3f : -0.3f, 0, (i & 2) ? 0.25f : -0.25f),
+                                false);
+            plate->recalcLocalAabb();
+            shape = plate;
         }
         const DrapeOnShape r = drapeOnShape(w, shape, pose, 0.75);
         INFO((kind == 0   ? "convex triangle mesh"
               : kind == 1 ? "point cloud"
-                          : "uniform scaling")
+              : kind == 2 ? "uniform scaling"
+                          : "flat hull")
              << ": closest approach " << r.closest << " m, " << r.resting
              << " particles resting, farthest " << r.farthestResting << " m");
         CHECK(r.closest >= kThickness - 1e-3); // as for the hull rock
