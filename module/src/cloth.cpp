@@ -221,6 +221,12 @@ void validateSettings(const ClothSettings& s) {
                     "limiter.maxRounds must be >= 1, got " + std::to_string(s.limiter.maxRounds));
     }
     requirePositive(s.implicit.cgTolerance, "implicit.cgTolerance");
+    if (s.implicit.cgTolerance >= 1.0) { // CG starts at a relative residual of 1
+        throw Error(ErrorCode::InvalidArgument,
+                    "implicit.cgTolerance must be below 1, got " + num(s.implicit.cgTolerance) +
+                        ": CG would stop before its first iteration and the implicit step "
+                        "would move nothing");
+    }
     if (s.failure.maxStrain) requirePositive(*s.failure.maxStrain, "failure.maxStrain");
     if (s.failure.maxEnergyGrowth)
         requirePositive(*s.failure.maxEnergyGrowth, "failure.maxEnergyGrowth");
