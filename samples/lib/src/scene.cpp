@@ -52,7 +52,7 @@ constexpr Limits kFrequency{0.0, 1e6, "Hz"};
 constexpr Limits kBodyMass{1e-6, 1e9, "kg"};
 constexpr Limits kUnitInterval{0.0, 1.0, ""};
 constexpr Limits kPenaltyForce{0.0, 1e12, "N"};
-constexpr Limits kCgTolerance{1e-16, 1.0, ""};
+constexpr Limits kCgTolerance{1e-16, 0.5, ""}; // below 1 (ImplicitSettings::cgTolerance)
 constexpr Limits kMaxStrain{1e-6, 10.0, ""};
 constexpr Limits kStrainTolerance{0.0, 10.0, ""};
 constexpr Limits kToleranceStep{1e-9, 1e3, ""};
