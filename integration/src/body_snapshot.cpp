@@ -146,6 +146,16 @@ void markSupported(btDispatcher& dispatcher, std::vector<BodySnapshot>& bodies) 
     }
 }
 
+namespace {
+/// Grows b's box over the way it came in the sub-step of dt [s] at its velocities.
+void growOverWay(BodySnapshot& b, double dt) {
+    const Vec3 back = -dt * b.v;
+    const double turn = b.w.norm() * dt * 0.5 * (b.aabbMax - b.aabbMin).norm();
+    b.aabbMin = b.aabbMin.cwiseMin(b.aabbMin + back).array() - turn;
+    b.aabbMax = b.aabbMax.cwiseMax(b.aabbMax + back).array() + turn;
+}
+} // namespace
+
 bool snapshotBody(const btCollisionObject* obj, double reach, double frictionScale, BodySnapshot& b,
                   double dt, const Pose* at) {
     const int type = obj->getInternalType();
@@ -205,12 +215,7 @@ bool snapshotBody(const btCollisionObject* obj, double reach, double frictionSca
         }
         // It moved there during the sub-step at these velocities: the cloth's steps see it on
         // its way (startSweep), and its box covers the way.
-        if (!b.plane && !b.still && dt > 0.0) {
-            const Vec3 back = -dt * b.v;
-            const double turn = b.w.norm() * dt * 0.5 * (b.aabbMax - b.aabbMin).norm();
-            b.aabbMin = b.aabbMin.cwiseMin(b.aabbMin + back).array() - turn;
-            b.aabbMax = b.aabbMax.cwiseMax(b.aabbMax + back).array() + turn;
-        }
+        if (!b.plane && !b.still && dt > 0.0) growOverWay(b, dt);
     }
     return true;
 }
@@ -226,12 +231,7 @@ void moveCharacter(BodySnapshot& b, const Pose& before, double dt) {
     const Eigen::AngleAxisd turn(Eigen::Matrix3d(b.pose.R * before.R.transpose()));
     b.w = turn.angle() > 0.0 ? Vec3(turn.angle() / dt * turn.axis()) : Vec3::Zero();
     b.still = b.v == Vec3::Zero() && b.w == Vec3::Zero();
-    if (b.still) return;
-    // Its box covers its way, as snapshotBody's does for a body with velocities.
-    const Vec3 back = -dt * b.v;
-    const double spin = b.w.norm() * dt * 0.5 * (b.aabbMax - b.aabbMin).norm();
-    b.aabbMin = b.aabbMin.cwiseMin(b.aabbMin + back).array() - spin;
-    b.aabbMax = b.aabbMax.cwiseMax(b.aabbMax + back).array() + spin;
+    if (!b.still) growOverWay(b, dt);
 }
 
 bool holdIfJumped(BodySnapshot& b, double dt, double speed, double turn, double reach) {

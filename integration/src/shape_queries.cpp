@@ -245,6 +245,14 @@ void buildFaces(const std::vector<btVector3>& points, HullFaces& out) {
     }
 }
 
+/// The point of the rim from a to b nearest to p.
+inline Vec3 nearestOnRim(const Vec3& p, const Vec3& a, const Vec3& b) {
+    const Vec3 ab = b - a;
+    const double len2 = ab.squaredNorm();
+    const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+    return a + t * ab;
+}
+
 /// hullQuery for a flat hull (a polygon grown by the margin): the face on the point's side
 /// (where the point is in the polygon's plane, the side it came from, `prev`); the projection
 /// if it lies in the polygon, else the nearest rim point.
@@ -265,11 +273,7 @@ SurfaceHit flatQuery(const HullFaces& h, const Vec3& p, const Vec3& prev, const 
         double nearest2 = std::numeric_limits<double>::infinity();
         Vec3 nearest = p;
         for (std::size_t k = 0; k < m; ++k) {
-            const Vec3& a = c[k];
-            const Vec3 ab = c[k + 1 == m ? 0 : k + 1] - a;
-            const double len2 = ab.squaredNorm();
-            const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-            const Vec3 e = a + t * ab;
+            const Vec3 e = nearestOnRim(p, c[k], c[k + 1 == m ? 0 : k + 1]);
             const double d2 = (p - e).squaredNorm();
             if (d2 < nearest2) {
                 nearest2 = d2;
@@ -434,11 +438,7 @@ std::optional<SurfaceHit> walkFaces(const HullFaces& h, const Vec3& p, const Pos
             continue;
         }
         for (std::size_t k = 0; k < m; ++k) {
-            const Vec3& a = c[k];
-            const Vec3 ab = c[k + 1 == m ? 0 : k + 1] - a;
-            const double len2 = ab.squaredNorm();
-            const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-            const Vec3 e = a + t * ab;
+            const Vec3 e = nearestOnRim(p, c[k], c[k + 1 == m ? 0 : k + 1]);
             const double d2 = (p - e).squaredNorm();
             if (d2 < nearest2 ||
                 (d2 == nearest2 && (f < nearFace || (f == nearFace && k < nearRim)))) {
@@ -548,11 +548,7 @@ std::optional<SurfaceHit> hullQuery(const btConvexShape* shape, const Vec3& p, c
             return makeHit(pose, distance, n, p - distance * n);
         }
         for (std::size_t k = 0; k < m; ++k) {
-            const Vec3& a = c[k];
-            const Vec3 ab = c[k + 1 == m ? 0 : k + 1] - a;
-            const double len2 = ab.squaredNorm();
-            const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-            const Vec3 e = a + t * ab;
+            const Vec3 e = nearestOnRim(p, c[k], c[k + 1 == m ? 0 : k + 1]);
             const double d2 = (p - e).squaredNorm();
             if (d2 < nearest2) {
                 nearest2 = d2;

@@ -367,6 +367,27 @@ TEST_CASE("a box that jumps or grows into a resting cloth lifts it at contact.de
     }
 }
 
+namespace {
+/// A 1 m curtain (41 x 41, 2.5 cm, default settings) hanging in the x-y plane from a static
+/// bar at y = 1.52 that its top row is attached to; its handle is w.cloths.back().
+std::shared_ptr<Cloth> curtainOnBar(TestWorld& w) {
+    btRigidBody* bar =
+        w.body(w.shape<btBoxShape>(btVector3(0.6f, 0.02f, 0.02f)), 0.0, Vec3(0, 1.52, 0));
+    SheetSpec spec;
+    spec.rows = 41;
+    spec.cols = 41;
+    spec.spacing = 0.025;
+    spec.origin = Vec3(-0.5, 1.5, 0.0);
+    spec.uAxis = Vec3::UnitX();
+    spec.vAxis = -Vec3::UnitY();
+    auto cloth = makeCloth(makeSheet(spec), ClothSettings{});
+    bullet::BulletCloth& handle = w.add(cloth);
+    for (Index i = 0; i < 41; ++i)
+        handle.attachHere(i, bar);
+    return cloth;
+}
+} // namespace
+
 TEST_CASE("a kinematic box whose motion state is set across a curtain in one frame appears "
           "there; one that truly moves through it pushes it",
           "[contacts][teleport]") {
@@ -380,19 +401,8 @@ TEST_CASE("a kinematic box whose motion state is set across a curtain in one fra
     // pushes the curtain aside.
     for (const double speed : {120.0, 1.0}) {
         TestWorld w;
-        btRigidBody* bar =
-            w.body(w.shape<btBoxShape>(btVector3(0.6f, 0.02f, 0.02f)), 0.0, Vec3(0, 1.52, 0));
-        SheetSpec spec; // vertical, in the x-y plane, its top row along the bar
-        spec.rows = 41;
-        spec.cols = 41;
-        spec.spacing = 0.025;
-        spec.origin = Vec3(-0.5, 1.5, 0.0);
-        spec.uAxis = Vec3::UnitX();
-        spec.vAxis = -Vec3::UnitY();
-        auto cloth = makeCloth(makeSheet(spec), ClothSettings{});
-        bullet::BulletCloth& handle = w.add(cloth);
-        for (Index i = 0; i < 41; ++i)
-            handle.attachHere(i, bar);
+        const std::shared_ptr<Cloth> cloth = curtainOnBar(w);
+        bullet::BulletCloth& handle = *w.cloths.back();
         btRigidBody* box =
             w.body(w.shape<btBoxShape>(btVector3(0.15f, 0.15f, 0.15f)), 0.0, Vec3(0, 1.0, -1.0));
         box->setCollisionFlags(box->getCollisionFlags() | btCollisionObject::CF_KINEMATIC_OBJECT);
@@ -447,19 +457,8 @@ TEST_CASE("Bullet's kinematic character controller parts a curtain; a trigger gh
     // volume) still touches nothing.
     for (const bool character : {true, false}) {
         TestWorld w;
-        btRigidBody* bar =
-            w.body(w.shape<btBoxShape>(btVector3(0.6f, 0.02f, 0.02f)), 0.0, Vec3(0, 1.52, 0));
-        SheetSpec spec;
-        spec.rows = 41;
-        spec.cols = 41;
-        spec.spacing = 0.025;
-        spec.origin = Vec3(-0.5, 1.5, 0.0);
-        spec.uAxis = Vec3::UnitX();
-        spec.vAxis = -Vec3::UnitY();
-        auto cloth = makeCloth(makeSheet(spec), ClothSettings{});
-        bullet::BulletCloth& handle = w.add(cloth);
-        for (Index i = 0; i < 41; ++i)
-            handle.attachHere(i, bar);
+        const std::shared_ptr<Cloth> cloth = curtainOnBar(w);
+        bullet::BulletCloth& handle = *w.cloths.back();
         btCapsuleShape capsule(0.25f, 1.0f);
         btPairCachingGhostObject ghost;
         btTransform t;
