@@ -28,24 +28,38 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 namespace drape::detail {
 namespace {
 
-// A particle and a triangle that lie within the thickness of each other in the rest shape are
-// neighbours, not a collision (on a mesh finer than the thickness, the triangles next to a
-// particle's own): pushing them the thickness apart threw a flat sheet at rest apart (a 1.2 cm
-// mesh with the default 1 cm: 59 J from nothing). (Neighbours in one surface: apart along it,
-// not across. Two layers of the rest shape closer than the thickness still collide.)
-bool restNeighbours(const Vec3List& rest, Index p, const Triangle& t, double thickness) {
+// What a pair keeps apart: the thickness, but at most 0.4 times the mesh's spacing there
+// (the shortest rest edge at the particle or of the triangle). A particle lies 0.71 spacings
+// from the far triangle of its own cell, and a thickness near that made a cloth squeezed in
+// its plane or folded push its own cells apart: a 41 x 41 sheet of 2.5 cm with 1.5 cm,
+// squeezed to 90 %, went from 1.2 J to 7 kJ; folded onto itself, to 185 J and strain 16. At
+// half the spacing a fold passed through itself on 21 x 21 and 31 x 31 sheets; at 0.4 it
+// rests on 21 x 21 to 61 x 61 (integration/README.md, review 12). (A cloth thicker than its
+// mesh can show needs a coarser mesh.)
+// A particle and a triangle within that of each other in the rest shape are neighbours, not a
+// collision (0: not listed; on a mesh finer than the thickness, the triangles next to a
+// particle's own): pushing them apart threw a flat sheet at rest apart (a 1.2 cm mesh with the
+// default 1 cm: 59 J from nothing). (Neighbours in one surface: apart along it, not across.
+// Two layers of the rest shape nearer than that still collide.)
+constexpr double kSpacingShare = 0.4;
+
+double pairThickness(const Vec3List& rest, Index p, const Triangle& t, double thickness,
+                     double spacingAtParticle) {
+    const Vec3 &a = rest[t[0]], &b = rest[t[1]], &c = rest[t[2]];
+    const double edge2 = std::min({(b - a).squaredNorm(), (c - b).squaredNorm(),
+                                   (a - c).squaredNorm(), spacingAtParticle * spacingAtParticle});
+    const double keep = std::min(thickness, kSpacingShare * std::sqrt(edge2));
     Vec3 restBary;
-    const Vec3 restQ =
-        closestPointOnTriangle(rest[p], rest[t[0]], rest[t[1]], rest[t[2]], restBary);
-    const Vec3 restOffset = rest[p] - restQ;
-    if (restOffset.squaredNorm() >= thickness * thickness) return false;
-    const Vec3 restFace = (rest[t[1]] - rest[t[0]]).cross(rest[t[2]] - rest[t[0]]);
+    const Vec3 restOffset = rest[p] - closestPointOnTriangle(rest[p], a, b, c, restBary);
+    if (restOffset.squaredNorm() >= keep * keep) return keep;
+    const Vec3 restFace = (b - a).cross(c - a);
     const double across = std::abs(restOffset.dot(restFace));
-    return across <= 0.5 * restOffset.norm() * restFace.norm();
+    return across <= 0.5 * restOffset.norm() * restFace.norm() ? 0.0 : keep;
 }
 
 } // namespace
@@ -99,21 +113,26 @@ void SelfCollider::buildPairs(const ClothTopology& topology, const Vec3List& x, 
                         if ((xp - closestPointOnTriangle(xp, a, b, c, bary)).squaredNorm() >=
                             reach * reach)
                             continue;
-                        if (restNeighbours(rest, p, t, thickness)) continue;
-                        found_.emplace_back(p, static_cast<Index>(ti));
+                        const double keep = pairThickness(rest, p, t, thickness, shortestEdge_[p]);
+                        if (keep == 0.0) continue;
+                        found_.push_back({p, static_cast<Index>(ti), keep});
                     }
                 }
     }
     // By particle, each particle's triangles ascending (the triangles were visited so).
     pairStart_.assign(n + 1, 0);
     for (const auto& f : found_)
-        ++pairStart_[f.first + 1];
+        ++pairStart_[f.particle + 1];
     for (std::size_t p = 0; p < n; ++p)
         pairStart_[p + 1] += pairStart_[p];
     fill_.assign(pairStart_.begin(), pairStart_.end() - 1);
     pairTriangle_.resize(found_.size());
-    for (const auto& f : found_)
-        pairTriangle_[fill_[f.first]++] = f.second;
+    pairThickness_.resize(found_.size());
+    for (const auto& f : found_) {
+        const std::size_t e = fill_[f.particle]++;
+        pairTriangle_[e] = f.triangle;
+        pairThickness_[e] = f.thickness;
+    }
     built_.assign(x.begin(), x.end());
     builtThickness_ = thickness;
     builtReach_ = reach;
@@ -136,6 +155,19 @@ SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,
     SelfCollisionCounts counts;
     const auto& tris = topology.triangles();
     const std::size_t n = x.size();
+    if (shortestEdge_.size() != n) { // the topology's: once
+        shortestEdge_.assign(n, std::numeric_limits<double>::infinity());
+        double widest = 0.0;
+        for (const Spring& sp : topology.springs()) {
+            shortestEdge_[sp.a] = std::min(shortestEdge_[sp.a], sp.restLength);
+            shortestEdge_[sp.b] = std::min(shortestEdge_[sp.b], sp.restLength);
+        }
+        for (double e : shortestEdge_)
+            if (std::isfinite(e)) widest = std::max(widest, e);
+        largestKeep_ = kSpacingShare * widest;
+    }
+    // No pair keeps more than this (pairThickness): the list need reach no farther.
+    thickness = std::min(thickness, largestKeep_);
     for (int iter = 0; iter < iterations; ++iter) {
         if (!pairsHold(x, thickness)) buildPairs(topology, x, thickness, kReach * thickness);
 
@@ -143,20 +175,21 @@ SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,
         for (std::size_t p = 0; p < n; ++p) {
             for (std::size_t e = pairStart_[p]; e < pairStart_[p + 1]; ++e) {
                 const auto& t = tris[pairTriangle_[e]];
+                const double keep = pairThickness_[e]; // <= thickness
                 const double wp = invMass[p];
                 const double w0 = invMass[t[0]], w1 = invMass[t[1]], w2 = invMass[t[2]];
                 if (wp == 0.0 && w0 == 0.0 && w1 == 0.0 && w2 == 0.0) continue;
                 ++counts.pairTests;
                 const Vec3 &a = x[t[0]], &b = x[t[1]], &c = x[t[2]];
-                // Beyond the triangle's box grown by the thickness: farther than the thickness
+                // Beyond the triangle's box grown by what it keeps: farther than that
                 // (the exact test below would say so too, at the cost of a closest point).
                 const Vec3& xp0 = x[p];
-                if ((xp0.array() > a.array().max(b.array()).max(c.array()) + thickness).any() ||
-                    (xp0.array() < a.array().min(b.array()).min(c.array()) - thickness).any())
+                if ((xp0.array() > a.array().max(b.array()).max(c.array()) + keep).any() ||
+                    (xp0.array() < a.array().min(b.array()).min(c.array()) - keep).any())
                     continue;
                 Vec3 bary;
                 const Vec3 q = closestPointOnTriangle(x[p], a, b, c, bary);
-                if ((x[p] - q).squaredNorm() >= thickness * thickness) continue;
+                if ((x[p] - q).squaredNorm() >= keep * keep) continue;
                 Vec3 face = (b - a).cross(c - a);
                 const double len = face.norm();
                 if (!(len > 0.0)) continue;
@@ -169,7 +202,7 @@ SelfCollisionCounts SelfCollider::run(const ClothTopology& topology,
                 if (side == 0.0) side = (x[p] - q).dot(face);
                 const Vec3 nrm = side >= 0.0 ? face : Vec3(-face);
                 const double gap = (x[p] - q).dot(nrm);
-                const double violation = thickness - gap;
+                const double violation = keep - gap;
                 if (violation <= 0.0) continue;
                 const double denom =
                     wp + bary[0] * bary[0] * w0 + bary[1] * bary[1] * w1 + bary[2] * bary[2] * w2;

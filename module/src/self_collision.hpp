@@ -47,9 +47,16 @@ class SelfCollider {
     std::vector<std::size_t> pairStart_; ///< per particle: its first entry in pairTriangle_
     std::vector<std::size_t> fill_;      ///< scratch: the next free entry of each particle
     std::vector<Index> pairTriangle_;    ///< each particle's listed triangles, ascending
+    std::vector<double> pairThickness_;  ///< what each listed pair keeps (<= the thickness)
+    std::vector<double> shortestEdge_;   ///< per particle: its shortest rest spring [m]
+    double largestKeep_ = 0.0;           ///< what any pair keeps at most [m]
     Vec3List built_;                     ///< positions the list was built at
     std::vector<std::array<std::int64_t, 3>> particleCell_; ///< each particle's grid cell
-    std::vector<std::pair<Index, Index>> found_;            ///< (particle, triangle) by triangle
+    struct Found {
+        Index particle, triangle;
+        double thickness; ///< what the pair keeps
+    };
+    std::vector<Found> found_; ///< the pairs by triangle
     double builtThickness_ = 0.0, builtReach_ = 0.0;
     bool valid_ = false;
 };

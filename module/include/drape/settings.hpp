@@ -195,20 +195,19 @@ struct SleepSettings {
 /// Coulomb friction between the layers. Runs after the strain limiter. Off by default.
 struct SelfCollisionSettings {
     bool enabled = false; ///< run the self-collision pass
-    /// Distance a particle keeps from the cloth's other triangles [m]. A particle and a
-    /// triangle within it of each other in the rest shape are neighbours and are left alone
-    /// (on a mesh finer than the thickness, the triangles next to a particle's own). Keep it
-    /// at or below half the mesh spacing: a particle lies 0.71 times the spacing from the far
-    /// triangle of its own cell, so a thickness near that makes a cloth squeezed in its plane
-    /// (folded, crumpled: there are no bending springs) push its own cells apart and gain
-    /// energy. Measured (a new user's review, 41 x 41 at 2.5 cm): at 0.5-0.54 times the
-    /// spacing a towel folds onto itself and rests; at 0.6 a sheet squeezed to 90 % went from
-    /// 1 J to 6 kJ (strain 26) and a fold reached 185-480 J; at the spacing, a sheet landing on
-    /// another part of the cloth gains energy (a 4 x 4 patch on a 1.2 cm mesh with 1 cm:
-    /// 1.8 J). The test is of positions after each step, with no sweep: a layer moving faster
-    /// than about the thickness per cloth step can pass through another (the default 1 cm at
-    /// 22 sub-steps a frame: a folded half thrown down at 20 m/s went through; 5 mm at
-    /// 10 m/s, 1 mm at 5 m/s).
+    /// Distance a particle keeps from the cloth's other triangles [m], at most 0.4 times the
+    /// mesh's spacing there (the shortest rest edge at the particle or of the triangle): a
+    /// particle lies 0.71 spacings from the far triangle of its own cell, and a thickness near
+    /// that made a cloth squeezed in its plane or folded (there are no bending springs) push
+    /// its own cells apart (a 41 x 41 sheet of 2.5 cm with 1.5 cm squeezed to 90 %: 1.2 J to
+    /// 7 kJ; folded onto itself, 185 J). Measured folds rest at 0.4 spacings on 21 x 21 to
+    /// 61 x 61 sheets; at 0.45-0.5 a fold passed through itself on the coarser ones. A cloth
+    /// thicker than that needs a finer mesh. A particle and a triangle within this distance of
+    /// each other in the rest shape are neighbours and are left alone (on a mesh finer than the
+    /// thickness, the triangles next to a particle's own). The test is of positions after each
+    /// step, with no sweep: a layer moving faster than about the thickness per cloth step can
+    /// pass through another (the default 1 cm at 22 sub-steps a frame: a folded half thrown
+    /// down at 20 m/s went through; 5 mm at 10 m/s, 1 mm at 5 m/s).
     double thickness = 0.01;
     int iterations = 2;    ///< passes over all particle-triangle pairs per step (>= 1)
     double friction = 0.2; ///< Coulomb mu between layers of the cloth [-]
