@@ -1152,7 +1152,10 @@ void BulletCloth::Impl::applyImpulses() {
     for (auto& b : contacts.bodies) {
         if (b.dynamicBody == nullptr) continue;
         // It carries or pushes an active body: no sleep (see the header).
-        if (b.applyAccumulatedImpulses(clothSpeed, settings.unitsPerMetre)) cloth->wake();
+        if (b.applyAccumulatedImpulses(clothSpeed, settings.unitsPerMetre,
+                                       cloth->totalMass() * cloth->settings().gravity.norm() *
+                                           stepDt))
+            cloth->wake();
         if (b.refused) {
             ++last.refusedBodyImpulses;
             last.impulseOnBodies -= b.linearImpulse;
