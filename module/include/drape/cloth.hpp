@@ -259,7 +259,9 @@ class Cloth {
     /// The topology's particle count (what positions() and velocities() must hold).
     std::size_t particleCount() const { return invMass_.size(); }
     const Vec3List& positions() const { return state_.x; }  ///< [m]
-    const Vec3List& velocities() const { return state_.v; } ///< [m/s]
+    /// [m/s]. While the cloth sleeps (isAsleep), the velocities it fell asleep with, which it
+    /// resumes from when woken: the cloth is at rest (kineticEnergy() and momentum() read 0).
+    const Vec3List& velocities() const { return state_.v; }
     /// Last evaluated forces [N]. With Velocity-Verlet the velocity-dependent terms (linear and
     /// spring damping, aerodynamics) of free particles are not in it (the integrator applies
     /// them itself, see integrators.hpp); held particles' entries include them.
