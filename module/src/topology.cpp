@@ -12,6 +12,10 @@
 
 namespace drape {
 
+namespace {
+constexpr double kWeldShareOfMedianEdge = 1e-3;
+} // namespace
+
 double automaticWeldTolerance(const std::vector<Vec3>& vertices) {
     bool any = false;
     Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
@@ -22,6 +26,24 @@ double automaticWeldTolerance(const std::vector<Vec3>& vertices) {
         any = true;
     }
     return 1e-9 * (hi - lo).norm();
+}
+
+double automaticWeldTolerance(const TriangleMesh& mesh) {
+    const double least = automaticWeldTolerance(mesh.vertices);
+    std::vector<double> lengths;
+    lengths.reserve(3 * mesh.triangles.size());
+    const auto n = static_cast<Index>(mesh.vertices.size());
+    for (const Triangle& t : mesh.triangles) {
+        if (t[0] >= n || t[1] >= n || t[2] >= n) continue; // validateMesh names it
+        for (int k = 0; k < 3; ++k) {
+            const double l = (mesh.vertices[t[(k + 1) % 3]] - mesh.vertices[t[k]]).norm();
+            if (std::isfinite(l)) lengths.push_back(l);
+        }
+    }
+    if (lengths.empty()) return least;
+    auto middle = lengths.begin() + static_cast<std::ptrdiff_t>(lengths.size() / 2);
+    std::nth_element(lengths.begin(), middle, lengths.end());
+    return std::max(least, kWeldShareOfMedianEdge * *middle);
 }
 
 std::shared_ptr<const ClothTopology> ClothTopology::build(const TriangleMesh& input,

@@ -2,10 +2,18 @@
 // regular files only, never blocking, read-only, size and read budgets, fseek semantics.
 #include "../../integration/io/src/assimp_io.hpp"
 
+#include "drape/io/mesh_io.hpp"
+
+#include <assimp/Exporter.hpp>
+#include <assimp/Importer.hpp>
+#include <assimp/scene.h>
+
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <string>
 #include <sys/stat.h>
@@ -102,4 +110,51 @@ TEST_CASE("GuardedIOSystem refuses what is not a regular file, too large, or for
     CHECK(b->Read(buf, 1, 7) == 5);
     CHECK(io.budgetExceeded());
     CHECK(b->Read(buf, 1, 1) == 0);
+}
+
+TEST_CASE("an FBX file's unit is read: centimetres come in as metres", "[mesh][fbx]") {
+    // A 1 x 1 square in an OBJ, written as FBX by assimp's own exporter (which marks its file
+    // as centimetres: UnitScaleFactor 1), and the same file marked as metres (100). drape's
+    // coordinates are metres: the first comes in 0.01 wide, the second 1 wide. (Before, every
+    // FBX came in at its numbers: a review's 1.7 m duck in centimetres was 166 m wide.)
+    const fs::path obj = dir() / "square.obj";
+    {
+        std::ofstream f(obj);
+        f << "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nf 1 2 3\nf 1 3 4\n";
+    }
+    Assimp::Importer importer;
+    const aiScene* scene = importer.ReadFile(obj.string(), 0);
+    REQUIRE(scene);
+    Assimp::Exporter exporter;
+    const fs::path cm = dir() / "square_cm.fbx";
+    REQUIRE(exporter.Export(scene, "fbxa", cm.string()) == AI_SUCCESS);
+    std::string text;
+    {
+        std::ifstream f(cm);
+        text.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+    }
+    const std::string unit = "\"UnitScaleFactor\", \"double\", \"Number\", \"\", 1\n";
+    const auto at = text.find(unit);
+    REQUIRE(at != std::string::npos); // assimp marks its FBX as centimetres
+    text.replace(at, unit.size(), "\"UnitScaleFactor\", \"double\", \"Number\", \"\", 100\n");
+    const fs::path m = dir() / "square_m.fbx";
+    {
+        std::ofstream f(m);
+        f << text;
+    }
+    auto width = [](const drape::io::ImportedMesh& mesh) {
+        double lo = 1e300, hi = -1e300;
+        for (const drape::Vec3& p : mesh.mesh.vertices) {
+            lo = std::min(lo, p.x());
+            hi = std::max(hi, p.x());
+        }
+        return hi - lo;
+    };
+    const drape::io::ImportedMesh inCm = drape::io::importMesh(cm);
+    const drape::io::ImportedMesh inM = drape::io::importMesh(m);
+    CHECK(width(inCm) == Approx(0.01).epsilon(1e-6));
+    CHECK(width(inM) == Approx(1.0).epsilon(1e-6));
+    REQUIRE(inCm.warnings.size() == 1); // says what it did
+    CHECK(inCm.warnings[0].find("its unit is 0.01 m (FBX UnitScaleFactor 1)") != std::string::npos);
+    CHECK(inM.warnings.empty());
 }

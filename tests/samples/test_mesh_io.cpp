@@ -599,25 +599,34 @@ TEST_CASE("an edge far shorter than the mesh's others is named in a warning",
     using Catch::Matchers::Contains;
     const fs::path dir = outDir() / "sliver";
     fs::create_directories(dir);
-    // The 1 m grid with vertex 10 placed 10 um from vertex 1 (beyond the automatic weld
-    // tolerance) and a sliver face (1, 10, 2): its edges 1-10 (1e-5 m) and 10-2 are springs
-    // of the cloth, the first far shorter than every other edge (median 1 m).
-    writeText(dir / "sliver.obj", gridObj("v 0.000006 -0.000008 0\n", "f 1 10 2\n"));
+    // The 1 m grid with vertex 10 placed 5 mm from vertex 1 (beyond the automatic weld
+    // tolerance, 1e-3 of the median edge) and a sliver face (1, 10, 2): its edges 1-10 (5e-3
+    // m) and 10-2 are springs of the cloth, the first far shorter than every other edge
+    // (median 1 m).
+    writeText(dir / "sliver.obj", gridObj("v 0.003 -0.004 0\n", "f 1 10 2\n"));
     const ImportedMesh m = importMesh(dir / "sliver.obj");
     CHECK(m.mesh.vertices.size() == 10);
     CHECK(m.mesh.triangles.size() == 9);
     REQUIRE(m.warnings.size() == 1);
     INFO(m.warnings[0]);
     CHECK_THAT(m.warnings[0], Contains("sliver.obj: 1 edge shorter than 1 % of the median edge "
-                                       "(1 m): vertices 0 and 9, 1e-05 m apart") &&
-                                  Contains("weld such vertices (a weld tolerance above 1e-05 m)"));
+                                       "(1 m): vertices 0 and 9, 0.005 m apart") &&
+                                  Contains("weld such vertices (a weld tolerance above 0.005 m)"));
     // Welded as the warning says, the sliver is gone and so is the warning.
     MeshImportOptions weld;
-    weld.weldTolerance = 2e-5;
+    weld.weldTolerance = 0.01;
     const ImportedMesh welded = importMesh(dir / "sliver.obj", weld);
     CHECK(welded.mesh.vertices.size() == 9);
     for (const std::string& w : welded.warnings)
         CHECK_THAT(w, !Contains("shorter than"));
+    // 10 um from vertex 1 (1e-5 of the median edge): welded without being asked, the sliver
+    // dropped with a warning.
+    writeText(dir / "hair.obj", gridObj("v 0.000006 -0.000008 0\n", "f 1 10 2\n"));
+    const ImportedMesh hair = importMesh(dir / "hair.obj");
+    CHECK(hair.mesh.vertices.size() == 9);
+    CHECK(hair.mesh.triangles.size() == 8);
+    REQUIRE(hair.warnings.size() == 1);
+    CHECK_THAT(hair.warnings[0], Contains("dropped 1 degenerate triangle"));
 }
 
 TEST_CASE("edges that no cloth surface has are named in a warning: fins and flipped windings",
@@ -651,36 +660,46 @@ TEST_CASE("edges that no cloth surface has are named in a warning: fins and flip
     writeText(dir / "grid.obj", gridObj("", ""));
     CHECK(importMesh(dir / "grid.obj").warnings.empty());
     // A triangle soup of a 6 x 6 grid (50 triangles, each with its own copies of its corners)
-    // whose copies differ by 1e-7 m (float rounding): not welded by the automatic tolerance,
-    // loose triangles, named; with a weld tolerance of 1e-5 m it is one surface, no warning.
-    std::string soup;
-    int v = 0;
-    for (int r = 0; r < 5; ++r)
-        for (int c = 0; c < 5; ++c) {
-            const double x0 = 0.1 * c, z0 = 0.1 * r;
-            const double corners[2][3][2] = {
-                {{x0, z0}, {x0 + 0.1, z0}, {x0, z0 + 0.1}},
-                {{x0 + 0.1, z0}, {x0 + 0.1, z0 + 0.1}, {x0, z0 + 0.1}}};
-            for (const auto& tri : corners) {
-                for (const auto& p : tri) {
-                    const double noise = 1e-7 * ((v * 7919) % 13 - 6) / 6.0;
-                    char line[96];
-                    std::snprintf(line, sizeof line, "v %.12f 0 %.12f\n", p[0] + noise,
-                                  p[1] - noise);
-                    soup += line;
-                    ++v;
+    // whose copies differ by up to `apart` [m].
+    auto soupObj = [](double apart) {
+        std::string soup;
+        int v = 0;
+        for (int r = 0; r < 5; ++r)
+            for (int c = 0; c < 5; ++c) {
+                const double x0 = 0.1 * c, z0 = 0.1 * r;
+                const double corners[2][3][2] = {
+                    {{x0, z0}, {x0 + 0.1, z0}, {x0, z0 + 0.1}},
+                    {{x0 + 0.1, z0}, {x0 + 0.1, z0 + 0.1}, {x0, z0 + 0.1}}};
+                for (const auto& tri : corners) {
+                    for (const auto& p : tri) {
+                        const double noise = 0.5 * apart * ((v * 7919) % 13 - 6) / 6.0;
+                        char line[96];
+                        std::snprintf(line, sizeof line, "v %.12f 0 %.12f\n", p[0] + noise,
+                                      p[1] - noise);
+                        soup += line;
+                        ++v;
+                    }
+                    soup += "f " + std::to_string(v - 2) + " " + std::to_string(v - 1) + " " +
+                            std::to_string(v) + "\n";
                 }
-                soup += "f " + std::to_string(v - 2) + " " + std::to_string(v - 1) + " " +
-                        std::to_string(v) + "\n";
             }
-        }
-    writeText(dir / "soup.obj", soup);
+        return soup;
+    };
+    // Apart by float rounding (2e-7 m): welded by the automatic tolerance (1e-3 of the
+    // median edge), one surface, no warning.
+    writeText(dir / "rounded.obj", soupObj(2e-7));
+    const ImportedMesh rounded = importMesh(dir / "rounded.obj");
+    CHECK(rounded.mesh.vertices.size() == 36);
+    CHECK(rounded.warnings.empty());
+    // Apart by 1 mm (1 % of the spacing): not welded, loose triangles, named; with a weld
+    // tolerance of 2 mm it is one surface, no warning.
+    writeText(dir / "soup.obj", soupObj(1e-3));
     const ImportedMesh loose = importMesh(dir / "soup.obj");
     REQUIRE(loose.mesh.vertices.size() > 36); // not welded into the 36 grid points
     REQUIRE(loose.warnings.size() == 1);
     INFO(loose.warnings[0]);
     CHECK_THAT(loose.warnings[0], Contains("edges border a single triangle"));
-    const ImportedMesh welded = importMesh(dir / "soup.obj", 1e-5);
+    const ImportedMesh welded = importMesh(dir / "soup.obj", 2e-3);
     CHECK(welded.mesh.vertices.size() == 36);
     CHECK(welded.warnings.empty());
 }

@@ -258,7 +258,7 @@ class Cloth {
     const ClothSettings& settings() const { return settings_; }
     /// The topology's particle count (what positions() and velocities() must hold).
     std::size_t particleCount() const { return invMass_.size(); }
-    const Vec3List& positions() const { return state_.x; }  ///< [m]
+    const Vec3List& positions() const { return state_.x; } ///< [m]
     /// [m/s]. While the cloth sleeps (isAsleep), the velocities it fell asleep with, which it
     /// resumes from when woken: the cloth is at rest (kineticEnergy() and momentum() read 0).
     const Vec3List& velocities() const { return state_.v; }

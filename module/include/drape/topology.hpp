@@ -25,8 +25,17 @@ struct SpringLayout; // module/src/spring_layout.hpp: the kernels' private layou
 }
 
 /// 1e-9 times the diagonal of the finite vertices' bounding box [m]: the weld tolerance used
-/// when none is given (TopologyOptions::weldTolerance).
+/// when none is given (TopologyOptions::weldTolerance): exact and near-exact duplicates.
 double automaticWeldTolerance(const std::vector<Vec3>& vertices);
+
+/// The weld tolerance a mesh file gets when none is given (io::MeshImportOptions::weldTolerance)
+/// [m]: the larger of the vertices' (above) and 1e-3 times the median length of the
+/// triangles' edges. It welds the copies of a vertex an exporter leaves at a seam also when
+/// they are apart by rounding (a garment's panels 10 um apart on a 2.5 cm mesh fell apart at
+/// the seams), and vertices a hair apart that no cloth could step (an edge of 1e-3 times the
+/// median needs 1000 times the sub-steps). The triangles this collapses are dropped, with a
+/// warning, by the importer.
+double automaticWeldTolerance(const TriangleMesh& mesh);
 
 /// Options for ClothTopology::build.
 struct TopologyOptions {
