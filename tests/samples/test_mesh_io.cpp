@@ -215,6 +215,18 @@ TEST_CASE("broken or missing mesh files are named with what is wrong", "[mesh][e
     writeText(outDir() / "nan.obj", "v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
     CHECK_THROWS_WITH(importMesh(outDir() / "nan.obj"),
                       Contains("nan.obj: vertex 0 of mesh") && Contains("is not finite"));
+    // Formats the reader gets wrong or crashes on (a review): refused by name, before assimp
+    // reads them. Triangle strips in a PLY came in as one triangle; a 3MF file aborted the
+    // process.
+    writeText(outDir() / "strips.ply", "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\n"
+                                       "property float y\nproperty float z\nelement tristrips 1\n"
+                                       "property list int int vertex_indices\nend_header\n0 0 0\n"
+                                       "1 0 0\n0 1 0\n1 1 0\n4 0 1 2 3\n");
+    CHECK_THROWS_WITH(importMesh(outDir() / "strips.ply"),
+                      Contains("strips.ply: PLY triangle strips (element tristrips)"));
+    writeText(outDir() / "printed.3mf", "PK");
+    CHECK_THROWS_WITH(importMesh(outDir() / "printed.3mf"),
+                      Contains("printed.3mf: 3MF files are not read"));
     writeText(outDir() / "range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99\n");
     CHECK_THROWS_WITH(importMesh(outDir() / "range.obj"),
                       Contains("range.obj: assimp cannot read it: OBJ: vertex index out of range"));

@@ -101,6 +101,23 @@ bool isPlyWithoutEndHeader(const std::filesystem::path& file) {
     return true;
 }
 
+/// True for a PLY file whose header declares triangle strips (`element tristrips`): assimp
+/// 5.2's PLY reader keeps one triangle of them (a review's 268k-triangle head came in as one
+/// triangle and three particles, with no error).
+bool isPlyWithTriangleStrips(const std::filesystem::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    std::string line;
+    if (!std::getline(in, line) || line.compare(0, 3, "ply") != 0) return false;
+    while (std::getline(in, line)) {
+        std::istringstream words(line);
+        std::string first, second;
+        words >> first >> second;
+        if (first == "end_header") return false;
+        if (first == "element" && second == "tristrips") return true;
+    }
+    return false;
+}
+
 /// A count from a file header, as written (digits only), and its value (saturated).
 struct Count {
     std::string text;
@@ -792,6 +809,15 @@ ImportedMesh importOnThisStack(const std::filesystem::path& file,
 
     if (isPlyWithoutEndHeader(file))
         meshFail(file, "PLY header has no end_header line (the file is truncated or not PLY)");
+    if (isPlyWithTriangleStrips(file))
+        meshFail(file, "PLY triangle strips (element tristrips) are not read correctly by the "
+                       "mesh reader (assimp keeps one triangle of them): save the mesh with "
+                       "faces (element face) instead");
+    // assimp 5.2's 3MF reader aborts the process (free(): invalid pointer) on some files,
+    // assimp's own test model among them (a review): no 3MF file is given to it.
+    if (lowerExtension(file) == ".3mf")
+        meshFail(file, "3MF files are not read (the mesh reader, assimp 5.2, crashes on some of "
+                       "them): convert it to OBJ, PLY or glTF");
     checkHeaderCounts(file, lowerExtension(file), size);
 
     Assimp::Importer importer;
