@@ -708,12 +708,43 @@ TEST_CASE("edges that no cloth surface has are named in a warning: fins and flip
     writeText(dir / "soup.obj", soupObj(1e-3));
     const ImportedMesh loose = importMesh(dir / "soup.obj");
     REQUIRE(loose.mesh.vertices.size() > 36); // not welded into the 36 grid points
-    REQUIRE(loose.warnings.size() == 1);
+    REQUIRE(loose.warnings.size() == 2);
     INFO(loose.warnings[0]);
     CHECK_THAT(loose.warnings[0], Contains("edges border a single triangle"));
+    CHECK_THAT(loose.warnings[1], Contains("the cloth is 50 separate pieces"));
     const ImportedMesh welded = importMesh(dir / "soup.obj", 2e-3);
     CHECK(welded.mesh.vertices.size() == 36);
     CHECK(welded.warnings.empty());
+}
+
+TEST_CASE("a mesh of separate pieces, and one too large for metres, are named in a warning",
+          "[mesh]") {
+    if (!meshIoAvailable()) return;
+    using Catch::Matchers::Contains;
+    const fs::path dir = outDir() / "pieces";
+    fs::create_directories(dir);
+    // Two squares 1 cm apart (two panels whose seam does not meet): two pieces.
+    writeText(dir / "panels.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+                                  "v 1.01 0 0\nv 2 0 0\nv 2 1 0\nv 1.01 1 0\n"
+                                  "f 1 2 3\nf 1 3 4\nf 5 6 7\nf 5 7 8\n");
+    const ImportedMesh panels = importMesh(dir / "panels.obj");
+    REQUIRE(panels.warnings.size() == 1);
+    CHECK_THAT(panels.warnings[0],
+               Contains("panels.obj: the cloth is 2 separate pieces (the largest has 4 of 8 "
+                        "vertices)") &&
+                   Contains("weld them with a larger weld tolerance"));
+    // Welded at the seam, one piece and no warning; a body's mesh may be many pieces.
+    CHECK(importMesh(dir / "panels.obj", 0.02).warnings.empty());
+    MeshImportOptions body;
+    body.cloth = false;
+    CHECK(importMesh(dir / "panels.obj", body).warnings.empty());
+    // A 1 m square written in millimetres.
+    writeText(dir / "millimetres.obj", "v 0 0 0\nv 1000 0 0\nv 1000 1000 0\nv 0 1000 0\n"
+                                       "f 1 2 3\nf 1 3 4\n");
+    const ImportedMesh mm = importMesh(dir / "millimetres.obj");
+    REQUIRE(mm.warnings.size() == 1);
+    CHECK_THAT(mm.warnings[0], Contains("millimetres.obj: the mesh is 1414 m across") &&
+                                   Contains("\"scale\": 0.001 or 0.01"));
 }
 
 TEST_CASE("points and lines in a mesh file are named in a warning: the cloth is its triangles",

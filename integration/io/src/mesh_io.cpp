@@ -711,6 +711,59 @@ double fbxUnitInMetres(const aiScene& scene) {
     return factor / 100.0;
 }
 
+/// A warning when the triangles make several separate pieces (empty for one): each moves on
+/// its own. (A skirt whose panels' seam vertices were apart by more than the weld tolerance
+/// fell apart at the seams with no word; a CAD export of 85 parts hung as 85 cloths.)
+std::string piecesWarning(const TriangleMesh& mesh) {
+    const std::size_t n = mesh.vertices.size();
+    std::vector<Index> parent(n);
+    for (std::size_t i = 0; i < n; ++i)
+        parent[i] = static_cast<Index>(i);
+    auto root = [&](Index i) {
+        while (parent[i] != i)
+            i = parent[i] = parent[parent[i]];
+        return i;
+    };
+    for (const Triangle& t : mesh.triangles)
+        for (int k = 1; k < 3; ++k)
+            parent[root(t[k])] = root(t[0]);
+    std::vector<std::size_t> size(n, 0);
+    std::size_t pieces = 0, largest = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const Index r = root(static_cast<Index>(i));
+        pieces += size[r] == 0;
+        largest = std::max(largest, ++size[r]);
+    }
+    if (pieces <= 1) return {};
+    return "the cloth is " + std::to_string(pieces) + " separate pieces (the largest has " +
+           std::to_string(largest) + " of " + std::to_string(n) +
+           " vertices), and each moves on its own; if they should hang together (a garment's "
+           "panels, whose seam vertices do not meet), weld them with a larger weld tolerance "
+           "(MeshImportOptions::weldTolerance, a scene's \"weld_tolerance\")";
+}
+
+/// A warning for a mesh too large to be a cloth in metres (empty otherwise): drape's unit is
+/// the metre, and an export in millimetres or centimetres is 1000 or 100 times too large (a
+/// review's CAD engine came in 743 m across, 530 t).
+constexpr double kLargestLikelyCloth = 100.0; // [m] across
+std::string sizeWarning(const TriangleMesh& mesh) {
+    if (mesh.vertices.empty()) return {};
+    Vec3 lo = mesh.vertices[0], hi = mesh.vertices[0];
+    for (const Vec3& p : mesh.vertices) {
+        lo = lo.cwiseMin(p);
+        hi = hi.cwiseMax(p);
+    }
+    const double across = (hi - lo).norm();
+    if (!(across > kLargestLikelyCloth)) return {};
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  "the mesh is %.4g m across: drape's unit is the metre; if the file is in "
+                  "millimetres or centimetres, scale it (MeshImportOptions::transform and scale, "
+                  "a scene's mesh \"scale\": 0.001 or 0.01)",
+                  across);
+    return buf;
+}
+
 /// A warning for edges shorter than kShortEdge of the mesh's median edge (empty when none):
 /// an edge is a spring, and the cloth's stable time step shrinks with its shortest, stiffest
 /// spring (a 41 x 41 sheet with one sliver vertex 0.1 mm from a corner needs 77 sub-steps a
@@ -1062,6 +1115,12 @@ ImportedMesh importOnThisStack(const std::filesystem::path& file,
         out.warnings.push_back(file.string() + ": " + w);
     if (const std::string w = surfaceWarning(out.mesh); !w.empty())
         out.warnings.push_back(file.string() + ": " + w);
+    if (options.cloth) {
+        if (const std::string w = piecesWarning(out.mesh); !w.empty())
+            out.warnings.push_back(file.string() + ": " + w);
+        if (const std::string w = sizeWarning(out.mesh); !w.empty())
+            out.warnings.push_back(file.string() + ": " + w);
+    }
     out.rawVertexCount = raw.mesh.vertices.size();
     out.skippedPrimitives = raw.skipped;
     out.droppedDegenerate = degenerateCount;

@@ -26,8 +26,9 @@ std::string meshDescKey(const MeshDesc& d) {
     return key;
 }
 
-ImportedMesh importMesh(const MeshDesc& desc) {
+ImportedMesh importMesh(const MeshDesc& desc, bool cloth) {
     MeshImportOptions o;
+    o.cloth = cloth;
     o.weldTolerance = desc.weldTolerance;
     o.refuseDegenerate = desc.refuseDegenerate;
     o.transform = true;

@@ -315,7 +315,7 @@ class BulletWorld final : public Simulation::RigidWorld {
             // One import and one BVH per file, however many (static) bodies name it.
             auto& shared = meshShapes_[meshDescKey(d.shape.mesh)];
             if (!shared.second) {
-                const ImportedMesh im = importMesh(d.shape.mesh);
+                const ImportedMesh im = importMesh(d.shape.mesh, false); // a collider
                 shared.first = std::make_shared<btTriangleMesh>(true, false);
                 for (const Triangle& t : im.mesh.triangles)
                     shared.first->addTriangle(toBt(im.mesh.vertices[t[0]]),

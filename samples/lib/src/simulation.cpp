@@ -54,7 +54,7 @@ std::vector<DrawMesh> shapeMeshes(const RigidBodyDesc& b, const Vec3& around, do
         const std::string key = meshDescKey(b.shape.mesh);
         auto it = imported.find(key);
         if (it == imported.end()) {
-            it = imported.emplace(key, importMesh(b.shape.mesh)).first;
+            it = imported.emplace(key, importMesh(b.shape.mesh, false)).first; // a body
             warnings.insert(warnings.end(), it->second.warnings.begin(), it->second.warnings.end());
         }
         const ImportedMesh& im = it->second;

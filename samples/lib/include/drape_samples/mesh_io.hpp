@@ -23,8 +23,9 @@ using io::transformMesh;
 bool meshIoAvailable();
 
 /// Reads a MeshDesc's file with its weld tolerance, transform (applied before welding) and
-/// degenerate_triangles choice. Throws SceneError naming the file and the problem.
-ImportedMesh importMesh(const MeshDesc& desc);
+/// degenerate_triangles choice; `cloth`: MeshImportOptions::cloth (false for a body's mesh).
+/// Throws SceneError naming the file and the problem.
+ImportedMesh importMesh(const MeshDesc& desc, bool cloth = true);
 /// What tells apart the meshes importMesh(desc) gives: the file and every option, exactly (a
 /// key for reading a file that many bodies name once).
 std::string meshDescKey(const MeshDesc& desc);

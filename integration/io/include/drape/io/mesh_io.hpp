@@ -71,6 +71,10 @@ struct MeshImportOptions {
     /// Degenerate triangles (two corners at one point, or no area), duplicate triangles and
     /// vertices no triangle uses: refuse the mesh (true) or drop them with a warning (false).
     bool refuseDegenerate = false;
+    /// The mesh becomes a cloth: also warn about what a cloth does not expect, separate
+    /// pieces (each moves on its own: a garment's panels whose seams do not meet) and a size
+    /// beyond 100 m (a file in millimetres or centimetres). A collider's mesh: false.
+    bool cloth = true;
     /// Apply scale, then rotation, then translation before welding, and require every vertex
     /// to land within kMaxMeshCoordinate.
     bool transform = false;
