@@ -1149,13 +1149,14 @@ void BulletCloth::Impl::pushBodies(double h) {
 }
 
 void BulletCloth::Impl::applyImpulses() {
+    // The cloth's weight over the Bullet sub-step (what a supported body may carry); the sum
+    // over the particles only when a dynamic body is there to take it.
+    double weight = -1.0;
     for (auto& b : contacts.bodies) {
         if (b.dynamicBody == nullptr) continue;
+        if (weight < 0.0) weight = cloth->totalMass() * cloth->settings().gravity.norm() * stepDt;
         // It carries or pushes an active body: no sleep (see the header).
-        if (b.applyAccumulatedImpulses(clothSpeed, settings.unitsPerMetre,
-                                       cloth->totalMass() * cloth->settings().gravity.norm() *
-                                           stepDt))
-            cloth->wake();
+        if (b.applyAccumulatedImpulses(clothSpeed, settings.unitsPerMetre, weight)) cloth->wake();
         if (b.refused) {
             ++last.refusedBodyImpulses;
             last.impulseOnBodies -= b.linearImpulse;
