@@ -90,6 +90,18 @@ double estimateMaxAngularFrequency(const ClothTopology& topology,
     return std::sqrt(std::max(padded, 0.0));
 }
 
+std::vector<double> localAngularFrequencies(const ClothTopology& topology,
+                                            const std::vector<double>& stiffness,
+                                            const std::vector<double>& invMass) {
+    std::vector<double> w;
+    if (!rootInverseMasses(invMass, w) || topology.springCount() == 0)
+        return std::vector<double>(topology.particleCount(), 0.0);
+    std::vector<double> rows = gershgorinRows(topology, stiffness, w);
+    for (std::size_t i = 0; i < rows.size(); ++i)
+        rows[i] = invMass[i] == 0.0 ? 0.0 : std::sqrt(rows[i]);
+    return rows;
+}
+
 LocalFrequency highestLocalFrequency(const ClothTopology& topology,
                                      const std::vector<double>& stiffness,
                                      const std::vector<double>& invMass) {

@@ -5,6 +5,9 @@
 //               [--integrator rk4]
 //   drape-check --rows 35 --cols 35 --spacing 10 --mass 0.5 --stiffness 20 --damping 0.05
 //               --pins top-corners --integrator velocity_verlet --dt 0.01
+// When the step is stable it then runs a trial (--trial seconds of simulated time, 2 by
+// default, 0 for none; at most --trial-cpu seconds of CPU) and says what a step cost: a scene
+// with its world, bodies and contacts as drape-run steps it, a sheet as Cloth::step.
 // Options are parsed by CLI11: a count that is not a whole number in range (--rows 2.5,
 // --rows 4294967331) or a value that is not a finite number is refused, never rounded.
 // Exit status: 0 stable, 3 unstable, 1 bad input, 2 usage.
@@ -16,6 +19,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <optional>
@@ -29,6 +33,7 @@ int main(int argc, char** argv) {
                  "C_d 0.05, top corners pinned, velocity_verlet, dt 0.01)"};
     std::string scenePath, integratorName, pins = "top-corners";
     std::optional<double> dt;
+    double trialSeconds = 2.0, trialCpu = 5.0;
     // Counts as 64-bit integers, checked against the range a sheet can have: CLI11 refuses a
     // value that is not a whole number or does not fit.
     long long rows = 35, cols = 35;
@@ -51,6 +56,12 @@ int main(int argc, char** argv) {
         ->check(positive);
     app.add_option("--integrator", integratorName,
                    "explicit_euler, symplectic_euler, velocity_verlet, rk4 or implicit_euler");
+    app.add_option("--trial", trialSeconds,
+                   "Simulated seconds of a trial run that measures what a step costs on this "
+                   "machine (default 2; 0: no trial)")
+        ->check(finite & CLI::Range(0.0, 1e6));
+    app.add_option("--trial-cpu", trialCpu, "CPU seconds after which the trial stops (default 5)")
+        ->check(positive);
     // The sheet's options: each checked, none together with --scene.
     auto sheetOption = [&app, sceneOpt](const char* name, auto& value, const char* help,
                                         const CLI::Validator& check) {
@@ -88,6 +99,8 @@ int main(int argc, char** argv) {
             if (integrator) scene.cloth.integrator = *integrator;
             scene.cloth.rejectUnstableTimeStep = false; // we are asking, not stepping
             samples::Simulation sim(scene);
+            // What the scene's own step would do (the trial runs it, whatever --dt asks).
+            const double ownStep = scene.timeStep / sim.substeps();
             // What loading the scene noticed (a mesh's loose triangles, a weld that merged
             // much, a material assimp could not find), as drape-run prints it.
             for (const std::string& w : sim.warnings())
@@ -105,6 +118,18 @@ int main(int argc, char** argv) {
                 what += step.str();
             }
             what += ")";
+            std::cout << what << ": " << result.message << "\n";
+            if (trialSeconds > 0.0) {
+                const bool ownStable = samples::checkTimeStep(sim.cloth(), ownStep).stable;
+                // Back to the wind of t = 0 (the mean: its gust is a sine), as drape-run starts.
+                if (scene.wind) sim.cloth().setWind(scene.wind->velocity);
+                if (ownStable)
+                    std::cout << samples::trialCost(sim, trialSeconds, trialCpu).message << "\n";
+                else
+                    std::cout << "trial: not run (the scene's own cloth step, " << ownStep
+                              << " s, is unstable)\n";
+            }
+            return result.stable ? 0 : 3;
         } else {
             SheetSpec sheet;
             sheet.rows = static_cast<Index>(rows);
@@ -124,8 +149,17 @@ int main(int argc, char** argv) {
             }
             result = samples::checkTimeStep(cloth, dt.value_or(0.01));
             what = std::to_string(sheet.rows) + " x " + std::to_string(sheet.cols) + " sheet";
+            std::cout << what << ": " << result.message << "\n";
+            if (trialSeconds > 0.0 && result.stable) {
+                const double step = dt.value_or(0.01);
+                const auto steps =
+                    static_cast<std::size_t>(std::max(1.0, std::ceil(trialSeconds / step)));
+                std::cout << samples::trialCost([&cloth, step] { cloth.step(step); }, step, 1,
+                                                steps, trialCpu)
+                                 .message
+                          << "\n";
+            }
         }
-        std::cout << what << ": " << result.message << "\n";
         return result.stable ? 0 : 3;
     } catch (const std::exception& e) {
         std::cerr << "drape-check: " << e.what() << "\n";

@@ -6,6 +6,8 @@
 
 #include <catch2/catch.hpp>
 
+#include <time.h>
+
 #include <cmath>
 #include <limits>
 
@@ -189,4 +191,40 @@ TEST_CASE("checkTimeStep: a bad dt gets a message, not a verdict") {
     const TimeStepCheck r = checkTimeStep(*c, -1.0);
     CHECK_FALSE(r.stable);
     CHECK(r.message.find("positive") != std::string::npos);
+}
+
+TEST_CASE("trialCost: what a step cost, and a CPU budget that stops the trial") {
+    using Catch::Matchers::Contains;
+    // A step that burns 2 ms of this thread's CPU: the trial measures at least that, and a
+    // budget of 20 ms stops it after at most ten such steps of the hundred asked for.
+    auto threadCpu = [] {
+        timespec ts{};
+        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+        return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+    };
+    auto burn = [&threadCpu] {
+        const double start = threadCpu();
+        while (threadCpu() - start < 2e-3) {
+        }
+    };
+    const TrialCost t = trialCost(burn, 0.01, 4, 100, 0.02);
+    INFO(t.message);
+    CHECK(t.stoppedByBudget);
+    CHECK(t.steps >= 1);
+    CHECK(t.steps <= 10);
+    CHECK(t.simulated == Approx(0.01 * static_cast<double>(t.steps)));
+    CHECK(t.medianCpu >= 2e-3);
+    CHECK(t.worstCpu >= t.medianCpu);
+    CHECK(t.meanCpu >= 2e-3);
+    CHECK(t.meanCpu <= t.worstCpu);
+    // Per 1/60 s of simulated time: a step of 0.01 s is 0.6 of a 60 Hz frame.
+    CHECK(t.medianPerFrame == Approx(t.medianCpu / 0.6));
+    CHECK_THAT(t.message, Contains("(4 cloth sub-steps each)") && Contains("stopped after"));
+    // Within its budget the trial takes every step asked for.
+    int calls = 0;
+    const TrialCost all = trialCost([&calls] { ++calls; }, 1.0 / 60.0, 1, 3, 10.0);
+    CHECK(calls == 3);
+    CHECK(all.steps == 3);
+    CHECK_FALSE(all.stoppedByBudget);
+    CHECK_THAT(all.message, !Contains("stopped after"));
 }

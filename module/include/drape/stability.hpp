@@ -44,6 +44,14 @@ struct LocalFrequency {
     double medianMass = 0.0;  ///< the median of the free particles' masses [kg]
 };
 
+/// Each particle's own bound (LocalFrequency) [rad/s], 0 for a fixed particle (zero inverse
+/// mass). A particle far above the rest makes the cloth dear: the stable step scales as 1 /
+/// omega_max, and pinning it (or welding or remeshing what makes it) gives the rest's
+/// estimateMaxAngularFrequency.
+std::vector<double> localAngularFrequencies(const ClothTopology& topology,
+                                            const std::vector<double>& stiffness,
+                                            const std::vector<double>& invMass);
+
 /// The particle with the highest local bound (LocalFrequency); all zero when nothing can move.
 LocalFrequency highestLocalFrequency(const ClothTopology& topology,
                                      const std::vector<double>& stiffness,

@@ -1,13 +1,19 @@
 // Time-step check before a run (the derivation is in check.hpp).
 #include "drape_samples/check.hpp"
 
+#include "drape_samples/simulation.hpp"
+
 #include <drape/stability.hpp>
+
+#include <time.h>
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <iomanip>
 #include <limits>
 #include <sstream>
+#include <vector>
 
 namespace drape::samples {
 
@@ -30,6 +36,13 @@ std::string noOscillation(const Cloth& cloth) {
         return "nothing can oscillate: every particle is pinned or there are no springs";
     return "the springs' frequencies sqrt(k / m) are zero to double precision (stiffness and "
            "mass far apart)";
+}
+
+/// The process's CPU time [s]: every thread's, the cloth's helpers included.
+double processCpuSeconds() {
+    timespec ts{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
 } // namespace
@@ -137,6 +150,66 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
                                : ", or implicit_euler.");
     }
     return c;
+}
+
+TrialCost trialCost(const std::function<void()>& step, double dt, int substeps, std::size_t steps,
+                    double cpuBudget) {
+    TrialCost t;
+    std::vector<double> cpu;
+    cpu.reserve(steps);
+    double spent = 0.0;
+    while (cpu.size() < steps) {
+        if (spent >= cpuBudget) {
+            t.stoppedByBudget = true;
+            break;
+        }
+        const double start = processCpuSeconds();
+        step();
+        cpu.push_back(processCpuSeconds() - start);
+        spent += cpu.back();
+    }
+    t.steps = cpu.size();
+    t.simulated = static_cast<double>(t.steps) * dt;
+    if (cpu.empty()) {
+        t.message = "trial: no step taken";
+        return t;
+    }
+    t.worstCpu = *std::max_element(cpu.begin(), cpu.end());
+    t.meanCpu = spent / static_cast<double>(cpu.size());
+    auto middle = cpu.begin() + static_cast<std::ptrdiff_t>(cpu.size() / 2);
+    std::nth_element(cpu.begin(), middle, cpu.end());
+    t.medianCpu = *middle;
+    t.medianPerFrame = t.medianCpu * (1.0 / 60.0) / dt;
+    const double frameBudget = 1.0 / 60.0;
+    std::ostringstream m;
+    m << "trial: " << t.steps << " step" << (t.steps == 1 ? "" : "s") << " of " << fmt(dt) << " s ("
+      << substeps << " cloth sub-step" << (substeps == 1 ? "" : "s") << " each) took a median "
+      << fmt(1e3 * t.medianCpu, 3) << " ms of CPU, worst " << fmt(1e3 * t.worstCpu, 3)
+      << " ms: " << fmt(1e3 * t.medianPerFrame, 3) << " ms per 1/60 s simulated, "
+      << fmt(100.0 * t.medianPerFrame / frameBudget, 3) << " % of a 60 Hz frame";
+    if (t.stoppedByBudget)
+        m << " (stopped after " << fmt(spent, 3) << " s of CPU, at t = " << fmt(t.simulated, 3)
+          << " s)";
+    m << ". Measured on this machine over the first " << fmt(t.simulated, 3)
+      << " s; contacts and load that come later can cost more";
+    t.message = m.str();
+    return t;
+}
+
+TrialCost trialCost(Simulation& sim, double seconds, double cpuBudget) {
+    const double dt = sim.scene().timeStep;
+    const std::size_t left =
+        sim.scene().stepCount() > sim.steps() ? sim.scene().stepCount() - sim.steps() : 0;
+    const std::size_t wanted =
+        std::min(left, std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(seconds / dt))));
+    if (wanted == 0) {
+        TrialCost t;
+        t.message = "trial: no step left to take (the scene's duration has run out)";
+        return t;
+    }
+    TrialCost t = trialCost([&sim] { sim.step(); }, dt, sim.substeps(), wanted, cpuBudget);
+    t.message += " (drape-run's summary has the whole run)";
+    return t;
 }
 
 } // namespace drape::samples

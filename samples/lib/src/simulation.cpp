@@ -5,6 +5,7 @@
 #include "rigid_world.hpp"
 
 #include <drape/error.hpp>
+#include <drape/stability.hpp>
 
 #include <Eigen/Geometry>
 
@@ -147,6 +148,7 @@ Simulation::Simulation(const SceneDesc& scene) : scene_(scene) {
     for (const RigidBodyDesc& b : scene_.rigidBodies)
         bodyMeshes_.push_back(shapeMeshes(b, centre, planeSize, warnings_, imported));
     chooseSubsteps();
+    warnStiffSpot();
     warnLongRun();
     if (scene_.needsBullet()) world_ = RigidWorld::create(scene_, *cloth_, attachSets_);
     applyWind();
@@ -173,6 +175,59 @@ void Simulation::chooseSubsteps() {
                  num(limit) + " s), more than the limit of " + std::to_string(kMaxSubsteps) +
                  ": lower simulation.time_step, or use implicit_euler");
     scene_.substeps = std::max(1, static_cast<int>(needed));
+}
+
+void Simulation::warnStiffSpot() {
+    // A few particles far stiffer for their mass than the rest (a sliver triangle, two
+    // vertices nearly one) set the automatic sub-steps, and so the cost of every step. The
+    // rest of the cloth: its bound with the stiffest 1 % of the free particles held still.
+    if (!scene_.autoSubsteps || scene_.substeps < 2) return;
+    const auto& topo = cloth_->topology();
+    const std::vector<double> local =
+        localAngularFrequencies(topo, cloth_->stiffness(), cloth_->inverseMasses());
+    std::vector<double> free;
+    for (std::size_t i = 0; i < local.size(); ++i)
+        if (cloth_->inverseMasses()[i] > 0.0) free.push_back(local[i]);
+    if (free.size() < 2) return;
+    const auto k = static_cast<std::ptrdiff_t>(0.99 * static_cast<double>(free.size() - 1));
+    std::nth_element(free.begin(), free.begin() + k, free.end());
+    const double p99 = free[static_cast<std::size_t>(k)];
+    std::vector<double> restInvMass = cloth_->inverseMasses();
+    std::size_t held = 0;
+    Index stiffest = 0;
+    for (std::size_t i = 0; i < local.size(); ++i) {
+        if (local[i] > local[stiffest]) stiffest = static_cast<Index>(i);
+        if (restInvMass[i] > 0.0 && local[i] > p99) {
+            restInvMass[i] = 0.0;
+            ++held;
+        }
+    }
+    const double omegaRest = estimateMaxAngularFrequency(topo, cloth_->stiffness(), restInvMass);
+    // The sub-steps the rest would ask for, as chooseSubsteps counts them.
+    const double dt = scene_.timeStep;
+    const double restLimit =
+        std::min(stableTimeStep(scene_.cloth.integrator, omegaRest), cloth_->aeroTimeStep(dt));
+    const int without =
+        std::max(1, static_cast<int>(std::ceil(dt / (kAutoSubstepMargin * restLimit))));
+    if (!(kStiffSpotRatio * without <= scene_.substeps)) return;
+    double shortest = std::numeric_limits<double>::infinity();
+    Index other = stiffest;
+    for (Index e = topo.adjacencyOffsets()[stiffest]; e < topo.adjacencyOffsets()[stiffest + 1];
+         ++e)
+        if (const double l = topo.springs()[topo.adjacentSprings()[e]].restLength; l < shortest) {
+            shortest = l;
+            other = topo.adjacentParticles()[e];
+        }
+    warnings_.push_back(
+        std::to_string(held) + " of the cloth's " + std::to_string(free.size()) +
+        " free particles set its stable time step: \"auto\" takes " +
+        std::to_string(scene_.substeps) + " cloth sub-steps a step where about " +
+        std::to_string(without) + " would do for the rest of the cloth. The stiffest, particle " +
+        std::to_string(stiffest) + ", has springs reaching " + num(local[stiffest]) +
+        " rad/s against " + num(p99) + " for 99 % of the particles (its shortest spring " +
+        num(shortest) + " m, to particle " + std::to_string(other) +
+        "): weld vertices a hair apart (a larger weld_tolerance) or remove the sliver "
+        "triangles");
 }
 
 void Simulation::warnLongRun() {

@@ -17,6 +17,8 @@
 
 #include <drape/cloth.hpp>
 
+#include <cstddef>
+#include <functional>
 #include <string>
 
 namespace drape::samples {
@@ -44,5 +46,30 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
 /// Explicit Euler's damped limit C_d / (m_max omega^2) + c_s / k_max [s] (0 without damping).
 double explicitEulerLimit(double omegaMax, double particleDamping, double springDamping,
                           double maxMass, double maxStiffness);
+
+class Simulation;
+
+/// What a scene costs on this machine, measured by stepping it: drape-check's trial.
+struct TrialCost {
+    std::size_t steps = 0;        ///< scene steps taken
+    double simulated = 0.0;       ///< simulated time they cover [s]
+    double medianCpu = 0.0;       ///< median process CPU time of one scene step [s]
+    double meanCpu = 0.0;         ///< mean process CPU time of one scene step [s]
+    double worstCpu = 0.0;        ///< the dearest scene step [s]
+    double medianPerFrame = 0.0;  ///< medianCpu per 1/60 s of simulated time [s]
+    bool stoppedByBudget = false; ///< the CPU budget ran out before `seconds` were simulated
+    std::string message;          ///< the figures in a sentence or two, for a user
+};
+
+/// Steps `sim` (a scene as drape-run runs it: its world, bodies and contacts) for `seconds` of
+/// simulated time (at least one step, at most the scene's duration left), or until the steps
+/// have spent `cpuBudget` seconds of process CPU time, and reports what a step cost. The
+/// simulation is left where the trial stopped. Throws what Simulation::step throws.
+TrialCost trialCost(Simulation& sim, double seconds, double cpuBudget);
+
+/// The same for any step: calls `step` (one step of `dt` seconds, `substeps` cloth sub-steps)
+/// `steps` times, or until the calls have spent `cpuBudget` seconds of process CPU time.
+TrialCost trialCost(const std::function<void()>& step, double dt, int substeps, std::size_t steps,
+                    double cpuBudget);
 
 } // namespace drape::samples

@@ -43,6 +43,10 @@ inline constexpr double kAutoSubstepMargin = 0.9;
 /// or contacts: 14 us for 1,225 particles on the 2-core Xeon VM, PERF.md) [s]: a lower bound
 /// of a run's time.
 inline constexpr double kLeastSecondsPerParticleStep = 1e-8;
+/// The automatic sub-steps are said to be set by a few particles when the rest of the cloth
+/// (all but the 1 % of its free particles with the highest own bounds,
+/// drape::localAngularFrequencies) would take 1 / kStiffSpotRatio of them or fewer.
+inline constexpr double kStiffSpotRatio = 1.25;
 /// A run whose lower bound (particles x steps x sub-steps x kLeastSecondsPerParticleStep)
 /// exceeds this gets a warning before it starts [s].
 inline constexpr double kLongRunSeconds = 3600.0;
@@ -113,6 +117,8 @@ class Simulation {
     [[noreturn]] void overflow(const std::string& what) const;
     void chooseSubsteps();
     void warnLongRun(); ///< a warning when the run cannot take under kLongRunSeconds
+    /// A warning when a few particles set the automatic sub-steps (kStiffSpotRatio).
+    void warnStiffSpot();
     std::vector<Index> resolve(const ParticleSelector& sel,
                                const std::vector<Index>& vertexToParticle,
                                const std::map<std::string, std::vector<Index>>& groups) const;
