@@ -70,6 +70,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <unordered_map>
 #include <utility>
@@ -240,6 +241,11 @@ struct BulletCloth::Impl {
     bool advanceOne();
     /// What advance does after its cloth steps: the strain at the end, the proxy's next box.
     void advanceEnd();
+    /// Steps the cloth in `n` steps of the Bullet sub-step stepDt: sets stepSubsteps, stepH and
+    /// last.substeps (the cloth steps in all: its own automatic sub-steps split each further).
+    /// With the cloth's automatic sub-steps off, a step beyond its stability limit is refused
+    /// here with the count BulletClothSettings::substeps needs (UnstableTimeStep).
+    void planSubsteps(int n);
     /// After them (on the world's thread): the impulses on the bodies, the proxy, the counts.
     void finish();
     /// The step being taken: its dt [s], cloth steps, their length [s], and timing.
@@ -569,8 +575,7 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
         double h = 0.0; // the cloth step [s]
         for (std::size_t m = first; m < past; ++m)
             guarded(members_[m], [&](Impl& c) {
-                c.stepSubsteps = c.last.substeps = steps;
-                c.stepH = c.stepDt / steps;
+                c.planSubsteps(steps);
                 h = std::max(h, c.stepH);
             });
         std::vector<unsigned char> done(past - first, 0);
@@ -844,9 +849,7 @@ void BulletCloth::Impl::prepare(double dt) {
     // Given: that many; not given: the fewest within the cloth's stability limit (the cloth's
     // own automatic sub-steps, ClothSettings::substeps), taken here so that every cloth step
     // exchanges its impulses with the bodies.
-    stepSubsteps = settings.substeps ? *settings.substeps : c.substepsFor(dt);
-    last.substeps = stepSubsteps;
-    stepH = dt / stepSubsteps;
+    planSubsteps(settings.substeps ? *settings.substeps : c.substepsFor(dt));
     slept = true;
     for (auto& b : contacts.bodies)
         b.startSweep(dt);
@@ -854,6 +857,31 @@ void BulletCloth::Impl::prepare(double dt) {
                                      [](const detail::BodySnapshot& b) { return b.dynamicBody; });
     clothSpeed = dynamic ? fastestParticle(c) : 0.0;
     bodySeconds = std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+void BulletCloth::Impl::planSubsteps(int n) {
+    const Cloth& c = *cloth;
+    stepSubsteps = n;
+    stepH = stepDt / n;
+    const ClothSettings& cs = c.settings();
+    if (!cs.substeps.automatic && cs.rejectUnstableTimeStep && !c.isAsleep()) {
+        const double limit = c.stableTimeStep();
+        if (stepH > limit) {
+            std::ostringstream m;
+            m << "the cloth's steps of " << stepH << " s (the Bullet sub-step of " << stepDt
+              << " s in " << n << " step" << (n == 1 ? "" : "s")
+              << (settings.substeps ? ", BulletClothSettings::substeps" : ", the default")
+              << ") exceed its stability limit of " << limit << " s (" << toString(cs.integrator)
+              << ", omega_max = " << c.maxAngularFrequency()
+              << " rad/s) with ClothSettings::substeps.automatic off: set "
+                 "BulletClothSettings::substeps to at least "
+              << static_cast<long long>(std::ceil(stepDt / limit))
+              << " for this sub-step, or turn ClothSettings::substeps.automatic on (the "
+                 "default) and leave BulletClothSettings::substeps unset";
+            throw Error(ErrorCode::UnstableTimeStep, m.str());
+        }
+    }
+    last.substeps = n * c.substepsFor(stepH);
 }
 
 void BulletCloth::Impl::advance() {

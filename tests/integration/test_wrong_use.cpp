@@ -8,10 +8,12 @@
 
 #include <catch2/catch.hpp>
 
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <utility>
 
 using namespace drape;
@@ -269,6 +271,68 @@ TEST_CASE("BulletClothSettings::substeps beyond the cloth's maxSubsteps is refus
     s.substeps = limit; // the bound itself is allowed
     auto& handle = w.add(cloth, s);
     CHECK(handle.inWorld());
+}
+
+TEST_CASE("a count of cloth steps below the stability limit names the count that is stable, "
+          "and the cloth's own sub-steps are counted in lastStats",
+          "[world][wrong_use][substeps]") {
+    // Review 15: with the cloth's automatic sub-steps off, a BulletClothSettings::substeps of
+    // 3 was refused with "use 4 sub-steps" (the cloth's steps of the handle's step), 4 with
+    // "3", 9 with "2": following the advice led to another refusal. A 31 x 31 sheet at 5 cm
+    // (the default cotton) needs 10 steps of a 1/60 s Bullet sub-step.
+    auto sheet = [] {
+        ClothSettings cs;
+        cs.substeps.automatic = false;
+        return makeCloth(horizontalSheet(31, 31, 0.05, 1.0), cs);
+    };
+    const double dt = double(btScalar(1.0 / 60.0)); // what Bullet hands the cloth
+    auto step = [](TestWorld& w) {
+        w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    };
+    const auto probe = sheet();
+    const int needed = static_cast<int>(std::ceil(dt / probe->stableTimeStep()));
+    INFO("stable count " << needed);
+    REQUIRE(needed > 2);
+    for (const std::optional<int> count :
+         {std::optional<int>(), std::optional<int>(1), std::optional<int>(needed - 1)}) {
+        TestWorld w;
+        bullet::BulletClothSettings s;
+        s.substeps = count;
+        w.add(sheet(), s);
+        CHECK_THROWS_WITH(step(w), Catch::Contains("set BulletClothSettings::substeps to at "
+                                                   "least " +
+                                                   std::to_string(needed)));
+    }
+    {
+        // The count it names is stable.
+        TestWorld w;
+        bullet::BulletClothSettings s;
+        s.substeps = needed;
+        auto cloth = sheet();
+        auto& handle = w.add(cloth, s);
+        for (int f = 0; f < 30; ++f)
+            CHECK_NOTHROW(step(w));
+        CHECK(handle.lastStats().substeps == needed);
+        CHECK(cloth->stepCount() == std::uint64_t(30 * needed));
+    }
+    {
+        // A given count with the cloth's automatic sub-steps on: the cloth splits each step
+        // further, and lastStats says how many steps it took in all.
+        TestWorld w;
+        bullet::BulletClothSettings s;
+        s.substeps = 1;
+        auto cloth = makeCloth(horizontalSheet(31, 31, 0.05, 1.0), ClothSettings{});
+        auto& handle = w.add(cloth, s);
+        auto integrations = [&cloth] {
+            const PhaseTimer* t = cloth->timers().find("integrate");
+            return t ? t->calls : std::uint64_t(0);
+        };
+        const std::uint64_t before = integrations();
+        step(w);
+        CHECK(handle.lastStats().substeps == cloth->substepsFor(dt));
+        CHECK(handle.lastStats().substeps > 1);
+        CHECK(integrations() - before == std::uint64_t(handle.lastStats().substeps));
+    }
 }
 
 TEST_CASE("the cloth's proxy taken out of the world by the program: the step says so, the "

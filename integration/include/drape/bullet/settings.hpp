@@ -94,7 +94,10 @@ struct BulletClothSettings {
     /// default): Cloth::substepsFor, chosen in every sub-step: the fewest cloth steps within
     /// ClothSettings::substeps.fraction (90 %) of the cloth's stability limit, or 1 if the
     /// cloth's automatic sub-steps are off. Cloths that may meet in a sub-step
-    /// (collideWithCloths) take the most that any of them asks for.
+    /// (collideWithCloths) take the most that any of them asks for. With the cloth's automatic
+    /// sub-steps on, each of these steps is split further as the cloth needs; with them off, a
+    /// count whose steps exceed the cloth's stability limit is refused in the world step
+    /// (drape::Error UnstableTimeStep) with the least count that is stable.
     std::optional<int> substeps;
     /// The cloth's exact time step [s] (> 0). Bullet hands its sub-step to the cloth as a
     /// btScalar (a float in Debian's build): 1/60 s arrives as 0.016666668. When the sub-step
@@ -248,7 +251,10 @@ struct ContactStats {
     /// kept were enough.
     std::size_t relimitWalks = 0;
     std::uint64_t steps = 0; ///< cloth steps taken by this handle since it was added
-    int substeps = 0;        ///< cloth steps per Bullet sub-step in the last sub-step
+    /// Cloth steps per Bullet sub-step in the last sub-step, in all: BulletClothSettings::
+    /// substeps (or the automatic count) times the steps the cloth's own automatic sub-steps
+    /// split each into (1 when they are off).
+    int substeps = 0;
     /// Sub-steps in which the cloth would have swept out of its proxy, so the proxy was moved
     /// and the broadphase queried directly (btBroadphaseInterface::aabbTest).
     std::size_t proxyRefreshes = 0;
