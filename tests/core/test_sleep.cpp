@@ -118,30 +118,35 @@ TEST_CASE("waking continues exactly as a cloth restored from the frozen state", 
         {"pin", [](Cloth& c) { c.pin(63); }},
         {"mutableVelocities", [](Cloth& c) { c.mutableVelocities()[62].x() = 0.2; }},
     };
-    for (const auto& edit : edits) {
-        INFO(edit.name);
-        auto a = hangingCloth(true);
-        stepUntilAsleep(*a);
-        REQUIRE(a->isAsleep());
-        const auto frozen = saveSnapshot(*a);
-        auto b = hangingCloth(false);
-        loadSnapshot(*b, frozen);
-        for (int k = 0; k < 500; ++k)
-            a->step(kDt); // asleep all along
-        REQUIRE(a->isAsleep());
+    // Asleep for 500, 1000 and 2000 steps of 1/240 s: whole 60 Hz intervals, so the relative
+    // damping's passes (counted from time 0) fall on the same steps of `a` and `b`, whose
+    // clocks reach each boundary by different sums (after 1000 steps they damped one step
+    // apart, a rounding of the clock).
+    for (const int asleepSteps : {500, 1000, 2000})
+        for (const auto& edit : edits) {
+            INFO(edit.name << ", asleep for " << asleepSteps << " steps");
+            auto a = hangingCloth(true);
+            stepUntilAsleep(*a);
+            REQUIRE(a->isAsleep());
+            const auto frozen = saveSnapshot(*a);
+            auto b = hangingCloth(false);
+            loadSnapshot(*b, frozen);
+            for (int k = 0; k < asleepSteps; ++k)
+                a->step(kDt); // asleep all along
+            REQUIRE(a->isAsleep());
 
-        edit.apply(*a);
-        edit.apply(*b);
-        CHECK_FALSE(a->isAsleep());
-        // Fewer steps than sleep.time: a small edit lets `a` fall asleep again after that.
-        for (int k = 0; k < 200; ++k) {
-            a->step(kDt);
-            b->step(kDt);
+            edit.apply(*a);
+            edit.apply(*b);
+            CHECK_FALSE(a->isAsleep());
+            // Fewer steps than sleep.time: a small edit lets `a` fall asleep again after that.
+            for (int k = 0; k < 200; ++k) {
+                a->step(kDt);
+                b->step(kDt);
+            }
+            CHECK_FALSE(a->isAsleep());
+            CHECK(stateHash(*a) == stateHash(*b));
+            CHECK(a->positions() == b->positions());
         }
-        CHECK_FALSE(a->isAsleep());
-        CHECK(stateHash(*a) == stateHash(*b));
-        CHECK(a->positions() == b->positions());
-    }
 }
 
 TEST_CASE("a kinematic particle that starts moving wakes the sleeping cloth", "[sleep]") {
