@@ -16,7 +16,9 @@ namespace drape::bullet {
 /// Contacts between cloth particles and rigid bodies.
 struct ContactSettings {
     /// Distance a particle keeps from every body surface [m]. Particles nearer than this are
-    /// projected out to it; it is the cloth's collision thickness. Must be > 0.
+    /// projected out to it; it is the cloth's collision thickness. Must be > 0. Keep it
+    /// between about a twentieth and a third of the cloth's spacing over boxes (README: a 4 cm
+    /// mesh at 1 mm crept off a box table through its box-edge contacts).
     double thickness = 0.01;
     /// Width of the band above `thickness` in which eq. (7)'s penalty force acts [m]; > 0
     /// unless the penalty is off. Not given: equal to `thickness`.
@@ -49,7 +51,9 @@ struct ContactSettings {
     /// particle spacing (a rod, a box's edge) cannot pass between particles. The response is
     /// shared among the triangle's particles by their barycentric weights, two-way with dynamic
     /// bodies. Off by default: it costs a box test per triangle and body near the cloth, and
-    /// a GJK query per triangle within reach of a body that not all its particles touch.
+    /// a GJK query per triangle within reach of a body that not all its particles touch
+    /// (review 15: a 41 x 41 tablecloth settling on a box table, 56 ms a frame instead of 3.5;
+    /// a curtain and a cape on moving bodies, 2-3 times the cost).
     bool triangles = false;
     /// Keep every spring with an end touching a box (btBoxShape) `thickness` away from the
     /// box along its whole length, so that the box's edges and corners do not show through the
