@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <functional>
 #include <limits>
 #include <sstream>
@@ -24,6 +25,16 @@ std::string num(double v) {
     s.precision(6);
     s << v;
     return s.str();
+}
+
+/// A positive limit with six significant digits, rounded down: a value a user copies from an
+/// error's advice passes (rounded to nearest, "use dt <= 0.00204128 s" named a step 2e-10 s
+/// beyond the limit 0.0020412789 s, and that step was refused in turn; review 16).
+std::string numDown(double v) {
+    const std::string s = num(v);
+    const double shown = std::strtod(s.c_str(), nullptr);
+    if (!(v > 0.0) || !std::isfinite(v) || shown <= v) return s;
+    return num(shown - std::pow(10.0, std::floor(std::log10(v)) - 5.0));
 }
 
 /// What an UnstableTimeStep message adds when one particle sets the stable step (its own
@@ -349,7 +360,7 @@ int Cloth::substepsFor(double dt) const {
         throw Error(
             ErrorCode::UnstableTimeStep,
             "time step " + num(dt) + " s would need " + num(needed) +
-                " automatic sub-steps of at most " + num(sub.fraction * limit) +
+                " automatic sub-steps of at most " + numDown(sub.fraction * limit) +
                 (drag < springs
                      ? std::string(" s (the stability limit of the explicit aerodynamic drag: "
                                    "aero.airDensity = ") +
@@ -567,13 +578,14 @@ void Cloth::checkTimeStep(double dt) const {
         if (dt > limit) {
             throw Error(ErrorCode::UnstableTimeStep,
                         std::string("time step ") + num(dt) + " s exceeds the stability limit " +
-                            num(limit) + " s of " + toString(settings_.integrator) +
+                            numDown(limit) + " s of " + toString(settings_.integrator) +
                             " for this cloth (omega_max = " + num(maxAngularFrequency()) +
                             " rad/s)" +
                             stiffestSpot(*topology_, forceModel_->stiffness(), invMass_) +
-                            "; use dt <= " + num(limit) + " s, " +
+                            "; use dt <= " + numDown(limit) + " s, " +
                             std::to_string(static_cast<long long>(std::ceil(dt / limit))) +
-                            " sub-steps, or implicit_euler");
+                            " sub-steps of this step, or implicit Euler "
+                            "(IntegratorKind::ImplicitEuler)");
         }
     }
 }

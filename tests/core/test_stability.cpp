@@ -10,6 +10,9 @@
 #include <Eigen/Dense>
 
 #include <cstdio>
+#include <cstdlib>
+#include <regex>
+#include <string>
 
 using namespace drape;
 using namespace drape_test;
@@ -266,4 +269,48 @@ TEST_CASE("A sliver that sets the stable step is named when the step is refused"
     fixed.substeps.automatic = false;
     Cloth hairFixed(ClothTopology::build(withSliver(1e-7)), fixed);
     CHECK_THROWS_WITH(hairFixed.step(1.0 / 60.0), Contains("particle 0 sets that limit"));
+}
+
+TEST_CASE("the time step an unstable step's refusal advises passes", "[stability][errors]") {
+    // "use dt <= L s": L is written with six digits; rounded to nearest it was above the limit
+    // about half the time, and that step was refused in turn (review 16: "time step
+    // 0.00204128 s exceeds the stability limit 0.00204128 s"). Over a range of stiffnesses the
+    // advised step, and the advised count of sub-steps, pass.
+    SheetSpec sheet;
+    sheet.rows = 11;
+    sheet.cols = 11;
+    sheet.spacing = 0.05;
+    const TopologyPtr topo = ClothTopology::build(makeSheet(sheet));
+    const std::regex advice("use dt <= ([0-9.eE+-]+) s, ([0-9]+) sub-steps");
+    int roundedUpBefore = 0, cases = 0;
+    for (double k = 20.0; k < 40.0; k += 0.37) {
+        ClothSettings s;
+        s.substeps.automatic = false;
+        s.springStiffness = k;
+        s.totalMass = 0.03;
+        Cloth c(topo, s);
+        c.pin(0);
+        std::string message;
+        try {
+            c.step(1.0 / 60.0);
+        } catch (const Error& e) {
+            message = e.what();
+        }
+        std::smatch m;
+        INFO(message);
+        REQUIRE(std::regex_search(message, m, advice));
+        ++cases;
+        const double limit = c.stableTimeStep();
+        // What rounding to nearest would have printed.
+        char nearest[32];
+        std::snprintf(nearest, sizeof nearest, "%.6g", limit);
+        if (std::strtod(nearest, nullptr) > limit) ++roundedUpBefore;
+        const double advised = std::stod(m[1].str());
+        CHECK(advised <= limit);
+        CHECK_NOTHROW(c.step(advised));
+        const int count = std::stoi(m[2].str());
+        CHECK(1.0 / 60.0 / count <= limit);
+    }
+    INFO(cases << " cases, " << roundedUpBefore << " of which rounded to nearest exceed the limit");
+    CHECK(roundedUpBefore > 0); // the range holds the case the test is about
 }

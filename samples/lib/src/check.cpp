@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <functional>
 #include <iomanip>
 #include <limits>
@@ -55,6 +56,13 @@ double explicitEulerLimit(double omegaMax, double particleDamping, double spring
         limit += particleDamping / (maxMass * omegaMax * omegaMax);
     if (springDamping > 0.0 && maxStiffness > 0.0) limit += springDamping / maxStiffness;
     return limit;
+}
+
+std::string formatDown(double value, int digits) {
+    const std::string near = fmt(value, digits);
+    const double shown = std::strtod(near.c_str(), nullptr);
+    if (!(value > 0.0) || !std::isfinite(value) || shown <= value) return near;
+    return fmt(shown - std::pow(10.0, std::floor(std::log10(value)) - (digits - 1)), digits);
 }
 
 TimeStepCheck checkTimeStep(const Cloth& cloth, double dt) {

@@ -463,9 +463,20 @@ SceneDesc parseScene(const std::string& text, const std::string& origin,
         wd.gustAmplitude = w->vec3("gust_amplitude", Vec3::Zero(), kVelocity);
         wd.gustFrequency = w->number("gust_frequency", 0.0, kFrequency);
         w->finish();
-        if (!(sc.cloth.aero.airDensity > 0.0))
-            top.fail("wind", "wind acts through the air: set cloth.air.density > 0 (an \"air\" "
-                             "object alone gives air's 1.2 kg/m^3)");
+        if (!(sc.cloth.aero.airDensity > 0.0)) {
+            // Air's density in the scene's units: 1.2 kg/m^3 is 1.2e-6 kg per cubic
+            // centimetre (review 16: "1.2" copied into a centimetre scene was a million airs).
+            const double u = sc.unitsPerMetre;
+            std::ostringstream air;
+            air << "wind acts through the air: add \"air\": {} to cloth (air's density, "
+                << 1.2 / (u * u * u) << " kg per cubic ";
+            if (u == 1.0)
+                air << "metre";
+            else
+                air << "scene unit at units_per_metre " << u;
+            air << "), or set cloth.air.density > 0 in kg per cubic scene unit";
+            top.fail("wind", air.str());
+        }
         sc.wind = wd;
     }
     if (auto c = top.optObject("collision")) {

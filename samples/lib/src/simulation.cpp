@@ -1,6 +1,7 @@
 // simulation.cpp: builds a cloth (and its rigid world) from a scene and steps it.
 #include "drape_samples/simulation.hpp"
 
+#include "drape_samples/check.hpp"
 #include "drape_samples/mesh_io.hpp"
 #include "rigid_world.hpp"
 
@@ -14,6 +15,7 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <sstream>
 
 namespace drape::samples {
 
@@ -97,6 +99,14 @@ Simulation::Simulation(const SceneDesc& scene) : scene_(scene) {
         fail(scene_.mesh ? "cloth.mesh (" + scene_.mesh->file.string() + ")" : "cloth.sheet",
              e.what());
     }
+    // "auto" picks the count once, from the stability limits at the start. The aerodynamics'
+    // limit falls as the cloth speeds up against the wind: with air the cloth's own automatic
+    // sub-steps also split each of those steps as its speed asks (as a program's Cloth::step
+    // does). A cloth in water in a 1 m/s current took 80 sub-steps from t = 0, needed 333 by
+    // its 20th frame and blew up (review 16). Without air the limit never moves: the same
+    // steps as before.
+    if (scene_.autoSubsteps && scene_.cloth.aero.airDensity > 0.0)
+        scene_.cloth.substeps.automatic = true;
     try {
         cloth_ = std::make_unique<Cloth>(topo, scene_.cloth);
     } catch (const drape::Error& e) {
@@ -167,13 +177,24 @@ void Simulation::chooseSubsteps() {
     const double limit = std::min(cloth_->stableTimeStep(), cloth_->aeroTimeStep(dt));
     if (!(limit > 0.0)) fail("simulation.substeps", "\"auto\": no stable time step exists");
     const double needed = std::ceil(dt / (kAutoSubstepMargin * limit));
-    if (!(needed <= static_cast<double>(kMaxSubsteps)))
+    if (!(needed <= static_cast<double>(kMaxSubsteps))) {
+        // The time step "auto" can take: kMaxSubsteps steps within the margin, rounded down.
+        const double most = kMaxSubsteps * kAutoSubstepMargin * limit;
+        const std::string largest = formatDown(most, 3);
+        const bool aeroBinds = cloth_->aeroTimeStep(dt) < cloth_->stableTimeStep();
         fail("simulation.substeps",
              "\"auto\" would need " + num(needed) + " sub-steps of the " + num(dt) +
                  " s time step (the stable limit of " +
-                 std::string(toString(scene_.cloth.integrator)) + " for this cloth is " +
-                 num(limit) + " s), more than the limit of " + std::to_string(kMaxSubsteps) +
-                 ": lower simulation.time_step, or use implicit_euler");
+                 (aeroBinds ? std::string("the explicit drag and lift, which every integrator "
+                                          "takes explicitly,")
+                            : std::string(toString(scene_.cloth.integrator))) +
+                 " for this cloth is " + num(limit) + " s), more than the limit of " +
+                 std::to_string(kMaxSubsteps) + ": lower simulation.time_step to " + largest +
+                 " s or less" +
+                 (aeroBinds ? std::string(", or use a thinner fluid (cloth.air.density) or a "
+                                          "heavier cloth")
+                            : std::string(", or use implicit_euler")));
+    }
     scene_.substeps = std::max(1, static_cast<int>(needed));
 }
 
@@ -328,13 +349,27 @@ void Simulation::step() {
                 cloth_->step(dt / n);
         }
     } catch (const drape::Error& e) {
-        const bool unstable = e.code() == ErrorCode::UnstableTimeStep && !scene_.autoSubsteps;
-        throw StepError(origin(scene_) + ": step " + std::to_string(steps_ + 1) +
-                        " (t = " + std::to_string(time()) + " s) failed: " + e.what() +
-                        (unstable ? std::string(" (or set simulation.substeps to \"auto\" to "
-                                                "choose the sub-steps from the stability "
-                                                "estimate)")
-                                  : std::string()));
+        const std::string where = origin(scene_) + ": step " + std::to_string(steps_ + 1) +
+                                  " (t = " + num(time()) + " s)";
+        if (e.code() == ErrorCode::UnstableTimeStep && !scene_.autoSubsteps) {
+            // In the file's own terms: the count simulation.substeps must have for its
+            // time_step (the cloth's message counts sub-steps of one cloth step, or names the
+            // C++ settings the runner sets; review 16).
+            const double limit = cloth_->stableTimeStep();
+            const double h = dt / scene_.substeps;
+            if (h > limit)
+                throw StepError(
+                    where + " failed: the cloth steps of " + num(h) + " s (simulation.time_step " +
+                    num(dt) + " s in " + std::to_string(scene_.substeps) +
+                    " sub-steps) exceed the stability limit " + formatDown(limit) + " s of " +
+                    toString(scene_.cloth.integrator) +
+                    " for this cloth: set "
+                    "simulation.substeps to at least " +
+                    std::to_string(static_cast<long long>(std::ceil(dt / limit))) +
+                    ", or to \"auto\" to choose them from the stability estimate (cloth: " +
+                    e.what() + ")");
+        }
+        throw StepError(where + " failed: " + e.what());
     }
     ++steps_;
     applyWind();

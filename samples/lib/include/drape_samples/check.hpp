@@ -47,6 +47,10 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
 double explicitEulerLimit(double omegaMax, double particleDamping, double springDamping,
                           double maxMass, double maxStiffness);
 
+/// A positive limit written with `digits` significant digits, rounded down, so that a value
+/// copied from advice ("set the time step to at most ...") passes the check it came from.
+std::string formatDown(double value, int digits = 6);
+
 class Simulation;
 
 /// What a scene costs on this machine, measured by stepping it: drape-check's trial.
