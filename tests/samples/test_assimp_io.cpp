@@ -157,4 +157,15 @@ TEST_CASE("an FBX file's unit is read: centimetres come in as metres", "[mesh][f
     REQUIRE(inCm.warnings.size() == 1); // says what it did
     CHECK(inCm.warnings[0].find("its unit is 0.01 m (FBX UnitScaleFactor 1)") != std::string::npos);
     CHECK(inM.warnings.empty());
+    // A program in centimetres (units_per_metre 100) reads both into centimetres: 1 and 100
+    // wide (review 16: the file came in in metres there, 100 times too small).
+    drape::io::MeshImportOptions centimetres;
+    centimetres.unitsPerMetre = 100.0;
+    const drape::io::ImportedMesh cmInCm = drape::io::importMesh(cm, centimetres);
+    const drape::io::ImportedMesh mInCm = drape::io::importMesh(m, centimetres);
+    CHECK(width(cmInCm) == Approx(1.0).epsilon(1e-6));
+    CHECK(width(mInCm) == Approx(100.0).epsilon(1e-6));
+    CHECK(cmInCm.warnings.empty()); // its numbers are the program's unit already
+    REQUIRE(mInCm.warnings.size() == 1);
+    CHECK(mInCm.warnings[0].find("read in the program's unit, 100 per metre") != std::string::npos);
 }

@@ -745,6 +745,22 @@ TEST_CASE("a mesh of separate pieces, and one too large for metres, are named in
     REQUIRE(mm.warnings.size() == 1);
     CHECK_THAT(mm.warnings[0], Contains("millimetres.obj: the mesh is 1414 m across") &&
                                    Contains("\"scale\": 0.001 or 0.01"));
+    // In a program in centimetres (units_per_metre 100) the same file is 14 m across: no
+    // warning (review 16: it was told to scale a 2 m cloth by 0.01); 100 times larger it is
+    // named in the program's unit.
+    MeshImportOptions centimetres;
+    centimetres.unitsPerMetre = 100.0;
+    CHECK(importMesh(dir / "millimetres.obj", centimetres).warnings.empty());
+    writeText(dir / "micrometres.obj", "v 0 0 0\nv 100000 0 0\nv 100000 100000 0\nv 0 100000 0\n"
+                                       "f 1 2 3\nf 1 3 4\n");
+    const ImportedMesh um = importMesh(dir / "micrometres.obj", centimetres);
+    REQUIRE(um.warnings.size() == 1);
+    CHECK_THAT(um.warnings[0], Contains("the mesh is 1.414e+05 units across, 1414 m at 100 units "
+                                        "per metre") &&
+                                   Contains("the file's unit in scene units"));
+    centimetres.unitsPerMetre = 0.0;
+    CHECK_THROWS_WITH(importMesh(dir / "millimetres.obj", centimetres),
+                      Contains("MeshImportOptions::unitsPerMetre must be in [1e-6, 1e6], got 0"));
 }
 
 TEST_CASE("points and lines in a mesh file are named in a warning: the cloth is its triangles",

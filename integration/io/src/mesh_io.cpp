@@ -746,7 +746,14 @@ std::string piecesWarning(const TriangleMesh& mesh) {
 /// the metre, and an export in millimetres or centimetres is 1000 or 100 times too large (a
 /// review's CAD engine came in 743 m across, 530 t).
 constexpr double kLargestLikelyCloth = 100.0; // [m] across
-std::string sizeWarning(const TriangleMesh& mesh) {
+
+/// How a length in the program's unit is written: "m" in metres, else "units" (the
+/// warnings say once which unit that is).
+const char* unitLabel(double unitsPerMetre) {
+    return unitsPerMetre == 1.0 ? "m" : "units";
+}
+
+std::string sizeWarning(const TriangleMesh& mesh, double unitsPerMetre) {
     if (mesh.vertices.empty()) return {};
     Vec3 lo = mesh.vertices[0], hi = mesh.vertices[0];
     for (const Vec3& p : mesh.vertices) {
@@ -754,13 +761,21 @@ std::string sizeWarning(const TriangleMesh& mesh) {
         hi = hi.cwiseMax(p);
     }
     const double across = (hi - lo).norm();
-    if (!(across > kLargestLikelyCloth)) return {};
-    char buf[320];
-    std::snprintf(buf, sizeof buf,
-                  "the mesh is %.4g m across: drape's unit is the metre; if the file is in "
-                  "millimetres or centimetres, scale it (MeshImportOptions::transform and scale, "
-                  "a scene's mesh \"scale\": 0.001 or 0.01)",
-                  across);
+    if (!(across > kLargestLikelyCloth * unitsPerMetre)) return {};
+    char buf[400];
+    if (unitsPerMetre == 1.0)
+        std::snprintf(buf, sizeof buf,
+                      "the mesh is %.4g m across: drape's unit is the metre; if the file is in "
+                      "millimetres or centimetres, scale it (MeshImportOptions::transform and "
+                      "scale, a scene's mesh \"scale\": 0.001 or 0.01)",
+                      across);
+    else
+        std::snprintf(buf, sizeof buf,
+                      "the mesh is %.4g units across, %.4g m at %g units per metre "
+                      "(a scene's units_per_metre); if the file is in a smaller unit, scale "
+                      "it into the scene's (MeshImportOptions::transform and scale, a scene's "
+                      "mesh \"scale\": the file's unit in scene units)",
+                      across, across / unitsPerMetre, unitsPerMetre);
     return buf;
 }
 
@@ -769,7 +784,8 @@ std::string sizeWarning(const TriangleMesh& mesh) {
 /// spring (a 41 x 41 sheet with one sliver vertex 0.1 mm from a corner needs 77 sub-steps a
 /// 60 Hz frame instead of 22, at 1e-7 m more than the 1000 allowed).
 constexpr double kShortEdge = 0.01;
-std::string shortEdgeWarning(const TriangleMesh& mesh) {
+std::string shortEdgeWarning(const TriangleMesh& mesh, double unitsPerMetre) {
+    const char* unit = unitLabel(unitsPerMetre);
     std::vector<std::pair<Index, Index>> edges;
     edges.reserve(3 * mesh.triangles.size());
     for (const Triangle& t : mesh.triangles)
@@ -793,21 +809,21 @@ std::string shortEdgeWarning(const TriangleMesh& mesh) {
         longestShort = std::max(longestShort, length[e]);
         if (++count <= 3) {
             char buf[160];
-            std::snprintf(buf, sizeof buf, "%svertices %u and %u, %.3g m apart",
+            std::snprintf(buf, sizeof buf, "%svertices %u and %u, %.3g %s apart",
                           examples.empty() ? "" : "; ", unsigned(edges[e].first),
-                          unsigned(edges[e].second), length[e]);
+                          unsigned(edges[e].second), length[e], unit);
             examples += buf;
         }
     }
     if (count == 0) return {};
     char buf[400];
     std::snprintf(buf, sizeof buf,
-                  "%zu edge%s shorter than %g %% of the median edge (%.3g m): %s%s. Each is a "
+                  "%zu edge%s shorter than %g %% of the median edge (%.3g %s): %s%s. Each is a "
                   "spring, and the cloth's stable time step shrinks with its shortest springs "
                   "(more automatic sub-steps, or an UnstableTimeStep error): weld such vertices "
-                  "(a weld tolerance above %.3g m) or remove the sliver triangles",
-                  count, count == 1 ? "" : "s", 100.0 * kShortEdge, median, examples.c_str(),
-                  count > 3 ? "; ..." : "", longestShort);
+                  "(a weld tolerance above %.3g %s) or remove the sliver triangles",
+                  count, count == 1 ? "" : "s", 100.0 * kShortEdge, median, unit, examples.c_str(),
+                  count > 3 ? "; ..." : "", longestShort, unit);
     return buf;
 }
 
@@ -851,6 +867,13 @@ namespace {
 
 ImportedMesh importOnThisStack(const std::filesystem::path& file,
                                const MeshImportOptions& options) {
+    if (!(options.unitsPerMetre >= 1e-6 && options.unitsPerMetre <= 1e6)) {
+        char buf[120];
+        std::snprintf(buf, sizeof buf,
+                      "MeshImportOptions::unitsPerMetre must be in [1e-6, 1e6], got %g",
+                      options.unitsPerMetre);
+        meshFail(file, buf);
+    }
     std::error_code ec;
     if (!std::filesystem::exists(file, ec)) meshFail(file, "mesh file not found");
     if (std::filesystem::is_directory(file, ec)) meshFail(file, "is a folder, not a mesh file");
@@ -988,12 +1011,19 @@ ImportedMesh importOnThisStack(const std::filesystem::path& file,
     aiMatrix4x4 unit;
     if (lowerExtension(file) == ".fbx") {
         const double metres = fbxUnitInMetres(*scene);
-        if (metres != 1.0) {
-            aiMatrix4x4::Scaling(aiVector3D(ai_real(metres)), unit);
-            char buf[200];
-            std::snprintf(buf, sizeof buf,
-                          ": its unit is %g m (FBX UnitScaleFactor %g): read in metres", metres,
-                          100.0 * metres);
+        const double u = options.unitsPerMetre;
+        if (metres * u != 1.0) {
+            aiMatrix4x4::Scaling(aiVector3D(ai_real(metres * u)), unit);
+            char buf[240];
+            if (u == 1.0)
+                std::snprintf(buf, sizeof buf,
+                              ": its unit is %g m (FBX UnitScaleFactor %g): read in metres", metres,
+                              100.0 * metres);
+            else
+                std::snprintf(buf, sizeof buf,
+                              ": its unit is %g m (FBX UnitScaleFactor %g): read in the "
+                              "program's unit, %g per metre",
+                              metres, 100.0 * metres, u);
             out.warnings.push_back(file.string() + buf);
         }
     }
@@ -1111,14 +1141,14 @@ ImportedMesh importOnThisStack(const std::filesystem::path& file,
         out.warnings.push_back(file.string() + ": skipped " + std::to_string(raw.skipped) +
                                (raw.skipped == 1 ? " point or line" : " points or lines") +
                                " (a cloth is made of the file's triangles only)");
-    if (const std::string w = shortEdgeWarning(out.mesh); !w.empty())
+    if (const std::string w = shortEdgeWarning(out.mesh, options.unitsPerMetre); !w.empty())
         out.warnings.push_back(file.string() + ": " + w);
     if (const std::string w = surfaceWarning(out.mesh); !w.empty())
         out.warnings.push_back(file.string() + ": " + w);
     if (options.cloth) {
         if (const std::string w = piecesWarning(out.mesh); !w.empty())
             out.warnings.push_back(file.string() + ": " + w);
-        if (const std::string w = sizeWarning(out.mesh); !w.empty())
+        if (const std::string w = sizeWarning(out.mesh, options.unitsPerMetre); !w.empty())
             out.warnings.push_back(file.string() + ": " + w);
     }
     out.rawVertexCount = raw.mesh.vertices.size();

@@ -23,6 +23,7 @@ std::string meshDescKey(const MeshDesc& d) {
             add((*v)[k]);
     add(d.weldTolerance.value_or(-1.0));
     add(d.refuseDegenerate ? 1.0 : 0.0);
+    add(d.unitsPerMetre);
     return key;
 }
 
@@ -31,6 +32,7 @@ ImportedMesh importMesh(const MeshDesc& desc, bool cloth) {
     o.cloth = cloth;
     o.weldTolerance = desc.weldTolerance;
     o.refuseDegenerate = desc.refuseDegenerate;
+    o.unitsPerMetre = desc.unitsPerMetre;
     o.transform = true;
     o.scale = desc.scale;
     o.rotationDeg = desc.rotationDeg;

@@ -63,10 +63,11 @@ constexpr Limits kFps{kMinFps, kMaxFps, "1/s"};
 constexpr Limits kWeldTolerance{0.0, 1e5, "m"};
 constexpr Limits kUnitsPerMetre{1e-3, 1e3, ""};
 
-MeshDesc parseMeshDesc(JsonObject o, const std::filesystem::path& baseDir) {
+MeshDesc parseMeshDesc(JsonObject o, const std::filesystem::path& baseDir, double unitsPerMetre) {
     o.keys(
         {"file", "scale", "rotation_deg", "translation", "weld_tolerance", "degenerate_triangles"});
     MeshDesc m;
+    m.unitsPerMetre = unitsPerMetre;
     const std::string file = o.requireString("file");
     if (file.empty()) o.failKey("file", "must not be empty");
     m.file = std::filesystem::path(file);
@@ -173,7 +174,7 @@ void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDi
         s.finish();
         sc.sheet = d;
     } else {
-        sc.mesh = parseMeshDesc(o.object("mesh"), baseDir);
+        sc.mesh = parseMeshDesc(o.object("mesh"), baseDir, sc.unitsPerMetre);
     }
 
     ClothSettings& c = sc.cloth;
@@ -296,7 +297,7 @@ void parseAttachments(JsonObject& parent, SceneDesc& sc) {
     }
 }
 
-ShapeDesc parseShape(JsonObject o, const std::filesystem::path& baseDir) {
+ShapeDesc parseShape(JsonObject o, const std::filesystem::path& baseDir, double unitsPerMetre) {
     o.keys({"type", "half_extents", "radius", "height", "normal", "offset", "mesh"});
     ShapeDesc s;
     if (!o.has("type")) o.failKey("type", "required field is missing");
@@ -320,7 +321,7 @@ ShapeDesc parseShape(JsonObject o, const std::filesystem::path& baseDir) {
     } else {
         s.kind = ShapeKind::Mesh;
         JsonObject m = o.object("mesh");
-        s.mesh = parseMeshDesc(std::move(m), baseDir);
+        s.mesh = parseMeshDesc(std::move(m), baseDir, unitsPerMetre);
     }
     o.finish();
     return s;
@@ -340,7 +341,7 @@ void parseRigidBodies(JsonObject& parent, SceneDesc& sc, const std::filesystem::
         for (const auto& other : sc.rigidBodies)
             if (other.name == b.name)
                 o.failKey("name", "\"" + b.name + "\" is used by " + other.path + " already");
-        b.shape = parseShape(o.object("shape"), baseDir);
+        b.shape = parseShape(o.object("shape"), baseDir, sc.unitsPerMetre);
         const std::string motion = o.choice("motion", "static", {"static", "kinematic", "dynamic"});
         b.motion = motion == "dynamic"     ? MotionKind::Dynamic
                    : motion == "kinematic" ? MotionKind::Kinematic

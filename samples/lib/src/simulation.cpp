@@ -246,7 +246,8 @@ void Simulation::warnStiffSpot() {
         std::to_string(without) + " would do for the rest of the cloth. The stiffest, particle " +
         std::to_string(stiffest) + ", has springs reaching " + num(local[stiffest]) +
         " rad/s against " + num(p99) + " for 99 % of the particles (its shortest spring " +
-        num(shortest) + " m, to particle " + std::to_string(other) +
+        num(shortest) + (scene_.unitsPerMetre == 1.0 ? " m" : " units") + ", to particle " +
+        std::to_string(other) +
         "): weld vertices a hair apart (a larger weld_tolerance) or remove the sliver "
         "triangles");
 }

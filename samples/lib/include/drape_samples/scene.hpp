@@ -68,6 +68,9 @@ struct MeshDesc {
     /// triangles and vertices no triangle uses: drop them with a warning (false) or refuse
     /// the mesh (true, "degenerate_triangles": "refuse").
     bool refuseDegenerate = false;
+    /// The scene's units_per_metre: an FBX file's unit is read into it, and the importer's
+    /// warnings give lengths in it.
+    double unitsPerMetre = 1.0;
 };
 
 /// Which particles a pin or an attachment takes. Several criteria add up (union).

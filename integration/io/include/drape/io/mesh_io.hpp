@@ -75,6 +75,10 @@ struct MeshImportOptions {
     /// pieces (each moves on its own: a garment's panels whose seams do not meet) and a size
     /// beyond 100 m (a file in millimetres or centimetres). A collider's mesh: false.
     bool cloth = true;
+    /// The program's length unit, in units per metre (ClothSettings::inUnits; 100: a world in
+    /// centimetres), in [1e-6, 1e6]: a file that names its unit (FBX) comes in in it, and the
+    /// warnings give lengths in it and look for a cloth over 100 m across in it.
+    double unitsPerMetre = 1.0;
     /// Apply scale, then rotation, then translation before welding, and require every vertex
     /// to land within kMaxMeshCoordinate.
     bool transform = false;
