@@ -306,7 +306,7 @@ void Cloth::evaluateForces() {
     state_.forcesValid = true;
 }
 
-void Cloth::checkFinite(const char* where) {
+void Cloth::checkFinite(const char* where, double dt) {
     // A NaN or infinity anywhere makes the sum non-finite; only then look for the particle.
     double sum = 0.0;
     for (std::size_t i = 0; i < state_.x.size(); ++i)
@@ -330,15 +330,35 @@ void Cloth::checkFinite(const char* where) {
                             "check them)");
         }
     }
-    for (std::size_t i = 0; i < state_.x.size(); ++i) {
-        if (!state_.x[i].allFinite() || !state_.v[i].allFinite() || !state_.f[i].allFinite()) {
-            throw Error(ErrorCode::SimulationFailure,
-                        std::string("state became non-finite at particle ") + std::to_string(i) +
-                            " after " + where + " in step " + std::to_string(state_.steps + 1) +
-                            " (t = " + num(state_.time) +
-                            " s); the cloth keeps its state from before "
-                            "the step. Reduce the time step or the stiffness.");
+    // The first particle whose position or velocity went non-finite (a free one: what blew
+    // up), else the first force (a held particle's springs pull with its neighbours': review
+    // 16 saw a pin named). The advice names the stability limit when the step was beyond it.
+    std::size_t culprit = state_.x.size();
+    const char* what = "";
+    for (std::size_t i = 0; i < state_.x.size() && culprit == state_.x.size(); ++i)
+        if (!state_.x[i].allFinite() || !state_.v[i].allFinite()) {
+            culprit = i;
+            what = !state_.x[i].allFinite() ? "position" : "velocity";
         }
+    for (std::size_t i = 0; i < state_.x.size() && culprit == state_.x.size(); ++i)
+        if (!state_.f[i].allFinite()) {
+            culprit = i;
+            what = "force";
+        }
+    if (culprit < state_.x.size()) {
+        const double h = dt, limit = stableTimeStep();
+        const std::string advice =
+            h > limit ? " The step of " + num(h) + " s is beyond the stability limit " +
+                            numDown(limit) + " s of " + toString(settings_.integrator) +
+                            " (rejectUnstableTimeStep is off): use dt <= " + numDown(limit) +
+                            " s, the automatic sub-steps, or implicit Euler."
+                      : std::string(" Reduce the time step or the stiffness.");
+        throw Error(ErrorCode::SimulationFailure,
+                    std::string("state became non-finite at particle ") + std::to_string(culprit) +
+                        " (its " + what + ", " + (invMass_[culprit] == 0.0 ? "held" : "free") +
+                        ") after " + where + " in step " + std::to_string(state_.steps + 1) +
+                        " (t = " + num(state_.time) +
+                        " s); the cloth keeps its state from before the step." + advice);
     }
     // Finite values whose sum overflows: the state is out of any sensible range.
     throw Error(ErrorCode::SimulationFailure,
@@ -1003,7 +1023,8 @@ void Cloth::setSelfCollision(const SelfCollisionSettings& self) {
 void Cloth::stageVerify(StepContext& ctx) {
     // Velocity-Verlet's finish() looked at every value on its way; a full pass is only needed
     // to find the culprit, or for integrators whose finish() did not look.
-    if (!integrator_->finishChecksFinite() || ctx.integrator.nonFiniteSeen) checkFinite("the step");
+    if (!integrator_->finishChecksFinite() || ctx.integrator.nonFiniteSeen)
+        checkFinite("the step", ctx.dt);
     if (settings_.failure.maxStrain) {
         const double strain = maxStrain();
         if (strain > *settings_.failure.maxStrain) {

@@ -314,3 +314,51 @@ TEST_CASE("the time step an unstable step's refusal advises passes", "[stability
     INFO(cases << " cases, " << roundedUpBefore << " of which rounded to nearest exceed the limit");
     CHECK(roundedUpBefore > 0); // the range holds the case the test is about
 }
+
+TEST_CASE("a step that blew up with the check off names a free particle and the limit to keep",
+          "[stability][errors]") {
+    using Catch::Matchers::Contains;
+    // With rejectUnstableTimeStep off, a step beyond the limit blows up; the message named the
+    // first particle with any non-finite value, a pin whose springs' forces were (review 16),
+    // and said only "reduce the time step". It names a free particle now, and the limit: the
+    // step it advises runs.
+    SheetSpec sheet;
+    sheet.rows = 11;
+    sheet.cols = 11;
+    sheet.spacing = 0.05;
+    ClothSettings s;
+    s.substeps.automatic = false;
+    s.rejectUnstableTimeStep = false;
+    s.springStiffness = 20.37;
+    s.totalMass = 0.03;
+    s.limiter.kind = LimiterKind::None; // nothing bounds the stretch: the step blows up
+    const TopologyPtr topo = ClothTopology::build(makeSheet(sheet));
+    Cloth c(topo, s);
+    c.pin(0);
+    std::string message;
+    try {
+        for (int k = 0; k < 2000; ++k)
+            c.step(1.0 / 60.0);
+    } catch (const Error& e) {
+        CHECK(e.code() == ErrorCode::SimulationFailure);
+        message = e.what();
+    }
+    INFO(message);
+    REQUIRE_FALSE(message.empty());
+    CHECK_THAT(message, Contains("free) after the step") && !Contains("particle 0 ") &&
+                            Contains("beyond the stability limit"));
+    const std::string key = "use dt <= ";
+    const auto at = message.find(key);
+    REQUIRE(at != std::string::npos);
+    const double advised = std::stod(message.substr(at + key.size()));
+    CHECK(advised <= c.stableTimeStep());
+    // The same cloth from the start, at the step advised: it hangs, bounded.
+    Cloth again(topo, s);
+    again.pin(0);
+    for (int k = 0; k < 1000; ++k)
+        REQUIRE_NOTHROW(again.step(advised));
+    double farthest = 0.0;
+    for (const Vec3& x : again.positions())
+        farthest = std::max(farthest, (x - again.positions()[0]).norm());
+    CHECK(farthest < 10.0);
+}

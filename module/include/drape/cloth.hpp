@@ -441,7 +441,7 @@ class Cloth {
     LimiterSettings limiterAt(double dt) const;
     double energyScale() const;
     void evaluateForces();
-    void checkFinite(const char* where);
+    void checkFinite(const char* where, double dt);
     void invalidateOmega() { omegaMax_ = -1.0; }
     void checkTimeStep(double dt) const;
     /// A state or force edit: wakes the cloth, unless a stage makes it inside a step.
