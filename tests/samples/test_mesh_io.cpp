@@ -578,7 +578,14 @@ TEST_CASE("degenerate and duplicate triangles are dropped with a warning saying 
     CHECK_THROWS_WITH(importMesh(dir / "few_collapsed.obj", refuse),
                       Contains("few_collapsed.obj: has 3 degenerate triangles") &&
                           Contains("mesh \"sheet\" faces 8, 9, 10") &&
-                          Contains("refused (mesh.degenerate_triangles is \"refuse\""));
+                          Contains("refused (MeshImportOptions::refuseDegenerate, a scene's "
+                                   "mesh \"degenerate_triangles\": \"refuse\""));
+    // Its code says what was refused (review 16: it was FileError).
+    try {
+        importMesh(dir / "few_collapsed.obj", refuse);
+    } catch (const Error& e) {
+        CHECK(e.code() == ErrorCode::DegenerateTriangle);
+    }
 
     // A clean mesh: no warning, and the refuse option accepts it.
     writeText(dir / "clean.obj", gridObj("", ""));

@@ -1109,9 +1109,11 @@ ImportedMesh importOnThisStack(const std::filesystem::path& file,
             what += (what.empty() ? "" : ", ") + std::to_string(isolated) +
                     (isolated == 1 ? " vertex" : " vertices") + " no triangle uses";
         if (options.refuseDegenerate)
-            meshFail(file, "has " + what +
-                               "; refused (mesh.degenerate_triangles is \"refuse\"; \"drop\" "
-                               "drops them with a warning)");
+            throw Error(ErrorCode::DegenerateTriangle,
+                        file.string() + ": has " + what +
+                            "; refused (MeshImportOptions::refuseDegenerate, a scene's mesh "
+                            "\"degenerate_triangles\": \"refuse\"; left off, \"drop\", they "
+                            "are dropped with a warning)");
         if (out.mesh.vertices.empty() || welded.mesh.triangles.empty())
             meshFail(file, "contains no usable triangle: all " + std::to_string(fileTriangles) +
                                " are degenerate or duplicates (" + what + ")");

@@ -97,8 +97,9 @@ struct MeshImportOptions {
 /// FindDegenerates and FindInvalidData steps and drape's own test after welding
 /// (drape::dropUnusableTriangles) find degenerate and duplicate triangles; they and the
 /// vertices left unused (an OBJ's unused vertices included) are dropped with a warning saying
-/// how many and where (mesh and face), or refused (options.refuseDegenerate).
-/// Throws drape::Error (ErrorCode::FileError) naming the file and the problem.
+/// how many and where (mesh and face), or refused (options.refuseDegenerate: ErrorCode::
+/// DegenerateTriangle). Throws drape::Error (ErrorCode::FileError otherwise) naming the file
+/// and the problem.
 ImportedMesh importMesh(const std::filesystem::path& file, const MeshImportOptions& options);
 /// importMesh with only a weld tolerance given.
 ImportedMesh importMesh(const std::filesystem::path& file,
