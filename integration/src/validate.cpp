@@ -25,23 +25,33 @@ void validateUnitsPerMetre(double unitsPerMetre, const std::string& who) {
 void validate(const BulletClothSettings& s) {
     validateUnitsPerMetre(s.unitsPerMetre);
     const auto& c = s.contact;
-    // unitsPerMetre set on its own leaves every length and speed at its value in metres: a
-    // centimetre world would get a 0.1 mm contact thickness (0.01 units), which no step keeps.
-    // Only inUnits (or the program, field by field) says what the world's units are.
-    const BulletClothSettings metres;
-    const bool allMetreDefaults = c.thickness == metres.contact.thickness &&
-                                  c.depenetrationSpeed == metres.contact.depenetrationSpeed &&
-                                  s.teleportSpeed == metres.teleportSpeed &&
-                                  s.selfCollision.thickness == metres.selfCollision.thickness &&
-                                  s.clothCollision.thickness == metres.clothCollision.thickness;
-    require(s.unitsPerMetre == 1.0 || !allMetreDefaults, ErrorCode::InvalidArgument,
-            "unitsPerMetre is " + num(s.unitsPerMetre) +
-                " but the contact thickness, depenetration speed, teleport speed and "
-                "self-collision and cloth-collision thicknesses are all still their defaults in "
-                "metres (thickness " +
-                num(c.thickness) + "): start from BulletClothSettings::inUnits(" +
-                num(s.unitsPerMetre) +
-                "), which converts them, or set at least one of them in the world's units");
+    // unitsPerMetre set with lengths and speeds left at their values in metres: a centimetre
+    // world would keep a 0.1 mm contact thickness (0.01 units), and with only the thickness
+    // set a teleport speed of 0.5 m/s (50 units/s: a character walking at 1.5 m/s "jumped"
+    // every sub-step; review 16). Every one must be in the world's units: inUnits converts
+    // them all, or the program sets each.
+    if (s.unitsPerMetre != 1.0) {
+        const BulletClothSettings metres;
+        std::string left;
+        auto check = [&left](double value, double metreDefault, const char* name) {
+            if (value != metreDefault) return;
+            left += (left.empty() ? "" : ", ") + std::string(name) + " (" + num(value) + ")";
+        };
+        check(c.thickness, metres.contact.thickness, "contact.thickness");
+        check(c.depenetrationSpeed, metres.contact.depenetrationSpeed,
+              "contact.depenetrationSpeed");
+        check(s.teleportSpeed, metres.teleportSpeed, "teleportSpeed");
+        check(s.selfCollision.thickness, metres.selfCollision.thickness, "selfCollision.thickness");
+        check(s.clothCollision.thickness, metres.clothCollision.thickness,
+              "clothCollision.thickness");
+        require(left.empty(), ErrorCode::InvalidArgument,
+                "unitsPerMetre is " + num(s.unitsPerMetre) + " but " + left +
+                    " still have their defaults in metres: start from "
+                    "BulletClothSettings::inUnits(" +
+                    num(s.unitsPerMetre) +
+                    "), which converts every length and speed, or set each in the world's "
+                    "units");
+    }
     require(std::isfinite(c.thickness) && c.thickness > 0.0, ErrorCode::InvalidArgument,
             "contact.thickness must be positive and finite, got " + num(c.thickness));
     if (c.penaltyBand)

@@ -185,9 +185,21 @@ TEST_CASE("unitsPerMetre set without converting the lengths is refused by name",
                       Catch::Contains("inUnits(100)"));
     CHECK_NOTHROW(w.add(makeCloth(horizontalSheet(3, 3, 10.0, 100.0), softCloth()),
                         bullet::BulletClothSettings::inUnits(100.0)));
+    // Every length and speed must be in the world's units: with only the thickness set, the
+    // teleport speed stayed 50 units/s, 0.5 m/s in centimetres (review 16: a character walking
+    // at 1.5 m/s was taken as jumping in every sub-step).
     bullet::BulletClothSettings byHand;
     byHand.unitsPerMetre = 100.0;
     byHand.contact.thickness = 1.0;
+    CHECK_THROWS_WITH(w.add(makeCloth(horizontalSheet(3, 3, 10.0, 100.0), softCloth()), byHand),
+                      Catch::Contains("teleportSpeed (50)") &&
+                          Catch::Contains("contact.depenetrationSpeed") &&
+                          !Catch::Contains("contact.thickness"));
+    const bullet::BulletClothSettings converted = bullet::BulletClothSettings::inUnits(100.0);
+    byHand.contact.depenetrationSpeed = converted.contact.depenetrationSpeed;
+    byHand.teleportSpeed = converted.teleportSpeed;
+    byHand.selfCollision.thickness = converted.selfCollision.thickness;
+    byHand.clothCollision.thickness = converted.clothCollision.thickness;
     CHECK_NOTHROW(w.add(makeCloth(horizontalSheet(3, 3, 10.0, 100.0), softCloth()), byHand));
 }
 
