@@ -875,9 +875,15 @@ void BulletCloth::Impl::planSubsteps(int n) {
               << ", omega_max = " << c.maxAngularFrequency()
               << " rad/s) with ClothSettings::substeps.automatic off: set "
                  "BulletClothSettings::substeps to at least "
-              << static_cast<long long>(std::ceil(stepDt / limit))
-              << " for this sub-step, or turn ClothSettings::substeps.automatic on (the "
-                 "default) and leave BulletClothSettings::substeps unset";
+              << static_cast<long long>(std::ceil(stepDt / limit)) << " for this sub-step";
+            if (std::ceil(stepDt / limit) > cs.substeps.maxSubsteps)
+                m << " (more than the cloth's ClothSettings::substeps.maxSubsteps, "
+                  << cs.substeps.maxSubsteps
+                  << ", which addCloth holds the count to: a cloth's settings are fixed when it "
+                     "is made, so make it with a larger maxSubsteps; or a smaller world step, a "
+                     "coarser mesh or softer springs)";
+            m << ", or turn ClothSettings::substeps.automatic on (the default) and leave "
+                 "BulletClothSettings::substeps unset";
             throw Error(ErrorCode::UnstableTimeStep, m.str());
         }
     }

@@ -328,6 +328,29 @@ TEST_CASE("a count of cloth steps below the stability limit names the count that
         CHECK(cloth->stepCount() == std::uint64_t(30 * needed));
     }
     {
+        // A count beyond the cloth's maxSubsteps: addCloth would refuse it, and the cloth's
+        // settings are fixed when it is made; the refusal says so, and a cloth made with a
+        // larger maxSubsteps takes that count (review 16: "at least 1169", then "raise
+        // maxSubsteps" from addCloth, on the cloth already made).
+        ClothSettings stiff;
+        stiff.substeps.automatic = false;
+        stiff.springStiffness = 1e6;
+        const auto first = makeCloth(horizontalSheet(11, 11, 0.05, 1.0), stiff);
+        const int count = static_cast<int>(std::ceil(dt / first->stableTimeStep()));
+        INFO("stiff count " << count);
+        REQUIRE(count > stiff.substeps.maxSubsteps);
+        TestWorld w;
+        w.add(first);
+        CHECK_THROWS_WITH(step(w), Catch::Contains("at least " + std::to_string(count)) &&
+                                       Catch::Contains("make it with a larger maxSubsteps"));
+        stiff.substeps.maxSubsteps = count;
+        bullet::BulletClothSettings s;
+        s.substeps = count;
+        TestWorld again;
+        again.add(makeCloth(horizontalSheet(11, 11, 0.05, 1.0), stiff), s);
+        CHECK_NOTHROW(step(again));
+    }
+    {
         // A given count with the cloth's automatic sub-steps on: the cloth splits each step
         // further, and lastStats says how many steps it took in all.
         TestWorld w;
