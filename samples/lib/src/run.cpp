@@ -116,10 +116,18 @@ void applyOverrides(SceneDesc& scene, const RunOptions& o) {
             throw SceneError("--fps: must be in [1e-06, 1e+06] 1/s, got " + num(*o.fps));
         scene.output.fps = *o.fps;
     }
-    if (scene.output.fps * scene.duration > static_cast<double>(kMaxSceneFrames))
-        throw SceneError(org + ": the run would write more than " +
-                         std::to_string(kMaxSceneFrames) +
-                         " frames (lower output.fps or the duration)");
+    if (scene.output.fps * scene.duration > static_cast<double>(kMaxSceneFrames)) {
+        // Name what set each (review 16: the file's fields were named when --fps and
+        // --seconds had set them), and the frames asked for.
+        const std::string fps = o.fps ? "--fps" : "output.fps";
+        const std::string length = o.seconds ? "--seconds"
+                                   : o.steps ? "--steps"
+                                             : "simulation.duration";
+        throw SceneError(org + ": the run would write " + num(scene.output.fps * scene.duration) +
+                         " frames (" + num(scene.output.fps) + " a second for " +
+                         num(scene.duration) + " s), more than " + std::to_string(kMaxSceneFrames) +
+                         ": lower " + fps + " or " + length);
+    }
     if (o.width) {
         if (*o.width < 16 || *o.width > kMaxImageSide)
             throw SceneError("--width: must be in [16, 8192]");
