@@ -356,13 +356,13 @@ void Cloth::checkFinite(const char* where, double dt) {
         throw Error(ErrorCode::SimulationFailure,
                     std::string("state became non-finite at particle ") + std::to_string(culprit) +
                         " (its " + what + ", " + (invMass_[culprit] == 0.0 ? "held" : "free") +
-                        ") after " + where + " in step " + std::to_string(state_.steps + 1) +
-                        " (t = " + num(state_.time) +
+                        ") after " + where + " of the cloth's step " +
+                        std::to_string(state_.steps + 1) + " (t = " + num(state_.time) +
                         " s); the cloth keeps its state from before the step." + advice);
     }
     // Finite values whose sum overflows: the state is out of any sensible range.
     throw Error(ErrorCode::SimulationFailure,
-                std::string("state magnitude overflowed after ") + where + " in step " +
+                std::string("state magnitude overflowed after ") + where + " of the cloth's step " +
                     std::to_string(state_.steps + 1) +
                     "; the cloth keeps its state from before the step");
 }
@@ -1030,7 +1030,7 @@ void Cloth::stageVerify(StepContext& ctx) {
         if (strain > *settings_.failure.maxStrain) {
             throw Error(ErrorCode::SimulationFailure,
                         "strain " + num(strain) + " exceeds the hard cap failure.maxStrain = " +
-                            num(*settings_.failure.maxStrain) + " in step " +
+                            num(*settings_.failure.maxStrain) + " in the cloth's step " +
                             std::to_string(state_.steps + 1) + " (t = " + num(state_.time) +
                             " s); the cloth keeps its state from before the step");
         }
@@ -1040,8 +1040,9 @@ void Cloth::stageVerify(StepContext& ctx) {
         if (after - ctx.energyBefore > *settings_.failure.maxEnergyGrowth * ctx.scaleBefore) {
             throw Error(ErrorCode::SimulationFailure,
                         "mechanical energy grew by " + num(after - ctx.energyBefore) +
-                            " J in step " + std::to_string(state_.steps + 1) + " (t = " +
-                            num(state_.time) + " s), more than failure.maxEnergyGrowth = " +
+                            " J in the cloth's step " + std::to_string(state_.steps + 1) +
+                            " (t = " + num(state_.time) +
+                            " s), more than failure.maxEnergyGrowth = " +
                             num(*settings_.failure.maxEnergyGrowth) + " times the energy scale " +
                             num(ctx.scaleBefore) +
                             " J, with no energy source; the cloth keeps "
