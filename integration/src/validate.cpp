@@ -28,13 +28,14 @@ void validate(const BulletClothSettings& s) {
     // unitsPerMetre set with lengths and speeds left at their values in metres: a centimetre
     // world would keep a 0.1 mm contact thickness (0.01 units), and with only the thickness
     // set a teleport speed of 0.5 m/s (50 units/s: a character walking at 1.5 m/s "jumped"
-    // every sub-step; review 16). Every one must be in the world's units: inUnits converts
-    // them all, or the program sets each.
+    // every sub-step; review 16). inUnits converts them all, or the program sets each.
     if (s.unitsPerMetre != 1.0) {
         const BulletClothSettings metres;
         std::string left;
-        auto check = [&left](double value, double metreDefault, const char* name) {
+        int count = 0;
+        auto check = [&left, &count](double value, double metreDefault, const char* name) {
             if (value != metreDefault) return;
+            ++count;
             left += (left.empty() ? "" : ", ") + std::string(name) + " (" + num(value) + ")";
         };
         check(c.thickness, metres.contact.thickness, "contact.thickness");
@@ -44,7 +45,10 @@ void validate(const BulletClothSettings& s) {
         check(s.selfCollision.thickness, metres.selfCollision.thickness, "selfCollision.thickness");
         check(s.clothCollision.thickness, metres.clothCollision.thickness,
               "clothCollision.thickness");
-        require(left.empty(), ErrorCode::InvalidArgument,
+        // One value equal to its metre default can be the program's choice in its own unit (a
+        // 0.01-unit thickness: 0.1 mm in centimetres; a scene file that gives it); two or more
+        // are settings left in metres.
+        require(count < 2, ErrorCode::InvalidArgument,
                 "unitsPerMetre is " + num(s.unitsPerMetre) + " but " + left +
                     " still have their defaults in metres: start from "
                     "BulletClothSettings::inUnits(" +

@@ -201,6 +201,11 @@ TEST_CASE("unitsPerMetre set without converting the lengths is refused by name",
     byHand.selfCollision.thickness = converted.selfCollision.thickness;
     byHand.clothCollision.thickness = converted.clothCollision.thickness;
     CHECK_NOTHROW(w.add(makeCloth(horizontalSheet(3, 3, 10.0, 100.0), softCloth()), byHand));
+    // One value equal to its metre default is a choice in the world's unit (a scene in
+    // centimetres that gives a 0.01 thickness, 0.1 mm): accepted (review 17).
+    bullet::BulletClothSettings thin = bullet::BulletClothSettings::inUnits(100.0);
+    thin.contact.thickness = 0.01;
+    CHECK_NOTHROW(w.add(makeCloth(horizontalSheet(3, 3, 10.0, 100.0), softCloth()), thin));
 }
 
 namespace {

@@ -161,11 +161,13 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
 }
 
 TrialCost trialCost(const std::function<void()>& step, double dt, int substeps, std::size_t steps,
-                    double cpuBudget) {
+                    double cpuBudget, const std::function<void()>& afterStep,
+                    const std::function<double()>& clothSteps) {
     TrialCost t;
     std::vector<double> cpu;
-    cpu.reserve(steps);
+    cpu.reserve(std::min<std::size_t>(steps, std::size_t(1) << 16)); // a budget stops it first
     double spent = 0.0;
+    const double clothStepsBefore = clothSteps ? clothSteps() : 0.0;
     while (cpu.size() < steps) {
         if (spent >= cpuBudget) {
             t.stoppedByBudget = true;
@@ -175,6 +177,7 @@ TrialCost trialCost(const std::function<void()>& step, double dt, int substeps, 
         step();
         cpu.push_back(processCpuSeconds() - start);
         spent += cpu.back();
+        if (afterStep) afterStep(); // untimed: a check of the state
     }
     t.steps = cpu.size();
     t.simulated = static_cast<double>(t.steps) * dt;
@@ -190,11 +193,16 @@ TrialCost trialCost(const std::function<void()>& step, double dt, int substeps, 
     t.medianPerFrame = t.medianCpu * (1.0 / 60.0) / dt;
     const double frameBudget = 1.0 / 60.0;
     std::ostringstream m;
+    // The cloth steps a scene step took, counted where the cloth splits them further.
+    const double perStep =
+        clothSteps ? (clothSteps() - clothStepsBefore) / double(t.steps) : double(substeps);
     m << "trial: " << t.steps << " step" << (t.steps == 1 ? "" : "s") << " of " << fmt(dt) << " s ("
-      << substeps << " cloth sub-step" << (substeps == 1 ? "" : "s") << " each) took a median "
-      << fmt(1e3 * t.medianCpu, 3) << " ms of CPU, worst " << fmt(1e3 * t.worstCpu, 3)
-      << " ms: " << fmt(1e3 * t.medianPerFrame, 3) << " ms per 1/60 s simulated, "
-      << fmt(100.0 * t.medianPerFrame / frameBudget, 3) << " % of a 60 Hz frame";
+      << fmt(perStep, 4) << " cloth sub-step" << (perStep == 1.0 ? "" : "s")
+      << (clothSteps && perStep != std::floor(perStep) ? " each on average" : " each")
+      << ") took a median " << fmt(1e3 * t.medianCpu, 3) << " ms of CPU, worst "
+      << fmt(1e3 * t.worstCpu, 3) << " ms: " << fmt(1e3 * t.medianPerFrame, 3)
+      << " ms per 1/60 s simulated, " << fmt(100.0 * t.medianPerFrame / frameBudget, 3)
+      << " % of a 60 Hz frame";
     if (t.stoppedByBudget)
         m << " (stopped after " << fmt(spent, 3) << " s of CPU, at t = " << fmt(t.simulated, 3)
           << " s)";
@@ -208,14 +216,25 @@ TrialCost trialCost(Simulation& sim, double seconds, double cpuBudget) {
     const double dt = sim.scene().timeStep;
     const std::size_t left =
         sim.scene().stepCount() > sim.steps() ? sim.scene().stepCount() - sim.steps() : 0;
+    // In double first: seconds / dt can exceed any integer (--trial 1e6 at 1e-300 s).
+    const double want = std::max(1.0, std::ceil(seconds / dt));
     const std::size_t wanted =
-        std::min(left, std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(seconds / dt))));
+        want >= static_cast<double>(left) ? left : static_cast<std::size_t>(want);
     if (wanted == 0) {
         TrialCost t;
         t.message = "trial: no step left to take (the scene's duration has run out)";
         return t;
     }
-    TrialCost t = trialCost([&sim] { sim.step(); }, dt, sim.substeps(), wanted, cpuBudget);
+    // After each step the state is checked as drape-run checks it (Simulation::stats: a
+    // position beyond single precision or a non-finite value throws StepError): a cloth that
+    // blew up without going non-finite was timed as if it ran (review 17).
+    const Cloth& cloth = sim.cloth();
+    TrialCost t = trialCost([&sim] { sim.step(); }, dt, sim.substeps(), wanted, cpuBudget,
+                            [&sim] { (void)sim.stats(); },
+                            [&cloth] {
+                                const PhaseTimer* p = cloth.timers().find("integrate");
+                                return p ? static_cast<double>(p->calls) : 0.0;
+                            });
     t.message += " (drape-run's summary has the whole run)";
     return t;
 }

@@ -123,10 +123,12 @@ void applyOverrides(SceneDesc& scene, const RunOptions& o) {
         const std::string length = o.seconds ? "--seconds"
                                    : o.steps ? "--steps"
                                              : "simulation.duration";
-        throw SceneError(org + ": the run would write " + num(scene.output.fps * scene.duration) +
-                         " frames (" + num(scene.output.fps) + " a second for " +
-                         num(scene.duration) + " s), more than " + std::to_string(kMaxSceneFrames) +
-                         ": lower " + fps + " or " + length);
+        char frames[64];
+        std::snprintf(frames, sizeof frames, "%.12g", scene.output.fps * scene.duration);
+        throw SceneError(org + ": the run would write " + frames + " frames (" +
+                         num(scene.output.fps) + " a second for " + num(scene.duration) +
+                         " s), more than " + std::to_string(kMaxSceneFrames) + ": lower " + fps +
+                         " or " + length);
     }
     if (o.width) {
         if (*o.width < 16 || *o.width > kMaxImageSide)

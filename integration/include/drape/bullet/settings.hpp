@@ -83,10 +83,10 @@ struct BulletClothSettings {
     static BulletClothSettings inUnits(double unitsPerMetre);
     /// The world's lengths per metre (inUnits sets it; 1: metres): the unit of the speeds
     /// drape::bullet compares with on its own (the 1 m/s floor of ContactStats::
-    /// refusedBodyImpulses). Must be in [1e-6, 1e6]. Set without inUnits while any length or
-    /// speed below (contact.thickness, contact.depenetrationSpeed, teleportSpeed,
-    /// selfCollision.thickness, clothCollision.thickness) keeps its default in metres,
-    /// addCloth refuses it, naming those left.
+    /// refusedBodyImpulses). Must be in [1e-6, 1e6]. Set without inUnits while two or more of
+    /// the lengths and speeds below (contact.thickness, contact.depenetrationSpeed,
+    /// teleportSpeed, selfCollision.thickness, clothCollision.thickness) keep their defaults
+    /// in metres, addCloth refuses it, naming them.
     double unitsPerMetre = 1.0;
 
     ContactSettings contact; ///< particle-body contacts

@@ -72,8 +72,12 @@ struct TrialCost {
 TrialCost trialCost(Simulation& sim, double seconds, double cpuBudget);
 
 /// The same for any step: calls `step` (one step of `dt` seconds, `substeps` cloth sub-steps)
-/// `steps` times, or until the calls have spent `cpuBudget` seconds of process CPU time.
+/// `steps` times, or until the calls have spent `cpuBudget` seconds of process CPU time (a
+/// step in progress runs to its end). `afterStep`, when given, runs after each step, untimed
+/// (a check that throws to stop the trial); `clothSteps`, when given, counts the cloth steps
+/// taken so far, and the message gives their number a step from it instead of `substeps`.
 TrialCost trialCost(const std::function<void()>& step, double dt, int substeps, std::size_t steps,
-                    double cpuBudget);
+                    double cpuBudget, const std::function<void()>& afterStep = nullptr,
+                    const std::function<double()>& clothSteps = nullptr);
 
 } // namespace drape::samples
