@@ -211,6 +211,17 @@ TEST_CASE("broken scenes are refused with the path of the field", "[scene][error
                                                 "air": {}},
                                       "wind": {"velocity": [500, 0, 0]}})");
     CHECK(windy.cloth.aero.airDensity == Approx(1.2e-6));
+    // In kilometres air is 1.2e9 kg per cubic unit: the advice's value is accepted (review 17:
+    // the range was in metres).
+    const SceneDesc km = parse(R"({"units_per_metre": 0.001,
+                                   "cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.001},
+                                             "air": {"density": 1.2e9}},
+                                   "wind": {"velocity": [0.005, 0, 0]}})");
+    CHECK(km.cloth.aero.airDensity == Approx(1.2e9));
+    CHECK_THAT(errorOf(R"({"units_per_metre": 0.001,
+                           "cloth": {"sheet": {"rows": 4, "cols": 4, "spacing": 0.001},
+                                     "air": {"density": 1e14}}})"),
+               Contains("kg per cubic scene unit"));
     CHECK_THAT(errorOf(withCloth(R"("pins": [{"velocity": [0, 1, 0]}])")),
                Contains("pins[0]: selects nothing"));
     CHECK_THAT(errorOf(withCloth(R"("pins": [{"groups": ["rail"]}])")),

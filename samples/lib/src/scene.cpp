@@ -200,7 +200,13 @@ void parseCloth(JsonObject o, SceneDesc& sc, const std::filesystem::path& baseDi
         a->keys({"density", "drag_coefficient", "lift_coefficient"});
         // 1.2 kg/m^3, per cubic unit of the scene's length.
         const double u = sc.unitsPerMetre;
-        c.aero.airDensity = a->number("density", 1.2 / (u * u * u), kAirDensity);
+        // The range too: up to 10,000 kg/m^3 in the scene's unit (at units_per_metre 0.001,
+        // kilometres, air is 1.2e9 kg per cubic unit, which the range in metres refused;
+        // review 17).
+        const Limits density =
+            u == 1.0 ? kAirDensity
+                     : Limits{0.0, kAirDensity.hi / (u * u * u), "kg per cubic scene unit"};
+        c.aero.airDensity = a->number("density", 1.2 / (u * u * u), density);
         c.aero.dragCoefficient = a->number("drag_coefficient", 1.0, kCoefficient);
         c.aero.liftCoefficient = a->number("lift_coefficient", 0.0, kCoefficient);
         a->finish();
