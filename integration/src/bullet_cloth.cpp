@@ -887,7 +887,10 @@ void BulletCloth::Impl::planSubsteps(int n) {
             throw Error(ErrorCode::UnstableTimeStep, m.str());
         }
     }
-    last.substeps = n * c.substepsFor(stepH);
+    // A count of the cloth's own choosing (substepsFor of the whole sub-step, or the most of a
+    // group's) is within its limit: the cloth splits no further, and the O(particles) bound of
+    // its aerodynamics is not asked for again.
+    last.substeps = settings.substeps ? n * c.substepsFor(stepH) : n;
 }
 
 void BulletCloth::Impl::advance() {

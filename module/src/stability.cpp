@@ -106,25 +106,25 @@ LocalFrequency highestLocalFrequency(const ClothTopology& topology,
                                      const std::vector<double>& stiffness,
                                      const std::vector<double>& invMass) {
     LocalFrequency out;
-    std::vector<double> w;
-    if (!rootInverseMasses(invMass, w) || topology.springCount() == 0) return out;
-    const std::vector<double> rows = gershgorinRows(topology, stiffness, w);
-    std::vector<double> freeRows, freeMasses;
-    for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (topology.springCount() == 0) return out;
+    const std::vector<double> local = localAngularFrequencies(topology, stiffness, invMass);
+    std::vector<double> freeOmegas, freeMasses;
+    for (std::size_t i = 0; i < local.size(); ++i) {
         if (invMass[i] == 0.0) continue;
-        freeRows.push_back(rows[i]);
+        freeOmegas.push_back(local[i]);
         freeMasses.push_back(1.0 / invMass[i]);
-        if (rows[i] > out.omega * out.omega) {
+        if (local[i] > out.omega) {
             out.particle = static_cast<Index>(i);
-            out.omega = std::sqrt(rows[i]);
+            out.omega = local[i];
         }
     }
+    if (freeOmegas.empty()) return out; // nothing can move
     auto median = [](std::vector<double>& v) {
         auto middle = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
         std::nth_element(v.begin(), middle, v.end());
         return *middle;
     };
-    out.medianOmega = std::sqrt(median(freeRows));
+    out.medianOmega = median(freeOmegas);
     out.mass = 1.0 / invMass[out.particle];
     out.medianMass = median(freeMasses);
     return out;

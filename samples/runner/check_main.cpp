@@ -177,11 +177,7 @@ int main(int argc, char** argv) {
                 try {
                     std::cout << samples::trialCost(
                                      [&cloth, step] { cloth.step(step); }, step, 1, steps, trialCpu,
-                                     nullptr,
-                                     [&cloth] {
-                                         const PhaseTimer* p = cloth.timers().find("integrate");
-                                         return p ? static_cast<double>(p->calls) : 0.0;
-                                     })
+                                     nullptr, [&cloth] { return samples::clothStepsTaken(cloth); })
                                      .message
                               << "\n";
                 } catch (const Error& e) {

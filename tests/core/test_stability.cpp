@@ -270,23 +270,46 @@ TEST_CASE("A sliver that sets the stable step is named when the step is refused"
     CHECK_THROWS_WITH(hairFixed.step(1.0 / 60.0), Contains("particle 0 sets that limit"));
 }
 
+namespace {
+
+/// An 11 x 11 sheet at 5 cm (the review's case for the advice tests).
+TopologyPtr elevenSheet() {
+    SheetSpec sheet;
+    sheet.rows = 11;
+    sheet.cols = 11;
+    sheet.spacing = 0.05;
+    return ClothTopology::build(makeSheet(sheet));
+}
+
+/// Its settings for a fixed step: no automatic sub-steps, springs k, 30 g in all.
+ClothSettings fixedStepSettings(double k) {
+    ClothSettings s;
+    s.substeps.automatic = false;
+    s.springStiffness = k;
+    s.totalMass = 0.03;
+    return s;
+}
+
+/// What follows "use dt <= " in a message (no std::regex: GCC 12 warns inside it under the
+/// sanitizer build); the test fails when the message has no such advice.
+std::string afterAdvice(const std::string& message) {
+    const std::string key = "use dt <= ";
+    const auto at = message.find(key);
+    REQUIRE(at != std::string::npos);
+    return message.substr(at + key.size());
+}
+
+} // namespace
+
 TEST_CASE("the time step an unstable step's refusal advises passes", "[stability][errors]") {
     // "use dt <= L s": L is written with six digits; rounded to nearest it was above the limit
     // about half the time, and that step was refused in turn (review 16: "time step
     // 0.00204128 s exceeds the stability limit 0.00204128 s"). Over a range of stiffnesses the
     // advised step, and the advised count of sub-steps, pass.
-    SheetSpec sheet;
-    sheet.rows = 11;
-    sheet.cols = 11;
-    sheet.spacing = 0.05;
-    const TopologyPtr topo = ClothTopology::build(makeSheet(sheet));
+    const TopologyPtr topo = elevenSheet();
     int roundedUpBefore = 0, cases = 0;
     for (double k = 20.0; k < 40.0; k += 0.37) {
-        ClothSettings s;
-        s.substeps.automatic = false;
-        s.springStiffness = k;
-        s.totalMass = 0.03;
-        Cloth c(topo, s);
+        Cloth c(topo, fixedStepSettings(k));
         c.pin(0);
         std::string message;
         try {
@@ -294,13 +317,9 @@ TEST_CASE("the time step an unstable step's refusal advises passes", "[stability
         } catch (const Error& e) {
             message = e.what();
         }
-        // "use dt <= L s, N sub-steps" (no std::regex: GCC 12's warns inside it under the
-        // sanitizer build).
         INFO(message);
-        const std::string key = "use dt <= ";
-        const auto at = message.find(key);
-        REQUIRE(at != std::string::npos);
-        const std::string rest = message.substr(at + key.size());
+        // "use dt <= L s, N sub-steps"
+        const std::string rest = afterAdvice(message);
         const auto comma = rest.find(" s, ");
         REQUIRE(comma != std::string::npos);
         ++cases;
@@ -326,17 +345,10 @@ TEST_CASE("a step that blew up with the check off names a free particle and the 
     // first particle with any non-finite value, a pin whose springs' forces were (review 16),
     // and said only "reduce the time step". It names a free particle now, and the limit: the
     // step it advises runs.
-    SheetSpec sheet;
-    sheet.rows = 11;
-    sheet.cols = 11;
-    sheet.spacing = 0.05;
-    ClothSettings s;
-    s.substeps.automatic = false;
+    ClothSettings s = fixedStepSettings(20.37);
     s.rejectUnstableTimeStep = false;
-    s.springStiffness = 20.37;
-    s.totalMass = 0.03;
     s.limiter.kind = LimiterKind::None; // nothing bounds the stretch: the step blows up
-    const TopologyPtr topo = ClothTopology::build(makeSheet(sheet));
+    const TopologyPtr topo = elevenSheet();
     Cloth c(topo, s);
     c.pin(0);
     std::string message;
@@ -351,10 +363,7 @@ TEST_CASE("a step that blew up with the check off names a free particle and the 
     REQUIRE_FALSE(message.empty());
     CHECK_THAT(message, Contains("free) after the step") && !Contains("particle 0 ") &&
                             Contains("beyond the stability limit"));
-    const std::string key = "use dt <= ";
-    const auto at = message.find(key);
-    REQUIRE(at != std::string::npos);
-    const double advised = std::stod(message.substr(at + key.size()));
+    const double advised = std::stod(afterAdvice(message));
     CHECK(advised <= c.stableTimeStep());
     // The same cloth from the start, at the step advised: it hangs, bounded.
     Cloth again(topo, s);

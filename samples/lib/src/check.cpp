@@ -212,6 +212,11 @@ TrialCost trialCost(const std::function<void()>& step, double dt, int substeps, 
     return t;
 }
 
+double clothStepsTaken(const Cloth& cloth) {
+    const PhaseTimer* p = cloth.timers().find("integrate");
+    return p ? static_cast<double>(p->calls) : 0.0;
+}
+
 TrialCost trialCost(Simulation& sim, double seconds, double cpuBudget) {
     const double dt = sim.scene().timeStep;
     const std::size_t left =
@@ -229,12 +234,9 @@ TrialCost trialCost(Simulation& sim, double seconds, double cpuBudget) {
     // position beyond single precision or a non-finite value throws StepError): a cloth that
     // blew up without going non-finite was timed as if it ran (review 17).
     const Cloth& cloth = sim.cloth();
-    TrialCost t = trialCost([&sim] { sim.step(); }, dt, sim.substeps(), wanted, cpuBudget,
-                            [&sim] { (void)sim.stats(); },
-                            [&cloth] {
-                                const PhaseTimer* p = cloth.timers().find("integrate");
-                                return p ? static_cast<double>(p->calls) : 0.0;
-                            });
+    TrialCost t =
+        trialCost([&sim] { sim.step(); }, dt, sim.substeps(), wanted, cpuBudget,
+                  [&sim] { (void)sim.stats(); }, [&cloth] { return clothStepsTaken(cloth); });
     t.message += " (drape-run's summary has the whole run)";
     return t;
 }

@@ -71,6 +71,10 @@ struct TrialCost {
 /// simulation is left where the trial stopped. Throws what Simulation::step throws.
 TrialCost trialCost(Simulation& sim, double seconds, double cpuBudget);
 
+/// The cloth steps `cloth` has taken (its integrate phase's calls, PhaseTimers), the counter
+/// trialCost's `clothSteps` takes for a cloth that splits its steps itself.
+double clothStepsTaken(const Cloth& cloth);
+
 /// The same for any step: calls `step` (one step of `dt` seconds, `substeps` cloth sub-steps)
 /// `steps` times, or until the calls have spent `cpuBudget` seconds of process CPU time (a
 /// step in progress runs to its end). `afterStep`, when given, runs after each step, untimed
