@@ -607,6 +607,28 @@ void Cloth::checkTimeStep(double dt) const {
                             " sub-steps of this step, or implicit Euler "
                             "(IntegratorKind::ImplicitEuler)");
         }
+        // The drag's limit falls as the cloth speeds up against the air. Automatic sub-steps
+        // split each step as its speed asks (substepsFor); a fixed step is checked here, at the
+        // speed of the moment, so that a cloth outrunning it is refused before it blows up (a
+        // sheet in a dense fluid falling in fixed sub-steps reached 1e63 m: review 17).
+        if (!settings_.substeps.automatic && settings_.aero.airDensity > 0.0) {
+            const double drag = aeroTimeStep(dt);
+            if (dt > drag)
+                throw Error(
+                    ErrorCode::UnstableTimeStep,
+                    std::string("time step ") + num(dt) + " s exceeds the stability limit " +
+                        numDown(drag) +
+                        " s of the explicit aerodynamic drag at the cloth's speed against the "
+                        "air now (up to " +
+                        num(aeroSpeedBound(dt)) +
+                        " m/s, aero.airDensity = " + num(settings_.aero.airDensity) +
+                        " kg/m^3); the limit falls as the cloth speeds up: turn "
+                        "substeps.automatic on (each step is then split as the speed asks), "
+                        "or use dt <= " +
+                        numDown(drag) + " s (" +
+                        std::to_string(static_cast<long long>(std::ceil(dt / drag))) +
+                        " sub-steps of this step), a thinner fluid or a heavier cloth");
+        }
     }
 }
 

@@ -128,6 +128,14 @@ int main(int argc, char** argv) {
                           << static_cast<long long>(std::ceil(scene.timeStep / result.limit))
                           << " (its time_step of " << scene.timeStep << " s in cloth steps of "
                           << samples::formatDown(result.limit) << " s or less), or to \"auto\"\n";
+            // A fixed count is checked at the cloth's speed of each step: outrun as the cloth
+            // speeds up against the air, its step is refused ("auto" splits as the speed asks).
+            if (result.stable && !dt && !scene.autoSubsteps && std::isfinite(result.aeroSpeed))
+                std::cout << "in the scene: with a fixed simulation.substeps the cloth's steps "
+                             "are refused once it moves faster than "
+                          << result.aeroSpeed
+                          << " m/s against the air; \"auto\" splits each step as its speed "
+                             "asks\n";
             if (trialSeconds > 0.0) {
                 const bool ownStable = samples::checkTimeStep(sim.cloth(), ownStep).stable;
                 // Back to the wind of t = 0 (the mean: its gust is a sine), as drape-run starts.

@@ -401,6 +401,73 @@ TEST_CASE("Automatic sub-steps keep the explicit drag stable: a plate sinking in
           std::numeric_limits<double>::infinity());
 }
 
+TEST_CASE("Without automatic sub-steps a cloth that outruns its drag's limit is refused, not "
+          "blown up",
+          "[aero][stability]") {
+    // A 0.5 m sheet of 50 g in water, fixed steps of 3 ms: within the drag's limit at rest
+    // (7 ms), beyond it as the sheet sinks (the limit falls as the speed grows). Unchecked, the
+    // state grows without bound and goes non-finite after about 1400 steps (review 17: a fixed
+    // count called stable reached 1e63 m). Checked, the step that would leave the limit is
+    // refused, naming the drag, and the state stays the one before it.
+    SheetSpec spec;
+    spec.rows = spec.cols = 6;
+    spec.spacing = 0.1;
+    spec.vAxis = Vec3(0, 0, -1);
+    ClothSettings s;
+    s.totalMass = 0.05;
+    s.springStiffness = 20.0;
+    s.aero.airDensity = 1000.0;
+    s.substeps.automatic = false;
+    const double dt = 3e-3;
+    const auto topology = ClothTopology::build(makeSheet(spec));
+    Cloth checked(topology, s);
+    REQUIRE(checked.aeroTimeStep(dt) > 2.0 * dt);
+    REQUIRE(checked.stableTimeStep() > dt);
+    int refusedAt = -1;
+    std::string message;
+    for (int n = 0; n < 2000 && refusedAt < 0; ++n) {
+        const double limit = checked.aeroTimeStep(dt);
+        try {
+            checked.step(dt);
+            CHECK(limit >= dt); // nothing beyond the limit is taken
+        } catch (const Error& e) {
+            REQUIRE(e.code() == ErrorCode::UnstableTimeStep);
+            CHECK(limit < dt);
+            refusedAt = n;
+            message = e.what();
+        }
+    }
+    INFO(message);
+    REQUIRE(refusedAt >= 1);
+    CHECK_THAT(message,
+               Catch::Contains("aerodynamic drag") && Catch::Contains("substeps.automatic"));
+    for (const Vec3& x : checked.positions())
+        CHECK(x.norm() < 1.0);
+    // The same cloth unchecked blows up (a kilometre from where it hangs, or non-finite).
+    s.rejectUnstableTimeStep = false;
+    Cloth unchecked(topology, s);
+    bool failed = false;
+    for (int n = 0; n < 3000 && !failed; ++n) {
+        try {
+            unchecked.step(dt);
+            for (const Vec3& x : unchecked.positions())
+                failed = failed || !(x.norm() < 1e3);
+        } catch (const Error& e) {
+            CHECK(e.code() == ErrorCode::SimulationFailure);
+            failed = true;
+        }
+    }
+    CHECK(failed);
+    // With automatic sub-steps the same steps split as the speed asks and the sheet sinks.
+    s.rejectUnstableTimeStep = true;
+    s.substeps.automatic = true;
+    Cloth split(topology, s);
+    for (int n = 0; n < 1000; ++n)
+        REQUIRE_NOTHROW(split.step(dt));
+    for (const Vec3& v : split.velocities())
+        CHECK(v.norm() < 0.5);
+}
+
 TEST_CASE("Velocity-Verlet stays second order with aerodynamic drag", "[aero][convergence]") {
     // The falling plate of the test above through its transient: v(t) = vt tanh(t / tau) and
     // the drop y(t) = vt tau ln cosh(t / tau), released from rest. Velocity-Verlet takes the

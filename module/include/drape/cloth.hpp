@@ -323,8 +323,14 @@ class Cloth {
     /// Largest stable time step of the explicit aerodynamic drag and lift for a step of dt
     /// [s]: 2 / the fastest rate at which a particle's velocity relaxes toward the air's, at
     /// the wind plus the fastest particle's speed (plus g dt). Infinite without aerodynamics.
-    /// Automatic sub-steps keep within both (a cloth in water, or in a gale).
+    /// Automatic sub-steps keep within both (a cloth in water, or in a gale); without them
+    /// step() refuses a dt beyond it at the speed of the moment (rejectUnstableTimeStep).
     double aeroTimeStep(double dt) const;
+    /// The fastest relative speed of the air a step of dt can see, as aeroTimeStep takes it:
+    /// the wind's speed plus the fastest free particle's plus g dt [m/s]. aeroTimeStep is
+    /// inversely proportional to it: a step dt stays within the drag's limit up to a relative
+    /// speed of aeroSpeedBound(dt) * aeroTimeStep(dt) / dt.
+    double aeroSpeedBound(double dt) const;
     /// What the limiter did in the last step (its sub-steps and relimit() calls summed; the
     /// strains are the largest of them).
     const StrainLimitStats& lastLimiterStats() const { return limiterStats_; }
@@ -400,8 +406,6 @@ class Cloth {
     void restore(const Saved& s);
     /// Puts held particle i at `position`; a move sets overBound (a teleport).
     void movedHeld(Index i, const Vec3& position);
-    /// The fastest relative speed of the air a step of dt can see (aeroTimeStep) [m/s].
-    double aeroSpeedBound(double dt) const;
     mutable std::vector<double> aeroArea_; ///< aeroTimeStep's scratch: area per particle
     /// The most walks repairStart takes.
     static constexpr int kRepairWalks = 4;

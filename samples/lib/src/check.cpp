@@ -147,9 +147,17 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
             substepText + " sub-steps per step, or better velocity_verlet or implicit_euler.";
         return c;
     }
+    if (std::isfinite(c.aeroLimit)) c.aeroSpeed = cloth.aeroSpeedBound(dt) * c.aeroLimit / dt;
     if (c.stable) {
         c.message = name + " at dt = " + fmt(dt) + " s: stable (" + why + ", margin " +
                     fmt(c.limit / dt, 3) + "x).";
+        // The drag's limit is the state's of the moment: it falls as the cloth speeds up
+        // against the air (a sheet in a dense fluid called stable with a margin of 20 blew up
+        // as it sank: review 17). Say how fast the step holds.
+        if (std::isfinite(c.aeroSpeed))
+            c.message += " The drag's limit falls as the cloth speeds up against the air: dt "
+                         "stays within it up to a relative speed of " +
+                         fmt(c.aeroSpeed, 3) + " m/s (the wind's and the cloth's).";
     } else {
         c.message = name + " at dt = " + fmt(dt) + " s: UNSTABLE (" + why + ", dt is " +
                     fmt(dt / c.limit, 3) + "x the limit). Use dt <= " + fmt(c.suggestedTimeStep) +

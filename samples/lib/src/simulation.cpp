@@ -379,6 +379,22 @@ void Simulation::step() {
                     std::to_string(static_cast<long long>(std::ceil(dt / limit))) +
                     ", or to \"auto\" to choose them from the stability estimate (cloth: " +
                     e.what() + ")");
+            // The drag's limit at the cloth's speed of the moment: a fixed count that was
+            // stable at the start can be outrun as the cloth speeds up against the air.
+            if (const double drag = cloth_->aeroTimeStep(h); h > drag)
+                throw StepError(
+                    where + " failed: the cloth steps of " + num(h) + " s (simulation.time_step " +
+                    num(dt) + " s in " + std::to_string(scene_.substeps) +
+                    " sub-steps) exceed the stability limit " + formatDown(drag) +
+                    " s of the explicit drag and lift at the cloth's speed against the air now "
+                    "(up to " +
+                    num(cloth_->aeroSpeedBound(h)) +
+                    " m/s): set simulation.substeps to \"auto\" (each step is then split as the "
+                    "cloth's speed asks), or to at least " +
+                    std::to_string(static_cast<long long>(std::ceil(dt / drag))) +
+                    " for this speed, or use a thinner fluid (cloth.air.density) or a heavier "
+                    "cloth (cloth: " +
+                    e.what() + ")");
         }
         throw StepError(where + " failed: " + e.what());
     }

@@ -19,6 +19,7 @@
 
 #include <cstddef>
 #include <functional>
+#include <limits>
 #include <string>
 
 namespace drape::samples {
@@ -32,6 +33,9 @@ struct TimeStepCheck {
     /// The explicit aerodynamics' limit at the cloth's wind (Cloth::aeroTimeStep) [s]; inf
     /// without aerodynamics. `limit` is the smaller of it and the springs'.
     double aeroLimit = 0.0;
+    /// The relative speed of the air [m/s] up to which timeStep stays within the drag's
+    /// limit (which falls as the cloth speeds up); inf without aerodynamics.
+    double aeroSpeed = std::numeric_limits<double>::infinity();
     bool stable = false;            ///< timeStep <= limit
     double suggestedTimeStep = 0.0; ///< a stable dt with a 10 % margin [s] (0: none exists)
     int substeps = 1;               ///< sub-steps of timeStep that make it stable (0: none do)
