@@ -1248,7 +1248,11 @@ void Cloth::clearUserForces() {
     state_.forcesValid = false;
     edited();
 }
+// A value equal to the one in force is no edit: a game that sets the wind, the gravity or the
+// air every frame does not keep its cloths awake (review 18: a tablecloth given the same
+// still wind each frame never slept, 1.3-1.8 ms a frame for ever).
 void Cloth::setWind(const Vec3& wind) {
+    if (wind == settings_.aero.wind) return;
     forceModel_->setWind(wind);
     settings_.aero.wind = wind;
     state_.forcesValid = false;
@@ -1256,6 +1260,10 @@ void Cloth::setWind(const Vec3& wind) {
 }
 void Cloth::setAero(const AeroSettings& aero) {
     validateAero(aero);
+    const AeroSettings& now = settings_.aero;
+    if (aero.airDensity == now.airDensity && aero.dragCoefficient == now.dragCoefficient &&
+        aero.liftCoefficient == now.liftCoefficient && aero.wind == now.wind)
+        return;
     forceModel_->setAero(aero);
     settings_.aero = aero;
     state_.forcesValid = false;
@@ -1263,11 +1271,13 @@ void Cloth::setAero(const AeroSettings& aero) {
 }
 void Cloth::setRelativeDamping(double rate) {
     requireNonNegative(rate, "relativeDamping");
+    if (rate == settings_.relativeDamping) return;
     settings_.relativeDamping = rate;
     edited();
 }
 
 void Cloth::setGravity(const Vec3& g) {
+    if (g == settings_.gravity) return;
     forceModel_->setGravity(g);
     settings_.gravity = g;
     state_.forcesValid = false;

@@ -178,6 +178,55 @@ TEST_CASE("a kinematic particle that starts moving wakes the sleeping cloth", "[
     CHECK(c->positions()[free].x() - frozen[free].x() > 0.02);
 }
 
+TEST_CASE("the same wind, gravity, air or damping set every frame keeps the cloth asleep; a "
+          "new value wakes it",
+          "[sleep]") {
+    // A game pushes its wind and gravity into every object each frame (review 18: a
+    // tablecloth given the same still wind each frame never slept). Each setter wakes the
+    // cloth only when it changes the value, and the cloth then moves as the new value says.
+    auto c = hangingCloth(true);
+    stepUntilAsleep(*c);
+    REQUIRE(c->isAsleep());
+    const auto frozen = stateHash(*c);
+    const ClothSettings now = c->settings();
+    for (int k = 0; k < 240; ++k) {
+        c->setWind(now.aero.wind);
+        c->setGravity(now.gravity);
+        c->setAero(now.aero);
+        c->setRelativeDamping(now.relativeDamping);
+        c->step(kDt);
+    }
+    CHECK(c->isAsleep());
+    CHECK(stateHash(*c) == frozen);
+    // Each of them with another value wakes the cloth.
+    const std::vector<std::function<void(Cloth&)>> changes = {
+        [](Cloth& x) { x.setWind(Vec3(1.0, 0.0, 0.0)); },
+        [&now](Cloth& x) { x.setGravity(now.gravity + Vec3(0.0, 0.0, 1.0)); },
+        [&now](Cloth& x) {
+            AeroSettings air = now.aero;
+            air.airDensity = 1.2;
+            x.setAero(air);
+        },
+        [&now](Cloth& x) { x.setRelativeDamping(now.relativeDamping + 1.0); },
+    };
+    for (const auto& change : changes) {
+        auto d = hangingCloth(true);
+        stepUntilAsleep(*d);
+        REQUIRE(d->isAsleep());
+        change(*d);
+        CHECK_FALSE(d->isAsleep());
+    }
+    // The sideways gravity moves the woken sheet sideways.
+    auto e = hangingCloth(true);
+    stepUntilAsleep(*e);
+    const Vec3List before = e->positions();
+    e->setGravity(now.gravity + Vec3(0.0, 0.0, 2.0));
+    for (int k = 0; k < 120; ++k)
+        e->step(kDt);
+    const Index free = sheetIndex(hangingSpec(), 7, 3);
+    CHECK(e->positions()[free].z() - before[free].z() > 0.01);
+}
+
 TEST_CASE("sleeping is off by default, validated, and stored in snapshots", "[sleep]") {
     auto off = hangingCloth(false);
     for (int k = 0; k < 20 * 240; ++k)

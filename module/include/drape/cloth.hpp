@@ -13,8 +13,10 @@
 // with its state frozen exactly; a step of a sleeping cloth only checks dt, evaluates the kinematic
 // paths and advances time() and stepCount(). Anything that could change the motion wakes it before
 // the next step: the state edits below (setPosition, setVelocity, mutablePositions/Velocities, pin,
-// unpin, setKinematic), forces (setUserForce, clearUserForces, setWind, setGravity,
-// addExternalForce), stages (addStage, removeStage), setSleep, loadSnapshot, wake(), and a
+// unpin, setKinematic), forces (setUserForce, clearUserForces, setWind, setGravity, setAero,
+// setRelativeDamping: each only when it changes the value; the same value set every frame is
+// no edit), addExternalForce), stages (addStage, removeStage), setSleep, loadSnapshot, wake(),
+// and a
 // kinematic path whose target for the step differs from where its particle is. Waking
 // restarts the quiet count and continues from the frozen state: the trajectory after waking
 // is that of a cloth (sleeping or not) restored from a snapshot of the frozen state. An
