@@ -227,6 +227,36 @@ TEST_CASE("the same wind, gravity, air or damping set every frame keeps the clot
     CHECK(e->positions()[free].z() - before[free].z() > 0.01);
 }
 
+TEST_CASE("a sleeping cloth in air keeps the drag's limit of its frozen state, and a woken one "
+          "takes it anew",
+          "[sleep][aero]") {
+    // Asleep, the drag's limit is the frozen state's (it is not computed again each step:
+    // review 18); every change that could move it wakes the cloth first, and the limit is
+    // then the new state's.
+    auto c = hangingCloth(true);
+    AeroSettings air;
+    air.airDensity = 1.2;
+    c->setAero(air);
+    stepUntilAsleep(*c);
+    REQUIRE(c->isAsleep());
+    auto twin = hangingCloth(false); // the same frozen state, awake
+    twin->setAero(air);
+    twin->restoreState(c->state(), {});
+    const double asleep = c->aeroTimeStep(kDt);
+    CHECK(asleep == twin->aeroTimeStep(kDt));
+    for (int k = 0; k < 100; ++k)
+        c->step(kDt);
+    CHECK(c->isAsleep());
+    CHECK(c->aeroTimeStep(kDt) == asleep);
+    CHECK(c->aeroTimeStep(0.5 * kDt) == twin->aeroTimeStep(0.5 * kDt)); // another dt
+    // A wind wakes it, and the limit is the windy one.
+    c->setWind(Vec3(20.0, 0.0, 0.0));
+    twin->setWind(Vec3(20.0, 0.0, 0.0));
+    CHECK_FALSE(c->isAsleep());
+    CHECK(c->aeroTimeStep(kDt) == twin->aeroTimeStep(kDt));
+    CHECK(c->aeroTimeStep(kDt) < 0.5 * asleep);
+}
+
 TEST_CASE("sleeping is off by default, validated, and stored in snapshots", "[sleep]") {
     auto off = hangingCloth(false);
     for (int k = 0; k < 20 * 240; ++k)

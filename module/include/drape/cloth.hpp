@@ -36,6 +36,7 @@
 #include "drape/topology.hpp"
 
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -408,7 +409,18 @@ class Cloth {
     void restore(const Saved& s);
     /// Puts held particle i at `position`; a move sets overBound (a teleport).
     void movedHeld(Index i, const Vec3& position);
+    /// The state's part of aeroTimeStep: the fastest free particle's squared speed [m^2/s^2]
+    /// and the largest area of a free particle's triangles per its mass [m^2/kg].
+    struct AeroExtent {
+        double fastest2 = 0.0;
+        double areaPerMass = 0.0;
+        bool known = false; ///< measured while asleep: stands until the cloth wakes
+    };
+    const AeroExtent& aeroExtent() const;
     mutable std::vector<double> aeroArea_; ///< aeroTimeStep's scratch: area per particle
+    /// The last aeroExtent (known: of the frozen state of a sleeping cloth; cleared whenever
+    /// the cloth falls asleep, wakes or is restored).
+    mutable AeroExtent asleepAero_;
     /// The most walks repairStart takes.
     static constexpr int kRepairWalks = 4;
     /// Brings the step's starting positions within the bound, positions only (overBound).
