@@ -138,10 +138,25 @@ TEST_CASE("a body removed and deleted while particles hang from it: the next ste
     auto body = std::make_unique<btRigidBody>(
         btRigidBody::btRigidBodyConstructionInfo(1.0f, &motion, &shape, inertia));
     w.world.addRigidBody(body.get());
+    // Bodies after it in the world's list: removing it moves the last one into its place (the
+    // step looks the attachment bodies up where it found them last).
+    btDefaultMotionState farMotion(btTransform(btQuaternion::getIdentity(), btVector3(5, 1, 0)));
+    btRigidBody after(btRigidBody::btRigidBodyConstructionInfo(0.0f, &farMotion, &shape));
+    const bool behind = GENERATE(false, true);
+    if (behind) w.world.addRigidBody(&after);
     handle.attachHere(0, body.get());
     handle.attachHere(4, body.get());
     w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
     REQUIRE(handle.attachments().size() == 2);
+    // Taken out and put back (now later in the list) it is still in the world: no word.
+    w.world.removeRigidBody(body.get());
+    w.world.addRigidBody(body.get());
+    CHECK_NOTHROW(w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0)));
+    CHECK(handle.attachments().size() == 2);
+    if (behind) { // moved behind `after`: taken out again, `after` moves into its place
+        w.world.removeRigidBody(&after);
+        w.world.addRigidBody(&after);
+    }
     w.world.removeRigidBody(body.get()); // the user's mistake: no detach first
     body.reset();
     CHECK_THROWS_WITH(w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0)),
@@ -154,6 +169,7 @@ TEST_CASE("a body removed and deleted while particles hang from it: the next ste
     for (int k = 0; k < 10; ++k)
         w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
     CHECK(cloth->positions()[0].y() < y0);
+    if (behind) w.world.removeRigidBody(&after);
 }
 
 TEST_CASE("BulletClothSettings::inUnits refuses a unit outside [1e-6, 1e6]",

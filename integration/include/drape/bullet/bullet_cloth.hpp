@@ -9,9 +9,15 @@
 //  - The cloth is a btActionInterface, so btDiscreteDynamicsWorld steps it in every internal
 //    sub-step, right after the rigid bodies have been integrated.
 //  - It owns a broadphase proxy (a btGhostObject whose AABB is the cloth's bounding box plus a
-//    margin). The rigid bodies a cloth may touch are the ghost's broadphase overlaps; nothing
-//    ever loops over the world's bodies. The ghost never takes part in narrow-phase, ray tests
-//    or contact generation of the world.
+//    margin). The rigid bodies a cloth may touch are the ghost's broadphase overlaps, and the
+//    bodies fast enough to cross its box within a sub-step: the world's kinematic and moving
+//    bodies, listed in one pass over the world's objects per Bullet sub-step shared by all
+//    the world's cloths (as Bullet's own step passes over them). The ghost never takes part in
+//    narrow-phase, ray tests or contact generation of the world; it is in the broadphase, so
+//    a game's own ghost objects and triggers list it among their overlaps. Its user pointer
+//    is the BulletCloth handle (not a game entity; its shape's getName() is
+//    "DrapeClothBounds"): give the cloth its own BulletClothSettings::collisionGroup and leave
+//    it out of the trigger's mask, or skip objects that are a handle's proxyObject().
 //  - Contacts (particle against body, with a cloth thickness) are resolved in a drape::ClothStage
 //    after integration and strain limiting: a position projection out of the body and an
 //    inelastic normal velocity response, and a contact force term (an external force of the
@@ -22,7 +28,8 @@
 //  - Bodies are snapshotted (transform, velocities, inverse mass and inertia) before the cloth
 //    step; the impulses the cloth gave them are applied after it.
 //  - Sleeping (BulletClothSettings::sleep, on by default): a cloth at rest falls asleep as
-//    Cloth::isAsleep() describes and then costs a broadphase-overlap scan per sub-step. It
+//    Cloth::isAsleep() describes and then costs a broadphase-overlap scan and a look at the
+//    world's moving bodies per sub-step. It
 //    wakes before it steps when a candidate body (a broadphase overlap of its proxy) is new,
 //    has left, moves faster than v = sleep.distance / sleep.time (1 cm/s by default) or
 //    has moved or turned by more than v times the step since the last sub-step, or has another
