@@ -303,6 +303,9 @@ struct BulletCloth::Impl {
     /// Adds to the candidates the moving bodies that swept through the box lo..hi in the
     /// sub-step of dt [s] although the broadphase did not pair them with the proxy.
     void addFastBodies(const Vec3& lo, const Vec3& hi, double dt);
+    /// The cloth's automatic sub-steps of a world sub-step dt; a refusal says what to change in
+    /// the world's stepping.
+    int substepsOfWorldStep(double dt) const;
     /// addFastBodies' list when no stepper gave one (scratch).
     std::vector<const btRigidBody*> ownMovers;
     double lastStrain = 0.0;     ///< Cloth::maxStrain() at the end of the last sub-step
@@ -880,7 +883,7 @@ void BulletCloth::Impl::prepare(double dt) {
     // Given: that many; not given: the fewest within the cloth's stability limit (the cloth's
     // own automatic sub-steps, ClothSettings::substeps), taken here so that every cloth step
     // exchanges its impulses with the bodies.
-    planSubsteps(settings.substeps ? *settings.substeps : c.substepsFor(dt));
+    planSubsteps(settings.substeps ? *settings.substeps : substepsOfWorldStep(dt));
     slept = true;
     for (auto& b : contacts.bodies)
         b.startSweep(dt);
@@ -888,6 +891,24 @@ void BulletCloth::Impl::prepare(double dt) {
                                      [](const detail::BodySnapshot& b) { return b.dynamicBody; });
     clothSpeed = dynamic ? fastestParticle(c) : 0.0;
     bodySeconds = std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+int BulletCloth::Impl::substepsOfWorldStep(double dt) const {
+    try {
+        return cloth->substepsFor(dt);
+    } catch (const Error& e) {
+        if (e.code() != ErrorCode::UnstableTimeStep) throw;
+        // In the world's terms: its sub-step is what the program gave stepSimulation (a frame
+        // of 2 s with maxSubSteps 0, Bullet's variable step; review 18).
+        std::ostringstream m;
+        m << e.what() << ". In a Bullet world dt is the world's sub-step (" << dt << " s here)";
+        throw Error(ErrorCode::UnstableTimeStep,
+                    m.str() +
+                        ": step the world with a fixed sub-step "
+                        "(stepSimulation(frameTime, maxSubSteps >= 1, fixedTimeStep)), or clamp "
+                        "the frame time a hitch gives it; the world has moved its bodies by this "
+                        "sub-step, the cloth has not");
+    }
 }
 
 void BulletCloth::Impl::planSubsteps(int n) {

@@ -395,7 +395,7 @@ int Cloth::substepsFor(double dt) const {
                            std::to_string(sub.maxSubsteps) +
                            stiffestSpot(*topology_, forceModel_->stiffness(), invMass_) +
                            "; use a smaller dt, softer springs, heavier particles or "
-                           "implicit_euler"));
+                           "implicit Euler (IntegratorKind::ImplicitEuler)"));
     }
     return static_cast<int>(needed);
 }

@@ -287,6 +287,39 @@ TEST_CASE("a cloth's handle removed or destroyed inside the world's step leaves 
     }
 }
 
+TEST_CASE("a hitch in Bullet's variable step beyond the cloth's sub-steps is refused with the "
+          "world's remedy",
+          "[world][wrong_use]") {
+    // A 2 s frame given to stepSimulation with maxSubSteps 0 (Bullet's variable step) is one
+    // world sub-step of 2 s: more cloth sub-steps than the cloth allows. The refusal says what
+    // to change in the world's stepping (it said "use a smaller dt ... or implicit_euler";
+    // review 18), and the remedy it names steps on.
+    TestWorld w;
+    auto cloth = makeCloth(horizontalSheet(21, 21, 0.05, 1.0), ClothSettings{});
+    pinBorder(*cloth, 21);
+    w.add(cloth);
+    w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    const double needed = 2.0 / cloth->stableTimeStep();
+    REQUIRE(needed > cloth->settings().substeps.maxSubsteps);
+    std::string message;
+    try {
+        w.world.stepSimulation(btScalar(2.0), 0);
+    } catch (const Error& e) {
+        CHECK(e.code() == ErrorCode::UnstableTimeStep);
+        message = e.what();
+    }
+    INFO(message);
+    CHECK_THAT(message, Catch::Contains("fixed sub-step") && Catch::Contains("maxSubSteps >= 1") &&
+                            Catch::Contains("IntegratorKind::ImplicitEuler"));
+    CHECK(message.find("implicit_euler") == std::string::npos);
+    // The remedy: the same hitch as fixed sub-steps (Bullet drops what exceeds maxSubSteps).
+    const double t0 = cloth->time();
+    CHECK_NOTHROW(w.world.stepSimulation(btScalar(2.0), 10, btScalar(1.0 / 60.0)));
+    CHECK(cloth->time() == Approx(t0 + 10.0 / 60.0).epsilon(1e-6));
+    for (const Vec3& x : cloth->positions())
+        CHECK(x.allFinite());
+}
+
 TEST_CASE("BulletClothSettings::substeps beyond the cloth's maxSubsteps is refused by name",
           "[world][wrong_use]") {
     TestWorld w;
