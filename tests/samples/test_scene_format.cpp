@@ -1,6 +1,7 @@
 // Scene files: every shipped scene parses, the paper's experiments behave as the paper's
 // (their files drive the physics), and broken scenes are refused with the path of the
 // offending field.
+#include "drape_samples/check.hpp"
 #include "drape_samples/scene.hpp"
 #include "drape_samples/simulation.hpp"
 
@@ -605,6 +606,40 @@ TEST_CASE("a cloth in water keeps within its drag's stability limit as it speeds
     INFO("mean z " << meanZ << " m, mean velocity " << mean.transpose() << " m/s");
     CHECK(meanZ > 0.1); // carried downstream
     CHECK(mean.norm() <= 1.0 + 0.06);
+}
+
+TEST_CASE("\"auto\" counts explicit Euler's own sub-steps, and refuses it undamped",
+          "[scene][substeps]") {
+    using Catch::Matchers::Contains;
+    // Explicit Euler is stable only as far as damping reaches (dt < C_d / (m omega^2) + c_s /
+    // k): "auto" took Velocity-Verlet's count for it (2 / omega), and the sheet blew up
+    // (review 17). It now takes drape-check's limit, and an undamped cloth is refused by name.
+    auto scene = [](const std::string& damping) {
+        return parse(R"({"cloth": {"sheet": {"rows": 11, "cols": 11, "spacing": 0.1})" + damping +
+                     R"(},
+                         "pins": [{"grid": [[0, 0], [0, 10]]}],
+                         "simulation": {"time_step": 0.01, "duration": 1,
+                                        "integrator": "explicit_euler"}})");
+    };
+    Simulation damped(scene(R"(, "damping": 0.002)"));
+    const double limit = springsTimeStep(damped.cloth(), IntegratorKind::ExplicitEuler);
+    REQUIRE(limit < 0.5 * damped.cloth().stableTimeStep()); // below Velocity-Verlet's
+    INFO("explicit Euler's limit " << limit << " s, " << damped.substeps() << " sub-steps");
+    CHECK(0.01 / damped.substeps() <= limit);
+    double highest = 0.0;
+    for (int k = 0; k < 100; ++k) {
+        REQUIRE_NOTHROW(damped.step());
+        for (const Vec3& v : damped.cloth().velocities())
+            highest = std::max(highest, v.norm());
+    }
+    CHECK(highest < 10.0); // a sheet falling 1 s from its corners, not a blow-up
+    std::string message;
+    try {
+        Simulation undamped(scene(""));
+    } catch (const SceneError& e) {
+        message = e.what();
+    }
+    CHECK_THAT(message, Contains("explicit_euler") && Contains("damping"));
 }
 
 TEST_CASE("a fixed count that the sinking cloth outruns is refused with the scene's advice",

@@ -58,6 +58,20 @@ double explicitEulerLimit(double omegaMax, double particleDamping, double spring
     return limit;
 }
 
+double springsTimeStep(const Cloth& cloth, IntegratorKind integrator) {
+    const double omega = cloth.maxAngularFrequency();
+    if (integrator != IntegratorKind::ExplicitEuler) return stableTimeStep(integrator, omega);
+    double maxMass = 0.0;
+    for (std::size_t i = 0; i < cloth.particleCount(); ++i) {
+        if (cloth.inverseMasses()[i] > 0.0) maxMass = std::max(maxMass, cloth.masses()[i]);
+    }
+    double maxK = 0.0;
+    for (double k : cloth.stiffness())
+        maxK = std::max(maxK, k);
+    return explicitEulerLimit(omega, cloth.settings().damping, cloth.settings().springDamping,
+                              maxMass, maxK);
+}
+
 std::string formatDown(double value, int digits) {
     const std::string near = fmt(value, digits);
     const double shown = std::strtod(near.c_str(), nullptr);
@@ -81,19 +95,7 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
         c.message = "the time step must be positive and finite, got " + fmt(dt);
         return c;
     }
-    if (integrator == IntegratorKind::ExplicitEuler) {
-        double maxMass = 0.0;
-        for (std::size_t i = 0; i < cloth.particleCount(); ++i) {
-            if (cloth.inverseMasses()[i] > 0.0) maxMass = std::max(maxMass, cloth.masses()[i]);
-        }
-        double maxK = 0.0;
-        for (double k : cloth.stiffness())
-            maxK = std::max(maxK, k);
-        c.limit = explicitEulerLimit(c.omegaMax, cloth.settings().damping,
-                                     cloth.settings().springDamping, maxMass, maxK);
-    } else {
-        c.limit = stableTimeStep(integrator, c.omegaMax);
-    }
+    c.limit = springsTimeStep(cloth, integrator);
     // The explicit aerodynamics' own limit (every integrator takes drag and lift explicitly):
     // at the cloth's wind now, so a caller judging a gusty scene sets its strongest wind first.
     const double springsLimit = c.limit;

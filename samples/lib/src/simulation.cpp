@@ -174,14 +174,23 @@ void Simulation::chooseSubsteps() {
     // water, or in a gale); applyWind sets the wind of the moment after.
     if (scene_.wind) cloth_->setWind(scene_.wind->strongest());
     const double dt = scene_.timeStep;
-    const double limit = std::min(cloth_->stableTimeStep(), cloth_->aeroTimeStep(dt));
+    // Explicit Euler's own limit (the cloth's stableTimeStep is Velocity-Verlet's for it): it
+    // is stable only as far as damping reaches (review 17: "auto" took Velocity-Verlet's count
+    // for it, and the cloth blew up).
+    const double springs = springsTimeStep(*cloth_, scene_.cloth.integrator);
+    if (!(springs > 0.0))
+        fail("simulation.substeps",
+             "\"auto\": explicit_euler is unstable at every time step without damping (each "
+             "spring mode grows by sqrt(1 + (omega dt)^2) a step): give cloth.damping or "
+             "cloth.spring_damping, or use velocity_verlet");
+    const double limit = std::min(springs, cloth_->aeroTimeStep(dt));
     if (!(limit > 0.0)) fail("simulation.substeps", "\"auto\": no stable time step exists");
     const double needed = std::ceil(dt / (kAutoSubstepMargin * limit));
     if (!(needed <= static_cast<double>(kMaxSubsteps))) {
         // The time step "auto" can take: kMaxSubsteps steps within the margin, rounded down.
         const double most = kMaxSubsteps * kAutoSubstepMargin * limit;
         const std::string largest = formatDown(most, 3);
-        const bool aeroBinds = cloth_->aeroTimeStep(dt) < cloth_->stableTimeStep();
+        const bool aeroBinds = cloth_->aeroTimeStep(dt) < springs;
         fail("simulation.substeps",
              "\"auto\" would need " + num(needed) + " sub-steps of the " + num(dt) +
                  " s time step (the stable limit of " +

@@ -51,6 +51,11 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
 double explicitEulerLimit(double omegaMax, double particleDamping, double springDamping,
                           double maxMass, double maxStiffness);
 
+/// The springs' stable time step for `integrator` [s]: Cloth's for Velocity-Verlet, symplectic
+/// Euler and RK4 (stableTimeStep), explicitEulerLimit for explicit Euler (0 without damping:
+/// unstable at every step), +infinity for implicit Euler.
+double springsTimeStep(const Cloth& cloth, IntegratorKind integrator);
+
 /// A positive limit written with `digits` significant digits, rounded down, so that a value
 /// copied from advice ("set the time step to at most ...") passes the check it came from.
 std::string formatDown(double value, int digits = 6);
