@@ -325,12 +325,12 @@ class Cloth {
     double stableTimeStep() const;
     /// Largest stable time step of the explicit aerodynamic drag and lift for a step of dt
     /// [s]: 2 / the fastest rate at which a particle's velocity relaxes toward the air's, at
-    /// the wind plus the fastest particle's speed (plus g dt). Infinite without aerodynamics.
-    /// Automatic sub-steps keep within both (a cloth in water, or in a gale); without them
-    /// step() refuses a dt beyond it at the speed of the moment (rejectUnstableTimeStep).
+    /// the fastest particle's speed relative to the wind (plus g dt). Infinite without
+    /// aerodynamics. Automatic sub-steps keep within both (a cloth in water, or in a gale); without
+    /// them step() refuses a dt beyond it at the speed of the moment (rejectUnstableTimeStep).
     double aeroTimeStep(double dt) const;
     /// The fastest relative speed of the air a step of dt can see, as aeroTimeStep takes it:
-    /// the wind's speed plus the fastest free particle's plus g dt [m/s]. aeroTimeStep is
+    /// the fastest free particle's speed relative to the wind, plus g dt [m/s]. aeroTimeStep is
     /// inversely proportional to it: a step dt stays within the drag's limit up to a relative
     /// speed of aeroSpeedBound(dt) * aeroTimeStep(dt) / dt.
     double aeroSpeedBound(double dt) const;
@@ -409,7 +409,8 @@ class Cloth {
     void restore(const Saved& s);
     /// Puts held particle i at `position`; a move sets overBound (a teleport).
     void movedHeld(Index i, const Vec3& position);
-    /// The state's part of aeroTimeStep: the fastest free particle's squared speed [m^2/s^2]
+    /// The state's part of aeroTimeStep: the fastest free particle's squared speed relative to
+    /// the wind [m^2/s^2]
     /// and the largest area of a free particle's triangles per its mass [m^2/kg].
     struct AeroExtent {
         double fastest2 = 0.0;
