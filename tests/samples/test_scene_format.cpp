@@ -640,6 +640,20 @@ TEST_CASE("\"auto\" counts explicit Euler's own sub-steps, and refuses it undamp
         message = e.what();
     }
     CHECK_THAT(message, Contains("explicit_euler") && Contains("damping"));
+    // Heavy damping: the damping alone flips the velocity's sign beyond 2 m / C_d (4e-4 s
+    // for 10 g particles and C_d 50). "auto" took a count the cloth refused at its first step,
+    // and a fixed count called stable overflowed (review 19); the count now keeps within it.
+    Simulation heavy(parse(R"({"cloth": {"sheet": {"rows": 11, "cols": 11, "spacing": 0.05},
+                                         "particle_mass": 0.01, "stiffness": 100,
+                                         "damping": 50},
+                               "pins": [{"grid": [[0, 0], [0, 10]]}],
+                               "simulation": {"time_step": 0.01, "duration": 1,
+                                              "integrator": "explicit_euler"}})"));
+    CHECK(0.01 / heavy.substeps() <= 2.0 * 0.01 / 50.0);
+    for (int k = 0; k < 50; ++k)
+        REQUIRE_NOTHROW(heavy.step());
+    for (const Vec3& v : heavy.cloth().velocities())
+        CHECK(v.norm() < 1.0); // a sheet sagging through a thick fluid
 }
 
 TEST_CASE("a fixed count that the sinking cloth outruns is refused with the scene's advice",

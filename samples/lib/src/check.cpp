@@ -59,17 +59,31 @@ double explicitEulerLimit(double omegaMax, double particleDamping, double spring
 }
 
 double springsTimeStep(const Cloth& cloth, IntegratorKind integrator) {
-    const double omega = cloth.maxAngularFrequency();
+    return springsTimeStep(cloth, integrator, cloth.maxAngularFrequency());
+}
+
+double springsTimeStep(const Cloth& cloth, IntegratorKind integrator, double omega) {
     if (integrator != IntegratorKind::ExplicitEuler) return stableTimeStep(integrator, omega);
-    double maxMass = 0.0;
+    double minMass = std::numeric_limits<double>::infinity(), maxMass = 0.0;
     for (std::size_t i = 0; i < cloth.particleCount(); ++i) {
-        if (cloth.inverseMasses()[i] > 0.0) maxMass = std::max(maxMass, cloth.masses()[i]);
+        if (!(cloth.inverseMasses()[i] > 0.0)) continue;
+        minMass = std::min(minMass, cloth.masses()[i]);
+        maxMass = std::max(maxMass, cloth.masses()[i]);
     }
     double maxK = 0.0;
     for (double k : cloth.stiffness())
         maxK = std::max(maxK, k);
-    return explicitEulerLimit(omega, cloth.settings().damping, cloth.settings().springDamping,
-                              maxMass, maxK);
+    const double cd = cloth.settings().damping, cs = cloth.settings().springDamping;
+    // The underdamped modes' limit (explicitEulerLimit), and the overdamped ones': the damping
+    // alone, v (1 - h rate) with rate up to C_d / m + 2 c_s / m for the lightest particle, flips
+    // the velocity's sign beyond h = 2 / rate and grows it (review 19: C_d 50 on 10 g particles
+    // was called stable at 0.005 s; it overflowed). And never beyond 2 / omega_max, the limit
+    // the cloth itself checks (Cloth::stableTimeStep).
+    const double rate =
+        minMass < std::numeric_limits<double>::infinity() ? (cd + 2.0 * cs) / minMass : 0.0;
+    const double overdamped = rate > 0.0 ? 2.0 / rate : std::numeric_limits<double>::infinity();
+    return std::min({explicitEulerLimit(omega, cd, cs, maxMass, maxK), overdamped,
+                     stableTimeStep(integrator, omega)});
 }
 
 std::string formatDown(double value, int digits) {

@@ -3,6 +3,7 @@
 
 #include "drape/snapshot.hpp"
 
+#include "drape_samples/check.hpp"
 #include "drape_samples/mesh_io.hpp"
 #include "drape_samples/render.hpp"
 #include "drape_samples/simulation.hpp"
@@ -187,7 +188,7 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
     log << "\n"
         << "run      " << toString(scene.cloth.integrator) << ", dt " << scene.timeStep << " s, "
         << scene.stepCount() << " steps (" << scene.duration << " s)"
-        << ", stable dt limit " << cloth.stableTimeStep() << " s";
+        << ", stable dt limit " << springsTimeStep(cloth, scene.cloth.integrator) << " s";
     if (sim.substeps() > 1 || scene.autoSubsteps)
         log << ", " << sim.substeps() << " cloth sub-step" << (sim.substeps() == 1 ? "" : "s")
             << " per step" << (scene.autoSubsteps ? " (auto)" : "");
@@ -358,7 +359,7 @@ RunResult runScene(const RunOptions& options, std::ostream& log) {
         << "time step           " << scene.timeStep << " s\n"
         << "cloth sub-steps     " << sim.substeps() << " per step"
         << (scene.autoSubsteps ? " (auto, from the stable limit " : " (stable limit ")
-        << cloth.stableTimeStep() << " s)\n"
+        << springsTimeStep(cloth, scene.cloth.integrator) << " s)\n"
         << "steps               " << r.steps << "\n"
         << "simulated time      " << r.simulatedSeconds << " s\n"
         << "wall time           " << r.wallSeconds << " s (stepping " << r.stepWallSeconds

@@ -180,9 +180,10 @@ void Simulation::chooseSubsteps() {
     const double springs = springsTimeStep(*cloth_, scene_.cloth.integrator);
     if (!(springs > 0.0))
         fail("simulation.substeps",
-             "\"auto\": explicit_euler is unstable at every time step without damping (each "
-             "spring mode grows by sqrt(1 + (omega dt)^2) a step): give cloth.damping or "
-             "cloth.spring_damping, or use velocity_verlet");
+             "\"auto\": explicit_euler has no stable time step in the estimate without "
+             "cloth.damping or cloth.spring_damping (each spring mode grows by sqrt(1 + (omega "
+             "dt)^2) a step; relative_damping is not in the estimate): give cloth.damping or "
+             "cloth.spring_damping, a fixed simulation.substeps, or use velocity_verlet");
     const double limit = std::min(springs, cloth_->aeroTimeStep(dt));
     if (!(limit > 0.0)) fail("simulation.substeps", "\"auto\": no stable time step exists");
     const double needed = std::ceil(dt / (kAutoSubstepMargin * limit));
@@ -241,12 +242,12 @@ void Simulation::warnStiffSpot() {
             ++held;
         }
     }
-    if (held > std::max<std::size_t>(8, free.size() / 100)) return;
+    if (held == 0 || held > std::max<std::size_t>(8, free.size() / 100)) return;
     const double omegaRest = estimateMaxAngularFrequency(topo, cloth_->stiffness(), restInvMass);
     // The sub-steps the rest would ask for, as chooseSubsteps counts them.
     const double dt = scene_.timeStep;
-    const double restLimit =
-        std::min(stableTimeStep(scene_.cloth.integrator, omegaRest), cloth_->aeroTimeStep(dt));
+    const double restLimit = std::min(springsTimeStep(*cloth_, scene_.cloth.integrator, omegaRest),
+                                      cloth_->aeroTimeStep(dt));
     const int without =
         std::max(1, static_cast<int>(std::ceil(dt / (kAutoSubstepMargin * restLimit))));
     if (!(kStiffSpotRatio * without <= scene_.substeps)) return;

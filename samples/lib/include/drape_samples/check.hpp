@@ -52,9 +52,11 @@ double explicitEulerLimit(double omegaMax, double particleDamping, double spring
                           double maxMass, double maxStiffness);
 
 /// The springs' stable time step for `integrator` [s]: Cloth's for Velocity-Verlet, symplectic
-/// Euler and RK4 (stableTimeStep), explicitEulerLimit for explicit Euler (0 without damping:
-/// unstable at every step), +infinity for implicit Euler.
+/// Euler and RK4 (stableTimeStep), for explicit Euler the least of explicitEulerLimit (0
+/// without damping: unstable at every step), the damping's own limit 2 m_min / (C_d + 2 c_s)
+/// and 2 / omega_max; +infinity for implicit Euler. With `omega`, for that omega_max.
 double springsTimeStep(const Cloth& cloth, IntegratorKind integrator);
+double springsTimeStep(const Cloth& cloth, IntegratorKind integrator, double omega);
 
 /// A positive limit written with `digits` significant digits, rounded down, so that a value
 /// copied from advice ("set the time step to at most ...") passes the check it came from.
