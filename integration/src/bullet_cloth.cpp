@@ -306,6 +306,8 @@ struct BulletCloth::Impl {
     /// The cloth's automatic sub-steps of a world sub-step dt; a refusal says what to change in
     /// the world's stepping.
     int substepsOfWorldStep(double dt) const;
+    /// The refusal of a fixed count of cloth steps beyond the drag's limit, in the world's terms.
+    Error dragRefusal() const;
     /// addFastBodies' list when no stepper gave one (scratch).
     std::vector<const btRigidBody*> ownMovers;
     double lastStrain = 0.0;     ///< Cloth::maxStrain() at the end of the last sub-step
@@ -893,6 +895,10 @@ void BulletCloth::Impl::prepare(double dt) {
     bodySeconds = std::chrono::duration<double>(Clock::now() - start).count();
 }
 
+/// A world sub-step longer than this is taken as a frame's hitch given to Bullet's variable
+/// step (maxSubSteps 0), not a fixed step a program chose [s].
+constexpr double kLongWorldStep = 0.05;
+
 int BulletCloth::Impl::substepsOfWorldStep(double dt) const {
     try {
         return cloth->substepsFor(dt);
@@ -902,13 +908,34 @@ int BulletCloth::Impl::substepsOfWorldStep(double dt) const {
         // of 2 s with maxSubSteps 0, Bullet's variable step; review 18).
         std::ostringstream m;
         m << e.what() << ". In a Bullet world dt is the world's sub-step (" << dt << " s here)";
-        throw Error(ErrorCode::UnstableTimeStep,
-                    m.str() +
-                        ": step the world with a fixed sub-step "
-                        "(stepSimulation(frameTime, maxSubSteps >= 1, fixedTimeStep)), or clamp "
-                        "the frame time a hitch gives it; the world has moved its bodies by this "
-                        "sub-step, the cloth has not");
+        // A long sub-step is a frame's hitch given to Bullet's variable step; a short one is the
+        // program's fixed step, and the cloth's own count is what to raise (review 19).
+        if (dt > kLongWorldStep)
+            m << ": step the world with a fixed sub-step (stepSimulation(frameTime, maxSubSteps "
+                 ">= 1, fixedTimeStep)), or clamp the frame time a hitch gives it";
+        else
+            m << ": make the cloth with a larger ClothSettings::substeps.maxSubsteps, or step "
+                 "the world with a smaller fixedTimeStep";
+        m << "; the world has moved its bodies by this sub-step, the cloth has not";
+        throw Error(ErrorCode::UnstableTimeStep, m.str());
     }
+}
+
+Error BulletCloth::Impl::dragRefusal() const {
+    const Cloth& c = *cloth;
+    const double drag = c.aeroTimeStep(stepH);
+    std::ostringstream m;
+    m << "the cloth's steps of " << stepH << " s (the Bullet sub-step of " << stepDt << " s in "
+      << stepSubsteps << " step" << (stepSubsteps == 1 ? "" : "s")
+      << ") exceed the stability limit " << drag
+      << " s of the explicit aerodynamic drag at the cloth's speed against the air now (up to "
+      << c.aeroSpeedBound(stepH)
+      << " m/s) with ClothSettings::substeps.automatic off: turn it on (each step is then split "
+         "as the speed asks), or set BulletClothSettings::substeps to at least "
+      << std::ceil(2.0 * stepDt / drag)
+      << " (twice this speed; a count holds only up to a speed), or use a thinner fluid or a "
+         "heavier cloth";
+    return Error(ErrorCode::UnstableTimeStep, m.str());
 }
 
 void BulletCloth::Impl::planSubsteps(int n) {
@@ -938,6 +965,10 @@ void BulletCloth::Impl::planSubsteps(int n) {
                  "BulletClothSettings::substeps unset";
             throw Error(ErrorCode::UnstableTimeStep, m.str());
         }
+        // The drag's limit at the cloth's speed now, before any body moves for the cloth in
+        // this sub-step, in the world's terms (review 19: the cloth's own refusal said "2
+        // sub-steps of this step", and came after some of the cloth's steps).
+        if (stepH > c.aeroTimeStep(stepH)) throw dragRefusal();
     }
     // A count of the cloth's own choosing (substepsFor of the whole sub-step, or the most of a
     // group's) is within its limit: the cloth splits no further, and the O(particles) bound of
@@ -963,9 +994,17 @@ bool BulletCloth::Impl::advanceOne() {
     // Particles attached to a free body follow it through the sub-step as the cloth moves
     // it (its snapshot: the walk's share, the impulses), not Bullet's pose alone.
     attachments.followBodies(c, contacts.bodies, c.time() + stepH);
-    c.stepPart(stepH, stepSubsteps); // the contact stage runs inside it, the contact
-                                     // force is one of its terms
-    if (!inWorld) return false;      // removed during the step (by a stage): nothing more to give
+    try {
+        c.stepPart(stepH, stepSubsteps); // the contact stage runs inside it, the contact
+                                         // force is one of its terms
+    } catch (const Error& e) {
+        // The drag's limit outrun within the world's sub-step: in the world's terms.
+        if (e.code() == ErrorCode::UnstableTimeStep && !c.settings().substeps.automatic &&
+            stepH > c.aeroTimeStep(stepH))
+            throw dragRefusal();
+        throw;
+    }
+    if (!inWorld) return false; // removed during the step (by a stage): nothing more to give
     ++last.steps;
     last.selfPairTests += c.lastSelfCollision().pairTests;
     last.selfContacts += c.lastSelfCollision().contacts;

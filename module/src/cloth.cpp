@@ -37,6 +37,13 @@ std::string numDown(double v) {
     return num(shown - std::pow(10.0, std::floor(std::log10(v)) - 5.0));
 }
 
+/// A count of sub-steps, ceil(n), as digits (in floating point beyond what an integer holds: a
+/// fluid of 1e30 kg/m^3 asked for "-9223372036854775808 sub-steps"; review 19).
+std::string countOf(double n) {
+    const double c = std::ceil(n);
+    return c < 1e15 ? std::to_string(static_cast<long long>(c)) : num(c);
+}
+
 /// What an UnstableTimeStep message adds when one particle sets the stable step (its own
 /// springs reach at least four times the median particle's frequency, highestLocalFrequency):
 /// which particle, and what usually makes one. Empty otherwise.
@@ -602,8 +609,7 @@ void Cloth::checkTimeStep(double dt) const {
                             " for this cloth (omega_max = " + num(maxAngularFrequency()) +
                             " rad/s)" +
                             stiffestSpot(*topology_, forceModel_->stiffness(), invMass_) +
-                            "; use dt <= " + numDown(limit) + " s, " +
-                            std::to_string(static_cast<long long>(std::ceil(dt / limit))) +
+                            "; use dt <= " + numDown(limit) + " s, " + countOf(dt / limit) +
                             " sub-steps of this step, or implicit Euler "
                             "(IntegratorKind::ImplicitEuler)");
         }
@@ -613,7 +619,10 @@ void Cloth::checkTimeStep(double dt) const {
         // sheet in a dense fluid falling in fixed sub-steps reached 1e63 m: review 17).
         if (!settings_.substeps.automatic && settings_.aero.airDensity > 0.0) {
             const double drag = aeroTimeStep(dt);
-            if (dt > drag)
+            if (dt > drag) {
+                // Automatic sub-steps help only within their count.
+                const bool splitFits = dt / (settings_.substeps.fraction * drag) <=
+                                       static_cast<double>(settings_.substeps.maxSubsteps);
                 throw Error(
                     ErrorCode::UnstableTimeStep,
                     std::string("time step ") + num(dt) + " s exceeds the stability limit " +
@@ -622,12 +631,13 @@ void Cloth::checkTimeStep(double dt) const {
                         "air now (up to " +
                         num(aeroSpeedBound(dt)) +
                         " m/s, aero.airDensity = " + num(settings_.aero.airDensity) +
-                        " kg/m^3); the limit falls as the cloth speeds up: turn "
-                        "substeps.automatic on (each step is then split as the speed asks), "
-                        "or use dt <= " +
-                        numDown(drag) + " s (" +
-                        std::to_string(static_cast<long long>(std::ceil(dt / drag))) +
+                        " kg/m^3); the limit falls as the cloth speeds up against the air: " +
+                        (splitFits ? "turn substeps.automatic on (each step is then split as "
+                                     "the speed asks), or "
+                                   : "") +
+                        "use dt <= " + numDown(drag) + " s (" + countOf(dt / drag) +
                         " sub-steps of this step), a thinner fluid or a heavier cloth");
+            }
         }
     }
 }

@@ -8,6 +8,7 @@
 #include "drape/cloth.hpp"
 
 #include <cstdio>
+#include <utility>
 
 using namespace drape;
 using namespace drape_test;
@@ -295,6 +296,20 @@ ClothSettings fallingPlateSettings() {
     s.limiter.kind = LimiterKind::None;
     return s;
 }
+/// A sheet of n x n particles 10 cm apart, 50 g, 20 N/m springs, in a fluid of `density`
+/// [kg/m^3], stepped without automatic sub-steps (each step is the dt given).
+std::pair<TopologyPtr, ClothSettings> sheetInFluid(Index n, double density) {
+    SheetSpec spec;
+    spec.rows = spec.cols = n;
+    spec.spacing = 0.1;
+    spec.vAxis = Vec3(0, 0, -1);
+    ClothSettings s;
+    s.totalMass = 0.05;
+    s.springStiffness = 20.0;
+    s.aero.airDensity = density;
+    s.substeps.automatic = false;
+    return {ClothTopology::build(makeSheet(spec)), s};
+}
 } // namespace
 
 TEST_CASE("A falling plate reaches the terminal velocity of its drag", "[aero]") {
@@ -409,17 +424,8 @@ TEST_CASE("Without automatic sub-steps a cloth that outruns its drag's limit is 
     // state grows without bound and goes non-finite after about 1400 steps (review 17: a fixed
     // count called stable reached 1e63 m). Checked, the step that would leave the limit is
     // refused, naming the drag, and the state stays the one before it.
-    SheetSpec spec;
-    spec.rows = spec.cols = 6;
-    spec.spacing = 0.1;
-    spec.vAxis = Vec3(0, 0, -1);
-    ClothSettings s;
-    s.totalMass = 0.05;
-    s.springStiffness = 20.0;
-    s.aero.airDensity = 1000.0;
-    s.substeps.automatic = false;
+    auto [topology, s] = sheetInFluid(6, 1000.0);
     const double dt = 3e-3;
-    const auto topology = ClothTopology::build(makeSheet(spec));
     Cloth checked(topology, s);
     REQUIRE(checked.aeroTimeStep(dt) > 2.0 * dt);
     REQUIRE(checked.stableTimeStep() > dt);
@@ -497,6 +503,37 @@ TEST_CASE("The drag's limit counts the speed relative to the wind: a sheet the w
         relative = std::max(relative, (v - s.aero.wind).norm());
     CHECK(relative < 0.1);
     CHECK(c.aeroSpeedBound(dt) == Approx(relative).margin(1e-12));
+}
+
+TEST_CASE("The drag's refusal in a fluid far too dense names a count, not an overflow, and no "
+          "remedy that fails",
+          "[aero][stability]") {
+    // A fluid of 1e30 kg/m^3 asked for "-9223372036854775808 sub-steps" and for automatic
+    // sub-steps, which would need 1e27 of them and refuse in turn (review 19).
+    auto [topology, s] = sheetInFluid(4, 1e30);
+    Cloth c(topology, s);
+    std::string message;
+    try {
+        c.step(1e-3);
+    } catch (const Error& e) {
+        CHECK(e.code() == ErrorCode::UnstableTimeStep);
+        message = e.what();
+    }
+    INFO(message);
+    CHECK_THAT(message, Catch::Contains("e+") && Catch::Contains("sub-steps of this step"));
+    CHECK(message.find("-9223372036854775808") == std::string::npos);
+    CHECK(message.find("automatic") == std::string::npos);
+    // A density whose split fits names automatic sub-steps.
+    s.aero.airDensity = 1e3;
+    Cloth water(topology, s);
+    try {
+        REQUIRE(water.stableTimeStep() > 0.005);
+        for (int k = 0; k < 1000; ++k)
+            water.step(0.005);
+        FAIL("not refused");
+    } catch (const Error& e) {
+        CHECK_THAT(e.what(), Catch::Contains("substeps.automatic on"));
+    }
 }
 
 TEST_CASE("Velocity-Verlet stays second order with aerodynamic drag", "[aero][convergence]") {

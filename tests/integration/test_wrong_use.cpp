@@ -320,6 +320,58 @@ TEST_CASE("a hitch in Bullet's variable step beyond the cloth's sub-steps is ref
         CHECK(x.allFinite());
 }
 
+TEST_CASE("a fixed count of cloth steps that the drag's limit refuses is named in the world's "
+          "terms, before the cloth steps",
+          "[world][wrong_use][aero]") {
+    // ClothSettings::substeps.automatic off, BulletClothSettings::substeps 2, a sheet in water:
+    // the cloth's own refusal said "2 sub-steps of this step" (not a world setting) and came
+    // after some of its steps (review 19). Refused before the sub-step, naming the count.
+    TestWorld w;
+    ClothSettings cs;
+    cs.totalMass = 0.05;
+    cs.springStiffness = 20.0;
+    cs.aero.airDensity = 1000.0;
+    cs.substeps.automatic = false;
+    auto cloth = makeCloth(horizontalSheet(6, 6, 0.1, 1.0), cs);
+    bullet::BulletClothSettings s;
+    s.substeps = 4;
+    w.add(cloth, s);
+    REQUIRE(cloth->stableTimeStep() > 1.0 / 240.0);
+    std::string message;
+    try {
+        for (int f = 0; f < 60; ++f)
+            w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    } catch (const Error& e) {
+        CHECK(e.code() == ErrorCode::UnstableTimeStep);
+        message = e.what();
+    }
+    INFO(message);
+    CHECK_THAT(message, Catch::Contains("BulletClothSettings::substeps to at least") &&
+                            Catch::Contains("drag"));
+    for (const Vec3& x : cloth->positions())
+        CHECK(x.allFinite());
+}
+
+TEST_CASE("a fixed world step beyond the cloth's maxSubsteps names the cloth's count, not a hitch",
+          "[world][wrong_use]") {
+    // At the program's own fixed 1/60 s step, "clamp the frame time a hitch gives it" does not
+    // help (review 19): the cloth's maxSubsteps or a smaller fixed step does.
+    TestWorld w;
+    ClothSettings cs;
+    cs.substeps.maxSubsteps = 4;
+    auto cloth = makeCloth(horizontalSheet(21, 21, 0.05, 1.0), cs);
+    w.add(cloth);
+    std::string message;
+    try {
+        w.world.stepSimulation(btScalar(1.0 / 60.0), 1, btScalar(1.0 / 60.0));
+    } catch (const Error& e) {
+        message = e.what();
+    }
+    INFO(message);
+    CHECK_THAT(message, Catch::Contains("larger ClothSettings::substeps.maxSubsteps"));
+    CHECK(message.find("hitch") == std::string::npos);
+}
+
 TEST_CASE("BulletClothSettings::substeps beyond the cloth's maxSubsteps is refused by name",
           "[world][wrong_use]") {
     TestWorld w;
