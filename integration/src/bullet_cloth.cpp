@@ -236,9 +236,8 @@ struct BulletCloth::Impl {
     /// array, sorted by body: while every body is still at its index (compared as pointers,
     /// never dereferenced: a deleted body is only looked up), the array is not scanned again.
     std::vector<std::pair<const btCollisionObject*, int>> attachedAt;
-    /// The world's rigid bodies that can move (not static, or kinematic), listed once per
-    /// Bullet sub-step by the world's stepper for all its cloths (addFastBodies); null: this
-    /// cloth lists them itself.
+    /// The world's moving rigid bodies (listMovers), listed once per Bullet sub-step by the
+    /// world's stepper for all its cloths (addFastBodies); null: this cloth lists them itself.
     const std::vector<const btRigidBody*>* worldMovers = nullptr;
     /// The bodies in an enabled joint of the world, sorted (gatherBodies, scratch).
     std::vector<unsigned char> bodyFound;
