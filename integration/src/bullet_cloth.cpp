@@ -383,7 +383,7 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
         Stepping& operator=(const Stepping&) = delete;
     };
 
-    void updateAction(btCollisionWorld* world, btScalar dt) override {
+    void updateAction(btCollisionWorld* collisionWorld, btScalar dt) override {
         // This stepper and the cloths it steps, as the step begins: a handle removed during
         // it (it leaves `cloths`, and may take the last reference to this stepper) is passed
         // over from then on.
@@ -400,11 +400,12 @@ class BulletCloth::Impl::Stepper final : public btActionInterface,
         for (std::size_t k = 0; k < n; ++k)
             skip_[k] = !list[k]->inWorld || list[k]->proxyLost;
         // The world's moving bodies, listed once for all its cloths (addFastBodies).
-        if (world) listMovers(*world, movers_);
+        if (collisionWorld) listMovers(*collisionWorld, movers_);
         for (std::size_t k = 0; k < n; ++k) {
             if (skip_[k]) continue;
             const std::optional<double>& exact = list[k]->settings.timeStep;
-            list[k]->worldMovers = world && list[k]->world == world ? &movers_ : nullptr;
+            list[k]->worldMovers =
+                collisionWorld && list[k]->world == collisionWorld ? &movers_ : nullptr;
             try {
                 list[k]->prepare(exact && btScalar(*exact) == dt ? *exact : double(dt));
             } catch (...) {
