@@ -965,10 +965,6 @@ void BulletCloth::Impl::planSubsteps(int n) {
                  "BulletClothSettings::substeps unset";
             throw Error(ErrorCode::UnstableTimeStep, m.str());
         }
-        // The drag's limit at the cloth's speed now, before any body moves for the cloth in
-        // this sub-step, in the world's terms (review 19: the cloth's own refusal said "2
-        // sub-steps of this step", and came after some of the cloth's steps).
-        if (stepH > c.aeroTimeStep(stepH)) throw dragRefusal();
     }
     // A count of the cloth's own choosing (substepsFor of the whole sub-step, or the most of a
     // group's) is within its limit: the cloth splits no further, and the O(particles) bound of
@@ -998,7 +994,8 @@ bool BulletCloth::Impl::advanceOne() {
         c.stepPart(stepH, stepSubsteps); // the contact stage runs inside it, the contact
                                          // force is one of its terms
     } catch (const Error& e) {
-        // The drag's limit outrun within the world's sub-step: in the world's terms.
+        // The drag's limit outrun (the cloth checks it at its speed of each step): in the
+        // world's terms (review 19: the cloth's own refusal said "2 sub-steps of this step").
         if (e.code() == ErrorCode::UnstableTimeStep && !c.settings().substeps.automatic &&
             stepH > c.aeroTimeStep(stepH))
             throw dragRefusal();

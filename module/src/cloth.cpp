@@ -750,7 +750,7 @@ void Cloth::restoreState(ClothState state, std::vector<double> warmStart) {
     const bool asleep = state.asleep && settings_.sleep.enabled;
     state_ = std::move(state);
     state_.asleep = asleep;
-    asleepAero_.known = false;
+    aeroExtent_.known = false;
     limiter_.setWarmStartState(std::move(warmStart));
     for (std::size_t i = 0; i < particleCount(); ++i)
         invMass_[i] = state_.pinned[i] ? 0.0 : 1.0 / masses()[i];
@@ -761,7 +761,7 @@ void Cloth::wake() {
     state_.asleep = false;
     state_.quietTime = 0.0;
     state_.anchor.clear();
-    asleepAero_.known = false;
+    aeroExtent_.known = false;
 }
 
 void Cloth::setSleep(const SleepSettings& sleep) {
@@ -804,7 +804,7 @@ void Cloth::updateSleep(double dt) {
     state_.quietTime += dt;
     if (state_.quietTime >= sl.time) {
         state_.asleep = true;
-        asleepAero_.known = false;
+        aeroExtent_.known = false;
     }
 }
 
@@ -1496,8 +1496,8 @@ double Cloth::aeroSpeedBound(double dt) const {
 // not in an O(triangles) pass every step (review 18: a sleeping flag cost 0.126 ms a frame
 // against 0.001 without air).
 const Cloth::AeroExtent& Cloth::aeroExtent() const {
-    if (state_.asleep && asleepAero_.known) return asleepAero_;
-    AeroExtent& e = asleepAero_;
+    if (state_.asleep && aeroExtent_.known) return aeroExtent_;
+    AeroExtent& e = aeroExtent_;
     e.fastest2 = 0.0;
     const Vec3& wind = settings_.aero.wind;
     for (std::size_t i = 0; i < state_.v.size(); ++i)

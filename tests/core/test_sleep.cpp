@@ -51,6 +51,14 @@ int stepUntilAsleep(Cloth& c, Cloth* twin = nullptr) {
     return steps;
 }
 
+/// The hanging sheet of hangingCloth, stepped until it fell asleep.
+std::unique_ptr<Cloth> sleepingCloth() {
+    auto c = hangingCloth(true);
+    stepUntilAsleep(*c);
+    REQUIRE(c->isAsleep());
+    return c;
+}
+
 std::uint64_t calls(const Cloth& c, const char* phase) {
     const PhaseTimer* t = c.timers().find(phase);
     return t ? t->calls : 0;
@@ -184,9 +192,7 @@ TEST_CASE("the same wind, gravity, air or damping set every frame keeps the clot
     // A game pushes its wind and gravity into every object each frame (review 18: a
     // tablecloth given the same still wind each frame never slept). Each setter wakes the
     // cloth only when it changes the value, and the cloth then moves as the new value says.
-    auto c = hangingCloth(true);
-    stepUntilAsleep(*c);
-    REQUIRE(c->isAsleep());
+    auto c = sleepingCloth();
     const auto frozen = stateHash(*c);
     const ClothSettings now = c->settings();
     for (int k = 0; k < 240; ++k) {
@@ -210,15 +216,12 @@ TEST_CASE("the same wind, gravity, air or damping set every frame keeps the clot
         [&now](Cloth& x) { x.setRelativeDamping(now.relativeDamping + 1.0); },
     };
     for (const auto& change : changes) {
-        auto d = hangingCloth(true);
-        stepUntilAsleep(*d);
-        REQUIRE(d->isAsleep());
+        auto d = sleepingCloth();
         change(*d);
         CHECK_FALSE(d->isAsleep());
     }
     // The sideways gravity moves the woken sheet sideways.
-    auto e = hangingCloth(true);
-    stepUntilAsleep(*e);
+    auto e = sleepingCloth();
     const Vec3List before = e->positions();
     e->setGravity(now.gravity + Vec3(0.0, 0.0, 2.0));
     for (int k = 0; k < 120; ++k)

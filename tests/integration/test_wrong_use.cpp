@@ -321,11 +321,11 @@ TEST_CASE("a hitch in Bullet's variable step beyond the cloth's sub-steps is ref
 }
 
 TEST_CASE("a fixed count of cloth steps that the drag's limit refuses is named in the world's "
-          "terms, before the cloth steps",
+          "terms",
           "[world][wrong_use][aero]") {
     // ClothSettings::substeps.automatic off, BulletClothSettings::substeps 2, a sheet in water:
-    // the cloth's own refusal said "2 sub-steps of this step" (not a world setting) and came
-    // after some of its steps (review 19). Refused before the sub-step, naming the count.
+    // the cloth's own refusal said "2 sub-steps of this step", not a world setting (review
+    // 19). The refusal names the count to set.
     TestWorld w;
     ClothSettings cs;
     cs.totalMass = 0.05;

@@ -421,9 +421,9 @@ class Cloth {
     };
     const AeroExtent& aeroExtent() const;
     mutable std::vector<double> aeroArea_; ///< aeroTimeStep's scratch: area per particle
-    /// The last aeroExtent (known: of the frozen state of a sleeping cloth; cleared whenever
-    /// the cloth falls asleep, wakes or is restored).
-    mutable AeroExtent asleepAero_;
+    /// aeroExtent's result (known: that of a sleeping cloth's frozen state, which stands;
+    /// cleared whenever the cloth falls asleep, wakes or is restored).
+    mutable AeroExtent aeroExtent_;
     /// The most walks repairStart takes.
     static constexpr int kRepairWalks = 4;
     /// Brings the step's starting positions within the bound, positions only (overBound).

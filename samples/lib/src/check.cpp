@@ -173,7 +173,7 @@ TimeStepCheck checkTimeStep(const Cloth& cloth, double dt, IntegratorKind integr
         if (std::isfinite(c.aeroSpeed))
             c.message += " The drag's limit falls as the cloth speeds up against the air: dt "
                          "stays within it up to a relative speed of " +
-                         fmt(c.aeroSpeed, 3) + " m/s (the wind's and the cloth's).";
+                         fmt(c.aeroSpeed, 3) + " m/s (the cloth's against the wind).";
     } else {
         c.message = name + " at dt = " + fmt(dt) + " s: UNSTABLE (" + why + ", dt is " +
                     fmt(dt / c.limit, 3) + "x the limit). Use dt <= " + fmt(c.suggestedTimeStep) +

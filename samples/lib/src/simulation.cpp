@@ -395,8 +395,8 @@ void Simulation::step() {
                                 "(cloth: " +
                                 e.what() + ")");
             // The drag's limit at the cloth's speed of the moment: a fixed count that was
-            // stable at the start can be outrun as the cloth speeds up against the air.
-            // A count for this speed alone is outrun again a few steps on (review 19: five
+            // stable at the start can be outrun as the cloth speeds up against the air, and a
+            // count for this speed alone is outrun again a few steps on (review 19: five
             // refusals in a row when followed): the count for twice the speed.
             if (const double drag = cloth_->aeroTimeStep(h); h > drag)
                 throw StepError(
