@@ -76,7 +76,7 @@ TEST_CASE("A plain cloth's pipeline holds only what it uses", "[pipeline]") {
     CHECK(has(p, "gravity"));
     CHECK(pos(p, "strain_limit") < pos(p, "springs"));
     for (const char* unused :
-         {"aero", "user", "damping", "spring_damping", "kinematic", "forces_refresh"})
+         {"aero", "user", "damping", "spring_damping", "kinematic", "grab", "forces_refresh"})
         CHECK_FALSE(has(p, unused));
 }
 

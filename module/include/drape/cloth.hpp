@@ -2,7 +2,7 @@
 // and the step driver.
 //
 // A step runs a fixed table of stages (Cloth::kStages in cloth.cpp), each only when this
-// cloth needs it: forces_refresh (stale cached forces), integrate, kinematic, the caller's
+// cloth needs it: forces_refresh (stale cached forces), integrate, kinematic, grab, the caller's
 // stages' beforeLimit (contacts found; their planes go to the limiter through the cloth's
 // ContactSet), strain_limit, the caller's stages (collisions...), forces (one timer per active
 // force term), integrate_finish (Velocity-Verlet) and verify. pipeline() lists what a step runs,
@@ -13,17 +13,15 @@
 // with its state frozen exactly; a step of a sleeping cloth only checks dt, evaluates the kinematic
 // paths and advances time() and stepCount(). Anything that could change the motion wakes it before
 // the next step: the state edits below (setPosition, setVelocity, mutablePositions/Velocities, pin,
-// unpin, setKinematic), forces (setUserForce, clearUserForces, setWind, setGravity, setAero,
-// setRelativeDamping: each only when it changes the value; the same value set every frame is
-// no edit), addExternalForce), stages (addStage, removeStage), setSleep, loadSnapshot, wake(),
-// and a
-// kinematic path whose target for the step differs from where its particle is. Waking
-// restarts the quiet count and continues from the frozen state: the trajectory after waking
-// is that of a cloth (sleeping or not) restored from a snapshot of the frozen state. An
-// external force term or a caller stage that would act on a sleeping cloth must have its
-// owner call wake() (drape::bullet does, for moving bodies). Snapshots store sleep (asleep,
-// the quiet time and where it is measured from): a loaded cloth sleeps or counts on as the
-// saved one did.
+// unpin, setKinematic, setGrab and releaseGrab), forces (setUserForce, clearUserForces, setWind,
+// setGravity, setAero, setRelativeDamping: each only when it changes the value; the same value set
+// every frame is no edit), addExternalForce), stages (addStage, removeStage), setSleep,
+// loadSnapshot, wake(), and a kinematic path whose target for the step differs from where its
+// particle is. Waking restarts the quiet count and continues from the frozen state: the trajectory
+// after waking is that of a cloth (sleeping or not) restored from a snapshot of the frozen state.
+// An external force term or a caller stage that would act on a sleeping cloth must have its owner
+// call wake() (drape::bullet does, for moving bodies). Snapshots store sleep (asleep, the quiet
+// time and where it is measured from): a loaded cloth sleeps or counts on as the saved one did.
 #pragma once
 
 #include "drape/contacts.hpp"
@@ -209,6 +207,40 @@ class Cloth {
     /// Returns particle i to free motion with its mass.
     void unpin(Index i);
     bool isPinned(Index i) const; ///< pinned or kinematic
+
+    // --- grabs (picking with the mouse) -----------------------------------------------------
+    /// A spring pulling one free particle toward a target: how a mouse drags a cloth.
+    struct Grab {
+        Index particle = 0;
+        Vec3 target = Vec3::Zero(); ///< [m]
+        double stiffness = 0.0;     ///< in force [N/m] (the automatic one resolved)
+    };
+    /// The automatic grab stiffness is the cloth's weight per this length: a grab lifting the
+    /// whole cloth at 9.81 m/s^2 stays this far below its target [m].
+    static constexpr double kGrabSag = 0.05;
+    /// The stiffest grab [N/m]: far stiffer than any cloth pulls (a grab this stiff is a pin
+    /// that the cloth can still pull a little), and the exact motion stays within double's range.
+    static constexpr double kMaxGrabStiffness = 1e12;
+    /// Pulls particle i toward `target` [m] with a critically damped spring of `stiffness`
+    /// [N/m] (0: automatic, the cloth's mass times 9.81 m/s^2 over kGrabSag). Unlike
+    /// setKinematicTarget, which puts the particle on its target whatever the cloth does, the
+    /// cloth pulls back: a drag it cannot follow (a flat curtain dragged sideways in its own
+    /// plane) leaves the particle short of the target instead of locking the limiter at
+    /// hundreds of ms a frame (README, "Picking and dragging a cloth"). The spring is solved
+    /// exactly over each step and sub-step, from the step's start with the particle's other
+    /// forces held there, in place of the integrator's move (the stage "grab", before the
+    /// limiter), so any stiffness is stable: it enters no stability limit and changes no
+    /// sub-step count, and at rest it carries what the cloth pulls.
+    /// A held particle (pinned, kinematic, attached) is not moved by its grab. Called again for
+    /// the same particle, target and stiffness are replaced: the same values are no edit (a
+    /// sleeping cloth stays asleep), others wake the cloth. Grabs are inputs, as user forces:
+    /// snapshots do not store them. Throws drape::Error (nothing changed) on an index out of
+    /// range, a non-finite target, or a stiffness outside [0, kMaxGrabStiffness].
+    void setGrab(Index i, const Vec3& target, double stiffness = 0.0);
+    /// Lets particle i go; no grab on it: nothing. Wakes the cloth when it held one.
+    void releaseGrab(Index i);
+    void releaseGrabs();                                      ///< every grab
+    const std::vector<Grab>& grabs() const { return grabs_; } ///< in the order first grabbed
 
     // --- forces ---------------------------------------------------------------------------
     void setUserForce(Index i, const Vec3& force); ///< persistent until cleared [N]
@@ -437,13 +469,14 @@ class Cloth {
         bool (*active)(const Cloth&);
         void (Cloth::*run)(StepContext&);
     };
-    static const Stage kStages[11];
+    static const Stage kStages[12];
     void stepOnce(double dt);
     void stepWithRetry(double dt);
     void addLimiterStats(const StrainLimitStats& st);
     void stageForcesRefresh(StepContext& ctx);
     void stageIntegrate(StepContext& ctx);
     void stageKinematic(StepContext& ctx);
+    void stageGrab(StepContext& ctx);
     void stageLimit(StepContext& ctx);
     void stageCallerStages(StepContext& ctx);
     void stageCallerStagesBefore(StepContext& ctx);
@@ -489,6 +522,7 @@ class Cloth {
         Vec3 at(double t) const;
     };
     std::vector<Kinematic> kinematic_;
+    std::vector<Grab> grabs_;
     std::unique_ptr<detail::ThreadPool> poolStorage_; ///< ClothSettings::threads > 1
     std::shared_ptr<Executor> executor_;              ///< the caller's (setExecutor)
     Executor* loops_ = nullptr; ///< executor_, else poolStorage_, else null (this thread)
