@@ -296,6 +296,7 @@ Cloth::Cloth(TopologyPtr topology, const ClothSettings& settings)
     state_.v.assign(state_.x.size(), Vec3::Zero());
     state_.f.assign(state_.x.size(), Vec3::Zero());
     state_.pinned.assign(state_.x.size(), 0);
+    state_.bound = ownBound();
     std::vector<double> stiffness = buildStiffness(*topology_, settings_, mass);
     // The masses live in the force model (gravity reads them); masses() returns its copy.
     forceModel_ = std::make_unique<ForceModel>(topology_, std::move(stiffness), std::move(mass),
@@ -750,13 +751,31 @@ void Cloth::restoreState(ClothState state, std::vector<double> warmStart) {
     refuseInStep("Cloth::restoreState");
     checkState(state, warmStart);
     const bool asleep = state.asleep && settings_.sleep.enabled;
+    const double own = ownBound();
+    const bool tighter = !(state.bound <= own); // not known (NaN) counts as tighter
     state_ = std::move(state);
     state_.asleep = asleep;
+    state_.bound = own;
+    if (tighter && !state_.overBound && settings_.limiter.kind == LimiterKind::StressOrdered &&
+        maxSpringStrain(*topology_, state_.x) > own + limiterBand(settings_.limiter))
+        state_.overBound = true;
+    // A kinematic path on a particle the state frees goes with its hold (review 20: a drag in
+    // progress when an editor restored its snapshot moved a particle that reported itself free).
+    kinematic_.erase(
+        std::remove_if(kinematic_.begin(), kinematic_.end(),
+                       [this](const Kinematic& k) { return state_.pinned[k.particle] == 0; }),
+        kinematic_.end());
     aeroExtent_.known = false;
     limiter_.setWarmStartState(std::move(warmStart));
     for (std::size_t i = 0; i < particleCount(); ++i)
         invMass_[i] = state_.pinned[i] ? 0.0 : 1.0 / masses()[i];
     invalidateOmega();
+}
+
+double Cloth::ownBound() const {
+    return settings_.limiter.kind == LimiterKind::StressOrdered
+               ? settings_.limiter.maxStrain
+               : std::numeric_limits<double>::infinity();
 }
 
 void Cloth::wake() {

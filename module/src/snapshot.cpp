@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <limits>
 
 #if defined(_WIN32)
 #include <filesystem>
@@ -21,8 +22,9 @@ namespace {
 
 constexpr char kMagic[8] = {'D', 'R', 'A', 'P', 'E', 'S', 'N', 'P'};
 // 2: the limiter's warm start per spring; 3: sleep state and the caller stages' states;
-// 4: the carried aerodynamics; 5: the over-bound flag (ClothState::overBound).
-constexpr std::uint32_t kVersion = 5;
+// 4: the carried aerodynamics; 5: the over-bound flag (ClothState::overBound); 6: the strain
+// bound the state was stepped under (ClothState::bound).
+constexpr std::uint32_t kVersion = 6;
 constexpr std::uint32_t kOldestVersion = 2;
 /// Caps on the variable part, so a corrupt length fails cleanly instead of allocating.
 constexpr std::uint32_t kMaxStages = 1024;
@@ -226,6 +228,8 @@ std::vector<unsigned char> saveSnapshot(const Cloth& cloth) {
     w.optionalList(st.aero, cloth.particleCount());
     // Version 5: the last step's limiter left springs beyond the bound (ClothState::overBound).
     w.pod(static_cast<std::uint8_t>(st.overBound ? 1 : 0));
+    // Version 6: the strain bound the state was stepped under (ClothState::bound).
+    w.pod(st.bound);
     // The caller stages' states, by name (ClothStage::saveState).
     w.pod(static_cast<std::uint32_t>(cloth.stages().size()));
     for (const auto& stage : cloth.stages()) {
@@ -279,9 +283,9 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
     const std::size_t ns = cloth.topology().springCount();
     // The fixed part (version 2 is only that); version 3 has a variable part after it.
     const std::size_t fixed = sizeof(kMagic) + 4 + 8 + 8 + 8 + 8 + 1 + n * (9 * 8 + 1) + ns * 8 + 8;
-    const std::size_t expected =
-        version == 2 ? fixed
-                     : fixed + 1 + 8 + 1 + 4 + (version >= 4 ? 1 : 0) + (version >= 5 ? 1 : 0);
+    const std::size_t expected = version == 2 ? fixed
+                                              : fixed + 1 + 8 + 1 + 4 + (version >= 4 ? 1 : 0) +
+                                                    (version >= 5 ? 1 : 0) + (version >= 6 ? 8 : 0);
     if (version == 2 ? bytes.size() != expected : bytes.size() < expected) {
         throw Error(ErrorCode::InvalidArgument,
                     "snapshot is " + std::to_string(bytes.size()) + " bytes, expected " +
@@ -311,6 +315,7 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
     bool asleep = false;
     double quietTime = 0.0;
     bool overBound = false;
+    double bound = std::numeric_limits<double>::quiet_NaN(); // not known before version 6
     Vec3List anchor, aero;
     std::vector<std::pair<std::string, std::vector<unsigned char>>> stageStates;
     if (version >= 3) {
@@ -325,6 +330,13 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
                                                             std::to_string(flag) +
                                                             " (expected 0 or 1)");
             overBound = flag != 0;
+        }
+        if (version >= 6) {
+            bound = r.pod<double>("the strain bound");
+            if (!(bound >= 0.0))
+                throw Error(ErrorCode::InvalidArgument,
+                            "snapshot's strain bound is " + std::to_string(bound) +
+                                " (expected >= 0, infinity without the limiter)");
         }
         const auto count = r.pod<std::uint32_t>("the stage count");
         if (count > kMaxStages)
@@ -360,6 +372,7 @@ void loadSnapshot(Cloth& cloth, const std::vector<unsigned char>& bytes) {
         st.anchor = std::move(anchor);
         st.aero = std::move(aero);
         st.overBound = overBound;
+        st.bound = bound;
     }
     cloth.checkState(st, lambda);
     // The stages take their states first: a stage that refuses its bytes throws before the

@@ -494,14 +494,17 @@ TEST_CASE("a version 3 snapshot still loads (its next step evaluates the aerodyn
     // Layout (snapshot.hpp): magic 8, version 4, fingerprint 8, count 8, time 8, steps 8,
     // forces flag 1, per particle 9 f64 and a pin byte, per spring a f64, asleep 1, quiet time
     // 8, anchor flag 1 and the anchors, then version 4's aerodynamics flag and forces, then
-    // version 5's over-bound flag.
+    // version 5's over-bound flag, then version 6's strain bound (f64).
     const std::size_t flag =
         8 + 4 + 8 + 8 + 8 + 8 + 1 + n * (9 * 8 + 1) + ns * 8 + 1 + 8 + 1 + anchors;
     REQUIRE(good[flag] == 1);
-    // Version 3: the same without the aerodynamics and the over-bound flag.
+    // Version 3: the same without the aerodynamics, the over-bound flag and the bound.
     REQUIRE(good[flag + 1 + n * 3 * 8] == 0); // not over the bound
+    double bound = 0.0;
+    std::memcpy(&bound, good.data() + flag + 1 + n * 3 * 8 + 1, 8);
+    REQUIRE(bound == cloth->settings().limiter.maxStrain);
     std::vector<unsigned char> old(good.begin(), good.begin() + std::ptrdiff_t(flag));
-    old.insert(old.end(), good.begin() + std::ptrdiff_t(flag + 1 + n * 3 * 8 + 1), good.end());
+    old.insert(old.end(), good.begin() + std::ptrdiff_t(flag + 1 + n * 3 * 8 + 1 + 8), good.end());
     const std::uint32_t three = 3;
     std::memcpy(old.data() + 8, &three, 4);
     auto resumed = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered, 0.0);
@@ -519,4 +522,76 @@ TEST_CASE("a version 3 snapshot still loads (its next step evaluates the aerodyn
     std::memcpy(bad.data() + flag + 1, &nan, 8);
     auto target = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered, 0.0);
     CHECK_THROWS_WITH(loadSnapshot(*target, reseal(bad)), Catch::Contains("aero"));
+}
+
+TEST_CASE("a state restored into a cloth with a tighter bound is brought within it as "
+          "positions, not thrown",
+          "[snapshot][limiter]") {
+    // Review 20: an editor tightened the bound of a hanging curtain (soft springs: the limiter
+    // holds it at 0.1) by building a cloth with maxStrain 0.02 and restoring the state into
+    // it; the walk's corrections became speed: 25 m/s.
+    SheetSpec spec;
+    spec.rows = 21;
+    spec.cols = 21;
+    spec.spacing = 0.05;
+    const TopologyPtr topo = ClothTopology::build(makeSheet(spec));
+    ClothSettings s;
+    s.springStiffness = 3.0;
+    Cloth loose(topo, s);
+    for (Index j = 0; j < spec.cols; ++j)
+        loose.pin(j);
+    for (int f = 0; f < 240; ++f)
+        loose.step(1.0 / 60.0);
+    REQUIRE(loose.maxStrain() > 0.09);
+    REQUIRE_FALSE(loose.state().overBound);
+    CHECK(loose.state().bound == s.limiter.maxStrain);
+    const auto bytes = saveSnapshot(loose);
+    for (const bool fromBytes : {false, true}) {
+        ClothSettings tight = s;
+        tight.limiter.maxStrain = 0.02;
+        Cloth c(topo, tight);
+        if (fromBytes)
+            loadSnapshot(c, bytes);
+        else
+            c.restoreState(loose.state(), loose.limiter().warmStartState());
+        INFO((fromBytes ? "loadSnapshot" : "restoreState"));
+        CHECK(c.state().overBound);
+        CHECK(c.state().bound == tight.limiter.maxStrain);
+        double fastest = 0.0;
+        for (int f = 0; f < 60; ++f) {
+            c.step(1.0 / 60.0);
+            for (const Vec3& v : c.velocities())
+                fastest = std::max(fastest, v.norm());
+        }
+        CHECK(fastest < 1.0);
+        CHECK(c.maxStrain() <= tight.limiter.maxStrain + tight.limiter.tolerance);
+    }
+    // The same bound: nothing to bring back, the run continues as it was.
+    Cloth same(topo, s);
+    same.restoreState(loose.state(), loose.limiter().warmStartState());
+    CHECK_FALSE(same.state().overBound);
+    loose.step(1.0 / 60.0);
+    same.step(1.0 / 60.0);
+    CHECK(stateHash(same) == stateHash(loose));
+}
+
+TEST_CASE("a restored snapshot drops the kinematic path of a particle it frees", "[snapshot]") {
+    // Review 20: a drag in progress (setKinematicTarget) when an editor loaded its snapshot
+    // went on moving a particle that the snapshot freed and isPinned() called free.
+    auto a = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+    for (int i = 0; i < 20; ++i)
+        a->step(0.002);
+    const auto bytes = saveSnapshot(*a);
+    const Index dragged = 60;
+    a->setKinematicTarget(dragged, a->positions()[dragged] + Vec3(0.0, 0.0, 0.5), a->time() + 0.5);
+    a->step(0.002);
+    loadSnapshot(*a, bytes);
+    CHECK_FALSE(a->isPinned(dragged));
+    auto b = makeCloth(IntegratorKind::VelocityVerlet, LimiterKind::StressOrdered);
+    loadSnapshot(*b, bytes);
+    for (int i = 0; i < 50; ++i) {
+        a->step(0.002);
+        b->step(0.002);
+    }
+    CHECK(stateHash(*a) == stateHash(*b));
 }

@@ -104,6 +104,13 @@ struct ClothState {
     /// before does not become speed (dragging a cloth past its reach and letting go threw
     /// it apart at 114 m/s).
     bool overBound = false;
+    /// The strain bound the state was stepped under (LimiterSettings::maxStrain; infinity
+    /// without the stress-ordered limiter; NaN: not known, as in a hand-made state or a
+    /// snapshot before version 6). restoreState into a cloth whose bound is tighter, with
+    /// springs beyond it (and its band), sets overBound: the stretch the looser bound allowed
+    /// is taken back as positions, not thrown (a hanging curtain restored into a cloth with
+    /// maxStrain 0.02 instead of 0.1 flew apart at 25 m/s).
+    double bound = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Where a segment first meets a cloth (Cloth::rayCast): what a game needs to pick the cloth
@@ -477,6 +484,8 @@ class Cloth {
     void stageIntegrate(StepContext& ctx);
     void stageKinematic(StepContext& ctx);
     void stageGrab(StepContext& ctx);
+    /// The bound this cloth's states are stepped under (ClothState::bound).
+    double ownBound() const;
     void stageLimit(StepContext& ctx);
     void stageCallerStages(StepContext& ctx);
     void stageCallerStagesBefore(StepContext& ctx);

@@ -6,20 +6,26 @@
 // their positions, the limiter's warm start, the sleep state, and the state
 // each caller stage carries between steps (ClothStage::saveState; drape::bullet's contact
 // stage keeps the rest of each particle's friction cone against dynamic bodies). User forces
-// are not included (they are inputs the caller sets again). Kinematic paths are functions and
-// cannot be stored: a restored cloth keeps the kinematic paths it already has. Restoring into
+// are not included (they are inputs the caller sets again), nor are grabs. Kinematic paths are
+// functions and cannot be stored: a restored cloth keeps the kinematic paths it already has on
+// particles the snapshot holds, and drops those on particles the snapshot frees (a drag in
+// progress when the editor restored its snapshot went on moving a particle that reported
+// itself free). A state stepped under a looser strain bound than the cloth's is brought
+// within it as positions in the next step (ClothState::bound). Restoring into
 // a cloth built from the same topology and settings (and, in a world, the same bodies in the
 // same states) and then stepping gives bit-identical results to the uninterrupted run.
 //
-// File layout (little-endian): "DRAPESNP", u32 version (5; 2 to 4 are still read), u64 topology
+// File layout (little-endian): "DRAPESNP", u32 version (6; 2 to 5 are still read), u64 topology
 // fingerprint, u64 particle count, f64 time, u64 steps, u8 forces-valid, then per particle
 // x, v, f (9 f64) and u8 pinned, then per spring the limiter's warm start (f64). Version 3
 // goes on with u8 asleep, f64 quiet time, u8 has-anchors and then per particle its sleep
 // anchor (3 f64); version 4 then has u8 has-aerodynamics and per particle its carried
-// aerodynamic force (3 f64); version 5 then has u8 over-bound (ClothState::overBound); from
-// version 3 on, u32 stage count and per stage u32 name length, the name, u64 state length and
-// the state. Last, a u64 FNV-1a checksum of everything before it. An older snapshot carries no
-// aerodynamics (the next step evaluates them) and no over-bound flag (false).
+// aerodynamic force (3 f64); version 5 then has u8 over-bound (ClothState::overBound), and
+// version 6 f64 the strain bound the state was stepped under (ClothState::bound); from version 3
+// on, u32 stage count and per stage u32 name length, the name, u64 state length and the state.
+// Last, a u64 FNV-1a checksum of everything before it. An older snapshot carries no
+// aerodynamics (the next step evaluates them), no over-bound flag (false) and no bound (not
+// known: its springs are checked against the cloth's bound).
 #pragma once
 
 #include "drape/cloth.hpp"
