@@ -304,3 +304,35 @@ TEST_CASE("sleeping is off by default, validated, and stored in snapshots", "[sl
     CHECK(quiet + more * kDt >= on.time - 1e-9);
     CHECK(quiet + (more - 1) * kDt < on.time + 1e-9);
 }
+
+TEST_CASE("a kinematic target within a thousandth of sleep.distance of its frozen particle "
+          "leaves the cloth asleep; one that goes on moving wakes it",
+          "[sleep]") {
+    auto c = hangingCloth(true);
+    const Index corner = sheetIndex(hangingSpec(), 0, 0);
+    const Vec3 x0 = c->positions()[corner];
+    c->setKinematicTarget(corner, x0, c->time()); // kinematic where it is
+    stepUntilAsleep(*c);
+    REQUIRE(c->isAsleep());
+    // The tolerance is 10 um at the default sleep.distance of 1 cm.
+    REQUIRE(c->settings().sleep.distance == 0.01);
+    const double tol = 1e-5;
+    const auto frozen = stateHash(*c);
+    // A micrometre off (a body that gave way by as much in the last walk): still asleep.
+    for (int k = 0; k < 240; ++k) {
+        c->setKinematicTarget(corner, x0 + Vec3(0.0, 0.0, 0.1 * tol), c->time() + kDt);
+        c->step(kDt);
+    }
+    CHECK(c->isAsleep());
+    CHECK(stateHash(*c) == frozen);
+    // Creeping by 0.4 of the tolerance a step: the offset from the frozen particle grows, and
+    // the cloth wakes once it is beyond the tolerance (the third step).
+    int woke = 0;
+    for (int k = 1; k <= 10 && c->isAsleep(); ++k) {
+        c->setKinematicTarget(corner, x0 + Vec3(0.0, 0.0, 0.4 * k * tol), c->time() + kDt);
+        c->step(kDt);
+        woke = k;
+    }
+    CHECK_FALSE(c->isAsleep());
+    CHECK(woke == 3);
+}

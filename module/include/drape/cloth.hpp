@@ -16,12 +16,13 @@
 // unpin, setKinematic, setGrab and releaseGrab), forces (setUserForce, clearUserForces, setWind,
 // setGravity, setAero, setRelativeDamping: each only when it changes the value; the same value set
 // every frame is no edit), addExternalForce), stages (addStage, removeStage), setSleep,
-// loadSnapshot, wake(), and a kinematic path whose target for the step differs from where its
-// particle is. Waking restarts the quiet count and continues from the frozen state: the trajectory
-// after waking is that of a cloth (sleeping or not) restored from a snapshot of the frozen state.
-// An external force term or a caller stage that would act on a sleeping cloth must have its owner
-// call wake() (drape::bullet does, for moving bodies). Snapshots store sleep (asleep, the quiet
-// time and where it is measured from): a loaded cloth sleeps or counts on as the saved one did.
+// loadSnapshot, wake(), and a kinematic path whose target for the step is farther from where its
+// particle is than kKinematicWakeShare of sleep.distance (10 um by default). Waking restarts the
+// quiet count and continues from the frozen state: the trajectory after waking is that of a cloth
+// (sleeping or not) restored from a snapshot of the frozen state. An external force term or a
+// caller stage that would act on a sleeping cloth must have its owner call wake() (drape::bullet
+// does, for moving bodies). Snapshots store sleep (asleep, the quiet time and where it is measured
+// from): a loaded cloth sleeps or counts on as the saved one did.
 #pragma once
 
 #include "drape/contacts.hpp"
@@ -228,6 +229,9 @@ class Cloth {
     /// The stiffest grab [N/m]: far stiffer than any cloth pulls (a grab this stiff is a pin
     /// that the cloth can still pull a little), and the exact motion stays within double's range.
     static constexpr double kMaxGrabStiffness = 1e12;
+    /// A sleeping cloth wakes when a kinematic target is farther than this share of
+    /// SleepSettings::distance from its frozen particle [-].
+    static constexpr double kKinematicWakeShare = 1e-3;
     /// Pulls particle i toward `target` [m] with a critically damped spring of `stiffness`
     /// [N/m] (0: automatic, the cloth's mass times 9.81 m/s^2 over kGrabSag). Unlike
     /// setKinematicTarget, which puts the particle on its target whatever the cloth does, the
