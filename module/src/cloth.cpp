@@ -759,6 +759,9 @@ void Cloth::restoreState(ClothState state, std::vector<double> warmStart) {
     if (tighter && !state_.overBound && settings_.limiter.kind == LimiterKind::StressOrdered &&
         maxSpringStrain(*topology_, state_.x) > own + limiterBand(settings_.limiter))
         state_.overBound = true;
+    // The contact records describe the state that was (the force term would read them in the
+    // first step's force evaluation): none, as in a cloth just added to its world.
+    if (ContactSet* contacts = forceModel_->contacts()) contacts->contacts.clear();
     // A kinematic path on a particle the state frees goes with its hold (review 20: a drag in
     // progress when an editor restored its snapshot moved a particle that reported itself free).
     kinematic_.erase(

@@ -13,14 +13,12 @@
 // itself free). A state stepped under a looser strain bound than the cloth's is brought
 // within it as positions in the next step (ClothState::bound). Restoring into
 // a cloth built from the same topology and settings (and, in a world, the same bodies in the
-// same states) and then stepping gives bit-identical results to the uninterrupted run. In a
-// Bullet world, the cloth's handle also carries what its last step found into the next (caches
-// of its contact tests; not in the snapshot): a replay continues bit-identically when the
-// handle's last step was the one before the snapshot. To replay a snapshot again and again,
-// take it right after drape::bullet::addCloth and add the cloth anew before each load
-// (handle->remove(); addCloth(world, cloth, settings); loadSnapshot(*cloth, bytes)): review 20,
-// a ball thrown into a curtain, four replays from one snapshot gave four different states with
-// the same handle and the first run's state four times with a new one.
+// same states) and then stepping gives bit-identical results to the uninterrupted run. The
+// contact records of the cloth's ContactSet (drape::bullet's, of the step before) describe the
+// state that was: restoring clears them, as in a cloth just added to its world (review 20: with
+// them kept, each replay of a ball thrown into a curtain from one snapshot ended elsewhere).
+// So a snapshot taken after an edit and before the next step (its forces not evaluated) replays
+// without the records the uninterrupted run's first force evaluation read.
 //
 // File layout (little-endian): "DRAPESNP", u32 version (6; 2 to 5 are still read), u64 topology
 // fingerprint, u64 particle count, f64 time, u64 steps, u8 forces-valid, then per particle
