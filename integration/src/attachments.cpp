@@ -57,6 +57,10 @@ void carriedParticles(const std::vector<Attachment>& attached, const Cloth& c,
 
 void Attachments::attach(Cloth& c, const Attachment& a) {
     detach(c, a.particle);
+    const auto body = [&a](const auto& p) { return p.first == a.body; };
+    if (std::none_of(seen_.begin(), seen_.end(), body) &&
+        std::none_of(attachedAt_.begin(), attachedAt_.end(), body))
+        attachedAt_.emplace_back(a.body, toPose(a.body->getWorldTransform()));
     list_.push_back(a);
     tethersValid_ = false;
     c.setKinematicTarget(a.particle, attachmentPoint(a), c.time()); // there now
@@ -192,12 +196,27 @@ std::optional<Pose> Attachments::carryTeleported(Cloth& c, double dt, double spe
     std::vector<std::pair<const btCollisionObject*, Pose>> before;
     before.swap(seen_);
     seen_ = now;
+    // Static and kinematic bodies attached to since the last call: their poses at the
+    // attach, and any motion since is a placement (the program set the body where it belongs
+    // after attaching the cloth to it). A dynamic body also moved under Bullet's forces since
+    // (posts on joints sag in the first sub-step): not a placement.
+    bool placing = false;
+    for (const auto& at : attachedAt_) {
+        const btRigidBody* rb = btRigidBody::upcast(at.first);
+        if (rb && !rb->isStaticOrKinematicObject()) continue;
+        if (std::none_of(before.begin(), before.end(),
+                         [&](const auto& p) { return p.first == at.first; })) {
+            before.push_back(at);
+            placing = true;
+        }
+    }
+    attachedAt_.clear();
     if (list_.empty() || !(speed > 0.0 || turn > 0.0) || !(dt > 0.0)) return std::nullopt;
     Pose motion; // now = motion * before, for every body
     for (std::size_t k = 0; k < now.size(); ++k) {
         const auto was = std::find_if(before.begin(), before.end(),
                                       [&](const auto& p) { return p.first == now[k].first; });
-        if (was == before.end()) return std::nullopt; // attached since: no pose to compare
+        if (was == before.end()) return std::nullopt; // no pose to compare
         const Pose& p0 = was->second;
         const Pose& p1 = now[k].second;
         const Eigen::Matrix3d rotation = p1.R * p0.R.transpose();
@@ -227,7 +246,7 @@ std::optional<Pose> Attachments::carryTeleported(Cloth& c, double dt, double spe
     }
     const bool jumped = speed > 0.0 && jump > speed * dt;
     const bool snapped = turn > 0.0 && Eigen::AngleAxisd(motion.R).angle() > turn;
-    if (!jumped && !snapped) return std::nullopt;
+    if (!jumped && !snapped && !(placing && jump > 0.0)) return std::nullopt;
     // Particles the program pinned stay where they are: no carry.
     const auto& w = c.inverseMasses();
     if (std::size_t(std::count(w.begin(), w.end(), 0.0)) != list_.size()) return std::nullopt;

@@ -117,6 +117,12 @@ class Attachments {
     std::vector<double> masses_;                ///< and masses
     /// Each attachment body's pose at the last carryTeleported.
     std::vector<std::pair<const btCollisionObject*, Pose>> seen_;
+    /// The pose of each body attached to since the last carryTeleported (and not seen then),
+    /// where its attachments put their particles: a static or kinematic body moved before the
+    /// first step after it was attached to is placed, and carries the cloth (review 21: a kinematic
+    /// box created at the origin and set 0.4 m away before the first step dragged its cape at 24
+    /// m/s, 14 ms).
+    std::vector<std::pair<const btCollisionObject*, Pose>> attachedAt_;
     /// Kinematic bodies' poses in this Bullet sub-step (followKinematic), set by the world's
     /// step (followPoses); null: every body at its world transform.
     const std::unordered_map<const btCollisionObject*, Pose>* followed_ = nullptr;
