@@ -1312,12 +1312,7 @@ void Cloth::setGrab(Index i, const Vec3& target, double stiffness) {
         throw Error(ErrorCode::InvalidArgument,
                     "grab stiffness of particle " + std::to_string(i) +
                         " must be in [0, 1e12] N/m (0: automatic), got " + num(stiffness));
-    if (stiffness == 0.0) {
-        double mass = 0.0;
-        for (double m : forceModel_->mass())
-            mass += m;
-        stiffness = mass * 9.81 / kGrabSag;
-    }
+    if (stiffness == 0.0) stiffness = totalMass() * 9.81 / kGrabSag;
     auto it =
         std::find_if(grabs_.begin(), grabs_.end(), [i](const Grab& g) { return g.particle == i; });
     if (it != grabs_.end() && it->target == target && it->stiffness == stiffness) return;
