@@ -186,7 +186,7 @@ TEST_CASE("a kinematic particle that starts moving wakes the sleeping cloth", "[
     CHECK(c->positions()[free].x() - frozen[free].x() > 0.02);
 }
 
-TEST_CASE("the same wind, gravity, air or damping set every frame keeps the cloth asleep; a "
+TEST_CASE("the same wind, gravity, air or damping set every frame keeps the cloth asleep, and a "
           "new value wakes it",
           "[sleep]") {
     // A game pushes its wind and gravity into every object each frame (review 18: a
@@ -306,7 +306,7 @@ TEST_CASE("sleeping is off by default, validated, and stored in snapshots", "[sl
 }
 
 TEST_CASE("a kinematic target within a thousandth of sleep.distance of its frozen particle "
-          "leaves the cloth asleep; one that goes on moving wakes it",
+          "leaves the cloth asleep, and one that goes on moving wakes it",
           "[sleep]") {
     auto c = hangingCloth(true);
     const Index corner = sheetIndex(hangingSpec(), 0, 0);

@@ -389,7 +389,7 @@ std::shared_ptr<Cloth> curtainOnBar(TestWorld& w) {
 } // namespace
 
 TEST_CASE("a kinematic box whose motion state is set across a curtain in one frame appears "
-          "there; one that truly moves through it pushes it",
+          "there, and one that truly moves through it pushes it",
           "[contacts][teleport]") {
     // Default settings, 60 Hz. A 1 m curtain (41 x 41) hangs from a bar it is attached to;
     // a kinematic 0.3 m box stands 1 m in front of it. Set in one frame through its motion
@@ -443,7 +443,7 @@ TEST_CASE("a kinematic box whose motion state is set across a curtain in one fra
     }
 }
 
-TEST_CASE("Bullet's kinematic character controller parts a curtain; a trigger ghost passes "
+TEST_CASE("Bullet's kinematic character controller parts a curtain, and a trigger ghost passes "
           "through it",
           "[contacts][character]") {
     // Default settings, 60 Hz. A 1 m curtain (41 x 41) hangs from a bar it is attached to.

@@ -837,7 +837,7 @@ TEST_CASE("a scene's mesh with degenerate triangles runs, or is refused when ask
                       Contains("scene_mesh.obj: has 1 degenerate triangle"));
 }
 
-TEST_CASE("a mesh file that many bodies name is read once; another transform is another mesh",
+TEST_CASE("a mesh file that many bodies name is read once, and another transform is another mesh",
           "[mesh][scenes]") {
     if (!meshIoAvailable() || !rigidBodiesAvailable()) return;
     using Catch::Matchers::Contains;

@@ -608,7 +608,7 @@ TEST_CASE("a cloth in water keeps within its drag's stability limit as it speeds
     CHECK(mean.norm() <= 1.0 + 0.06);
 }
 
-TEST_CASE("\"auto\" counts explicit Euler's own sub-steps, and refuses it undamped",
+TEST_CASE("auto sub-steps count explicit Euler's own limit, and refuse it undamped",
           "[scene][substeps]") {
     using Catch::Matchers::Contains;
     // Explicit Euler is stable only as far as damping reaches (dt < C_d / (m omega^2) + c_s /

@@ -642,7 +642,7 @@ TEST_CASE("an integer simulation.substeps steps the cloth that many times per st
     CHECK(sim.cloth().positions() == ref.cloth().positions());
 }
 
-TEST_CASE("\"auto\" sub-steps in a scene with rigid bodies sub-step the cloth in the world",
+TEST_CASE("auto sub-steps in a scene with rigid bodies sub-step the cloth in the world",
           "[scenes][substeps]") {
     if (!rigidBodiesAvailable()) {
         WARN("skipped: no Bullet integration");
