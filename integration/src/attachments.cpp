@@ -246,7 +246,10 @@ std::optional<Pose> Attachments::carryTeleported(Cloth& c, double dt, double spe
     }
     const bool jumped = speed > 0.0 && jump > speed * dt;
     const bool snapped = turn > 0.0 && Eigen::AngleAxisd(motion.R).angle() > turn;
-    if (!jumped && !snapped && !(placing && jump > 0.0)) return std::nullopt;
+    // A placement is a move faster than a fifth of the teleport speed (10 m/s by default): a
+    // hand that picks a tablecloth up and moves on at walking pace drags it, as before.
+    const bool placed = placing && speed > 0.0 && jump > kPlacementShare * speed * dt;
+    if (!jumped && !snapped && !placed) return std::nullopt;
     // Particles the program pinned stay where they are: no carry.
     const auto& w = c.inverseMasses();
     if (std::size_t(std::count(w.begin(), w.end(), 0.0)) != list_.size()) return std::nullopt;

@@ -123,6 +123,9 @@ class Attachments {
     /// box created at the origin and set 0.4 m away before the first step dragged its cape at 24
     /// m/s, 14 ms).
     std::vector<std::pair<const btCollisionObject*, Pose>> attachedAt_;
+    /// Of BulletClothSettings::teleportSpeed, the speed beyond which such a move is a
+    /// placement (slower, it is motion: a hand that picks a cloth up and moves on).
+    static constexpr double kPlacementShare = 0.2;
     /// Kinematic bodies' poses in this Bullet sub-step (followKinematic), set by the world's
     /// step (followPoses); null: every body at its world transform.
     const std::unordered_map<const btCollisionObject*, Pose>* followed_ = nullptr;

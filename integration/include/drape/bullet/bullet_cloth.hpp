@@ -104,9 +104,10 @@ class BulletCloth {
     /// attached points (its inertia through their lever arms counts) at least about 10 times
     /// the cloth's at a 60 Hz world step: lighter ones may swing about.
     /// A static or kinematic body that the program moves between attaching and the cloth's
-    /// next step (a game that creates an NPC, attaches its cape, then sets it where it spawns)
-    /// is placed: the cloth is carried there with its shape (ContactStats::teleports), not
-    /// dragged as motion; after that step its motion is motion (teleportSpeed, teleportTurn).
+    /// next step faster than a fifth of BulletClothSettings::teleportSpeed (10 m/s by default:
+    /// a game that creates an NPC, attaches its cape, then sets it where it spawns) is placed:
+    /// the cloth is carried there with its shape (ContactStats::teleports), not dragged as
+    /// motion. Slower, and after that step, its motion is motion (teleportSpeed, teleportTurn).
     /// Throws drape::Error on an index out of range, a null body, a non-finite point, a body not
     /// in the cloth's world, or an object that is not a rigid body or collision object (a
     /// ghost object such as a cloth's proxyObject(), a soft body).
