@@ -1308,10 +1308,19 @@ void Cloth::unpin(Index i) {
 void Cloth::setGrab(Index i, const Vec3& target, double stiffness) {
     checkIndex(i, state_.x.size(), "setGrab");
     if (!target.allFinite()) requireFinite(target, "grab target of particle " + std::to_string(i));
-    if (!(stiffness >= 0.0) || !std::isfinite(stiffness) || stiffness > kMaxGrabStiffness)
+    if (!(stiffness == 0.0 || (stiffness >= kMinGrabStiffness && stiffness <= kMaxGrabStiffness)))
         throw Error(ErrorCode::InvalidArgument,
                     "grab stiffness of particle " + std::to_string(i) +
-                        " must be in [0, 1e12] N/m (0: automatic), got " + num(stiffness));
+                        " must be 0 (automatic) or in [1e-6, 1e12] N/m, got " + num(stiffness));
+    // The grab replaces the integrator's move of its particle with its own exact one: only
+    // Velocity-Verlet's move is that particle's alone. An implicit or multi-stage integrator
+    // moves the particle's neighbours with it as free (review 22: with implicit Euler a sheet
+    // hanging from its grab fell 10 m, with RK4 it sagged three times too far).
+    if (settings_.integrator != IntegratorKind::VelocityVerlet)
+        throw Error(ErrorCode::InvalidArgument,
+                    "setGrab needs the Velocity-Verlet integrator (ClothSettings::integrator, "
+                    "the default); this cloth uses " +
+                        std::string(toString(settings_.integrator)));
     if (stiffness == 0.0) stiffness = totalMass() * 9.81 / kGrabSag;
     auto it =
         std::find_if(grabs_.begin(), grabs_.end(), [i](const Grab& g) { return g.particle == i; });
