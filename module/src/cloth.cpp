@@ -878,9 +878,9 @@ void Cloth::stageIntegrate(StepContext& ctx) {
 // as a load: a 21 x 21 sheet hanging from its grab sagged 0.24 m instead of 0.05.)
 void Cloth::stageGrab(StepContext& ctx) {
     const double dt = ctx.dt;
-    // Velocity-Verlet's closing kick adds dt/2 of the forces after the step: taken off here,
-    // so that at rest the particle ends the step at rest.
-    const double kickBack = settings_.integrator == IntegratorKind::VelocityVerlet ? 0.5 * dt : 0.0;
+    // Velocity-Verlet's closing kick (grabs need that integrator: setGrab) adds dt/2 of the
+    // forces after the step: taken off here, so that at rest the particle ends the step at rest.
+    const double kickBack = 0.5 * dt;
     for (const Grab& g : grabs_) {
         const Index i = g.particle;
         if (invMass_[i] == 0.0) continue; // held: its pin, path or body decides

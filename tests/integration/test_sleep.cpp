@@ -414,7 +414,7 @@ TEST_CASE("a cape hanging from a jointed dynamic body sleeps when the body does"
     spec.cols = 13;
     spec.spacing = 0.04;
     spec.origin = Vec3(0.0, 1.95, -0.11);
-    auto cloth = std::make_shared<Cloth>(ClothTopology::build(makeSheet(spec)), ClothSettings{});
+    auto cloth = makeCloth(makeSheet(spec), ClothSettings{});
     auto& handle = w.add(cloth);
     for (Index c = 0; c < spec.cols; ++c)
         handle.attachHere(sheetIndex(spec, 0, c), box);

@@ -646,7 +646,7 @@ TEST_CASE("replays from one snapshot in a world are bit-identical to the first r
     spec.cols = 15;
     spec.spacing = 0.05;
     spec.origin = Vec3(-0.35, 1.0, 0.0);
-    auto cloth = std::make_shared<Cloth>(ClothTopology::build(makeSheet(spec)), ClothSettings{});
+    auto cloth = makeCloth(makeSheet(spec), ClothSettings{});
     for (Index c = 0; c < spec.cols; ++c)
         cloth->pin(c);
     for (auto& x : cloth->mutablePositions())
@@ -704,8 +704,7 @@ TEST_CASE("a kinematic body set elsewhere before the first step carries the clot
         spec.cols = 13;
         spec.spacing = 0.04;
         spec.origin = Vec3(0.0, 1.95, -0.11);
-        auto cloth =
-            std::make_shared<Cloth>(ClothTopology::build(makeSheet(spec)), ClothSettings{});
+        auto cloth = makeCloth(makeSheet(spec), ClothSettings{});
         auto& handle = w.add(cloth);
         for (Index c = 0; c < spec.cols; ++c)
             handle.attachHere(sheetIndex(spec, 0, c), box);
