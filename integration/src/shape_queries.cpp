@@ -675,6 +675,24 @@ TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& 
                                double(static_cast<const btSphereShape*>(shape)->getRadius()), a, b,
                                c, reach);
     }
+    if (shape->getShapeType() == BOX_SHAPE_PROXYTYPE) {
+        // A triangle over a face (a cloth lying on a table): exact from its corners, in double
+        // precision, some twenty times cheaper than GJK (a towel resting on a table cost 5 ms
+        // a 60 Hz step awake, nearly all of it here). Beside an edge or a corner, GJK below.
+        // Bullet's GJK sees the box with its margin as a rounded box: the same flat faces.
+        const auto* box = static_cast<const btBoxShape*>(shape);
+        const Pose pose = toPose(transform);
+        TriangleHit h;
+        if (triangleOverBoxFace(toVec(box->getHalfExtentsWithMargin()), double(box->getMargin()),
+                                pose.toLocal(a), pose.toLocal(b), pose.toLocal(c), 1e-6 * reach,
+                                h)) {
+            ++counters.triangleQueries;
+            if (!(h.distance < reach)) return {};
+            h.normal = (pose.R * h.normal).normalized();
+            h.bodyPoint = pose.toWorld(h.bodyPoint);
+            return h;
+        }
+    }
     if (shape->getShapeType() == COMPOUND_SHAPE_PROXYTYPE) {
         const auto* compound = static_cast<const btCompoundShape*>(shape);
         const Vec3 lo = a.cwiseMin(b).cwiseMin(c).array() - reach;

@@ -335,6 +335,41 @@ double sphereEntry(const Vec3& o, const Vec3& d, const Vec3& c, double R) {
     return t >= 0.0 && t <= 1.0 ? t : -1.0;
 }
 
+bool triangleOverBoxFace(const Vec3& half, double rounding, const Vec3& a, const Vec3& b,
+                         const Vec3& c, double tie, TriangleHit& hit) {
+    const Vec3* corners[3] = {&a, &b, &c};
+    for (int k = 0; k < 3; ++k) {
+        const int j1 = (k + 1) % 3, j2 = (k + 2) % 3;
+        const double across1 = half[j1] - rounding, across2 = half[j2] - rounding;
+        for (const double side : {1.0, -1.0}) {
+            bool prism = true;
+            double height[3];
+            for (int v = 0; v < 3 && prism; ++v) {
+                const Vec3& p = *corners[v];
+                height[v] = side * p[k] - half[k];
+                prism =
+                    height[v] >= 0.0 && std::abs(p[j1]) <= across1 && std::abs(p[j2]) <= across2;
+            }
+            if (!prism) continue;
+            const double least = std::min({height[0], height[1], height[2]});
+            Vec3 weights = Vec3::Zero();
+            for (int v = 0; v < 3; ++v)
+                if (height[v] <= least + tie) weights[v] = 1.0;
+            weights /= weights.sum();
+            Vec3 onTriangle = weights[0] * a + weights[1] * b + weights[2] * c;
+            hit.valid = true;
+            hit.barycentric = weights;
+            hit.distance = side * onTriangle[k] - half[k];
+            hit.normal = Vec3::Zero();
+            hit.normal[k] = side;
+            onTriangle[k] = side * half[k];
+            hit.bodyPoint = onTriangle;
+            return true;
+        }
+    }
+    return false;
+}
+
 TriangleHit capsuleTriangle(const Vec3& p0, const Vec3& p1, double r, const Vec3& a, const Vec3& b,
                             const Vec3& c, double reach) {
     Vec3 bestSeg = p0, bestTri = a;

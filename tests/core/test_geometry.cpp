@@ -366,6 +366,71 @@ TEST_CASE("a capsule against a triangle: the nearest points, against a fine samp
         capsuleTriangle(Vec3(0.3, 0.3, 0.2), Vec3(0.4, 0.3, 0.2), r, a, b, 2.0 * b, 1.0).valid);
 }
 
+TEST_CASE("a triangle over a box's face: the nearest points, against a fine sampling",
+          "[geometry]") {
+    // A box of half extents (0.4, 0.1, 0.3) rounded by 0.04 at its edges and corners; its
+    // distance from a point is the inner box's (half - 0.04) less 0.04.
+    const Vec3 half(0.4, 0.1, 0.3);
+    const double rounding = 0.04;
+    auto roundedDistance = [&](const Vec3& p) {
+        return closestOnBox(half - Vec3::Constant(rounding), p).distance - rounding;
+    };
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    int found = 0;
+    for (int trial = 0; trial < 300; ++trial) {
+        // Corners over a random face's flat part, up to 5 cm above it (some on it).
+        const int k = trial % 3;
+        const double side = trial % 2 == 0 ? 1.0 : -1.0;
+        Vec3 v[3];
+        for (Vec3& p : v) {
+            for (int j = 0; j < 3; ++j)
+                p[j] = (2.0 * u(rng) - 1.0) * (half[j] - rounding);
+            p[k] = side * (half[k] + (trial % 7 == 0 ? 0.0 : 0.05 * u(rng)));
+        }
+        TriangleHit h;
+        REQUIRE(triangleOverBoxFace(half, rounding, v[0], v[1], v[2], 1e-12, h));
+        ++found;
+        constexpr int kN = 300;
+        double least = std::numeric_limits<double>::infinity();
+        for (int i = 0; i <= kN; ++i)
+            for (int j = 0; i + j <= kN; ++j) {
+                const double s = double(i) / kN, t = double(j) / kN;
+                least =
+                    std::min(least, roundedDistance(v[0] + s * (v[1] - v[0]) + t * (v[2] - v[0])));
+            }
+        INFO("trial " << trial);
+        // A corner is a sample: the sampled least is exact for these linear heights.
+        CHECK(h.distance == Approx(least).margin(1e-12));
+        const Vec3 onTriangle =
+            h.barycentric.x() * v[0] + h.barycentric.y() * v[1] + h.barycentric.z() * v[2];
+        CHECK(roundedDistance(onTriangle) == Approx(h.distance).margin(1e-12));
+        CHECK(h.barycentric.minCoeff() >= 0.0);
+        CHECK(h.barycentric.sum() == Approx(1.0).epsilon(1e-12));
+        CHECK(h.normal[k] == side);
+        CHECK(h.normal.norm() == 1.0);
+        CHECK((onTriangle - (h.bodyPoint + h.distance * h.normal)).norm() < 1e-12);
+        CHECK(roundedDistance(h.bodyPoint) == Approx(0.0).margin(1e-12));
+    }
+    CHECK(found == 300);
+    // A triangle parallel to the top face is pushed as a whole: its centre.
+    TriangleHit flat;
+    REQUIRE(triangleOverBoxFace(half, rounding, Vec3(0.0, 0.11, 0.0), Vec3(0.1, 0.11, 0.0),
+                                Vec3(0.0, 0.11, 0.1), 1e-9, flat));
+    CHECK((flat.barycentric - Vec3::Constant(1.0 / 3.0)).norm() < 1e-15);
+    CHECK(flat.distance == Approx(0.01).margin(1e-15));
+    // Not over one face's flat part: a corner over the rounded edge, a corner inside the box,
+    // corners over two faces. The caller asks a general query there.
+    TriangleHit none;
+    CHECK_FALSE(triangleOverBoxFace(half, rounding, Vec3(0.0, 0.12, 0.0), Vec3(0.38, 0.12, 0.0),
+                                    Vec3(0.0, 0.12, 0.1), 1e-9, none));
+    CHECK_FALSE(triangleOverBoxFace(half, rounding, Vec3(0.0, 0.09, 0.0), Vec3(0.1, 0.12, 0.0),
+                                    Vec3(0.0, 0.12, 0.1), 1e-9, none));
+    CHECK_FALSE(triangleOverBoxFace(half, rounding, Vec3(0.0, 0.12, 0.0), Vec3(0.45, 0.0, 0.0),
+                                    Vec3(0.0, 0.12, 0.1), 1e-9, none));
+    CHECK_FALSE(none.valid);
+}
+
 TEST_CASE("where a path first comes within reach of a capsule's core, against a fine sampling",
           "[geometry]") {
     std::mt19937 rng(31);

@@ -162,6 +162,20 @@ struct TriangleHit {
 TriangleHit capsuleTriangle(const Vec3& p0, const Vec3& p1, double r, const Vec3& a, const Vec3& b,
                             const Vec3& c, double reach);
 
+/// A triangle over the flat part of a box's face: the box |x_k| <= half_k with its edges and
+/// corners rounded by `rounding` (Bullet's box with its collision margin: a box of half extents
+/// half - rounding grown by a sphere of that radius), in the box's own frame. True when all
+/// three corners lie in one face's prism over its flat part (at or beyond the face's plane,
+/// within half_j - rounding across it): then the nearest points are exact, from the corners
+/// alone (the distance to the face's plane is linear over the triangle): `hit` gets the least
+/// of the corners' heights, the face's outward normal, the triangle's nearest point as the
+/// mean of the corners within `tie` [m] of the least (a triangle parallel to the face pushed
+/// out as a whole) and the point below it on the face, all in the box's frame. False (hit
+/// untouched) otherwise: a corner beside an edge or a corner of the box, or inside it, which a
+/// general query must answer.
+bool triangleOverBoxFace(const Vec3& half, double rounding, const Vec3& a, const Vec3& b,
+                         const Vec3& c, double tie, TriangleHit& hit);
+
 /// Where the segment from o to e first comes within R of a capsule's core: the segment from
 /// -halfHeight to +halfHeight along `axis` (0, 1, 2; a point when halfHeight is 0). True when
 /// o is farther than R from the core and the segment comes that near, with `t` in [0, 1] the
