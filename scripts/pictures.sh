@@ -2,15 +2,17 @@
 # Renders one frame of every shipped scene (samples/scenes/*.json) with drape-run at 320x240
 # and writes docs/pictures/<scene>.png plus the contact sheet docs/pictures/scenes.png (the
 # frames in file-name order, four to a row, built with ffmpeg's tile filter), one frame
-# of the curtain_catch game (docs/pictures/curtain_catch.png) and one of the tablecloth_trick
-# game (docs/pictures/tablecloth_trick.png: its slow and its fast yank side by side). The frame is
+# of the curtain_catch game (docs/pictures/curtain_catch.png), one of the tablecloth_trick
+# game (docs/pictures/tablecloth_trick.png: its slow and its fast yank side by side) and two of
+# the laundry_line game (docs/pictures/laundry_line.png: a towel carried over the line beside
+# it hanging there). The frame is
 # the last step of the scene's own duration unless the table below picks an earlier time
 # (in simulated seconds) at which more is going on.
 # Usage: scripts/pictures.sh [--out DIR] [--bin DIR]
-#   Sets up packages (needs root or sudo only if some are missing), builds the three programs
+#   Sets up packages (needs root or sudo only if some are missing), builds the four programs
 #   in $DRAPE_BUILD_DIR (default build/, Release) and writes the pictures to docs/pictures.
 #   --out DIR  writes them to DIR instead.
-#   --bin DIR  uses drape-run, curtain_catch and tablecloth_trick as they are in DIR: no setup,
+#   --bin DIR  uses drape-run and the three games as they are in DIR: no setup,
 #              no build. The test samples.pictures.match_the_committed_ones renders with this
 #              into its build folder and compares the result with docs/pictures.
 set -euo pipefail
@@ -30,10 +32,10 @@ if [ -z "$bin" ]; then
     build=${DRAPE_BUILD_DIR:-build}
     cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
     cmake --build "$build" -j"$(nproc)" --target drape-run drape_curtain_catch \
-        drape_tablecloth_trick_game >/dev/null
+        drape_tablecloth_trick_game drape_laundry_line >/dev/null
     bin=$build/bin
 fi
-for program in drape-run curtain_catch tablecloth_trick; do
+for program in drape-run curtain_catch tablecloth_trick laundry_line; do
     if [ ! -x "$bin/$program" ]; then
         echo "pictures: $bin/$program not found (build it, or leave out --bin)" >&2
         exit 1
@@ -81,4 +83,12 @@ ffmpeg -loglevel error -y -i "$tmp/tablecloth_trick/slow/frames/frame_00023.png"
     -i "$tmp/tablecloth_trick/fast/frames/frame_00009.png" \
     -filter_complex "[0][1]hstack" -compression_level 100 -pred mixed "$out/tablecloth_trick.png"
 echo "pictures: $out/tablecloth_trick.png"
+
+# The laundry line (default seed), its first towel: frame 60 (2.4 s, carried over the line by
+# its grab) beside frame 139 (let go at 3.1 s, hanging on the line).
+"$bin"/laundry_line -o "$tmp/laundry_line" --rounds 1 --width 240 --height 180 >/dev/null
+ffmpeg -loglevel error -y -i "$tmp/laundry_line/frames/frame_00060.png" \
+    -i "$tmp/laundry_line/frames/frame_00139.png" \
+    -filter_complex "[0][1]hstack" -compression_level 100 -pred mixed "$out/laundry_line.png"
+echo "pictures: $out/laundry_line.png"
 du -ch "$out"/*.png | tail -n 1

@@ -355,8 +355,9 @@ class Cloth {
     // --- queries --------------------------------------------------------------------------
     /// The first place the segment from `from` to `to` [m] crosses the cloth's triangles at
     /// their current positions, from either side; nothing if it crosses none. Picking: cast
-    /// the mouse ray, then drive ClothHit::particle with setKinematicTarget each frame and
-    /// unpin it to let go (README, "Picking and dragging a cloth"). Every triangle is tested:
+    /// the mouse ray, then pull ClothHit::particle toward the mouse with setGrab each frame
+    /// and releaseGrab to let go (README, "Picking and dragging a cloth"; the laundry_line
+    /// sample game). Every triangle is tested:
     /// O(triangles), about 10 ns each. Throws drape::Error (NonFinite) for a non-finite end.
     std::optional<ClothHit> rayCast(const Vec3& from, const Vec3& to) const;
 
