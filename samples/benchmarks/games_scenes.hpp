@@ -20,6 +20,7 @@
 #include <btBulletDynamicsCommon.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -418,6 +419,109 @@ inline GameScene makeStack() {
         return std::string(buf);
     };
     s.seconds = 12.0;
+    return s;
+}
+
+/// The fastest particle of a cloth [m/s].
+inline double fastestParticle(const Cloth& cloth) {
+    double v = 0.0;
+    for (const Vec3& u : cloth.velocities())
+        v = std::max(v, u.norm());
+    return v;
+}
+
+/// 19. cape_snap: the cape of scenes 4-5 on a kinematic box walking forward (+z, out of the
+/// cape's plane) at 1.5 m/s, snapped by the game in one frame 0.3 m sideways (+x, in the cape's
+/// plane) at 2 s and 0.3 m forward at 4 s (a network correction or a character snapped to the
+/// ground: slower than BulletClothSettings::teleportSpeed, so the cape is dragged, not
+/// carried). The cape must gain the snap's 18 m/s within the frame: the strain limiter drags
+/// the whole cape (integration/README.md, "Jolt beside drape on game scenes"); the table's max
+/// column is the snap frames'. Notes: the fastest particle in the second after each snap.
+inline GameScene makeCapeSnap() {
+    GameScene s;
+    s.world = std::make_unique<GameWorld>();
+    constexpr double kY = 1.5, kSpeed = 1.5, kSnap = 0.3;
+    btRigidBody* box = s.world->addBody(
+        std::make_unique<btBoxShape>(btVector3(btScalar(0.4), btScalar(0.1), btScalar(0.2))), 0,
+        at(0.0, kY, 0.0), true);
+    addCape(s, box, Vec3(0.0, kY, 0.0));
+    s.beforeFrame = [box](double t) {
+        const double x = t >= 2.0 ? kSnap : 0.0;
+        const double z = kSpeed * t + (t >= 4.0 ? kSnap : 0.0);
+        moveKinematic(box, at(x, kY, z));
+    };
+    auto fastest = std::make_shared<std::array<double, 2>>();
+    Cloth* cloth = s.cloth.get();
+    s.afterFrame = [fastest, cloth](double t) {
+        const int snap = t > 2.0 && t <= 3.0 ? 0 : t > 4.0 && t <= 5.0 ? 1 : -1;
+        if (snap >= 0)
+            (*fastest)[std::size_t(snap)] =
+                std::max((*fastest)[std::size_t(snap)], fastestParticle(*cloth));
+    };
+    s.notes = [fastest]() {
+        char buf[256];
+        std::snprintf(buf, sizeof buf,
+                      "snapped %.1f m in the cape's plane at 2 s and %.1f m out of it at 4 s "
+                      "(18 m/s within a frame): the fastest particle in the second after "
+                      "%.1f and %.1f m/s",
+                      kSnap, kSnap, (*fastest)[0], (*fastest)[1]);
+        return std::string(buf);
+    };
+    s.seconds = 6.0;
+    return s;
+}
+
+/// 20. curtain_pick: picking as the README shows it. A 1 m curtain (41 x 41, 0.025 m, pinned
+/// along its top row at y 2) is grabbed (Cloth::setGrab, automatic stiffness) 0.7 m below the
+/// pins in its middle column; the mouse moves 0.2 m sideways in the curtain's plane at 1 m/s
+/// (0.5-0.7 s) and holds, then 0.2 m toward the viewer (2.0-2.2 s) and holds; the grab is let
+/// go at 3.5 s. Notes: how far the grabbed particle trails the mouse at the end of each hold
+/// (the cloth pulls back where it cannot follow) and the fastest particle after letting go.
+inline GameScene makeCurtainPick() {
+    GameScene s;
+    s.world = std::make_unique<GameWorld>();
+    SheetSpec sheet;
+    sheet.rows = 41;
+    sheet.cols = 41;
+    sheet.spacing = 0.025;
+    sheet.origin = Vec3(-0.5, 2.0, 0.0);
+    addDefaultCloth(s, makeSheet(sheet));
+    for (Index c = 0; c < sheet.cols; ++c)
+        s.cloth->pin(sheetIndex(sheet, 0, c));
+    const Index grabbed = sheetIndex(sheet, 28, 20);
+    const Vec3 start = s.cloth->positions()[grabbed];
+    auto mouse = [start](double t) {
+        const double side = 0.2 * std::clamp((t - 0.5) / 0.2, 0.0, 1.0);
+        const double toward = 0.2 * std::clamp((t - 2.0) / 0.2, 0.0, 1.0);
+        return Vec3(start + Vec3(side, 0.0, toward));
+    };
+    Cloth* cloth = s.cloth.get();
+    s.beforeFrame = [cloth, grabbed, mouse](double t) {
+        if (t <= 3.5)
+            cloth->setGrab(grabbed, mouse(t));
+        else if (!cloth->grabs().empty())
+            cloth->releaseGrab(grabbed);
+    };
+    struct State {
+        double trailSide = 0.0, trailToward = 0.0, fastestAfter = 0.0;
+    };
+    auto st = std::make_shared<State>();
+    s.afterFrame = [st, cloth, grabbed, mouse](double t) {
+        const double trail = (cloth->positions()[grabbed] - mouse(t)).norm();
+        if (std::abs(t - 2.0) < 0.5 / 60.0) st->trailSide = trail;
+        if (std::abs(t - 3.5) < 0.5 / 60.0) st->trailToward = trail;
+        if (t > 3.5) st->fastestAfter = std::max(st->fastestAfter, fastestParticle(*cloth));
+    };
+    s.notes = [st]() {
+        char buf[256];
+        std::snprintf(buf, sizeof buf,
+                      "grabbed 0.7 m below the pins: the particle trails the mouse by %.3f m "
+                      "held 0.2 m aside in the plane, %.3f m held 0.2 m out of it too; let go, "
+                      "the fastest particle %.2f m/s",
+                      st->trailSide, st->trailToward, st->fastestAfter);
+        return std::string(buf);
+    };
+    s.seconds = 5.0;
     return s;
 }
 
@@ -999,6 +1103,8 @@ inline const std::vector<SceneEntry>& allScenes() {
         {"rock_drape", &makeRockDrape},
         {"boulder_drape", &makeBoulderDrape},
         {"cape_skirt", &makeCapeSkirt},
+        {"cape_snap", &makeCapeSnap},
+        {"curtain_pick", &makeCurtainPick},
     };
     return scenes;
 }
