@@ -113,7 +113,11 @@ void ContactSolver::detect(Cloth& c, double dt) {
     solveHeld(c);
     if (contact_.continuous) sweepBodies(c, dt, counters);
     straddledSprings(c, dt);
-    if (contact_.triangles) collideTriangles(c, dt, counters);
+    if (contact_.triangles) {
+        pushFriction_ = true;
+        collideTriangles(c, dt, counters);
+        pushFriction_ = false;
+    }
     if (contact_.boxEdges) collideEdges(c);
     for (unsigned char t : touching_)
         anyTouching_ = anyTouching_ || t != 0;

@@ -321,9 +321,14 @@ class ContactSolver {
     bool exiting(Index i) const { return i < exitNow_.size() && exitNow_[i] != 0; }
     // Scratch of the stage, reused every step.
     std::vector<unsigned char> touching_; ///< particle touched a body this step
-    bool anyTouching_ = false;            ///< some particle did (detect)
-    std::vector<std::int64_t> recordOf_;  ///< per particle: its latest ContactRecord, or -1
-    std::vector<Index> projected_;        ///< particles the last contact pass moved
+    /// Triangle pushes take back the slide along the body (Coulomb friction on the push) in the
+    /// pass before the limiter's walk only: after it, the walk's moves along the body are its
+    /// spring corrections, and taking them back stretched springs past the bound (a rod swept
+    /// through a curtain: 0.102).
+    bool pushFriction_ = false;
+    bool anyTouching_ = false;           ///< some particle did (detect)
+    std::vector<std::int64_t> recordOf_; ///< per particle: its latest ContactRecord, or -1
+    std::vector<Index> projected_;       ///< particles the last contact pass moved
     /// The tangent plane of each particle's contact this step (n . x >= n . P + h), which the
     /// limiter's walk keeps, with the body and the point it belongs to.
     std::vector<std::uint32_t> planeBody_;

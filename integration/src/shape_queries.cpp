@@ -679,7 +679,10 @@ TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& 
         // A triangle over a face (a cloth lying on a table): exact from its corners, in double
         // precision, some twenty times cheaper than GJK (a towel resting on a table cost 5 ms
         // a 60 Hz step awake, nearly all of it here). Beside an edge or a corner, GJK below.
-        // Bullet's GJK sees the box with its margin as a rounded box: the same flat faces.
+        // Bullet's GJK sees the box with its margin as a rounded box: the same flat faces. (A
+        // margin beyond a half extent, as a box flattened by setLocalScaling keeps, makes
+        // Bullet's box no convex shape and GJK's answers meaningless; the faces here are then
+        // the box's with the margin, as the particle contacts take them.)
         const auto* box = static_cast<const btBoxShape*>(shape);
         const Pose pose = toPose(transform);
         TriangleHit h;

@@ -85,10 +85,25 @@ bool ContactSolver::pushTriangle(Cloth& c, std::uint32_t bi, const Triangle& tri
     // gets the triangle's plane in the walk instead (keepsTrianglePlanes).
     const bool trianglePlane = swept && keepsTrianglePlanes(bi);
     if (trianglePlane) addTrianglePlane(bi, tri, beta, n, point);
+    // The push along n is a position change: without friction a triangle resting on a curved
+    // body slid down it by g sin(theta) dt^2 each step (a towel draped over a clothesline crept
+    // off it). Coulomb friction on the push (its normal part is `depth`): the point's slide
+    // along the surface since the step's start, relative to the body, is taken back up to
+    // mu depth, before the walk (pushFriction_).
+    Vec3 taken = Vec3::Zero();
+    if (!swept && pushFriction_) {
+        Vec3 slide = -dt * b.velocityAt(point);
+        for (int k = 0; k < 3; ++k)
+            slide += beta[k] * (x[tri[k]] - stepStart()[tri[k]]);
+        slide -= slide.dot(n) * n;
+        const double most = b.friction * depth, len = slide.norm();
+        taken = len <= most ? slide : (most / len) * slide;
+    }
     for (int k = 0; k < 3; ++k) {
         const Index i = tri[k];
         if (w[i] == 0.0 || beta[k] == 0.0) continue;
         x[i] += (beta[k] * w[i] * depth / weight) * n;
+        if (taken != Vec3::Zero()) x[i] -= (beta[k] * w[i] / weight) * taken;
         touching_[i] = 1;
         projected_.push_back(i);
         boxes_.update(i, x[i], stepStart()[i], false);

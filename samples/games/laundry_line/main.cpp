@@ -28,6 +28,7 @@
 #include <fstream>
 #include <iostream>
 #include <optional>
+#include <string>
 
 using namespace drape;
 using namespace drape::samples;
@@ -41,6 +42,9 @@ constexpr double kLineRadius = 0.012;
 // How high the hand carries the towel over to the line: low enough that the towel hanging
 // from its grab meets the line halfway down and is drawn over it [m].
 constexpr double kCarryHeight = 1.65;
+constexpr double kTableTop = 0.75; // [m]
+// After letting go the towel has this long to come to rest (fall asleep) [s].
+constexpr double kMostSettle = 8.0;
 
 // Where the player's hand goes: eased from one point to the next over each leg's duration.
 struct Leg {
@@ -62,7 +66,7 @@ Vec3 handAt(const Vec3& start, const std::vector<Leg>& legs, double t) {
     return from;
 }
 
-enum class Outcome { Hung, OnTheFloor, OnTheTable, Missed };
+enum class Outcome { Hung, OnTheFloor, OnTheTable, StillMoving, Missed };
 
 const char* toString(Outcome o) {
     switch (o) {
@@ -72,14 +76,19 @@ const char* toString(Outcome o) {
         return "on the floor";
     case Outcome::OnTheTable:
         return "on the table";
+    case Outcome::StillMoving:
+        return "still moving";
     case Outcome::Missed:
         return "missed the towel";
     }
     return "?";
 }
 
-// On the line: its highest particle rests on the line (within a few centimetres above its
-// axis), some of it hangs on each side, and no particle lies on the floor.
+// Judged once the towel has come to rest (asleep) or the round's time is up. On the floor:
+// a particle lies on it. Hung: at rest, its highest particle on the line (within a few
+// centimetres above its axis) and some of it hanging on each side. On the table: at rest with
+// no particle below the table's top. Anything else is still moving (sliding off the line,
+// falling) and does not score.
 Outcome judge(const Cloth& towel) {
     double lowest = 1e300, highest = -1e300;
     bool front = false, back = false;
@@ -90,9 +99,11 @@ Outcome judge(const Cloth& towel) {
         back = back || p.z() < kLineZ - kLineRadius;
     }
     if (lowest < 0.05) return Outcome::OnTheFloor;
+    if (!towel.isAsleep()) return Outcome::StillMoving;
     if (highest > kLineHeight - 0.05 && highest < kLineHeight + 0.06 && front && back)
         return Outcome::Hung;
-    return Outcome::OnTheTable;
+    if (lowest > kTableTop) return Outcome::OnTheTable;
+    return Outcome::StillMoving;
 }
 
 struct Round {
@@ -104,6 +115,7 @@ struct Round {
     std::uint64_t capHits = 0;
     double grabStiffness = 0.0; // [N/m]
     double worstLag = 0.0;      // largest distance from the particle to the hand while held [m]
+    double restAfter = -1.0;    // asleep this long after letting go [s] (-1: not at rest)
 };
 
 } // namespace
@@ -125,7 +137,7 @@ int main(int argc, char** argv) {
         if (!cl.noRender) renderer = std::make_unique<OffscreenRenderer>(cl.width, cl.height);
         std::ofstream log(outDir / "rounds.csv");
         log << "round,particle,far_m,release_m,outcome,median_ms,worst_ms,peak_strain,cap_hits,"
-               "grab_n_per_m,worst_lag_m\n";
+               "grab_n_per_m,worst_lag_m,rest_after_s\n";
 
         ScriptedPlayer player(cl.seed);
         const double frameDt = 1.0 / scene.output.fps;
@@ -155,12 +167,13 @@ int main(int argc, char** argv) {
             double dragTime = 0.0;
             for (const Leg& leg : legs)
                 dragTime += leg.duration;
-            const double pickAt = 0.3, settle = 2.5;
-            const double end = pickAt + dragTime + settle;
+            const double pickAt = 0.3;
+            const double end = pickAt + dragTime + kMostSettle;
             std::vector<double> stepMs;
             bool held = false, released = false;
             FixedStepLoop loop(scene.timeStep, frameDt);
-            while (sim.time() < end - 1e-9) {
+            // Until the towel rests after the drag (it sleeps), or the time is up.
+            while (sim.time() < end - 1e-9 && !(released && towel.isAsleep())) {
                 loop.beginFrame();
                 while (loop.nextStep() && sim.time() < end - 1e-9) {
                     const double t = sim.time() - pickAt;
@@ -197,6 +210,7 @@ int main(int argc, char** argv) {
                 ++frame;
             }
             round.outcome = hit ? judge(towel) : Outcome::Missed;
+            if (released && towel.isAsleep()) round.restAfter = sim.time() - pickAt - dragTime;
             round.capHits = towel.limiterCapHits();
             std::vector<double> sorted = stepMs;
             std::sort(sorted.begin(), sorted.end());
@@ -206,14 +220,18 @@ int main(int argc, char** argv) {
             std::cout << "towel " << r + 1 << ": " << toString(round.outcome) << " (carried "
                       << round.farOffset << " m past the line, let go at " << round.releaseHeight
                       << " m; particle " << round.particle << ", grab " << round.grabStiffness
-                      << " N/m, lagging the hand by up to " << round.worstLag << " m)\n"
+                      << " N/m, lagging the hand by up to " << round.worstLag << " m; "
+                      << (round.restAfter >= 0.0
+                              ? "at rest " + std::to_string(round.restAfter) + " s after letting go"
+                              : std::string("not at rest"))
+                      << ")\n"
                       << "  cost: " << round.medianMs << " ms median, " << round.worstMs
                       << " ms worst a 60 Hz step (thread CPU); peak strain " << round.peakStrain
                       << ", limiter cap hits " << round.capHits << "\n";
             log << r + 1 << ',' << round.particle << ',' << round.farOffset << ','
                 << round.releaseHeight << ',' << toString(round.outcome) << ',' << round.medianMs
                 << ',' << round.worstMs << ',' << round.peakStrain << ',' << round.capHits << ','
-                << round.grabStiffness << ',' << round.worstLag << '\n';
+                << round.grabStiffness << ',' << round.worstLag << ',' << round.restAfter << '\n';
         }
         std::ofstream(outDir / "score.txt") << "hung " << hung << " of " << rounds << " towels\n";
         std::cout << "final score: " << hung << " of " << rounds << " towels hung on the line ("
