@@ -144,9 +144,8 @@ void ContactSolver::finish(Cloth& c, double dt) {
         collideMoved(c, dt, planes ? c.limiter().movedIndex() : everyParticle_, counters);
         if (planes && contact_.triangles) collideTriangles(c, dt, counters);
         // Only where that moved particles does the limiter run again from them, and so on (at
-        // most kRelimitPasses, or kRelimitPassesDynamic while only dynamic bodies projected).
-        for (int pass = 0; !projected_.empty(); ++pass) {
-            if (pass >= kRelimitPasses && (pass >= kRelimitPassesDynamic || projectedStill_)) break;
+        // most kRelimitPasses).
+        for (int pass = 0; pass < kRelimitPasses && !projected_.empty(); ++pass) {
             StrainLimitStats st;
             {
                 ScopedPhase timeLimiter(c.timers(), limiterSlot);
@@ -326,7 +325,6 @@ void ContactSolver::collideParticles(Cloth& c, double dt, QueryCounters& counter
                 collideParticle(c, bi, i, dt, counters);
                 // Projected: the next bodies see where it is now.
                 if (movedBy(before, x[i], contact_.thickness)) {
-                    projectedStill_ = projectedStill_ || !b.dynamicBody;
                     projected_.push_back(static_cast<Index>(i));
                     boxes_.update(i, x[i], stepStart()[i], false);
                     bl.grow(boxes_[i]);
@@ -344,7 +342,6 @@ void ContactSolver::collideMoved(Cloth& c, double dt, const std::vector<Index>& 
     moved_.assign(moved.begin(), moved.end());
     std::sort(moved_.begin(), moved_.end());
     projected_.clear();
-    projectedStill_ = false;
     // Re-project what the limiter moved, in index order per body as before; the moved
     // particles of one block are skipped together when their boxes' union misses a body.
     movedGroups_.clear();
@@ -372,7 +369,6 @@ void ContactSolver::collideMoved(Cloth& c, double dt, const std::vector<Index>& 
                 const Vec3 before = x[i];
                 collideParticle(c, bi, i, dt, counters);
                 if (movedBy(before, x[i], contact_.thickness)) {
-                    projectedStill_ = projectedStill_ || !b.dynamicBody;
                     projected_.push_back(static_cast<Index>(i));
                     boxes_.update(i, x[i], stepStart()[i], false);
                     g.box.grow(boxes_[i]);

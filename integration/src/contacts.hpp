@@ -91,11 +91,6 @@ struct ScopedFlag {
 
 /// Follow-up walks and re-projections after the limiter's walk, at most.
 constexpr int kRelimitPasses = 8;
-/// ... and while the re-projections are all against dynamic bodies (which the walks move too:
-/// bodies resting on a net and on each other), up to this many: a pile of crates on a net
-/// ran out of the eight with the strain at 0.105 once springs wrapped round a free crate's
-/// edge were left to the walk (collideSpringWithBox).
-constexpr int kRelimitPassesDynamic = 32;
 /// A projection shorter than this share of the thickness is rounding, not a move: the
 /// particle stays where it is (nothing for the limiter to walk again from).
 constexpr double kNoMove = 1e-9;
@@ -331,9 +326,6 @@ class ContactSolver {
     /// spring corrections, and taking them back stretched springs past the bound (a rod swept
     /// through a curtain: 0.102).
     bool pushFriction_ = false;
-    /// The last re-projection (collideMoved, and the triangles after it) moved a particle out
-    /// of a static or kinematic body (kRelimitPassesDynamic).
-    bool projectedStill_ = false;
     bool anyTouching_ = false;           ///< some particle did (detect)
     std::vector<std::int64_t> recordOf_; ///< per particle: its latest ContactRecord, or -1
     std::vector<Index> projected_;       ///< particles the last contact pass moved

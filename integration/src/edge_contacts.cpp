@@ -178,20 +178,6 @@ void ContactSolver::collideSpringWithBox(Cloth& c, std::size_t si, std::uint32_t
     const double weight = beta[0] * beta[0] * w[s.a] + beta[1] * beta[1] * w[s.b];
     if (!(weight > 0.0)) return;
     const Vec3 n = b.pose.R * g;
-    // A spring resting wrapped round the edge of a free box (one the walk moves: a crate on a
-    // net), within the thickness but outside the box, is left where it is unless it came in
-    // this step (its approach over the step, relative to the box, exceeds its cut h - d). The
-    // push moved positions only, with no plane in the walk: it stretched a spring at its bound,
-    // the walk pulled it back across the edge, that became velocity into the box and the
-    // crate's contacts handed it to the crate, every step: the crate rocked on the net for ever
-    // and its frames cost 25 ms (crate_net). A spring inside the box (d < 0) is still pushed,
-    // so a cut never deepens past the surface unseen (integration/README.md, "Why a crate on
-    // a net never rests").
-    if (moverOf_[bi] >= 0 && d >= 0.0) {
-        const Vec3 onSurface = b.pose.toWorld(local - d * g);
-        const Vec3 along = (1.0 - t) * c.velocities()[s.a] + t * c.velocities()[s.b];
-        if (-(along - b.velocityAt(onSurface)).dot(n) * records->dt < h - d) return;
-    }
     // A dynamic box pressing the spring into a static or kinematic body that holds an end
     // (a crate on a rug on the floor) moves nothing: see collideParticle.
     if (b.dynamicBody && (heldAgainst(x, s.a, n) || heldAgainst(x, s.b, n))) return;

@@ -105,7 +105,6 @@ bool ContactSolver::pushTriangle(Cloth& c, std::uint32_t bi, const Triangle& tri
         x[i] += (beta[k] * w[i] * depth / weight) * n;
         if (taken != Vec3::Zero()) x[i] -= (beta[k] * w[i] / weight) * taken;
         touching_[i] = 1;
-        projectedStill_ = projectedStill_ || !b.dynamicBody;
         projected_.push_back(i);
         boxes_.update(i, x[i], stepStart()[i], false);
         if (trianglePlane) continue;
