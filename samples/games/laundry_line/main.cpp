@@ -172,8 +172,10 @@ int main(int argc, char** argv) {
             std::vector<double> stepMs;
             bool held = false, released = false;
             FixedStepLoop loop(scene.timeStep, frameDt);
-            // Until the towel rests after the drag (it sleeps), or the time is up.
-            while (sim.time() < end - 1e-9 && !(released && towel.isAsleep())) {
+            // Until the towel rests after the drag (it sleeps), or the time is up; a click that
+            // missed the towel ends the round.
+            while (sim.time() < end - 1e-9 && !(released && towel.isAsleep()) &&
+                   (hit || sim.time() < pickAt)) {
                 loop.beginFrame();
                 while (loop.nextStep() && sim.time() < end - 1e-9) {
                     const double t = sim.time() - pickAt;
