@@ -114,9 +114,8 @@ void ContactSolver::detect(Cloth& c, double dt) {
     if (contact_.continuous) sweepBodies(c, dt, counters);
     straddledSprings(c, dt);
     if (contact_.triangles) {
-        pushFriction_ = true;
+        const ScopedFlag friction(pushFriction_);
         collideTriangles(c, dt, counters);
-        pushFriction_ = false;
     }
     if (contact_.boxEdges) collideEdges(c);
     for (unsigned char t : touching_)

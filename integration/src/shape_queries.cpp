@@ -677,8 +677,8 @@ TriangleHit closestToTriangle(const btCollisionShape* shape, const btTransform& 
     }
     if (shape->getShapeType() == BOX_SHAPE_PROXYTYPE) {
         // A triangle over a face (a cloth lying on a table): exact from its corners, in double
-        // precision, some twenty times cheaper than GJK (a towel resting on a table cost 5 ms
-        // a 60 Hz step awake, nearly all of it here). Beside an edge or a corner, GJK below.
+        // precision, and cheaper than GJK (a towel lying awake on a table: 4.9 -> 1.4 ms a 60
+        // Hz step). Beside an edge or a corner, GJK below.
         // Bullet's GJK sees the box with its margin as a rounded box: the same flat faces. (A
         // margin beyond a half extent, as a box flattened by setLocalScaling keeps, makes
         // Bullet's box no convex shape and GJK's answers meaningless; the faces here are then

@@ -91,7 +91,7 @@ bool ContactSolver::pushTriangle(Cloth& c, std::uint32_t bi, const Triangle& tri
     // along the surface since the step's start, relative to the body, is taken back up to
     // mu depth, before the walk (pushFriction_).
     Vec3 taken = Vec3::Zero();
-    if (!swept && pushFriction_) {
+    if (!swept && pushFriction_ && b.friction > 0.0) {
         Vec3 slide = -dt * b.velocityAt(point);
         for (int k = 0; k < 3; ++k)
             slide += beta[k] * (x[tri[k]] - stepStart()[tri[k]]);

@@ -241,6 +241,11 @@ inline GameScene makeFlag() {
     return s;
 }
 
+/// The box the cape of scenes 4, 5 and 19 hangs from (addCape): half-extents (0.4, 0.1, 0.2).
+inline std::unique_ptr<btBoxShape> capeShoulders() {
+    return std::make_unique<btBoxShape>(btVector3(btScalar(0.4), btScalar(0.1), btScalar(0.2)));
+}
+
 /// The cape of scenes 4 and 5: 13 x 19, 0.05 m (0.6 x 0.9 m) in the x-y plane, hanging from
 /// the back top edge of a box of half-extents (0.4, 0.1, 0.2) centred at `centre` (the cape's
 /// top row 3 cm behind the box's back face, beyond the default contact thickness and penalty
@@ -262,9 +267,7 @@ inline GameScene makeCapeKinematic() {
     GameScene s;
     s.world = std::make_unique<GameWorld>();
     constexpr double kRadius = 1.0, kOmega = 2.0, kY = 1.5;
-    btRigidBody* box = s.world->addBody(
-        std::make_unique<btBoxShape>(btVector3(btScalar(0.4), btScalar(0.1), btScalar(0.2))), 0,
-        at(kRadius, kY, 0.0), true);
+    btRigidBody* box = s.world->addBody(capeShoulders(), 0, at(kRadius, kY, 0.0), true);
     addCape(s, box, Vec3(kRadius, kY, 0.0));
     s.beforeFrame = [box](double t) {
         const double a = kOmega * t;
@@ -288,9 +291,7 @@ inline GameScene makeCapeOnBox(double boxMass) {
     GameScene s;
     s.world = std::make_unique<GameWorld>();
     constexpr double kY = 1.5;
-    btRigidBody* box = s.world->addBody(
-        std::make_unique<btBoxShape>(btVector3(btScalar(0.4), btScalar(0.1), btScalar(0.2))),
-        btScalar(boxMass), at(0.0, kY, 0.0));
+    btRigidBody* box = s.world->addBody(capeShoulders(), btScalar(boxMass), at(0.0, kY, 0.0));
     box->setGravity(btVector3(0, 0, 0));
     box->setActivationState(DISABLE_DEACTIVATION);
     addCape(s, box, Vec3(0.0, kY, 0.0));
@@ -441,9 +442,7 @@ inline GameScene makeCapeSnap() {
     GameScene s;
     s.world = std::make_unique<GameWorld>();
     constexpr double kY = 1.5, kSpeed = 1.5, kSnap = 0.3;
-    btRigidBody* box = s.world->addBody(
-        std::make_unique<btBoxShape>(btVector3(btScalar(0.4), btScalar(0.1), btScalar(0.2))), 0,
-        at(0.0, kY, 0.0), true);
+    btRigidBody* box = s.world->addBody(capeShoulders(), 0, at(0.0, kY, 0.0), true);
     addCape(s, box, Vec3(0.0, kY, 0.0));
     s.beforeFrame = [box](double t) {
         const double x = t >= 2.0 ? kSnap : 0.0;
